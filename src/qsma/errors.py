@@ -1,0 +1,29 @@
+"""Exceptions and warnings of qsma.
+
+Every error a user can meet derives from :class:`QSMAError`; the CLI maps
+:class:`InputError` to exit code 2 and :class:`AnalysisError` to exit code 1.
+"""
+
+
+class QSMAError(Exception):
+    """Base class of every qsma error."""
+
+
+class InputError(QSMAError, ValueError):
+    """Bad input: a model, mesh file, configuration or parameter to fix."""
+
+
+class MeshFileError(InputError):
+    """A mesh file that cannot be read, with the file and, where known, the line."""
+
+
+class AnalysisError(QSMAError, RuntimeError):
+    """The analysis could not produce a valid answer (see ``partial``)."""
+
+    def __init__(self, message, partial=None):
+        super().__init__(message)
+        self.partial = partial
+
+
+class ContactConvergenceWarning(UserWarning):
+    """A contact solve stopped without meeting its tolerance."""

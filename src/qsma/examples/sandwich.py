@@ -1,0 +1,62 @@
+"""The sandwich-2d benchmark: two clamped beams joined by a bolt near the tip.
+
+Every number below is fixed by ``shared/spec/sandwich-2d.md``.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+from ..model import Body, Clamp, Interface, Material, Model, Pressure, Probe
+from ..model.generate import graded_axis, structured_mesh
+
+#: parameters of the spec (SI units)
+SANDWICH_2D = dict(
+    L=0.2032, h=0.00635, contact_length=0.0508, E=200e9, nu=0.285, rho=6600.0,
+    p_bolt=17.554e6, x_bolt=0.2032 - 0.0254, w_bolt=0.00635, mu=0.6,
+    n_thick=8, n_coarse=60, n_fine=64,
+)
+
+
+def _beam(y0, refine, top):
+    s = SANDWICH_2D
+    L, h, lc = s["L"], s["h"], s["contact_length"]
+    xs = graded_axis((0.0, L - lc, s["n_coarse"] * refine), (L - lc, L, s["n_fine"] * refine))
+    ys = np.linspace(y0, y0 + h, s["n_thick"] * refine + 1)
+    mesh = structured_mesh(xs, ys)
+    eps = 1e-9 * L
+    xb0, xb1 = s["x_bolt"] - s["w_bolt"] / 2, s["x_bolt"] + s["w_bolt"] / 2
+    y_if = y0 if top else y0 + h            # face y = h of both beams
+    y_bolt = y0 + h if top else y0          # outer face
+    on = lambda y: (lambda p: np.abs(p[:, 1] - y) < eps)
+    facet_sets = {
+        "interface": mesh.boundary_facets_where(
+            lambda p: on(y_if)(p) & (p[:, 0] >= L - lc - eps)),
+        "bolt": mesh.boundary_facets_where(
+            lambda p: on(y_bolt)(p) & (p[:, 0] >= xb0 - eps) & (p[:, 0] <= xb1 + eps)),
+        "outer": mesh.boundary_facets_where(on(y_bolt)),
+        "end": mesh.boundary_facets_where(lambda p: np.abs(p[:, 0] - L) < eps),
+    }
+    node_sets = {"clamp": np.flatnonzero(np.abs(mesh.points[:, 0]) < eps),
+                 "tip": np.flatnonzero(np.abs(mesh.points[:, 0] - L) < eps)}
+    return mesh.with_sets(node_sets=node_sets, facet_sets=facet_sets)
+
+
+def sandwich_2d(refine: int = 1, mu: float | None = None) -> Model:
+    """The sandwich-2d model at refinement level ``refine`` (every element divided
+    ``refine x refine``; 2250 nodes and 65 interface pairs at ``refine=1``)."""
+    if not isinstance(refine, (int, np.integer)) or refine < 1:
+        raise InputError(f"refine must be a positive integer, got {refine!r}")
+    s = SANDWICH_2D
+    steel = Material(s["E"], s["nu"], s["rho"])
+    bottom = Body("bottom", _beam(0.0, refine, top=False), steel,
+                  clamps=(Clamp("clamp"),), pressures=(Pressure("bolt", s["p_bolt"]),))
+    top = Body("top", _beam(s["h"], refine, top=True), steel,
+               clamps=(Clamp("clamp"),), pressures=(Pressure("bolt", s["p_bolt"]),))
+    return Model(
+        bodies=(bottom, top),
+        interface=Interface("bottom", "interface", "top", "interface"),
+        tip=Probe(sets=(("bottom", "tip"), ("top", "tip")), direction=(0.0, 1.0)),
+        mu=s["mu"] if mu is None else mu,
+        name=f"sandwich-2d (refine={refine})",
+    )

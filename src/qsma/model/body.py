@@ -1,0 +1,191 @@
+"""Materials, boundary conditions, loads, bodies and the assembled model."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import math
+
+import numpy as np
+
+from ..errors import InputError
+from .mesh import Mesh
+
+
+def _finite(name, value):
+    if not isinstance(value, (int, float, np.floating, np.integer)) or isinstance(value, bool):
+        raise InputError(f"{name} must be a number, got {value!r}")
+    if not math.isfinite(value):
+        raise InputError(f"{name} must be finite, got {value!r}")
+    return float(value)
+
+
+@dataclass(frozen=True)
+class Material:
+    """Isotropic linear elastic material (SI units).
+
+    Plane strain is used in 2D (unit out-of-plane depth).
+    """
+
+    E: float
+    nu: float
+    rho: float
+
+    def __post_init__(self):
+        E, nu, rho = (_finite(n, getattr(self, n)) for n in ("E", "nu", "rho"))
+        if E <= 0:
+            raise InputError(f"Young's modulus E must be > 0, got {E}")
+        if not -1.0 < nu < 0.5:
+            raise InputError(f"Poisson's ratio nu must lie in (-1, 0.5), got {nu}")
+        if rho <= 0:
+            raise InputError(f"density rho must be > 0, got {rho}")
+        object.__setattr__(self, "E", E)
+        object.__setattr__(self, "nu", nu)
+        object.__setattr__(self, "rho", rho)
+
+    @property
+    def lame(self):
+        """Lame parameters (lambda, mu) of the 3D material (plane strain in 2D)."""
+        E, nu = self.E, self.nu
+        return E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
+
+
+@dataclass(frozen=True)
+class Clamp:
+    """Dirichlet condition u_c = 0 on the nodes of a set, for components ``components``
+    (``None``: every component)."""
+
+    set: str
+    components: tuple | None = None
+
+
+@dataclass(frozen=True)
+class Pressure:
+    """Pressure ``p`` (Pa, positive pushes into the body) on a facet set, part of the
+    load pattern named ``load`` (the bolt preload is ``"preload"``)."""
+
+    set: str
+    p: float
+    load: str = "preload"
+
+    def __post_init__(self):
+        object.__setattr__(self, "p", _finite(f"pressure on {self.set!r}", self.p))
+
+
+@dataclass(frozen=True, eq=False)
+class Body:
+    """One elastic body: mesh, material, clamps and pressure loads."""
+
+    name: str
+    mesh: Mesh
+    material: Material
+    clamps: tuple = ()
+    pressures: tuple = ()
+
+    def __post_init__(self):
+        object.__setattr__(self, "clamps", tuple(self.clamps))
+        object.__setattr__(self, "pressures", tuple(self.pressures))
+        names = self.mesh.set_names()
+        for c in self.clamps:
+            if c.set not in names:
+                raise InputError(f"body {self.name!r}: clamp on unknown set {c.set!r}; "
+                                 f"available sets: {names}")
+            comps = range(self.mesh.dim) if c.components is None else c.components
+            if any(int(k) not in range(self.mesh.dim) for k in comps):
+                raise InputError(f"body {self.name!r}: clamp components {c.components} "
+                                 f"outside 0..{self.mesh.dim - 1}")
+        for p in self.pressures:
+            if p.set not in self.mesh.facet_sets:
+                raise InputError(f"body {self.name!r}: pressure on unknown facet set "
+                                 f"{p.set!r}; available facet sets: "
+                                 f"{sorted(self.mesh.facet_sets)}")
+
+    @property
+    def dim(self):
+        return self.mesh.dim
+
+    @property
+    def n_dofs(self):
+        return self.mesh.n_nodes * self.mesh.dim
+
+    def clamped_dofs(self) -> np.ndarray:
+        """Sorted global DOF indices (node-major, ``dim * node + component``) held at zero."""
+        dim = self.dim
+        dofs = [dim * self.mesh.nodes(c.set)[:, None]
+                + np.asarray(range(dim) if c.components is None else c.components)[None, :]
+                for c in self.clamps]
+        return np.unique(np.concatenate([d.ravel() for d in dofs])) if dofs \
+            else np.zeros(0, dtype=np.int64)
+
+    def load_names(self):
+        return sorted({p.load for p in self.pressures})
+
+
+@dataclass(frozen=True)
+class Probe:
+    """A response quantity: mean displacement along ``direction`` of the nodes of
+    set ``set`` in each listed body (e.g. the tip deflection)."""
+
+    sets: tuple          # ((body name, set name), ...)
+    direction: tuple     # unit vector, length dim
+
+
+@dataclass(frozen=True, eq=False)
+class Model:
+    """Elastic bodies joined by one frictional contact interface.
+
+    ``tip`` is the probe reported as tip deflection and used to scale load levels.
+    """
+
+    bodies: tuple
+    interface: "Interface"
+    tip: Probe | None = None
+    mu: float = 0.6
+    name: str = "model"
+    extra: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        object.__setattr__(self, "bodies", tuple(self.bodies))
+        names = [b.name for b in self.bodies]
+        if len(set(names)) != len(names):
+            raise InputError(f"body names must be unique, got {names}")
+        dims = {b.dim for b in self.bodies}
+        if len(dims) != 1:
+            raise InputError(f"all bodies must have the same dimension, got {sorted(dims)}")
+        mu = _finite("friction coefficient mu", self.mu)
+        if mu < 0:
+            raise InputError(f"friction coefficient mu must be >= 0, got {mu}")
+        object.__setattr__(self, "mu", mu)
+        for b in (self.interface.body1, self.interface.body2):
+            if b not in names:
+                raise InputError(f"interface names body {b!r}, which is not in the model "
+                                 f"(bodies: {names})")
+        if self.tip is not None:
+            for b, s in self.tip.sets:
+                self.body(b).mesh.nodes(s)
+
+    @property
+    def dim(self):
+        return self.bodies[0].dim
+
+    @property
+    def n_nodes(self):
+        return sum(b.mesh.n_nodes for b in self.bodies)
+
+    @property
+    def n_dofs(self):
+        return sum(b.n_dofs for b in self.bodies)
+
+    def body(self, name) -> Body:
+        for b in self.bodies:
+            if b.name == name:
+                return b
+        raise InputError(f"no body named {name!r}; bodies: {[b.name for b in self.bodies]}")
+
+    def body_index(self, name) -> int:
+        return [b.name for b in self.bodies].index(self.body(name).name)
+
+    def dof_offsets(self) -> np.ndarray:
+        """Start of each body's DOFs in the stacked vector of all bodies."""
+        return np.concatenate([[0], np.cumsum([b.n_dofs for b in self.bodies])])
+
+
+from .interface import Interface  # noqa: E402  (circular type reference)
