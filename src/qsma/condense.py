@@ -1,0 +1,232 @@
+r"""Static condensation of each body to its interface DOFs and the two-body
+relative-displacement contact problem (``shared/spec/method.md`` sections 2-3).
+
+Per body ``j`` with Dirichlet DOFs removed, interface DOFs C (rotated into the
+pair frames) and the rest E::
+
+    Kc_j = K_CC - K_CE K_EE^-1 K_EC          Fc_j = F_C - K_CE K_EE^-1 F_E
+    Kc_j u_C = Fc_j + R_j                    u_E = K_EE^-1 (F_E - K_EC u_C)
+
+With ``lam`` the contact force on body 2 and ``d = u_C^2 - u_C^1``::
+
+    lam = K d + lam_w,  K = Kc_1 S^-1 Kc_2,  lam_w = Kc_2 S^-1 Fc_1 - Kc_1 S^-1 Fc_2,
+    S = Kc_1 + Kc_2 .
+
+Load patterns (preload, modal load, ...) are columns; the load factors ``a``
+weight them, so ``Fc_j = Fc_j[:, patterns] @ a``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse.linalg as spla
+
+from .errors import InputError
+
+
+@dataclass(frozen=True, eq=False)
+class CondensedBody:
+    """One body condensed to its interface DOFs (local pair frames, pair-major).
+
+    Attributes
+    ----------
+    C, E : positions of interface / other DOFs in the body's DOF numbering
+    R : (nC_global -> local) rotation, ``u_local = R.T @ u_C``
+    Kc : condensed stiffness in local frames
+    solve_EE : factorised ``K_EE^-1`` (callable on vectors or matrices)
+    K_EC : sparse coupling block
+    """
+
+    name: str
+    n_dofs: int
+    C: np.ndarray
+    E: np.ndarray
+    R: np.ndarray
+    Kc: np.ndarray
+    solve_EE: object
+    K_EC: object
+    K_CC: object
+
+    def condensed_load(self, F: np.ndarray) -> np.ndarray:
+        """``Fc = R^T (F_C - K_CE K_EE^-1 F_E)`` for full-length load(s) ``F``."""
+        F = np.asarray(F, dtype=float)
+        z = self.solve_EE(F[self.E])
+        return self.R.T @ (F[self.C] - self.K_EC.T @ z)
+
+    def recover(self, u_local: np.ndarray, F: np.ndarray) -> np.ndarray:
+        """Full DOF vector of the body from interface displacements (local) and the
+        full applied load ``F``: ``u_E = K_EE^-1 (F_E - K_EC u_C)``."""
+        u = np.zeros(self.n_dofs)
+        uC = self.R @ u_local
+        u[self.C] = uC
+        u[self.E] = self.solve_EE(F[self.E] - self.K_EC @ uC)
+        return u
+
+    def functional(self, l: np.ndarray, patterns: np.ndarray):
+        """Split ``l @ u`` into ``h @ u_local + e @ a`` (``patterns``: full loads, columns)."""
+        z = self.solve_EE(l[self.E])
+        h = self.R.T @ (l[self.C] - self.K_EC.T @ z)
+        e = patterns[self.E].T @ z
+        return h, e
+
+
+def pair_rotation(frames: np.ndarray) -> np.ndarray:
+    """Block-diagonal ``R`` (global pair-major -> local) with ``u_C = R u_local``:
+    column block i holds the local axes of pair i."""
+    n, dim, _ = frames.shape
+    R = np.zeros((n * dim, n * dim))
+    for i in range(n):
+        R[i * dim:(i + 1) * dim, i * dim:(i + 1) * dim] = frames[i].T
+    return R
+
+
+def factorize(A, what="K_EE"):
+    """Sparse LU of ``A`` with a clear error when it is singular."""
+    try:
+        return spla.splu(A.tocsc())
+    except RuntimeError as exc:
+        raise InputError(f"{what} is singular ({exc}); the body is not held against "
+                         f"rigid-body motion apart from its interface: add clamps") from exc
+
+
+def condense_body(assembled, nodes, frames) -> CondensedBody:
+    """Condense one assembled body onto the interface ``nodes`` (pair order, frames)."""
+    body = assembled.body
+    dim = body.dim
+    C = (dim * nodes[:, None] + np.arange(dim)[None, :]).ravel()
+    fixed = np.zeros(body.n_dofs, dtype=bool)
+    fixed[assembled.fixed] = True
+    if fixed[C].any():
+        bad = nodes[np.any(fixed[C].reshape(-1, dim), axis=1)]
+        raise InputError(f"body {body.name!r}: interface node(s) {bad[:10].tolist()} are "
+                         f"clamped; remove them from the interface set or from the clamp")
+    isC = np.zeros(body.n_dofs, dtype=bool)
+    isC[C] = True
+    E = np.flatnonzero(~fixed & ~isC)
+    K = assembled.K.tocsr()
+    K_EE = K[E][:, E]
+    K_EC = K[E][:, C].tocsc()
+    K_CC = K[C][:, C].toarray()
+    lu = factorize(K_EE, f"body {body.name!r}: K_EE")
+    solve = _solver(lu)
+    X = solve(K_EC.toarray())
+    Kc_glob = K_CC - K_EC.T @ X
+    R = pair_rotation(frames)
+    Kc = R.T @ Kc_glob @ R
+    Kc = 0.5 * (Kc + Kc.T)
+    return CondensedBody(body.name, body.n_dofs, C, E, R, Kc, solve, K_EC, K_CC)
+
+
+def _solver(lu):
+    def solve(b):
+        b = np.asarray(b, dtype=float)
+        return lu.solve(b) if b.ndim == 1 else lu.solve(np.asfortranarray(b))
+    return solve
+
+
+@dataclass(frozen=True, eq=False)
+class ReducedModel:
+    r"""The two-body problem ``lam = K d + W a`` with everything the load loop needs.
+
+    Attributes
+    ----------
+    K : (n, n) relative-displacement stiffness (local frames, pair-major)
+    W : (n, n_patterns) welded contact force per unit load factor (``lam_w = W a``)
+    patterns : names of the load patterns (columns of W, entries of a)
+    bodies : the two :class:`CondensedBody`
+    loads : per body, (n_dofs, n_patterns) full load patterns
+    functionals : name -> (c_d, c_a) with value ``c_d @ d + c_a @ a``
+    """
+
+    K: np.ndarray
+    W: np.ndarray
+    patterns: tuple
+    bodies: tuple
+    loads: tuple
+    S_cho: object
+    Fc: tuple
+    dim: int
+    functionals: dict
+    definitions: dict
+
+    @property
+    def n_pairs(self):
+        return self.K.shape[0] // self.dim
+
+    def welded_contact_force(self, a) -> np.ndarray:
+        """``lam_w(a)`` as (n_pairs, dim)."""
+        return (self.W @ np.asarray(a, dtype=float)).reshape(-1, self.dim)
+
+    def interface_displacements(self, d, a):
+        """Interface displacements (local frames) of body 1 and body 2:
+        ``u1 = S^-1 (Fc_1 + Fc_2 - Kc_2 d)``, ``u2 = u1 + d``."""
+        d = np.asarray(d, dtype=float).ravel()
+        a = np.asarray(a, dtype=float)
+        rhs = (self.Fc[0] + self.Fc[1]) @ a - self.bodies[1].Kc @ d
+        u1 = sla.cho_solve(self.S_cho, rhs)
+        return u1, u1 + d
+
+    def recover(self, d, a):
+        """Full displacement vectors of both bodies from ``d`` and the load factors."""
+        u1, u2 = self.interface_displacements(d, a)
+        a = np.asarray(a, dtype=float)
+        return tuple(b.recover(u, F @ a) for b, u, F in zip(self.bodies, (u1, u2), self.loads))
+
+    def evaluate(self, name, d, a) -> float:
+        c_d, c_a = self.functionals[name]
+        return float(c_d @ np.asarray(d).ravel() + c_a @ np.asarray(a, dtype=float))
+
+    def add_pattern(self, name, F1, F2) -> "ReducedModel":
+        """A new reduced model with one more load pattern (full loads per body)."""
+        if name in self.patterns:
+            raise InputError(f"load pattern {name!r} exists already")
+        loads = tuple(np.column_stack([L, F]) for L, F in zip(self.loads, (F1, F2)))
+        Fc = tuple(np.column_stack([fc, b.condensed_load(F)])
+                   for fc, b, F in zip(self.Fc, self.bodies, (F1, F2)))
+        new = replace(self, W=_welded(self.bodies, self.S_cho, Fc),
+                      patterns=self.patterns + (name,), loads=loads, Fc=Fc, functionals={})
+        return new.with_functionals(self.definitions)
+
+    def with_functionals(self, definitions: dict) -> "ReducedModel":
+        """Attach linear functionals ``name -> (l_1, l_2)`` (full DOF vectors per body),
+        evaluated later by :meth:`evaluate` without touching the full model."""
+        funcs = dict(self.functionals)
+        for name, (l1, l2) in definitions.items():
+            funcs[name] = _functional(self, l1, l2)
+        return replace(self, functionals=funcs, definitions={**self.definitions, **definitions})
+
+
+def _welded(bodies, S_cho, Fc):
+    Kc1, Kc2 = bodies[0].Kc, bodies[1].Kc
+    return Kc2 @ sla.cho_solve(S_cho, Fc[0]) - Kc1 @ sla.cho_solve(S_cho, Fc[1])
+
+
+def _functional(rm, l1, l2):
+    """``l1 @ u_body1 + l2 @ u_body2`` as ``c_d @ d + c_a @ a``."""
+    (h1, e1), (h2, e2) = (b.functional(l, L) for b, l, L in zip(rm.bodies, (l1, l2), rm.loads))
+    y = sla.cho_solve(rm.S_cho, h1 + h2)
+    c_d = h2 - rm.bodies[1].Kc @ y
+    c_a = (rm.Fc[0] + rm.Fc[1]).T @ y + e1 + e2
+    return c_d, c_a
+
+
+def reduce_two_bodies(assembled1, assembled2, pairing, patterns=("preload",)) -> ReducedModel:
+    """Condense both bodies and combine them into the relative-displacement problem."""
+    b1 = condense_body(assembled1, pairing.nodes1, pairing.frames)
+    b2 = condense_body(assembled2, pairing.nodes2, pairing.frames)
+    loads = tuple(np.column_stack([a.loads.get(p, np.zeros(a.n_dofs)) for p in patterns])
+                  for a in (assembled1, assembled2))
+    Fc = (b1.condensed_load(loads[0]), b2.condensed_load(loads[1]))
+    S = b1.Kc + b2.Kc
+    try:
+        S_cho = sla.cho_factor(S)
+    except np.linalg.LinAlgError as exc:
+        raise InputError("Kc_1 + Kc_2 is not positive definite: the two bodies together "
+                         "are not held against rigid-body motion; add clamps") from exc
+    K = b1.Kc @ sla.cho_solve(S_cho, b2.Kc)
+    K = 0.5 * (K + K.T)
+    W = _welded((b1, b2), S_cho, Fc)
+    return ReducedModel(K, W, tuple(patterns), (b1, b2), loads, S_cho, Fc,
+                        assembled1.body.dim, {}, {})

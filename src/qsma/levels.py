@@ -1,0 +1,67 @@
+"""Load levels of the modal ramp: by modal force alpha or by linear tip deflection."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import InputError
+
+KINDS = ("alpha", "tip")
+
+
+@dataclass(frozen=True)
+class Levels:
+    """Increasing positive load levels.
+
+    ``kind="alpha"``: values are modal forces alpha directly. ``kind="tip"``: values
+    are tip deflections of the *linear tied* structure, ``alpha = tip * w0^2 / phi_tip``.
+    """
+
+    kind: str
+    values: tuple
+
+    def __post_init__(self):
+        if self.kind not in KINDS:
+            raise InputError(f"load level kind must be one of {KINDS}, got {self.kind!r}")
+        v = np.asarray(self.values, dtype=float).ravel()
+        if v.size == 0:
+            raise InputError("at least one load level is needed")
+        if not np.all(np.isfinite(v)):
+            raise InputError("load levels must be finite numbers")
+        if np.any(v <= 0):
+            raise InputError(f"load levels must be > 0, got {v[v <= 0][:3].tolist()}")
+        if np.any(np.diff(v) <= 0):
+            k = int(np.flatnonzero(np.diff(v) <= 0)[0])
+            raise InputError(f"load levels must increase strictly (the ramp is monotonic): "
+                             f"level {k + 1} = {v[k + 1]:g} follows {v[k]:g}")
+        object.__setattr__(self, "values", tuple(v.tolist()))
+
+    @classmethod
+    def log(cls, kind, start, stop, n):
+        _range_check(start, stop, n)
+        return cls(kind, tuple(np.logspace(np.log10(start), np.log10(stop), int(n))))
+
+    @classmethod
+    def linear(cls, kind, start, stop, n):
+        _range_check(start, stop, n)
+        return cls(kind, tuple(np.linspace(start, stop, int(n))))
+
+    def alpha(self, omega0: float, phi_tip: float) -> np.ndarray:
+        """Modal force levels."""
+        v = np.asarray(self.values)
+        if self.kind == "alpha":
+            return v
+        return v * omega0 ** 2 / phi_tip
+
+
+def _range_check(start, stop, n):
+    if not (isinstance(n, (int, np.integer)) and n >= 1):
+        raise InputError(f"number of levels must be a positive integer, got {n!r}")
+    if not (np.isfinite(start) and np.isfinite(stop) and 0 < start and (start < stop or n == 1)):
+        raise InputError(f"level range needs 0 < start < stop, got start={start}, stop={stop}")
+
+
+def spec_levels() -> Levels:
+    """The 51 levels of sandwich-2d: linear tied tip deflection 10^(-6 + 3k/50) m."""
+    return Levels("tip", tuple(10.0 ** (-6 + 3 * np.arange(51) / 50)))

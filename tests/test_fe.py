@@ -1,0 +1,107 @@
+"""Finite element layer: patch test, cantilever convergence to beam theory, loads."""
+import numpy as np
+import pytest
+import scipy.sparse.linalg as spla
+
+from qsma.fe import assemble_body, stress_at_nodes
+from qsma.model import Body, Clamp, Material, Mesh, Pressure, boundary_facets
+from qsma.model.generate import structured_mesh
+
+STEEL = Material(200e9, 0.285, 7800.0)
+
+
+def _distorted_patch(cell_type):
+    xs = np.linspace(0, 1, 5)
+    m = structured_mesh(xs, xs)
+    p = m.points.copy()
+    rng = np.random.default_rng(0)
+    inner = (p[:, 0] > 0) & (p[:, 0] < 1) & (p[:, 1] > 0) & (p[:, 1] < 1)
+    p[inner] += rng.uniform(-0.08, 0.08, size=(inner.sum(), 2))
+    if cell_type == "quad":
+        return Mesh(p, m.cells, "quad")
+    tri = np.concatenate([m.cells[:, [0, 1, 2]], m.cells[:, [0, 2, 3]]])
+    return Mesh(p, tri, "triangle")
+
+
+@pytest.mark.parametrize("cell_type", ["quad", "triangle"])
+def test_patch_uniform_stress_reproduced_on_distorted_mesh(cell_type):
+    mesh = _distorted_patch(cell_type)
+    a = assemble_body(Body("patch", mesh, STEEL))
+    A = np.array([[1e-3, 2e-4], [-5e-4, 3e-4]])  # linear field u = A x
+    u = (mesh.points @ A.T).ravel()
+    bnd = np.unique(boundary_facets(mesh))
+    B = np.concatenate([2 * bnd, 2 * bnd + 1])
+    I = np.setdiff1d(np.arange(a.n_dofs), B)
+    K = a.K.tocsr()
+    uI = spla.spsolve(K[I][:, I].tocsc(), -K[I][:, B] @ u[B])
+    assert np.abs(uI - u[I]).max() < 1e-12 * np.abs(u).max()
+    sig, _ = stress_at_nodes(a.body, u)
+    lam, mu = STEEL.lame
+    eps = 0.5 * (A + A.T)
+    exact = 2 * mu * eps + lam * np.trace(eps) * np.eye(2)
+    assert np.abs(sig - exact).max() < 1e-9 * np.abs(exact).max()
+
+
+def _cantilever(n_thick, L=0.2, h=0.00625):
+    m = structured_mesh(np.linspace(0, L, 32 * n_thick + 1), np.linspace(0, h, n_thick + 1))
+    m = m.with_sets(node_sets={"clamp": np.flatnonzero(m.points[:, 0] < 1e-12),
+                               "tip": np.flatnonzero(m.points[:, 0] > L - 1e-12)})
+    return assemble_body(Body("beam", m, STEEL, clamps=(Clamp("clamp"),)))
+
+
+def _plane_strain_beam(L=0.2, h=0.00625):
+    E, nu = STEEL.E / (1 - STEEL.nu ** 2), STEEL.nu / (1 - STEEL.nu)
+    I, A = h ** 3 / 12, h
+    G = E / (2 * (1 + nu))
+    return E, I, A, G
+
+
+def test_cantilever_tip_deflection_converges_to_timoshenko():
+    L, h, P = 0.2, 0.00625, 100.0
+    E, I, A, G = _plane_strain_beam(L, h)
+    exact = P * L ** 3 / (3 * E * I) + P * L / (5 / 6 * G * A)
+    errs = []
+    for n in (2, 4, 8):
+        a = _cantilever(n, L, h)
+        tip = a.body.mesh.nodes("tip")
+        f = np.zeros(a.n_dofs)
+        f[2 * tip + 1] = P / len(tip)
+        K = a.K.tocsr()[a.free][:, a.free]
+        u = np.zeros(a.n_dofs)
+        u[a.free] = spla.spsolve(K.tocsc(), f[a.free])
+        errs.append(abs(u[2 * tip + 1].mean() - exact) / exact)
+    rates = np.log2(np.array(errs[:-1]) / np.array(errs[1:]))
+    print("tip deflection rel. errors", errs, "rates", rates)
+    assert errs[-1] < 0.01                 # within 1 % of Timoshenko at 8 elements thick
+    assert rates[-1] > 1.7                 # bilinear quads converge at O(h^2)
+
+
+def test_cantilever_bending_frequencies_converge_to_euler_bernoulli():
+    L, h = 0.2, 0.00625
+    E, I, A, _ = _plane_strain_beam(L, h)
+    rho = STEEL.rho
+    beta = np.array([1.875104069, 4.694091133])
+    exact = beta ** 2 / (2 * np.pi) * np.sqrt(E * I / (rho * A * L ** 4))
+    errs = []
+    for n in (2, 4, 8):
+        a = _cantilever(n, L, h)
+        K = a.K.tocsr()[a.free][:, a.free].tocsc()
+        M = a.M.tocsr()[a.free][:, a.free].tocsc()
+        w2 = np.sort(spla.eigsh(K, k=4, M=M, sigma=0, which="LM")[0])
+        f = np.sqrt(w2) / (2 * np.pi)
+        # axial mode lies far above the first two bending modes for L/h = 32
+        errs.append(np.abs(f[:2] - exact) / exact)
+    errs = np.array(errs)
+    rates = np.log2(errs[:-1] / errs[1:])
+    print("bending frequency rel. errors\n", errs, "\nrates\n", rates)
+    assert np.all(errs[-1] < 0.01)
+    assert np.all(rates[-1] > 1.7)
+
+
+def test_pressure_load_resultant_and_direction():
+    m = structured_mesh(np.linspace(0, 2, 9), np.linspace(0, 1, 5))
+    top = m.boundary_facets_where(lambda p: np.abs(p[:, 1] - 1) < 1e-12)
+    m = m.with_sets(facet_sets={"top": top})
+    body = Body("b", m, STEEL, pressures=(Pressure("top", 3.0e6),))
+    f = assemble_body(body).loads["preload"].reshape(-1, 2)
+    assert f.sum(axis=0) == pytest.approx([0.0, -3.0e6 * 2.0], abs=1e-6)
