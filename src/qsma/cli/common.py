@@ -1,0 +1,32 @@
+"""Options shared by the subcommands: where the model comes from."""
+from __future__ import annotations
+
+from ..errors import InputError
+
+
+def add_model_arguments(p):
+    p.add_argument("config", nargs="?", help="TOML configuration file of the model and run")
+    p.add_argument("--example", help="built-in benchmark model (e.g. sandwich-2d)")
+    p.add_argument("--refine", type=int, default=1,
+                   help="refinement level of the example mesh (default 1)")
+    p.add_argument("--mu", type=float, help="friction coefficient (overrides the model)")
+
+
+def load_model(args):
+    """``(model, options)`` from ``--example`` or a configuration file."""
+    from ..examples import EXAMPLES
+    if (args.config is None) == (args.example is None):
+        raise InputError("give either a configuration file or --example NAME "
+                         f"(examples: {sorted(EXAMPLES)})")
+    if args.example is not None:
+        if args.example not in EXAMPLES:
+            raise InputError(f"unknown example {args.example!r}; valid: {sorted(EXAMPLES)}")
+        model = EXAMPLES[args.example](refine=args.refine, mu=args.mu)
+        return model, {}
+    from ..config import load_config
+    cfg = load_config(args.config)
+    model = cfg.model
+    if args.mu is not None:
+        from dataclasses import replace
+        model = replace(model, mu=args.mu)
+    return model, dict(cfg.options)

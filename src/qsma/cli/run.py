@@ -1,0 +1,85 @@
+"""``qsma run``: the full quasi-static modal analysis, results in a folder."""
+from __future__ import annotations
+
+import sys
+
+from ..errors import InputError
+from .common import add_model_arguments, load_model
+
+HELP = "quasi-static modal analysis: backbone, frequency and damping versus amplitude"
+
+
+def add_arguments(p):
+    add_model_arguments(p)
+    p.add_argument("--out", required=True, help="output folder (created if needed)")
+    p.add_argument("--mode", type=int, help="mode index of the tied structure (default 0)")
+    p.add_argument("--method", help="contact solver (default from the config or 'basket')")
+    p.add_argument("--tol", type=float, help="contact solver tolerance")
+    p.add_argument("--maxiter", type=int, help="contact solver iteration cap")
+    p.add_argument("--direct-loop", action="store_true", default=None,
+                   help="also compute the hysteresis loop directly (check of Masing)")
+    p.add_argument("--continue", dest="continue_on_failure", action="store_true",
+                   default=None, help="keep going after a level that does not converge")
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    p.add_argument("--no-vtu", action="store_true", help="skip the VTU fields")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
+    g.add_argument("-v", "--verbose", action="store_true", help="print per-level results")
+
+
+def execute(args) -> int:
+    from ..analysis import run
+    from ..contact import METHODS
+    from ..results import prepare_output_dir, write_all
+
+    out = prepare_output_dir(args.out)           # fail before computing anything
+    model, options = load_model(args)
+    for key in ("mode", "method", "tol", "maxiter", "direct_loop", "continue_on_failure"):
+        if getattr(args, key) is not None:
+            options[key] = getattr(args, key)
+    if "method" in options and options["method"] not in METHODS:
+        raise InputError(f"unknown contact method {options['method']!r}; "
+                         f"valid: {sorted(METHODS)}")
+    progress = None if args.quiet or not sys.stderr.isatty() else _bar
+    res = run(model, progress=progress, **options)
+    if progress:
+        print(file=sys.stderr)
+    paths = write_all(res, out, plots=not args.no_plots, vtu=not args.no_vtu)
+    if not args.quiet:
+        _summary(res, paths, args.verbose)
+    if not res.success:
+        print(f"qsma: analysis failed: {res.message}; the {res.n_levels} levels solved "
+              f"before it are in {out}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _bar(k, n, width=40):
+    done = int(width * k / n)
+    print(f"\r  load levels [{'#' * done}{'.' * (width - done)}] {k}/{n}", end="",
+          file=sys.stderr, flush=True)
+
+
+def _summary(res, paths, verbose):
+    info = res.model_info
+    print(f"{info['name']}: {info['n_nodes']} nodes, {info['n_pairs']} interface pairs, "
+          f"mu = {info['mu']}")
+    print(f"mode {res.mode_index}: f0 = {res.f0_hz:.3f} Hz; {res.n_levels} load levels, "
+          f"solver {res.solver['method']}")
+    if verbose:
+        print(f"{'k':>3} {'alpha':>11} {'tip [m]':>10} {'f [Hz]':>9} {'zeta':>10} "
+              f"{'stuck':>5} {'slip':>5} {'open':>5} {'it':>4}")
+        for k in range(res.n_levels):
+            print(f"{k:3d} {res.alpha[k]:11.4e} {res.tip[k]:10.3e} {res.f_hz[k]:9.3f} "
+                  f"{res.zeta[k]:10.3e} {res.n_stuck[k]:5d} {res.n_slip[k]:5d} "
+                  f"{res.n_open[k]:5d} {res.iterations[k]:4d}")
+    if res.n_levels:
+        print(f"last level: f = {res.f_hz[-1]:.3f} Hz, zeta = {res.zeta[-1]:.4e}, "
+              f"tip = {res.tip[-1]:.3e} m")
+    if res.direct_loop is not None:
+        dl = res.direct_loop
+        print(f"direct loop dissipation {dl.dissipation:.4e} vs Masing "
+              f"{dl.dissipation_masing:.4e}")
+    t = res.timings_s
+    print("timings [s]: " + ", ".join(f"{k} {v:.3f}" for k, v in t.items()))
+    print("results: " + ", ".join(str(p) for p in paths.values()))

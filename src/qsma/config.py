@@ -1,0 +1,133 @@
+"""TOML configuration of a QSMA run: model from mesh files, loads, interface, levels,
+solver options. Every key is checked: unknown, missing and mistyped keys are named
+with the allowed ones."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib
+
+from .errors import InputError
+from .levels import Levels, spec_levels
+from .model import Body, Clamp, Interface, Material, Model, Pressure, Probe
+
+_NUM = (int, float)
+# section -> {key: (types, required)}
+SCHEMA = {
+    "": {"name": (str, False), "bodies": (list, True), "interface": (dict, True),
+         "tip": (dict, True), "analysis": (dict, False), "levels": (dict, False)},
+    "bodies": {"name": (str, True), "mesh": (str, True), "E": (_NUM, True),
+               "nu": (_NUM, True), "rho": (_NUM, True), "clamps": (list, False),
+               "pressures": (list, False)},
+    "clamps": {"set": (str, True), "components": (list, False)},
+    "pressures": {"set": (str, True), "p": (_NUM, True), "load": (str, False)},
+    "interface": {"body1": (str, True), "set1": (str, True), "body2": (str, True),
+                  "set2": (str, True), "mu": (_NUM, True), "tol": (_NUM, False)},
+    "tip": {"sets": (list, True), "direction": (list, True)},
+    "analysis": {"mode": (int, False), "method": (str, False), "tol": (_NUM, False),
+                 "maxiter": (int, False), "direct_loop": (bool, False),
+                 "n_modes": (int, False), "continue_on_failure": (bool, False)},
+    "levels": {"kind": (str, True), "spacing": (str, True), "start": (_NUM, False),
+               "stop": (_NUM, False), "n": (int, False), "values": (list, False)},
+}
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """A model and the keyword options of :func:`qsma.run`."""
+
+    model: Model
+    options: dict
+
+
+def _check(table, section, where):
+    if not isinstance(table, dict):
+        raise InputError(f"{where}: expected a table, got {type(table).__name__}")
+    schema = SCHEMA[section]
+    for key in table:
+        if key not in schema:
+            raise InputError(f"{where}: unknown key {key!r}; allowed keys: {sorted(schema)}")
+    for key, (types, required) in schema.items():
+        if key not in table:
+            if required:
+                raise InputError(f"{where}: missing required key {key!r}")
+            continue
+        v = table[key]
+        ok = isinstance(v, types) and not (isinstance(v, bool) and types in (_NUM, int))
+        if not ok:
+            tname = "number" if types is _NUM else getattr(types, "__name__", str(types))
+            raise InputError(f"{where}: key {key!r} must be a {tname}, got {v!r}")
+    return table
+
+
+def load_config(path) -> RunConfig:
+    """Read a TOML run configuration (mesh paths relative to the file's folder)."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise InputError(f"cannot read configuration {str(path)!r}: {exc.strerror}") from exc
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{path}: not valid TOML: {exc}") from exc
+    return parse_config(data, base=path.parent, where=str(path))
+
+
+def parse_config(data, base=Path("."), where="config") -> RunConfig:
+    from .model.io import read_mesh
+
+    _check(data, "", where)
+    bodies = []
+    for k, b in enumerate(data["bodies"]):
+        w = f"{where}: bodies[{k}]"
+        _check(b, "bodies", w)
+        clamps = tuple(Clamp(c["set"], tuple(c["components"]) if "components" in c else None)
+                       for c in (_check(c, "clamps", f"{w}.clamps") for c in
+                                 b.get("clamps", [])))
+        pressures = tuple(Pressure(p["set"], p["p"], p.get("load", "preload"))
+                          for p in (_check(p, "pressures", f"{w}.pressures") for p in
+                                    b.get("pressures", [])))
+        try:
+            mat = Material(b["E"], b["nu"], b["rho"])
+            mesh = read_mesh(base / b["mesh"])
+            bodies.append(Body(b["name"], mesh, mat, clamps, pressures))
+        except InputError as exc:
+            raise InputError(f"{w} ({b['name']!r}): {exc}") from exc
+    itf = _check(data["interface"], "interface", f"{where}: interface")
+    tip = _check(data["tip"], "tip", f"{where}: tip")
+    sets = tip["sets"]
+    if not all(isinstance(s, list) and len(s) == 2 and all(isinstance(x, str) for x in s)
+               for s in sets):
+        raise InputError(f"{where}: tip.sets must be a list of [body, set] pairs, got {sets!r}")
+    model = Model(
+        bodies=tuple(bodies),
+        interface=Interface(itf["body1"], itf["set1"], itf["body2"], itf["set2"],
+                            itf.get("tol")),
+        tip=Probe(tuple(tuple(s) for s in sets), tuple(float(x) for x in tip["direction"])),
+        mu=itf["mu"], name=data.get("name", "model"))
+    options = dict(_check(data.get("analysis", {}), "analysis", f"{where}: analysis"))
+    options["levels"] = parse_levels(data.get("levels"), f"{where}: levels")
+    return RunConfig(model, options)
+
+
+def parse_levels(table, where="levels") -> Levels:
+    if table is None:
+        return spec_levels()
+    _check(table, "levels", where)
+    kind, spacing = table["kind"], table["spacing"]
+    if spacing == "list":
+        if "values" not in table:
+            raise InputError(f"{where}: spacing 'list' needs key 'values'")
+        return Levels(kind, tuple(table["values"]))
+    if spacing not in ("log", "linear"):
+        raise InputError(f"{where}: spacing must be 'log', 'linear' or 'list', got {spacing!r}")
+    for key in ("start", "stop", "n"):
+        if key not in table:
+            raise InputError(f"{where}: spacing {spacing!r} needs key {key!r}")
+    make = Levels.log if spacing == "log" else Levels.linear
+    return make(kind, table["start"], table["stop"], table["n"])

@@ -1,0 +1,165 @@
+"""The reduced frictional contact problem ``lam = K d + lam_w`` (method.md section 3)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+
+#: Relative asymmetry accepted in K: ``max|K - K^T| <= SYMMETRY_RTOL * max|K|``.
+#: A condensed K = Kc1 (Kc1 + Kc2)^-1 Kc2 carries round-off asymmetry of about
+#: cond(K) * eps ~ 2e6 * 2.2e-16 ~ 5e-10 (FIELD-NOTES, sandwich-2d); 1e-8 leaves
+#: a factor 20 above that and still rejects a genuinely asymmetric matrix.
+SYMMETRY_RTOL = 1e-8
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class ContactProblem:
+    """Frictional contact of two bodies reduced to the interface node pairs.
+
+    The contact force on body 2 is affine in the relative displacement,
+
+    .. math:: \\lambda = K d + \\lambda_w ,
+
+    with one block of ``dim`` components per node pair in the local frame of
+    the pair, ordered ``(t, n)`` in 2D and ``(t1, t2, n)`` in 3D (pair-major).
+
+    Parameters
+    ----------
+    K : (n_pairs*dim, n_pairs*dim) array_like
+        Interface stiffness, symmetric positive definite. Stored symmetrised,
+        ``(K + K^T) / 2``.
+    mu : float or (n_pairs,) array_like
+        Coulomb friction coefficient, ``>= 0``; stored per pair.
+    gap0 : (n_pairs,) array_like, optional
+        Initial normal gap ``g0`` (opening ``w = d_n + g0``); default 0.
+    dim : {2, 3}
+        Spatial dimension of the pair frames.
+
+    Raises
+    ------
+    InputError
+        With the expected and the actual value, for a K that is not square,
+        not a multiple of ``dim``, not finite, not symmetric or not positive
+        definite, and for a bad ``mu``, ``gap0`` or ``dim``.
+
+    Attributes
+    ----------
+    n_pairs : int
+    kappa : float
+        Stiffness scale, the mean of ``diag(K)``; used by the residual.
+    normal_index : (n_pairs,) int
+        Flat index of the normal component of each pair.
+    tangent_index : (n_pairs, dim-1) int
+        Flat indices of the tangential components.
+    diagonal_blocks : (n_pairs, dim, dim)
+        ``K_ii``, the stiffness of each pair alone.
+    """
+
+    K: np.ndarray
+    mu: np.ndarray
+    gap0: np.ndarray | None = None
+    dim: int = 2
+    n_pairs: int = field(init=False)
+    kappa: float = field(init=False)
+    normal_index: np.ndarray = field(init=False)
+    tangent_index: np.ndarray = field(init=False)
+    diagonal_blocks: np.ndarray = field(init=False)
+
+    def __post_init__(self):
+        dim = _check_dim(self.dim)
+        K = _check_stiffness(self.K, dim)
+        n = K.shape[0] // dim
+        values = {
+            "dim": dim,
+            "K": K,
+            "n_pairs": n,
+            "mu": _check_per_pair("mu", self.mu, n, default=None, nonnegative=True),
+            "gap0": _check_per_pair("gap0", self.gap0, n, default=0.0, nonnegative=False),
+            "kappa": float(np.mean(np.diag(K))),
+            "normal_index": _frozen(np.arange(n) * dim + dim - 1),
+            "tangent_index": _frozen(np.arange(n)[:, None] * dim + np.arange(dim - 1)),
+            "diagonal_blocks": _frozen(_diagonal_blocks(K, dim)),
+        }
+        for name, value in values.items():
+            object.__setattr__(self, name, value)
+
+    @property
+    def size(self):
+        """Number of unknowns, ``n_pairs * dim``."""
+        return self.n_pairs * self.dim
+
+    def __repr__(self):
+        mu = np.unique(self.mu)
+        mu_text = f"{mu[0]:g}" if mu.size == 1 else f"[{mu.min():g}..{mu.max():g}]"
+        return (f"ContactProblem(n_pairs={self.n_pairs}, dim={self.dim}, mu={mu_text}, "
+                f"kappa={self.kappa:.4g}, max_gap0={np.max(np.abs(self.gap0)):.3g})")
+
+
+def _frozen(array):
+    array.flags.writeable = False
+    return array
+
+
+def _check_dim(dim):
+    if dim not in (2, 3) or isinstance(dim, bool):
+        raise InputError(f"dim must be 2 or 3, got {dim!r}")
+    return int(dim)
+
+
+def _check_stiffness(K, dim):
+    K = np.array(K, dtype=float)
+    if K.ndim != 2 or K.shape[0] != K.shape[1]:
+        raise InputError(f"K must be a square matrix: expected shape (N, N), got {K.shape}")
+    if K.shape[0] == 0 or K.shape[0] % dim:
+        raise InputError(f"K must have a positive multiple of dim={dim} rows "
+                         f"(one block of {dim} per pair): got {K.shape[0]}")
+    bad = np.count_nonzero(~np.isfinite(K))
+    if bad:
+        raise InputError(f"K must be finite: found {bad} NaN/Inf entries")
+    _check_symmetric(K)
+    K = 0.5 * (K + K.T)
+    try:
+        np.linalg.cholesky(K)
+    except np.linalg.LinAlgError:
+        raise InputError("K must be positive definite: its Cholesky factorisation failed "
+                         f"(smallest diagonal entry {np.min(np.diag(K)):.3e})") from None
+    return _frozen(K)
+
+
+def _check_symmetric(K):
+    scale = np.max(np.abs(K))
+    asym = np.max(np.abs(K - K.T))
+    if asym > SYMMETRY_RTOL * scale:
+        i, j = np.unravel_index(np.argmax(np.abs(K - K.T)), K.shape)
+        raise InputError(
+            f"K must be symmetric: expected max|K - K^T| <= {SYMMETRY_RTOL:g} * max|K| = "
+            f"{SYMMETRY_RTOL * scale:.3e}, got {asym:.3e} (K[{i},{j}] = {K[i, j]:.6g}, "
+            f"K[{j},{i}] = {K[j, i]:.6g})")
+
+
+def _check_per_pair(name, value, n, default, nonnegative):
+    if value is None:
+        if default is None:
+            raise InputError(f"{name} is required")
+        value = default
+    array = np.array(value, dtype=float)
+    if array.ndim == 0:
+        array = np.full(n, float(array))
+    if array.shape != (n,):
+        raise InputError(f"{name} must be a scalar or have one value per pair: "
+                         f"expected shape ({n},), got {array.shape}")
+    if not np.all(np.isfinite(array)):
+        raise InputError(f"{name} must be finite: found {np.count_nonzero(~np.isfinite(array))} "
+                         "NaN/Inf values")
+    if nonnegative and np.any(array < 0):
+        k = int(np.argmin(array))
+        raise InputError(f"{name} must be >= 0: got {array[k]:g} at pair {k}")
+    return _frozen(array)
+
+
+def _diagonal_blocks(K, dim):
+    n = K.shape[0] // dim
+    blocks = K.reshape(n, dim, n, dim)
+    return blocks[np.arange(n), :, np.arange(n), :].copy()

@@ -1,0 +1,116 @@
+"""Figures of a QSMA run (matplotlib, Agg backend; imported only when plotting)."""
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from .masing import masing_loop
+
+
+def _figure(nrows=1, ncols=1, **kw):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt.subplots(nrows, ncols, **kw)
+
+
+def _save(fig, path):
+    import matplotlib.pyplot as plt
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".png", dir=path.parent)
+    os.close(fd)
+    try:
+        fig.savefig(tmp, dpi=120, bbox_inches="tight", format="png")
+        os.replace(tmp, path)
+    finally:
+        plt.close(fig)
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return path
+
+
+def plot_backbone(res, path):
+    fig, ax = _figure(figsize=(6, 4.5))
+    ax.loglog(res.q, res.alpha, "o-", ms=3, label="QSMA backbone")
+    ax.loglog(res.q, res.q * res.omega0 ** 2, "--", lw=1, label="linear (tied)")
+    ax.set_xlabel("modal amplitude q [kg$^{1/2}$ m]")
+    ax.set_ylabel(r"modal force $\alpha$ [N/kg$^{1/2}$]")
+    ax.set_title(f"Backbone, mode {res.mode_index} (f0 = {res.f0_hz:.2f} Hz)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    return _save(fig, path)
+
+
+def plot_loops(res, path):
+    fig, ax = _figure(figsize=(6, 4.5))
+    n = res.n_levels
+    for k in sorted({n // 2, (3 * n) // 4, n - 1}):
+        q, f = masing_loop(res.alpha, res.q, k)
+        ax.plot(q, f, lw=1.2, label=f"Masing, level {k}")
+    if res.direct_loop is not None:
+        dl = res.direct_loop
+        ax.plot(dl.q, dl.alpha, "k.", ms=3,
+                label=f"direct loop (D = {dl.dissipation:.3g} vs Masing "
+                      f"{dl.dissipation_masing:.3g})")
+    ax.set_xlabel("modal amplitude q")
+    ax.set_ylabel(r"modal force $\alpha$")
+    ax.set_title("Hysteresis loops")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    return _save(fig, path)
+
+
+def plot_damping_frequency(res, path):
+    fig, (a1, a2) = _figure(2, 1, figsize=(6, 6.5), sharex=True)
+    v = res.tip_velocity
+    a1.semilogx(v, res.f_hz, "o-", ms=3)
+    a1.set_ylabel("secant frequency [Hz]")
+    a1.grid(True, which="both", alpha=0.3)
+    pos = res.zeta > 0
+    a2.loglog(v[pos], res.zeta[pos], "o-", ms=3)
+    a2.set_ylabel(r"damping ratio $\zeta$")
+    a2.set_xlabel("peak tip velocity [m/s]")
+    a2.grid(True, which="both", alpha=0.3)
+    a1.set_title("Amplitude-dependent frequency and damping (Masing)")
+    return _save(fig, path)
+
+
+def plot_interface(res, path, levels=None):
+    n = res.n_levels
+    levels = sorted({0, n // 2, (3 * n) // 4, n - 1}) if levels is None else levels
+    p = res.pairing
+    x = p.x[:, 0]
+    fig, axes = _figure(3, 1, figsize=(7, 8), sharex=True)
+    pre = res.preload.lam
+    axes[0].plot(x, pre[:, -1] / p.area / 1e6, "k--", lw=1, label="preload")
+    for k in levels:
+        lam = res.states.lam[k]
+        lbl = f"level {k} (tip {res.tip[k]:.2e} m)"
+        axes[0].plot(x, lam[:, -1] / p.area / 1e6, lw=1.2, label=lbl)
+        axes[1].plot(x, np.linalg.norm(lam[:, :-1], axis=1) * np.sign(lam[:, 0]) / p.area
+                     / 1e6, lw=1.2, label=lbl)
+        axes[2].plot(x, res.states.status[k] + 0.05 * levels.index(k), ".", ms=5, label=lbl)
+    axes[0].set_ylabel("contact pressure [MPa]")
+    axes[1].set_ylabel("shear [MPa]")
+    axes[2].set_yticks([0, 1, 2], ["stuck", "slip", "open"])
+    axes[2].set_xlabel("x along the interface [m]")
+    for a in axes:
+        a.grid(True, alpha=0.3)
+    axes[0].legend(fontsize=7)
+    axes[0].set_title("Interface tractions and states")
+    return _save(fig, path)
+
+
+def write_plots(res, out) -> dict:
+    out = Path(out)
+    paths = {
+        "backbone": plot_backbone(res, out / "backbone.png"),
+        "loops": plot_loops(res, out / "loops.png"),
+        "damping": plot_damping_frequency(res, out / "damping_frequency.png"),
+    }
+    if res.model.dim == 2:
+        paths["interface"] = plot_interface(res, out / "interface.png")
+    return paths

@@ -1,0 +1,205 @@
+"""Result files: results.json, results.csv and VTU fields, written atomically."""
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+from .fe import stress_at_nodes
+
+SCHEMA_VERSION = 1
+
+
+def atomic_write(path, data, mode="w"):
+    """Write ``data`` (str or bytes) to ``path`` through a temporary file in the same
+    folder and ``os.replace``: readers see either the old file or the complete new one."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, mode) as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def prepare_output_dir(out) -> Path:
+    """Create ``out`` if needed and check that it is writable (before any computation)."""
+    out = Path(out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=".qsma-write-check-", dir=out)
+        os.close(fd)
+        os.unlink(tmp)
+    except OSError as exc:
+        raise InputError(f"output folder {str(out)!r} cannot be written ({exc.strerror}); "
+                         f"choose another --out folder or fix its permissions") from exc
+    return out
+
+
+def _clean(x):
+    """JSON-safe value: numpy to Python, NaN/Inf refused (never written)."""
+    if isinstance(x, dict):
+        return {k: _clean(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_clean(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _clean(x.tolist())
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, (float, np.floating)):
+        if not np.isfinite(x):
+            raise ValueError("non-finite number in results")
+        return float(x)
+    return x
+
+
+def results_dict(res) -> dict:
+    """The content of results.json."""
+    levels = {k: np.asarray(v) for k, v in res.levels_table().items()}
+    levels["residual"] = res.states.residual
+    out = {
+        "schema_version": SCHEMA_VERSION,
+        "qsma_version": res.version,
+        "success": bool(res.success),
+        "message": res.message,
+        "model": {k: res.model_info[k] for k in ("name", "n_nodes", "n_dofs", "n_pairs",
+                                                  "mu", "dim", "n_closed_after_preload")},
+        "mode": {"index": res.mode_index, "f0_hz": res.f0_hz, "omega0": res.omega0,
+                 "phi_tip": res.phi_tip,
+                 "f_hz_tied": res.modes.f_hz.tolist()},
+        "preload": {"residual": res.preload.residual, "iterations": res.preload.nit,
+                    "n_stuck": int(np.sum(res.preload.status == 0)),
+                    "n_slip": int(np.sum(res.preload.status == 1)),
+                    "n_open": int(np.sum(res.preload.status == 2))},
+        "levels": levels,
+        "gross_slip_level": res.gross_slip_level,
+        "timings_s": res.timings_s,
+        "solver": res.solver,
+    }
+    if res.direct_loop is not None:
+        dl = res.direct_loop
+        out["direct_loop"] = {"alpha": dl.alpha, "q": dl.q, "tip": dl.tip,
+                              "dissipation": dl.dissipation,
+                              "dissipation_masing": dl.dissipation_masing,
+                              "success": dl.success}
+    return _clean(out)
+
+
+def write_json(res, path):
+    atomic_write(path, json.dumps(results_dict(res), indent=1) + "\n")
+
+
+CSV_COLUMNS = ("level", "alpha", "tip_lin", "q", "tip", "f_hz", "zeta", "dissipation",
+               "tip_velocity", "n_stuck", "n_slip", "n_open", "iterations", "residual")
+
+
+def write_csv(res, path):
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(CSV_COLUMNS)
+    table = res.levels_table()
+    for k in range(res.n_levels):
+        row = [k] + [table[c][k] for c in CSV_COLUMNS[1:-1]] + [res.states.residual[k]]
+        w.writerow([f"{v:.10g}" if isinstance(v, (float, np.floating)) else int(v)
+                    for v in row])
+    atomic_write(path, buf.getvalue())
+
+
+def write_vtu(res, path, levels=None):
+    """One VTU file with both bodies: displacement (total and modal, i.e. from the
+    preloaded state) and von Mises stress at the preload and at the chosen levels,
+    interface pressure / shear / state as point data on the interface nodes."""
+    import meshio
+
+    model = res.model
+    if levels is None:
+        levels = sorted({0, res.n_levels // 2, res.n_levels - 1}) if res.n_levels else []
+    dim = model.dim
+    points, cells, offsets = [], [], [0]
+    for b in model.bodies:
+        p = b.mesh.points
+        points.append(np.column_stack([p, np.zeros(len(p))]) if dim == 2 else p)
+        cells.append(b.mesh.cells + offsets[-1])
+        offsets.append(offsets[-1] + len(p))
+    pts = np.vstack(points)
+    ctype = model.bodies[0].mesh.cell_type
+    point_data = {"body": np.concatenate([np.full(b.mesh.n_nodes, k, float)
+                                          for k, b in enumerate(model.bodies)])}
+    pre = _stack_fields(res, None)
+    point_data["u_preload"], point_data["von_mises_preload"] = pre
+    for k in levels:
+        u, vm = _stack_fields(res, k)
+        point_data[f"u_level{k:02d}"] = u
+        point_data[f"u_modal_level{k:02d}"] = u - pre[0]
+        point_data[f"von_mises_level{k:02d}"] = vm
+        for name, v in _interface_point_data(res, k, offsets, len(pts)).items():
+            point_data[f"{name}_level{k:02d}"] = v
+    mesh = meshio.Mesh(pts, [(ctype, np.vstack(cells))], point_data=point_data)
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".vtu", dir=path.parent)
+    os.close(fd)
+    try:
+        meshio.write(tmp, mesh, binary=True)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def _stack_fields(res, k):
+    dim = res.model.dim
+    fields = res.fields(k)
+    ordered = [None] * len(res.model.bodies)
+    i1 = res.model.body_index(res.model.interface.body1)
+    i2 = res.model.body_index(res.model.interface.body2)
+    ordered[i1], ordered[i2] = fields
+    us, vms = [], []
+    for b, u in zip(res.model.bodies, ordered):
+        U = u.reshape(-1, dim)
+        us.append(np.column_stack([U, np.zeros(len(U))]) if dim == 2 else U)
+        vms.append(stress_at_nodes(b, u)[1])
+    return np.vstack(us), np.concatenate(vms)
+
+
+def _interface_point_data(res, k, offsets, n):
+    """Contact pressure [Pa] and shear [Pa] (force over tributary area), state."""
+    p = res.pairing
+    lam = res.states.lam[k]
+    area = p.area
+    out = {"contact_pressure": np.zeros(n), "contact_shear": np.zeros(n),
+           "contact_state": np.full(n, -1.0)}
+    i1 = res.model.body_index(res.model.interface.body1)
+    i2 = res.model.body_index(res.model.interface.body2)
+    for i, nodes in ((i1, p.nodes1), (i2, p.nodes2)):
+        idx = offsets[i] + nodes
+        out["contact_pressure"][idx] = lam[:, -1] / area
+        out["contact_shear"][idx] = np.linalg.norm(lam[:, :-1], axis=1) / area
+        out["contact_state"][idx] = res.states.status[k]
+    return out
+
+
+def write_all(res, out, plots=True, vtu=True):
+    """Write every result file of a run into folder ``out``; returns the paths."""
+    out = Path(out)
+    paths = {"json": out / "results.json", "csv": out / "results.csv"}
+    write_csv(res, paths["csv"])
+    if vtu and res.n_levels:
+        paths["vtu"] = out / "fields.vtu"
+        write_vtu(res, paths["vtu"])
+    if plots and res.n_levels:
+        from .plots import write_plots
+        paths.update(write_plots(res, out))
+    write_json(res, paths["json"])          # last: its presence marks a complete run
+    return paths
