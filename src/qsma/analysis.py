@@ -15,7 +15,7 @@ import numpy as np
 
 from . import __version__
 from .condense import reduce_two_bodies
-from .contact import ContactProblem, METHODS, solve as contact_solve
+from .contact import DEFAULT_TOL, ContactProblem, METHODS, solve as contact_solve
 from .errors import AnalysisError, ContactConvergenceWarning, InputError
 from .fe import assemble_body
 from .levels import Levels, spec_levels
@@ -35,6 +35,7 @@ class LevelStates:
     status: np.ndarray
     residual: np.ndarray
     iterations: np.ndarray
+    contact_states: tuple = ()
 
 
 @dataclass(frozen=True, eq=False)
@@ -252,7 +253,8 @@ def run(model, *, mode=0, levels: Levels | None = None, method="basket", tol=Non
     timings = clock.done()
     empty = np.zeros(0)
     states = LevelStates(*(np.array(ramp[k]) for k in ("d", "lam", "status", "residual",
-                                                         "nit")))
+                                                         "nit")),
+                         contact_states=tuple(ramp["states"]))
     return QSMAResult(
         success=ramp["success"], message=ramp["message"],
         model_info=dict(name=model.name, n_nodes=model.n_nodes, n_dofs=model.n_dofs,
@@ -265,8 +267,8 @@ def run(model, *, mode=0, levels: Levels | None = None, method="basket", tol=Non
         tip_velocity=(ms.omega * np.abs(tip)) if n_ok else empty,
         n_stuck=counts[:, 0], n_slip=counts[:, 1], n_open=counts[:, 2],
         states=states, preload=pre, modes=modes, reduced=reduced, pairing=pairing,
-        model=model, solver=dict(method=method, **opts, tol_used=pre.tol_used
-                                 if hasattr(pre, "tol_used") else opts.get("tol")),
+        model=model, solver=dict(method=method, tol=opts.get("tol", DEFAULT_TOL),
+                                 maxiter=opts.get("maxiter")),
         timings_s=timings, direct_loop=loop,
         gross_slip_level=gross[0] if gross else None)
 

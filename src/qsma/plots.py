@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from .masing import masing_loop
+from .results import replace_atomically
 
 
 def _figure(nrows=1, ncols=1, **kw):
@@ -24,7 +25,7 @@ def _save(fig, path):
     os.close(fd)
     try:
         fig.savefig(tmp, dpi=120, bbox_inches="tight", format="png")
-        os.replace(tmp, path)
+        replace_atomically(tmp, path)
     finally:
         plt.close(fig)
         if os.path.exists(tmp):
@@ -69,8 +70,8 @@ def plot_damping_frequency(res, path):
     a1.semilogx(v, res.f_hz, "o-", ms=3)
     a1.set_ylabel("secant frequency [Hz]")
     a1.grid(True, which="both", alpha=0.3)
-    pos = res.zeta > 0
-    a2.loglog(v[pos], res.zeta[pos], "o-", ms=3)
+    slipped = np.cumsum(res.n_slip) > 0       # before any slip zeta is zero (round-off)
+    a2.loglog(v[slipped], res.zeta[slipped], "o-", ms=3)
     a2.set_ylabel(r"damping ratio $\zeta$")
     a2.set_xlabel("peak tip velocity [m/s]")
     a2.grid(True, which="both", alpha=0.3)

@@ -16,6 +16,18 @@ from .fe import stress_at_nodes
 SCHEMA_VERSION = 1
 
 
+def _umask_mode():
+    mask = os.umask(0)
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
+def replace_atomically(tmp, path):
+    """Give ``tmp`` the permissions of a normally created file and rename it to ``path``."""
+    os.chmod(tmp, _umask_mode())
+    os.replace(tmp, path)
+
+
 def atomic_write(path, data, mode="w"):
     """Write ``data`` (str or bytes) to ``path`` through a temporary file in the same
     folder and ``os.replace``: readers see either the old file or the complete new one."""
@@ -26,7 +38,7 @@ def atomic_write(path, data, mode="w"):
             f.write(data)
             f.flush()
             os.fsync(f.fileno())
-        os.replace(tmp, path)
+        replace_atomically(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)
@@ -151,7 +163,7 @@ def write_vtu(res, path, levels=None):
     os.close(fd)
     try:
         meshio.write(tmp, mesh, binary=True)
-        os.replace(tmp, path)
+        replace_atomically(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)

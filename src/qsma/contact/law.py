@@ -117,40 +117,103 @@ class Transitions(NamedTuple):
     violation: np.ndarray
 
 
-def basket_transitions(status, direction, q, mu, kappa, threshold):
+def basket_transitions(status, direction, q, mu, kappa, threshold, local):
     """Check every pair against the inequalities of its basket (paper 16-18).
 
-    * stuck: ``P < 0`` -> open; ``|Q| > mu P`` -> slipping in the direction
-      ``-Q/|Q|``;
-    * slipping: ``P < 0`` -> open; slip increment against the assumed slip
-      direction, ``dv . s < 0`` (with ``mu P > 0``) -> stuck; otherwise the
-      slip direction is updated to ``dv/|dv|`` (3D);
-    * open: ``w < 0`` -> stuck.
+    Failed checks:
 
-    A check fails only if its violation exceeds ``threshold`` (force units;
-    displacements are turned into forces with ``kappa``), so that round-off
-    does not move pairs back and forth.
+    * stuck: ``P < 0`` or ``|Q| > mu P``;
+    * slipping: ``P < 0``, or a slip increment against the assumed slip
+      direction, ``dv . s < 0`` (with ``mu P > 0``);
+    * open: ``w < 0``.
+
+    A pair that fails moves to the basket of its exact one-pair solution with
+    the other pairs held (``local``, see :func:`local_states`); only if that
+    is its current basket does it take the paper's default (stuck -> open if
+    ``P < 0`` else slipping along ``-Q/|Q|``, slipping -> open if ``P < 0``
+    else stuck, open -> stuck). Pairs that stay slipping take the direction
+    of their slip increment (3D). A check fails only if its violation exceeds
+    ``threshold`` (force units; displacements are turned into forces with
+    ``kappa``), so that round-off does not move pairs back and forth.
+
+    Parameters
+    ----------
+    local : LocalStates
+        One-pair solutions at the current iterate.
     """
-    new, s, viol = status.copy(), direction.copy(), np.zeros(len(status))
     q_norm = np.linalg.norm(q.Q, axis=1)
     stuck, slipping, opened = status == STUCK, status == SLIPPING, status == OPEN
-    tension = (stuck | slipping) & (q.P < -threshold)
-    _move(new, viol, tension, OPEN, -q.P)
-    overload = stuck & ~tension & (q_norm - mu * q.P > threshold)
-    _move(new, viol, overload, SLIPPING, q_norm - mu * q.P)
-    s[overload] = -q.Q[overload] / q_norm[overload, None]
-    backward = -kappa * np.sum(q.dv * direction, axis=1)
-    reversal = slipping & ~tension & (mu * q.P > 0) & (backward > threshold)
-    _move(new, viol, reversal, STUCK, backward)
-    closing = opened & (kappa * q.w < -threshold)
-    _move(new, viol, closing, STUCK, -kappa * q.w)
-    s = _updated_directions(s, new == SLIPPING, slipping, q.dv)
-    return Transitions(new, s, viol)
+    tension = np.where(stuck | slipping, -q.P, 0.0)
+    overload = np.where(stuck, q_norm - mu * q.P, 0.0)
+    backward = np.where(slipping & (mu * q.P > 0), -kappa * np.sum(q.dv * direction, axis=1), 0.0)
+    closing = np.where(opened, -kappa * q.w, 0.0)
+    viol = np.max([tension, overload, backward, closing], axis=0)
+    failed = viol > threshold
+    default = np.where(opened | (tension > threshold), OPEN, np.where(stuck, SLIPPING, STUCK))
+    target = np.where(local.status != status, local.status, default)
+    new = np.where(failed, target, status)
+    s = direction.copy()
+    fresh = failed & (new == SLIPPING)
+    s[fresh] = local.direction[fresh]
+    s = _updated_directions(s, new == SLIPPING, slipping & ~failed, q.dv)
+    return Transitions(new, s, np.where(failed, viol, 0.0))
 
 
-def _move(new, viol, mask, code, measure):
-    new[mask] = code
-    viol[mask] = measure[mask]
+class LocalStates(NamedTuple):
+    """Basket of the exact one-pair solution of every pair (others held).
+
+    ``status`` (n,) and ``direction`` (n, m), the slip direction (unit slip
+    increment) where ``status`` is slipping.
+    """
+
+    status: np.ndarray
+    direction: np.ndarray
+
+
+def local_states(problem, d, lam, d_prev, threshold):
+    """Which row of the contact law each pair satisfies when solved alone.
+
+    With the other pairs held, pair ``i`` sees ``lam_i = K_ii d_i + r_i``,
+    ``r_i = lam_i - K_ii d_i``. Its candidates are tried in the order stuck
+    (``d_i = (d_t,prev, -g0)``: needs ``P >= 0``, ``|Q| <= mu P``), open
+    (``lam_i = 0``: needs ``w >= 0``), slipping (direction ``-Q/|Q|`` of the
+    stuck trial force; in 2D the other sign if only that one is consistent).
+
+    Parameters
+    ----------
+    d, lam, d_prev : (n_pairs, dim)
+    threshold : float
+        Tolerance of the inequalities, force units.
+    """
+    Kii, mu, kappa = problem.diagonal_blocks, problem.mu, problem.kappa
+    r = lam - np.einsum("kij,kj->ki", Kii, d)
+    d_stuck = np.concatenate([d_prev[:, :-1], -problem.gap0[:, None]], axis=1)
+    lam_stuck = np.einsum("kij,kj->ki", Kii, d_stuck) + r
+    P, Q = lam_stuck[:, -1], lam_stuck[:, :-1]
+    q_norm = np.linalg.norm(Q, axis=1)
+    stuck_ok = (P >= -threshold) & (q_norm - mu * P <= threshold)
+    w_open = -np.linalg.solve(Kii, r[:, :, None])[:, -1, 0] + problem.gap0
+    open_ok = kappa * w_open >= -threshold
+    status = np.where(stuck_ok, STUCK, np.where(open_ok, OPEN, SLIPPING))
+    direction = -Q / np.maximum(q_norm, np.finfo(float).tiny)[:, None]
+    if problem.dim == 2:
+        direction = _consistent_sign_2d(Kii, r, d_stuck, direction, mu)
+    return LocalStates(status, direction)
+
+
+def _consistent_sign_2d(Kii, r, d_stuck, s, mu):
+    """2D slip sign: keep ``-sign(Q)`` unless only the opposite sign is consistent."""
+    a, b, c = Kii[:, 0, 0], Kii[:, 0, 1], Kii[:, 1, 1]
+    tp, dn = d_stuck[:, 0], d_stuck[:, 1]
+
+    def consistent(sign):
+        denom = a + mu * sign * b
+        dt = -(r[:, 0] + b * dn + mu * sign * (c * dn + r[:, 1])) / denom
+        return (denom > 0) & (b * dt + c * dn + r[:, 1] >= 0) & (sign * (dt - tp) >= 0)
+
+    s0 = np.where(s[:, 0] == 0, 1.0, s[:, 0])
+    flip = ~consistent(s0) & consistent(-s0)
+    return np.where(flip, -s0, s0)[:, None]
 
 
 def _updated_directions(s, slipping_now, slipping_before, dv):

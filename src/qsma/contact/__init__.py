@@ -1,0 +1,31 @@
+"""Frictional contact of two bodies condensed to the interface (method.md sections 3-5).
+
+The problem of one load level is ``lam = K d + lam_w`` with every node pair
+open, stuck or slipping (Coulomb friction, 2D or 3D)::
+
+    from qsma.contact import ContactProblem, solve
+
+    problem = ContactProblem(K, mu=0.6)
+    state = None
+    for lam_w in ramp:                      # (n_pairs, dim) welded forces
+        result = solve(problem, lam_w, state)
+        state = result.state                # history: slip is measured from here
+
+Methods (:data:`METHODS`): ``"basket"`` (default, block Gauss-Seidel with
+baskets), ``"active_set"`` (semismooth Newton, Alart-Curnier), ``"nodal_gs"``
+(one pair at a time, the baseline). All of them are judged by the same
+:func:`residual`.
+"""
+from .problem import ContactProblem
+from .registry import DEFAULT_TOL, METHODS, Iterate, register_method, solve
+from .residual import ResidualComponents, residual, residual_components
+from .state import OPEN, SLIPPING, STATUS_NAMES, STUCK, ContactResult, ContactState
+
+# Importing the method modules registers them in METHODS.
+from . import active_set, basket, nodal_gs  # noqa: E402,F401  isort: skip
+
+__all__ = [
+    "ContactProblem", "ContactResult", "ContactState", "ResidualComponents", "METHODS",
+    "DEFAULT_TOL", "Iterate", "register_method", "solve", "residual", "residual_components",
+    "STUCK", "SLIPPING", "OPEN", "STATUS_NAMES",
+]

@@ -1,0 +1,230 @@
+"""``"active_set"``: semismooth Newton on the Alart-Curnier function, all pairs at once.
+
+With ``c`` the augmentation (default the stiffness scale ``kappa``), the
+augmented forces ``sigma_n = P - c w`` and ``sigma_t = Q - c dv`` split the
+pairs into active sets (:func:`qsma.contact.law.augmented_forces`), and the
+contact law is ``F(d) = 0`` with, per pair,
+
+.. math::
+    F_n = P - \\max(0, \\sigma_n), \\qquad
+    F_t = Q - \\mathrm{proj}_{\\mu \\max(0, \\sigma_n)}(\\sigma_t),
+
+``lam = K d + lam_w``. A Newton step with a generalised Jacobian of ``F``
+(open: ``F = lam``; stuck: ``F = c (w, dv)``; slipping:
+``F_t = Q - mu sigma_n h``, ``h = sigma_t/|sigma_t|``, whose derivative
+carries the cone curvature in 3D) is a primal-dual active-set step: the
+displacements of the stuck components and the closed normals are fixed and
+one dense solve gives the rest (:mod:`qsma.contact.linear`).
+
+Safeguards (FIELD-NOTES, ping-pong of active sets): once an active set
+repeats, steps are damped by a backtracking line search on ``|F|^2``; if the
+line search fails, the Jacobian is singular or ``maxiter`` is reached, the
+method falls back to ``"basket"`` started from the current iterate (unless
+``fallback=False``). Success is decided by :func:`qsma.contact.residual`.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from ..errors import InputError
+from .basket import run_baskets
+from .law import augmented_forces, pair_quantities, slip_directions_from_forces
+from .linear import free_components, known_displacement, open_rows, solve_partitioned
+from .registry import Iterate, register_method
+from .residual import residual
+from .state import OPEN, SLIPPING, STUCK, ContactState
+
+#: Armijo constant and the smallest step of the damped line search.
+ARMIJO, MIN_STEP = 1e-4, 2.0 ** -30
+
+
+@register_method("active_set")
+def solve_active_set(problem, lam_w, previous, *, tol, maxiter=None, augmentation=1.0,
+                     fallback=True):
+    """Semismooth Newton / primal-dual active set with cycling safeguards.
+
+    Parameters
+    ----------
+    augmentation : float
+        ``c = augmentation * kappa`` in ``sigma_n = P - c w``,
+        ``sigma_t = Q - c dv``.
+    fallback : bool
+        Hand over to ``"basket"`` when Newton fails (see module docstring).
+    maxiter : int, optional
+        Newton steps before the fallback; default 50.
+    """
+    if not (np.isscalar(augmentation) and np.isfinite(augmentation) and augmentation > 0):
+        raise InputError(f"augmentation must be a positive number, got {augmentation!r}")
+    maxiter = maxiter or 50
+    newton = _Newton(problem, lam_w, previous, augmentation * problem.kappa)
+    for it in range(maxiter + 1):
+        if residual(problem, lam_w, newton.d2, newton.lam2, previous) <= tol:
+            return Iterate(newton.d2, newton.lam2, it, True,
+                           f"converged in {it} Newton steps{newton.note()}")
+        if it == maxiter or not newton.step():
+            break
+    return _fall_back(problem, lam_w, previous, newton, it, tol, fallback)
+
+
+def _fall_back(problem, lam_w, previous, newton, nit, tol, fallback):
+    reason = newton.failure or f"no convergence in {nit} Newton steps"
+    if not fallback:
+        return Iterate(newton.d2, newton.lam2, nit, False, reason + newton.note())
+    guess = ContactState(newton.d2, newton.lam2, newton.sets().status)
+    out = run_baskets(problem, lam_w, previous, tol=tol, guess=guess)
+    return out._replace(nit=nit + out.nit,
+                        message=f"{reason}{newton.note()}; fell back to basket: {out.message}")
+
+
+def _previous_sets(previous):
+    """``(status, h)`` of the previous state, or None if every pair was stuck."""
+    if np.all(previous.status == STUCK):
+        return None
+    return previous.status.copy(), -slip_directions_from_forces(previous.lam[:, :-1],
+                                                                 previous.status)
+
+
+class ActiveSets(NamedTuple):
+    """Alart-Curnier active sets of an iterate.
+
+    ``status`` (n,) open / stuck / slipping, ``h`` (n, m) unit ``sigma_t``,
+    ``alpha`` (n,) ``mu sigma_n / |sigma_t|`` (slipping pairs; 0 elsewhere),
+    ``F`` (n, dim) the Alart-Curnier function.
+    """
+
+    status: np.ndarray
+    h: np.ndarray
+    alpha: np.ndarray
+    F: np.ndarray
+
+
+class _Newton:
+    """Iterate and safeguards of the semismooth Newton method."""
+
+    def __init__(self, problem, lam_w, previous, c):
+        self.problem, self.lw, self.prev, self.c = problem, lam_w.ravel(), previous.d, c
+        self.d = previous.d.ravel().copy()
+        self.lam = problem.K @ self.d + self.lw
+        self.seen, self.damped, self.failure = set(), False, None
+        self.first = _previous_sets(previous)
+
+    @property
+    def d2(self):
+        return self.d.reshape(-1, self.problem.dim)
+
+    @property
+    def lam2(self):
+        return self.lam.reshape(-1, self.problem.dim)
+
+    def note(self):
+        return "; cycling detected, damped steps" if self.damped else ""
+
+    def sets(self, d=None, lam=None, imposed=None):
+        """Active sets and ``F`` at ``(d, lam)`` (default: the current iterate)."""
+        d = self.d2 if d is None else d.reshape(self.d2.shape)
+        lam = self.lam2 if lam is None else lam.reshape(self.d2.shape)
+        q = pair_quantities(self.problem, d, lam, self.prev)
+        return alart_curnier_sets(q, self.problem.mu, self.c, *(imposed or ()))
+
+    def step(self):
+        """One Newton step (damped after a cycle); False if it cannot proceed.
+
+        The first step holds the sets of the previous converged state (the
+        warm start), later ones take the sets of the augmented forces.
+        """
+        if self.first is not None:
+            sets, self.first = self.sets(imposed=self.first), None
+        else:
+            sets = self.sets()
+            self._watch_cycle(sets)
+        try:
+            target = self._newton_point(sets)
+        except np.linalg.LinAlgError:
+            self.failure = "singular generalised Jacobian"
+            return False
+        t = self._line_search(sets, target - self.d) if self.damped else 1.0
+        if t is None:
+            self.failure = "line search found no decrease of |F|"
+            return False
+        self.d = self.d + t * (target - self.d)
+        self.lam = self.problem.K @ self.d + self.lw
+        return True
+
+    def _watch_cycle(self, sets):
+        key = sets.status.tobytes() + (sets.h > 0).tobytes()
+        if key in self.seen:
+            self.damped = True
+        self.seen.add(key)
+
+    def _newton_point(self, sets):
+        """Full Newton step: solve ``J d_new = J d - F`` with the fixed components known."""
+        p, st = self.problem, sets.status
+        opened, slip = np.flatnonzero(st == OPEN), np.flatnonzero(st == SLIPPING)
+        Ro, bo = open_rows(p, self.lw, opened)
+        Rs, bs = self._slip_rows(slip, sets)
+        unknown = free_components(p, opened, slip)
+        return solve_partitioned(np.vstack([Ro, Rs]), np.concatenate([bo, bs]), unknown,
+                                 known_displacement(p, st, self.prev))
+
+    def _slip_rows(self, pairs, sets):
+        """Jacobian rows of ``F_t = Q - mu sigma_n h`` at slipping pairs: ``(J, J d - F_t)``.
+
+        ``J = (I - alpha P) K_t - mu h (K_n - c e_n) + alpha c P e_t`` with
+        ``P = I - h h^T`` (zero in 2D).
+        """
+        p, c, m = self.problem, self.c, self.problem.dim - 1
+        T, N, h = p.tangent_index[pairs], p.normal_index[pairs], sets.h[pairs]
+        alpha, mu = sets.alpha[pairs], p.mu[pairs]
+        proj = np.eye(m) - h[:, :, None] * h[:, None, :]
+        A = np.eye(m) - alpha[:, None, None] * proj
+        rows = np.einsum("kij,kjc->kic", A, p.K[T]) - (mu[:, None] * h)[:, :, None] * p.K[N][:, None, :]
+        k = np.arange(len(pairs))
+        rows[k, :, N] += c * mu[:, None] * h
+        rows[k[:, None, None], np.arange(m)[None, :, None], T[:, None, :]] += (
+            c * alpha[:, None, None] * proj)
+        rows = rows.reshape(-1, p.size)
+        return rows, rows @ self.d - sets.F[pairs, :-1].ravel()
+
+    def _line_search(self, sets, delta):
+        """Backtracking on ``|F|^2`` along ``delta``; the step length or None."""
+        merit0 = np.sum(sets.F ** 2)
+        K_delta, t = self.problem.K @ delta, 1.0
+        while t >= MIN_STEP:
+            F = self.sets(self.d + t * delta, self.lam + t * K_delta).F
+            if np.sum(F ** 2) <= (1.0 - 2.0 * ARMIJO * t) * merit0:
+                return t
+            t *= 0.5
+        return None
+
+
+def alart_curnier_sets(q, mu, c, status=None, h=None):
+    """Active sets and the Alart-Curnier function of every pair (:class:`ActiveSets`).
+
+    The sets are those of the augmented forces unless ``status`` and ``h``
+    (unit slip force direction of slipping pairs) are imposed; then
+    ``alpha = 0`` (the direction is held for the step).
+    """
+    a = augmented_forces(q, mu, c)
+    if status is None:
+        status = np.where(~a.closed, OPEN, np.where(a.stick, STUCK, SLIPPING))
+        norm = np.linalg.norm(a.sigma_t, axis=1)
+        slip = status == SLIPPING
+        h = np.zeros_like(a.sigma_t)
+        h[slip] = a.sigma_t[slip] / norm[slip, None]
+        alpha = np.where(slip, mu * a.sigma_n / np.maximum(norm, 1e-300), 0.0)
+    else:
+        alpha = np.zeros(len(status))
+    return ActiveSets(status, h, alpha, _alart_curnier_function(q, a, status, h, mu, c))
+
+
+def _alart_curnier_function(q, a, status, h, mu, c):
+    """``F`` of each pair on its set: open ``lam``; stuck ``c (dv, w)``;
+    slipping ``(Q - mu sigma_n h, c w)``."""
+    F = np.empty((len(status), q.Q.shape[1] + 1))
+    F[:, -1] = np.where(status != OPEN, c * q.w, q.P)
+    F[:, :-1] = np.where((status == OPEN)[:, None], q.Q,
+                         np.where((status == STUCK)[:, None], c * q.dv,
+                                  q.Q - (mu * a.sigma_n)[:, None] * h))
+    return F

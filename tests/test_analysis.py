@@ -1,0 +1,114 @@
+"""End-to-end QSMA of sandwich-2d at refine 1: the checks of shared/spec/sandwich-2d.md."""
+import numpy as np
+import pytest
+
+import qsma
+from qsma.contact import METHODS, residual
+from qsma.examples import sandwich_2d
+from qsma.fe import assemble_body
+from qsma.levels import Levels
+from qsma.modal import linear_modes
+from qsma.model import make_pairing
+
+
+@pytest.fixture(scope="module")
+def result():
+    return qsma.run(sandwich_2d(1), direct_loop=True)
+
+
+def test_spec_levels_and_sizes(result):
+    r = result
+    assert r.success and r.n_levels == 51
+    assert r.model_info["n_nodes"] == 2250 and r.model_info["n_pairs"] == 65
+    assert np.allclose(r.tip_lin, 10.0 ** (-6 + 3 * np.arange(51) / 50), rtol=1e-12)
+
+
+def test_lowest_levels_all_stuck_at_f0_and_no_damping(result):
+    r = result
+    stuck = np.flatnonzero((r.n_slip == 0) & (np.cumsum(r.n_slip) == 0))
+    assert len(stuck) >= 5                       # the ramp starts in the stuck regime
+    assert np.all(np.abs(r.f_hz[stuck] / r.f0_hz - 1) < 1e-6)
+    assert np.all(np.abs(r.zeta[stuck]) < 1e-8)
+    # the linear tied tip deflection is met while stuck
+    assert np.allclose(r.tip[stuck], r.tip_lin[stuck], rtol=1e-6)
+
+
+def test_damping_dissipation_positive_frequency_non_increasing(result):
+    r = result
+    tol = 1e-8
+    assert np.all(r.zeta >= -tol) and np.all(r.dissipation >= -tol * r.dissipation.max())
+    assert np.all(np.diff(r.f_hz) <= tol * r.f0_hz)
+    assert np.all(r.n_stuck + r.n_slip + r.n_open == 65)
+    assert r.zeta[-1] > 100 * r.zeta[np.flatnonzero(r.n_slip > 0)[0]] / 100  # damping grows
+    assert r.f_hz[-1] < 0.95 * r.f0_hz                                   # softening
+
+
+def test_first_mode_above_published_value(result):
+    # sandwich-2d.md: the published 198.4 Hz used a lower-resolution model; expect several
+    # percent above it with the spec's mesh (f0 recorded by `qsma run --example sandwich-2d`)
+    assert 198.4 < result.f0_hz < 240.0
+
+
+def test_tied_set_is_the_closed_pairs_and_f0_matches_modes(result):
+    m = sandwich_2d(1)
+    A = [assemble_body(b) for b in m.bodies]
+    p = make_pairing(m)
+    closed = result.preload.status != 2
+    f = linear_modes(m, A, p, tied=closed, n_modes=1).f_hz[0]
+    assert f == pytest.approx(result.f0_hz, rel=1e-10)
+    # the preload is symmetric: no pair slips under it
+    assert np.all(result.preload.status[closed] == 0)
+
+
+def test_every_level_satisfies_the_public_residual(result):
+    r = result
+    from qsma.contact import ContactProblem
+    problem = ContactProblem(r.reduced.K, r.model_info["mu"])
+    prev = r.preload.state
+    a = lambda al: np.array([1.0, al])
+    for k in range(r.n_levels):
+        lam_w = r.reduced.welded_contact_force(a(r.alpha[k]))
+        res_k = residual(problem, lam_w, r.states.d[k], r.states.lam[k], prev)
+        assert res_k <= r.solver.get("tol", 1e-8) * 10
+        prev = r.states.contact_states[k]
+
+
+def test_full_field_satisfies_full_equilibrium(result):
+    """Condensation is exact: the recovered full field balances the full model with the
+    contact forces of the reduced solution."""
+    r = result
+    m = r.model
+    A = [assemble_body(b) for b in m.bodies]
+    k = r.n_levels - 1
+    u1, u2 = r.fields(k)
+    a = np.array([1.0, r.alpha[k]])
+    lam = r.states.lam[k]
+    p = r.pairing
+    for j, (asm, u, sign, nodes) in enumerate(((A[0], u1, -1, p.nodes1),
+                                               (A[1], u2, +1, p.nodes2))):
+        F = r.reduced.loads[j] @ a
+        f_contact = np.zeros(asm.n_dofs)
+        g = np.einsum("pi,pij->pj", lam, p.frames)          # local -> global
+        f_contact[2 * nodes] = sign * g[:, 0]
+        f_contact[2 * nodes + 1] = sign * g[:, 1]
+        resid = (asm.K @ u - F - f_contact)[asm.free]
+        assert np.abs(resid).max() < 1e-8 * np.abs(F).max()
+
+
+def test_direct_loop_close_to_masing(result):
+    dl = result.direct_loop
+    assert dl.success
+    assert dl.dissipation == pytest.approx(dl.dissipation_masing, rel=0.05)
+    # the loop closes: back at +alpha_max the state is the backbone's
+    assert dl.q[-1] == pytest.approx(dl.q[0], rel=1e-6)
+
+
+@pytest.mark.parametrize("method", sorted(set(METHODS) - {"nodal_gs"}))
+def test_methods_agree_on_the_backbone(result, method):
+    levels = Levels("alpha", tuple(result.alpha[::5]))
+    other = qsma.run(sandwich_2d(1), levels=levels, method=method)
+    assert other.success
+    assert np.allclose(other.q, result.q[::5], rtol=1e-7)
+    from qsma.masing import masing
+    ref = masing(result.alpha[::5], result.q[::5])      # same levels, same quadrature
+    assert np.allclose(other.zeta, ref.zeta, rtol=1e-5, atol=1e-9)

@@ -1,0 +1,85 @@
+"""The command line, end to end in temporary folders."""
+import csv
+import json
+
+import meshio
+import numpy as np
+import pytest
+
+from qsma.cli import main
+
+
+def test_modes_json(capsys):
+    assert main(["modes", "--example", "sandwich-2d", "--tie", "all", "--json", "-n", "3"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    f = out["f_hz"]
+    assert len(f) == 3 and 142.7 < f[0] < 285.3 and f == sorted(f)
+
+
+def test_modes_tie_preload_is_softer_than_all(capsys):
+    main(["modes", "--example", "sandwich-2d", "--tie", "preload", "--json", "-n", "1"])
+    f_pre = json.loads(capsys.readouterr().out)["f_hz"][0]
+    main(["modes", "--example", "sandwich-2d", "--tie", "all", "--json", "-n", "1"])
+    f_all = json.loads(capsys.readouterr().out)["f_hz"][0]
+    assert f_pre < f_all
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory):
+    out = tmp_path_factory.mktemp("run") / "sandwich"
+    code = main(["run", "--example", "sandwich-2d", "--out", str(out), "--quiet",
+                 "--direct-loop"])
+    assert code == 0
+    return out
+
+
+def test_results_json_schema(run_dir):
+    data = json.loads((run_dir / "results.json").read_text())
+    assert set(data["model"]) >= {"n_nodes", "n_dofs", "n_pairs", "mu"}
+    assert data["model"]["n_nodes"] == 2250 and data["model"]["n_pairs"] == 65
+    assert set(data["mode"]) >= {"index", "f0_hz"}
+    levels = data["levels"]
+    keys = ["alpha", "tip_lin", "q", "tip", "f_hz", "zeta", "dissipation", "tip_velocity",
+            "n_stuck", "n_slip", "n_open", "iterations"]
+    assert all(len(levels[k]) == 51 for k in keys)
+    assert set(data["timings_s"]) == {"model", "assembly", "modal", "condensation",
+                                      "contact", "postprocess", "total"}
+    assert set(data["solver"]) >= {"method", "tol"}
+    assert data["qsma_version"]
+    assert data["direct_loop"]["dissipation"] > 0
+
+
+def test_results_csv_matches_json(run_dir):
+    data = json.loads((run_dir / "results.json").read_text())
+    rows = list(csv.DictReader((run_dir / "results.csv").open()))
+    assert len(rows) == 51
+    assert np.allclose([float(r["zeta"]) for r in rows], data["levels"]["zeta"], rtol=1e-9,
+                       atol=1e-15)
+
+
+def test_plots_are_png(run_dir):
+    for name in ("backbone", "loops", "damping_frequency", "interface"):
+        head = (run_dir / f"{name}.png").read_bytes()[:8]
+        assert head == b"\x89PNG\r\n\x1a\n"
+
+
+def test_vtu_reads_back(run_dir):
+    m = meshio.read(run_dir / "fields.vtu")
+    assert len(m.points) == 2250
+    assert m.cells[0].type == "quad" and len(m.cells[0].data) == 2 * 124 * 8
+    assert "u_level50" in m.point_data and "von_mises_level50" in m.point_data
+    p = m.point_data["contact_pressure_level50"]
+    assert np.isfinite(p).all() and p.max() > 1e6          # MPa-level bolt pressure
+
+
+def test_no_temporary_files_left(run_dir):
+    assert not [p for p in run_dir.iterdir() if p.name.startswith(".")]
+
+
+def test_bad_input_exit_code_2_without_traceback(tmp_path, capsys):
+    assert main(["run", "--example", "nope", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "unknown example" in err and "sandwich-2d" in err and "Traceback" not in err
+    assert main(["run", "--example", "sandwich-2d", "--out", str(tmp_path),
+                 "--method", "magic"]) == 2
+    assert "valid" in capsys.readouterr().err
