@@ -95,10 +95,47 @@ def factorize(A, what="K_EE"):
                          f"rigid-body motion apart from its interface: add clamps") from exc
 
 
+def rigid_body_modes(points: np.ndarray) -> np.ndarray:
+    """Infinitesimal rigid-body motions (translations, rotations) as columns over the
+    node-major DOFs: 3 in 2D, 6 in 3D."""
+    n, dim = points.shape
+    x = points - points.mean(axis=0)
+    if dim == 2:
+        rot = np.stack([-x[:, 1], x[:, 0]], axis=1)[:, :, None]
+    else:
+        e = np.eye(3)
+        rot = np.stack([np.cross(e[k], x) for k in range(3)], axis=2)
+    trans = np.broadcast_to(np.eye(dim), (n, dim, dim))
+    return np.concatenate([trans, rot], axis=2).reshape(n * dim, -1)
+
+
+def check_constrained(assembled):
+    """Raise :class:`InputError` naming the body if its clamps leave a rigid-body motion
+    free (its stiffness would be singular: no unique static answer)."""
+    body = assembled.body
+    modes = rigid_body_modes(body.mesh.points)
+    at_clamps = modes[assembled.fixed]
+    rank = np.linalg.matrix_rank(at_clamps, tol=1e-9 * max(1.0, np.abs(modes).max()))
+    if rank < modes.shape[1]:
+        _, _, vt = np.linalg.svd(at_clamps) if len(at_clamps) else (None, None,
+                                                                     np.eye(modes.shape[1]))
+        free = vt[-1]
+        names = (["translation x", "translation y", "rotation z"] if body.dim == 2 else
+                 ["translation x", "translation y", "translation z", "rotation x",
+                  "rotation y", "rotation z"])
+        motion = ", ".join(f"{c:+.2f} {n}" for c, n in zip(free, names) if abs(c) > 1e-6)
+        raise InputError(
+            f"body {body.name!r} is not held against rigid-body motion by its Dirichlet "
+            f"conditions ({len(assembled.fixed)} DOFs clamped; free motion: {motion}). "
+            f"Each body needs clamps that stop all {modes.shape[1]} rigid-body motions "
+            f"on its own: add or extend a clamp set.")
+
+
 def condense_body(assembled, nodes, frames) -> CondensedBody:
     """Condense one assembled body onto the interface ``nodes`` (pair order, frames)."""
     body = assembled.body
     dim = body.dim
+    check_constrained(assembled)
     C = (dim * nodes[:, None] + np.arange(dim)[None, :]).ravel()
     fixed = np.zeros(body.n_dofs, dtype=bool)
     fixed[assembled.fixed] = True

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from .masing import masing_loop
-from .results import replace_atomically
+from .results import TMP_PREFIX, replace_atomically
 
 
 def _figure(nrows=1, ncols=1, **kw):
@@ -21,7 +21,8 @@ def _figure(nrows=1, ncols=1, **kw):
 def _save(fig, path):
     import matplotlib.pyplot as plt
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".png", dir=path.parent)
+    fd, tmp = tempfile.mkstemp(prefix=f"{TMP_PREFIX}{path.stem}.", suffix=".png",
+                               dir=path.parent)
     os.close(fd)
     try:
         fig.savefig(tmp, dpi=120, bbox_inches="tight", format="png")

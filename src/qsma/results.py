@@ -10,10 +10,13 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
+from .errors import AnalysisError, InputError
 from .fe import stress_at_nodes
 
 SCHEMA_VERSION = 1
+#: prefix of the temporary files renamed into place; stale ones (from a killed run)
+#: are removed by :func:`prepare_output_dir`
+TMP_PREFIX = ".qsma-tmp-"
 
 
 def _umask_mode():
@@ -32,7 +35,7 @@ def atomic_write(path, data, mode="w"):
     """Write ``data`` (str or bytes) to ``path`` through a temporary file in the same
     folder and ``os.replace``: readers see either the old file or the complete new one."""
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    fd, tmp = tempfile.mkstemp(prefix=f"{TMP_PREFIX}{path.name}.", dir=path.parent)
     try:
         with os.fdopen(fd, mode) as f:
             f.write(data)
@@ -50,28 +53,31 @@ def prepare_output_dir(out) -> Path:
     out = Path(out)
     try:
         out.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=".qsma-write-check-", dir=out)
+        fd, tmp = tempfile.mkstemp(prefix=TMP_PREFIX + "write-check-", dir=out)
         os.close(fd)
         os.unlink(tmp)
+        for stale in out.glob(TMP_PREFIX + "*"):
+            stale.unlink()
     except OSError as exc:
         raise InputError(f"output folder {str(out)!r} cannot be written ({exc.strerror}); "
                          f"choose another --out folder or fix its permissions") from exc
     return out
 
 
-def _clean(x):
-    """JSON-safe value: numpy to Python, NaN/Inf refused (never written)."""
+def _clean(x, where="results"):
+    """JSON-safe value: numpy to Python; NaN/Inf are refused, never written."""
     if isinstance(x, dict):
-        return {k: _clean(v) for k, v in x.items()}
+        return {k: _clean(v, f"{where}.{k}") for k, v in x.items()}
     if isinstance(x, (list, tuple)):
-        return [_clean(v) for v in x]
+        return [_clean(v, where) for v in x]
     if isinstance(x, np.ndarray):
-        return _clean(x.tolist())
+        return _clean(x.tolist(), where)
     if isinstance(x, (np.integer,)):
         return int(x)
     if isinstance(x, (float, np.floating)):
         if not np.isfinite(x):
-            raise ValueError("non-finite number in results")
+            raise AnalysisError(f"non-finite value in {where}: the analysis produced NaN or "
+                                f"Inf; nothing was written for it")
         return float(x)
     return x
 
@@ -121,6 +127,7 @@ def write_csv(res, path):
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(CSV_COLUMNS)
     table = res.levels_table()
+    _clean({c: table[c] for c in CSV_COLUMNS[1:-1]}, "levels")   # refuse NaN / Inf
     for k in range(res.n_levels):
         row = [k] + [table[c][k] for c in CSV_COLUMNS[1:-1]] + [res.states.residual[k]]
         w.writerow([f"{v:.10g}" if isinstance(v, (float, np.floating)) else int(v)
@@ -159,7 +166,8 @@ def write_vtu(res, path, levels=None):
             point_data[f"{name}_level{k:02d}"] = v
     mesh = meshio.Mesh(pts, [(ctype, np.vstack(cells))], point_data=point_data)
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".vtu", dir=path.parent)
+    fd, tmp = tempfile.mkstemp(prefix=f"{TMP_PREFIX}{path.stem}.", suffix=".vtu",
+                               dir=path.parent)
     os.close(fd)
     try:
         meshio.write(tmp, mesh, binary=True)

@@ -5,7 +5,9 @@ Exit codes: 0 success, 1 analysis failed, 2 bad input.
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import threading
 import traceback
 import warnings
 
@@ -31,11 +33,22 @@ def build_parser():
     return parser
 
 
-class _Parser(argparse.ArgumentParser):
-    pass
+def _terminate(signum, frame):
+    raise KeyboardInterrupt            # unwinds: temporary result files are removed
 
 
 def main(argv=None) -> int:
+    """Run the command line; returns the exit code (0 ok, 1 analysis failed, 2 bad input)."""
+    if threading.current_thread() is not threading.main_thread():
+        return _main(argv)
+    previous = signal.signal(signal.SIGTERM, _terminate)
+    try:
+        return _main(argv)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _main(argv):
     parser = build_parser()
     try:
         args = parser.parse_args(argv)

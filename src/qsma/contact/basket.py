@@ -105,7 +105,8 @@ class _BasketRun:
         self.ever_moved = np.zeros(n, bool)
         self.d = np.array(guess.d, dtype=float).ravel()
         self.lam = problem.K @ self.d + self.lw
-        self.seen, self.cautious, self.m = set(), False, m
+        self.cautious, self.m = False, m
+        self.seen = {self._key(self.status, self.direction)}
 
     @property
     def d2(self):
@@ -158,34 +159,50 @@ class _BasketRun:
         return None
 
     def _move(self, tr, temporary):
-        """Move the temporary pairs that failed their check; True if any moved."""
+        """Move the temporary pairs that failed their check; True if any moved.
+
+        All failed pairs move at once, unless that returns to a configuration
+        of baskets seen before in this solve (a cycle): from then on one pair
+        moves per step, the most violated one whose move (to its proposed
+        basket, or else to another) leads somewhere new.
+        """
         wants = (tr.status != self.status) & temporary
-        moved = self._cautious_filter(wants, tr.violation)
         self.confirmed = np.where(wants, 0, self.confirmed + temporary)
-        self.ever_moved |= moved
         self.final |= temporary & ~wants & (~self.ever_moved | (self.confirmed >= 2))
-        if not moved.any():
+        if not wants.any():
             return False
-        self.status = np.where(moved, tr.status, self.status)
-        new_slip = moved & (tr.status == SLIPPING)
-        self.direction[new_slip] = tr.direction[new_slip]
-        self.curvature[moved] = 0.0
-        self._detect_cycle()
+        status, direction = np.where(wants, tr.status, self.status), self.direction.copy()
+        direction[wants] = tr.direction[wants]
+        if self.cautious or self._key(status, direction) in self.seen:
+            self.cautious = True
+            status, direction = self._new_single_move(tr, wants, status, direction)
+        self.ever_moved |= status != self.status
+        self.curvature[status != self.status] = 0.0
+        self.status, self.direction = status, direction
+        self.seen.add(self._key(status, direction))
         return True
 
-    def _cautious_filter(self, wants, violation):
-        """After a cycle, move only the most violated pair per step."""
-        if not self.cautious or np.count_nonzero(wants) <= 1:
-            return wants
-        only = np.zeros_like(wants)
-        only[np.argmax(np.where(wants, violation, -np.inf))] = True
-        return only
+    def _new_single_move(self, tr, wants, fallback_status, fallback_direction):
+        """The most violated single move to an unseen configuration (else all moves)."""
+        for i in np.argsort(-np.where(wants, tr.violation, -np.inf))[:np.count_nonzero(wants)]:
+            for code, sign in self._targets(i, tr.status[i]):
+                status, direction = self.status.copy(), self.direction.copy()
+                status[i] = code
+                direction[i] = sign * tr.direction[i]
+                if self._key(status, direction) not in self.seen:
+                    return status, direction
+        return fallback_status, fallback_direction
 
-    def _detect_cycle(self):
-        key = self.status.tobytes() + (self.direction > 0).tobytes()
-        if key in self.seen:
-            self.cautious = True
-        self.seen.add(key)
+    def _targets(self, i, proposed):
+        """Baskets to try for pair ``i``: the proposed one first, then the others."""
+        order = [proposed] + [c for c in (STUCK, SLIPPING, OPEN) if c not in (proposed, self.status[i])]
+        out = [(c, 1.0) for c in order]
+        if self.m == 1:
+            out.append((SLIPPING, -1.0))
+        return out
+
+    def _key(self, status, direction):
+        return status.tobytes() + np.where(status == SLIPPING, direction[:, 0] > 0, False).tobytes()
 
     def _direction_change(self, tr):
         slipping = (self.status == SLIPPING) & (tr.status == SLIPPING)

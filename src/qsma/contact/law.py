@@ -127,11 +127,12 @@ def basket_transitions(status, direction, q, mu, kappa, threshold, local):
       direction, ``dv . s < 0`` (with ``mu P > 0``);
     * open: ``w < 0``.
 
-    A pair that fails moves to the basket of its exact one-pair solution with
-    the other pairs held (``local``, see :func:`local_states`); only if that
-    is its current basket does it take the paper's default (stuck -> open if
-    ``P < 0`` else slipping along ``-Q/|Q|``, slipping -> open if ``P < 0``
-    else stuck, open -> stuck). Pairs that stay slipping take the direction
+    A pair that fails moves to the paper's default basket (stuck -> open if
+    ``P < 0`` else slipping along ``-Q/|Q|``; slipping -> open if ``P < 0``
+    else stuck; open -> stuck) if its exact one-pair solution with the other
+    pairs held (``local``, :func:`local_states`) allows that state; otherwise
+    to the first other state the one-pair solution allows (stuck, slipping,
+    open), or to the default if none does. Pairs that stay slipping take the direction
     of their slip increment (3D). A check fails only if its violation exceeds
     ``threshold`` (force units; displacements are turned into forces with
     ``kappa``), so that round-off does not move pairs back and forth.
@@ -150,8 +151,7 @@ def basket_transitions(status, direction, q, mu, kappa, threshold, local):
     viol = np.max([tension, overload, backward, closing], axis=0)
     failed = viol > threshold
     default = np.where(opened | (tension > threshold), OPEN, np.where(stuck, SLIPPING, STUCK))
-    target = np.where(local.status != status, local.status, default)
-    new = np.where(failed, target, status)
+    new = np.where(failed, _target(status, default, local.valid), status)
     s = direction.copy()
     fresh = failed & (new == SLIPPING)
     s[fresh] = local.direction[fresh]
@@ -159,25 +159,36 @@ def basket_transitions(status, direction, q, mu, kappa, threshold, local):
     return Transitions(new, s, np.where(failed, viol, 0.0))
 
 
-class LocalStates(NamedTuple):
-    """Basket of the exact one-pair solution of every pair (others held).
+def _target(status, default, valid):
+    """Default basket if locally valid, else the first valid other basket."""
+    rows = np.arange(len(status))
+    allowed = valid.copy()
+    allowed[rows, status] = False
+    first = np.where(allowed.any(axis=1), np.argmax(allowed, axis=1), default)
+    return np.where(valid[rows, default], default, first)
 
-    ``status`` (n,) and ``direction`` (n, m), the slip direction (unit slip
-    increment) where ``status`` is slipping.
+
+class LocalStates(NamedTuple):
+    """Exact one-pair solutions of every pair (the other pairs held).
+
+    ``valid`` (n, 3) bool: whether the stuck, slipping and open candidates
+    (columns in the order of the status codes) satisfy their inequalities;
+    ``direction`` (n, m) the slip direction of the slipping candidate.
     """
 
-    status: np.ndarray
+    valid: np.ndarray
     direction: np.ndarray
 
 
 def local_states(problem, d, lam, d_prev, threshold):
-    """Which row of the contact law each pair satisfies when solved alone.
+    """Which rows of the contact law each pair can satisfy when solved alone.
 
     With the other pairs held, pair ``i`` sees ``lam_i = K_ii d_i + r_i``,
-    ``r_i = lam_i - K_ii d_i``. Its candidates are tried in the order stuck
-    (``d_i = (d_t,prev, -g0)``: needs ``P >= 0``, ``|Q| <= mu P``), open
-    (``lam_i = 0``: needs ``w >= 0``), slipping (direction ``-Q/|Q|`` of the
-    stuck trial force; in 2D the other sign if only that one is consistent).
+    ``r_i = lam_i - K_ii d_i``. Its candidates: stuck
+    (``d_i = (d_t,prev, -g0)``: needs ``P >= 0``, ``|Q| <= mu P``); open
+    (``lam_i = 0``: needs ``w >= 0``); slipping (``d_n = -g0``,
+    ``Q = -mu P s`` with ``s = -Q/|Q|`` of the stuck trial force, held fixed;
+    in 2D the other sign is tried too: needs ``P >= 0``, ``dv . s >= 0``).
 
     Parameters
     ----------
@@ -194,26 +205,30 @@ def local_states(problem, d, lam, d_prev, threshold):
     stuck_ok = (P >= -threshold) & (q_norm - mu * P <= threshold)
     w_open = -np.linalg.solve(Kii, r[:, :, None])[:, -1, 0] + problem.gap0
     open_ok = kappa * w_open >= -threshold
-    status = np.where(stuck_ok, STUCK, np.where(open_ok, OPEN, SLIPPING))
-    direction = -Q / np.maximum(q_norm, np.finfo(float).tiny)[:, None]
+    s = -Q / np.maximum(q_norm, np.finfo(float).tiny)[:, None]
+    s[q_norm == 0, 0] = 1.0
+    slip_ok = _slip_consistent(Kii, Q, P, s, mu, kappa, threshold)
     if problem.dim == 2:
-        direction = _consistent_sign_2d(Kii, r, d_stuck, direction, mu)
-    return LocalStates(status, direction)
+        flip = ~slip_ok & _slip_consistent(Kii, Q, P, -s, mu, kappa, threshold)
+        s[flip], slip_ok = -s[flip], slip_ok | flip
+    return LocalStates(np.stack([stuck_ok, slip_ok, open_ok], axis=1), s)
 
 
-def _consistent_sign_2d(Kii, r, d_stuck, s, mu):
-    """2D slip sign: keep ``-sign(Q)`` unless only the opposite sign is consistent."""
-    a, b, c = Kii[:, 0, 0], Kii[:, 0, 1], Kii[:, 1, 1]
-    tp, dn = d_stuck[:, 0], d_stuck[:, 1]
+def _slip_consistent(Kii, Q0, P0, s, mu, kappa, threshold):
+    """Whether slipping along ``s`` is consistent for each pair alone.
 
-    def consistent(sign):
-        denom = a + mu * sign * b
-        dt = -(r[:, 0] + b * dn + mu * sign * (c * dn + r[:, 1])) / denom
-        return (denom > 0) & (b * dt + c * dn + r[:, 1] >= 0) & (sign * (dt - tp) >= 0)
-
-    s0 = np.where(s[:, 0] == 0, 1.0, s[:, 0])
-    flip = ~consistent(s0) & consistent(-s0)
-    return np.where(flip, -s0, s0)[:, None]
+    The slip increment ``v`` solves ``(A + mu s b^T) v = -(Q0 + mu P0 s)``
+    (``A = K_tt``, ``b = K_nt`` of the pair, ``Q0, P0`` the stuck trial
+    forces); consistent if ``P0 + b.v >= 0`` and ``v . s >= 0``.
+    """
+    A, b = Kii[:, :-1, :-1], Kii[:, -1, :-1]
+    M = A + mu[:, None, None] * s[:, :, None] * b[:, None, :]
+    rhs = -(Q0 + (mu * P0)[:, None] * s)
+    singular = np.abs(np.linalg.det(M)) <= 1e-14 * np.abs(np.linalg.det(A))
+    M[singular] = A[singular]
+    v = np.linalg.solve(M, rhs[:, :, None])[:, :, 0]
+    P = P0 + np.sum(b * v, axis=1)
+    return ~singular & (P >= -threshold) & (kappa * np.sum(v * s, axis=1) >= -threshold)
 
 
 def _updated_directions(s, slipping_now, slipping_before, dv):
