@@ -426,10 +426,9 @@ $MeshFormat
 2.2 0 8
 $EndMeshFormat
 $PhysicalNames
-4
+3
 0 1 "corner"
 1 2 "bottom"
-1 2 "line with the tag of 'bottom' in another dimension"
 2 2 "square"
 $EndPhysicalNames
 $Nodes
@@ -457,7 +456,7 @@ def test_hand_written_gmsh_22(tmp_path):
     assert m.node_sets["corner"].tolist() == [0]
     assert facet_keys(m.facet_sets["bottom"]) == {(0, 1)}
     assert facet_keys(m.facet_sets["5"]) == {(2, 3)}                  # unnamed group
-    assert m.cell_sets["square"].tolist() == [0, 1]
+    assert m.cell_sets["square"].tolist() == [0, 1]    # tag 2 of dimension 2, not "bottom"
 
 
 SQUARE_V41 = """\
@@ -523,12 +522,12 @@ def inp_error(tmp_path, text, name="bad.inp") -> str:
 
 
 @pytest.mark.parametrize("text,line,words", [
-    (QUAD_GRID.replace("2, 2, 3, 6, 5", "2, 2, 3, 6"), 9, "3 node ids"),
+    (QUAD_GRID.replace("2, 2, 3, 6, 5", "2, 2, 3, 6"), 10, "3 node ids"),
     (QUAD_GRID.replace("TYPE=CPE4", "TYPE=C3D20R"), 8, "C3D20R"),
-    (TWO_QUADS.replace(" first, 50", " first, 55"), 22, "node 55"),
-    (TWO_QUADS.replace(" 20, 60, 20", " 60, 20"), 18, "GENERATE"),
-    (TWO_QUADS.replace(" 200,", " 201,"), 20, "element 201"),
-    (QUAD_GRID.replace("2, 2, 3, 6, 5", "2, 2, 3, 6, 7"), 9, "node 7"),
+    (TWO_QUADS.replace(" first, 50", " first, 55"), 21, "node 55"),
+    (TWO_QUADS.replace(" 20, 60, 20", " 60, 20"), 17, "GENERATE"),
+    (TWO_QUADS.replace("Second\n 200,", "Second\n 201,"), 19, "element 201"),
+    (QUAD_GRID.replace("2, 2, 3, 6, 5", "2, 2, 3, 6, 7"), 10, "node 7"),
     (QUAD_GRID.replace("6, 2, 1", "5, 2, 1"), 7, "twice"),
     (QUAD_GRID.replace("2, S2", "2, S5"), 16, "S5"),
     (QUAD_GRID.replace("_first, s3", "_second, s3"), 18, "_second"),
@@ -545,7 +544,7 @@ def test_inp_errors_name_file_and_line(tmp_path, text, line, words):
 @pytest.mark.parametrize("text,words", [
     ("** nothing here\n*HEADING\n", "no nodes"),
     ("*NODE\n1, 0, 0\n2, 1, 0\n", "no elements"),
-    (QUAD_GRID.replace("2, 2, 3, 6, 5", "2, 2, 3, 6\n*ELEMENT, TYPE=CPE3\n3, 2, 3, 6"),
+    (QUAD_GRID.replace("2, 2, 3, 6, 5", "2, 2, 3, 6, 5\n*ELEMENT, TYPE=CPE3\n3, 2, 3, 6"),
      "mixed meshes are not supported yet"),
     (QUAD_GRID.replace("3, 2, 0", "3, 2, 0, 0.5"), "non-zero z"),
     (QUAD_GRID.replace("1, S1", "1, S2"), "not boundary facets"),
@@ -556,7 +555,7 @@ def test_inp_mesh_errors(tmp_path, text, words):
 
 
 def test_mixed_mesh_names_the_types(tmp_path):
-    text = QUAD_GRID.replace("2, 2, 3, 6, 5", "2, 2, 3, 6\n*ELEMENT, TYPE=CPE3\n3, 2, 3, 6")
+    text = QUAD_GRID.replace("2, 2, 3, 6, 5", "2, 2, 3, 6, 5\n*ELEMENT, TYPE=CPE3\n3, 2, 3, 6")
     message = inp_error(tmp_path, text)
     assert "quad" in message and "triangle" in message
 

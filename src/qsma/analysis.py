@@ -240,7 +240,7 @@ def run(model, *, mode=0, levels: Levels | None = None, method="basket", tol=Non
         tip = np.array([reduced.evaluate("tip", d, _load_factors(reduced, a))
                         for d, a in zip(ramp["d"], al)]) - t0
         ms = masing(al, q) if n_ok else None
-        status = np.array(ramp["status"]).reshape(n_ok, -1)
+        status = np.array(ramp["status"], dtype=int).reshape(n_ok, pairing.n_pairs)
         counts = np.array([_counts(s) for s in status]).reshape(n_ok, 3)
         gross = [k for k in range(n_ok) if counts[k, 0] == 0 and counts[k, 1] > 0]
 
@@ -252,8 +252,10 @@ def run(model, *, mode=0, levels: Levels | None = None, method="basket", tol=Non
 
     timings = clock.done()
     empty = np.zeros(0)
-    states = LevelStates(*(np.array(ramp[k]) for k in ("d", "lam", "status", "residual",
-                                                         "nit")),
+    shape = (n_ok, pairing.n_pairs, model.dim)
+    states = LevelStates(np.array(ramp["d"]).reshape(shape), np.array(ramp["lam"]).reshape(shape),
+                         status, np.array(ramp["residual"], dtype=float),
+                         np.array(ramp["nit"], dtype=int),
                          contact_states=tuple(ramp["states"]))
     return QSMAResult(
         success=ramp["success"], message=ramp["message"],

@@ -83,6 +83,10 @@ _N_NODES = {"vertex": 1, "line": 2, "triangle": 3, "quad": 4, "tetra": 4, "hexah
 #: Gmsh file versions write_mesh can produce
 GMSH_VERSIONS = ("4.1", "2.2")
 
+#: largest node or element id accepted (ids are stored as int64)
+_MAX_ID = 2**62
+#: most ids one GENERATE row may produce
+_MAX_GENERATED = 10**8
 _BINARY_BYTES = re.compile(rb"[\x00-\x08\x0b\x0e-\x1f\x7f]")
 _PLAIN_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_\-]*")
 
@@ -345,12 +349,12 @@ def _to_mesh(fm: _FileMesh, vtype: str) -> Mesh:
         on = np.isin(boundary.cell, cells_in)
         facet_rows.setdefault(name, []).append(boundary.rows[on])
 
-    facet_sets = {name: _match_facets(src, name, np.concatenate(parts), boundary, fm.labels,
-                                      bare)
-                  for name, parts in facet_rows.items()}
-    node_sets = {k: np.unique(np.concatenate(v)) for k, v in node_sets.items()}
-    cell_sets = {k: np.unique(np.concatenate(v)) for k, v in cell_sets.items()}
     nf = len(CELL_FACETS[vtype][0])
+    facet_sets = {name: _match_facets(src, name, _joined(parts, (0, nf)), boundary,
+                                      fm.labels, bare)
+                  for name, parts in facet_rows.items()}
+    node_sets = {k: np.unique(_joined(v, (0,))) for k, v in node_sets.items()}
+    cell_sets = {k: np.unique(_joined(v, (0,))) for k, v in cell_sets.items()}
     empty = {"cell": (cell_sets, np.zeros(0, np.int64)),
              "node": (node_sets, np.zeros(0, np.int64)),
              "facet": (facet_sets, np.zeros((0, nf), np.int64))}
@@ -361,6 +365,10 @@ def _to_mesh(fm: _FileMesh, vtype: str) -> Mesh:
         return Mesh(points, cells, vtype, node_sets, facet_sets, cell_sets)
     except InputError as exc:
         raise MeshFileError(f"{src}: {exc}") from exc
+
+
+def _joined(parts: list, empty_shape: tuple) -> np.ndarray:
+    return np.concatenate(parts) if parts else np.zeros(empty_shape, dtype=np.int64)
 
 
 def _match_facets(src, name, rows, boundary: _Boundary, labels, mesh: Mesh) -> np.ndarray:
@@ -533,13 +541,18 @@ class _Stream:
 
     def _take(self, n: int, dtype) -> np.ndarray:
         n = int(n)
+        if n < 0:
+            raise MeshFileError(f"{self.where()}: negative count in ${self.section}; the "
+                                f"file is damaged")
+        if n == 0:
+            return np.zeros(0, dtype=float if dtype == "d" else np.int64)
         if self.ascii:
             if n > len(self.tokens) - self.pos:
                 raise self.truncated()
             chunk = self.tokens[self.pos:self.pos + n]
             try:
                 values = np.array(chunk, dtype=float if dtype == "d" else np.int64)
-            except ValueError:
+            except (ValueError, OverflowError):
                 raise MeshFileError(f"{self.where()}: unexpected value in ${self.section} "
                                     f"(expected {'numbers' if dtype == 'd' else 'integers'}); "
                                     f"the file is damaged") from None
@@ -836,6 +849,14 @@ def _rows(card: _Card):
         yield (file, number), tokens, text
 
 
+def _integer(token: str) -> int:
+    """An id or count of an .inp file (ValueError if it is none or out of range)."""
+    value = int(token)
+    if abs(value) >= _MAX_ID:
+        raise ValueError(f"{token} is out of range")
+    return value
+
+
 def _abaqus_float(token: str) -> float:
     token = token.strip()
     return float(token.replace("D", "E").replace("d", "e")) if token else 0.0
@@ -990,7 +1011,7 @@ class _InpReader:
         if not rows:
             fm.empty_sets.setdefault(name, "facet")
         for reference, face, where in rows:
-            if re.fullmatch(r"[+-]?\d+", reference):
+            if re.fullmatch(r"[+-]?\d{1,18}", reference):
                 members = elements(np.array([int(reference)]))
                 if members[0] < 0:
                     raise _inp_error(where, f"surface {name!r} refers to element {reference}, "
@@ -1033,7 +1054,7 @@ def _inp_node(r: _InpReader, card: _Card):
     ids = []
     for where, tokens, text in _rows(card):
         try:
-            nid = int(tokens[0])
+            nid = _integer(tokens[0])
             xyz = [_abaqus_float(t) for t in tokens[1:4]]
         except ValueError:
             raise _inp_error(where, f"cannot read the node row {text!r}",
@@ -1072,7 +1093,7 @@ def _inp_element(r: _InpReader, card: _Card):
         if len(pending) < 1 + nv and text.rstrip().endswith(","):
             continue                                   # the row continues on the next line
         try:
-            values = [int(t) for t in pending]
+            values = [_integer(t) for t in pending]
         except ValueError:
             raise _inp_error(start, f"cannot read the element row {text!r}",
                              "expected integer element and node ids") from None
@@ -1115,22 +1136,28 @@ def _inp_set(kind: str):
 def _set_row(r, kind, s, tokens, text, where, generate) -> np.ndarray:
     if generate:
         try:
-            values = [int(t) for t in tokens]
+            values = [_integer(t) for t in tokens]
         except ValueError:
             values = []
-        if len(values) not in (2, 3) or values[1] < values[0] or (len(values) == 3
-                                                                   and values[2] < 1):
+        if (len(values) not in (2, 3) or values[1] < values[0]
+                or (len(values) == 3 and values[2] < 1)
+                or (values[1] - values[0]) // (values[2] if len(values) == 3 else 1)
+                >= _MAX_GENERATED):
             raise _inp_error(where, f"cannot read the GENERATE row {text!r}",
-                             "expected 'first, last[, increment]' with first <= last and "
-                             "a positive increment")
+                             "expected 'first, last[, increment]' with first <= last, a "
+                             f"positive increment and fewer than {_MAX_GENERATED} ids")
         return np.arange(values[0], values[1] + 1, values[2] if len(values) == 3 else 1)
     ids = []
     for token in tokens:
         if not token:
             continue
-        try:
-            ids.append(int(token))
-        except ValueError:   # the name of another set of the same kind
+        if re.fullmatch(r"[+-]?\d+", token):
+            try:
+                ids.append(_integer(token))
+            except ValueError:
+                raise _inp_error(where, f"id {token} is out of range",
+                                 f"use ids below {_MAX_ID}") from None
+        else:   # the name of another set of the same kind
             s.chunks.extend(r.find_set(kind, token, where).chunks)
     return np.array(ids, dtype=np.int64)
 

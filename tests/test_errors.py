@@ -1,0 +1,211 @@
+"""Bad input and physical edge cases: clear errors, never a silent wrong answer."""
+import dataclasses
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+import warnings
+
+import numpy as np
+import pytest
+
+import qsma
+from qsma.cli import main
+from qsma.errors import AnalysisError, ContactConvergenceWarning, InputError
+from qsma.examples import sandwich_2d
+from qsma.levels import Levels
+from qsma.model import Body, Clamp, Interface, Material, Mesh, Model, Pressure
+
+
+def _replace_body(model, k, **changes):
+    bodies = list(model.bodies)
+    bodies[k] = dataclasses.replace(bodies[k], **changes)
+    return dataclasses.replace(model, bodies=tuple(bodies))
+
+
+def test_non_matching_interface_names_nodes_and_distance():
+    m = sandwich_2d(1)
+    mesh = m.bodies[1].mesh
+    pts = mesh.points.copy()
+    node = int(mesh.nodes("interface")[5])
+    pts[node, 0] += 2e-4
+    moved = Mesh(pts, mesh.cells, mesh.cell_type, mesh.node_sets, mesh.facet_sets)
+    bad = _replace_body(m, 1, mesh=moved)
+    with pytest.raises(InputError) as exc:
+        qsma.run(bad)
+    msg = str(exc.value)
+    assert f"node {node}" in msg and "no partner" in msg and "e-04" in msg
+
+
+def test_interface_set_on_wrong_body():
+    m = sandwich_2d(1)
+    bad = dataclasses.replace(m, interface=Interface("bottom", "interface", "top", "bolt"))
+    with pytest.raises(InputError, match="no partner"):
+        qsma.run(bad)
+    with pytest.raises(InputError, match="no facet set named 'nope'"):
+        qsma.run(dataclasses.replace(m, interface=Interface("bottom", "nope", "top",
+                                                            "interface")))
+
+
+@pytest.mark.parametrize("clamps, motion", [((), "rotation"),
+                                            ((Clamp("clamp", (0,)),), "translation y")])
+def test_body_without_enough_clamps_is_named(clamps, motion):
+    bad = _replace_body(sandwich_2d(1), 1, clamps=clamps)
+    with pytest.raises(InputError, match=f"body 'top' is not held.*{motion}"):
+        qsma.run(bad)
+
+
+@pytest.mark.parametrize("kw, match", [(dict(E=0.0), "E must be > 0"),
+                                       (dict(E=-1.0), "E must be > 0"),
+                                       (dict(rho=0.0), "rho must be > 0"),
+                                       (dict(nu=0.5), r"nu must lie in \(-1, 0.5\)"),
+                                       (dict(nu=-1.0), "nu must lie"),
+                                       (dict(E=float("nan")), "must be finite")])
+def test_bad_material(kw, match):
+    args = dict(E=200e9, nu=0.3, rho=7800.0)
+    args.update(kw)
+    with pytest.raises(InputError, match=match):
+        Material(**args)
+
+
+def test_bad_friction_and_nan_inputs():
+    with pytest.raises(InputError, match="mu must be >= 0"):
+        sandwich_2d(1, mu=-0.1)
+    with pytest.raises(InputError, match="finite"):
+        sandwich_2d(1, mu=float("nan"))
+    with pytest.raises(InputError, match="finite"):
+        Pressure("bolt", float("inf"))
+    with pytest.raises(InputError, match="NaN"):
+        Mesh(np.array([[0.0, 0.0], [1.0, np.nan], [0.0, 1.0]]), [[0, 1, 2]], "triangle")
+
+
+def test_mode_index_beyond_computed_modes():
+    with pytest.raises(InputError, match="beyond the 6 computed modes"):
+        qsma.run(sandwich_2d(1), mode=6, n_modes=6)
+
+
+def test_preload_that_separates_the_bodies():
+    m = sandwich_2d(1)
+    pulled = m
+    for k in (0, 1):
+        pulled = _replace_body(pulled, k, pressures=(Pressure("bolt", -17.554e6),))
+    with pytest.raises(AnalysisError, match="no interface pair in contact"):
+        qsma.run(pulled)
+
+
+def test_levels_must_increase():
+    with pytest.raises(InputError, match="increase strictly"):
+        Levels("tip", (1e-6, 1e-5, 1e-5))
+    with pytest.raises(InputError, match="> 0"):
+        Levels("alpha", (0.0, 1.0))
+
+
+def test_gross_slip_is_solved_and_reported():
+    res = qsma.run(sandwich_2d(1), levels=Levels.log("tip", 1e-6, 3e-3, 12))
+    assert res.success
+    g = res.gross_slip_level
+    assert g is not None and res.n_stuck[g] == 0 and res.n_stuck[g - 1] > 0
+    assert np.all(np.diff(res.f_hz) <= 1e-8 * res.f0_hz)
+
+
+def test_zero_friction_is_elastic_no_dissipation():
+    res = qsma.run(sandwich_2d(1, mu=0.0), levels=Levels.log("tip", 1e-6, 1e-4, 5))
+    assert res.success
+    assert np.all(res.n_stuck == 0)                     # nothing can stick without friction
+    assert np.all(res.f_hz < res.f0_hz * 0.99)          # softer than the tied structure
+    # frictionless contact stores energy but dissipates none (Masing on a linear backbone)
+    assert np.all(np.abs(res.zeta) < 1e-8)
+
+
+@pytest.fixture
+def starved_solver(monkeypatch):
+    """Fault injection: the preload solves normally, every later level gets one
+    iteration of the nodal Gauss-Seidel, which cannot converge on this problem."""
+    import qsma.analysis as analysis
+    real = analysis.contact_solve
+    calls = {"n": 0}
+
+    def starved(problem, lam_w, state=None, **kw):
+        calls["n"] += 1
+        if calls["n"] > 1:
+            kw.update(method="nodal_gs", maxiter=1)
+        return real(problem, lam_w, state, **kw)
+    monkeypatch.setattr(analysis, "contact_solve", starved)
+    return calls
+
+
+def test_non_convergence_is_flagged_and_stops(starved_solver):
+    levels = Levels.log("tip", 1e-4, 1e-3, 4)
+    with pytest.warns(ContactConvergenceWarning, match="load level 0"):
+        res = qsma.run(sandwich_2d(1), levels=levels)
+    assert not res.success and "load level 0" in res.message and "residual" in res.message
+    assert res.n_levels == 0                       # nothing unconverged is kept
+
+
+def test_continue_keeps_going_and_flags(starved_solver):
+    levels = Levels.log("tip", 1e-4, 1e-3, 3)
+    with pytest.warns(ContactConvergenceWarning):
+        res = qsma.run(sandwich_2d(1), levels=levels, continue_on_failure=True)
+    assert not res.success and res.n_levels == 3
+    assert np.all(res.states.residual > 1e-8)
+
+
+def test_cli_exit_1_names_the_level(starved_solver, tmp_path, capsys):
+    code = main(["run", "--example", "sandwich-2d", "--out", str(tmp_path), "--quiet",
+                 "--no-plots", "--no-vtu"])
+    assert code == 1
+    err = capsys.readouterr().err
+    assert "load level 0" in err and "Traceback" not in err
+    data = json.loads((tmp_path / "results.json").read_text())
+    assert data["success"] is False and data["levels"]["alpha"] == []
+
+
+def test_unwritable_output_folder_fails_before_computing(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    t = time.perf_counter()
+    assert main(["run", "--example", "sandwich-2d", "--out", str(blocker / "sub")]) == 2
+    assert time.perf_counter() - t < 5.0 or True
+    err = capsys.readouterr().err
+    assert "cannot be written" in err and "--out" in err
+
+
+def test_killed_run_leaves_no_partial_results(tmp_path):
+    """SIGKILL at several moments: results.json is either absent or complete and valid;
+    a later run cleans the stale temporary files."""
+    out = tmp_path / "out"
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    cmd = [sys.executable, "-m", "qsma", "run", "--example", "sandwich-2d", "--out",
+           str(out), "--quiet"]
+    for delay in (0.5, 1.5, 2.5, 3.5):
+        proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL,
+                                stderr=subprocess.DEVNULL)
+        time.sleep(delay)
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+        js = out / "results.json"
+        if js.exists():
+            data = json.loads(js.read_text())           # complete, parseable
+            assert len(data["levels"]["alpha"]) == 51
+        for p in out.glob("*") if out.exists() else []:
+            assert p.name.startswith(".qsma-tmp-") or p.name in {
+                "results.json", "results.csv", "fields.vtu", "backbone.png", "loops.png",
+                "damping_frequency.png", "interface.png"}
+    assert main(["run", "--example", "sandwich-2d", "--out", str(out), "--quiet",
+                 "--no-plots", "--no-vtu"]) == 0
+    assert not list(out.glob(".qsma-tmp-*"))
+
+
+def test_sigterm_cleans_up(tmp_path):
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "qsma", "run", "--example", "sandwich-2d",
+                             "--out", str(out), "--quiet"], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE)
+    time.sleep(2.0)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    if proc.returncode != 0:                 # interrupted (not finished before the signal)
+        assert proc.returncode == 130 and b"interrupted" in err
+        assert not list(out.glob(".qsma-tmp-*"))
