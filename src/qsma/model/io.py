@@ -266,9 +266,8 @@ class _Boundary:
         local = CELL_FACETS[mesh.cell_type]
         n = len(mesh.cells)
         every = np.concatenate([mesh.cells[:, list(f)] for f in local])
-        _, inv, counts = np.unique(np.sort(every, axis=1), axis=0, return_inverse=True,
-                                   return_counts=True)
-        at = np.flatnonzero(counts[inv.ravel()] == 1)
+        _, inverse, counts = _unique_rows(np.sort(every, axis=1))
+        at = np.flatnonzero(counts[inverse] == 1)
         self.rows = every[at]
         self.cell = at % n
         self.local_face = at // n
@@ -278,6 +277,21 @@ class _Boundary:
         """Boundary facet index of each facet row (any node order), -1 where none."""
         keys = map(tuple, np.sort(np.asarray(rows, dtype=np.int64), axis=1).tolist())
         return np.array([self._index.get(k, -1) for k in keys], dtype=np.int64)
+
+
+def _unique_rows(rows: np.ndarray):
+    """``(first, inverse, counts)`` of the distinct rows, like ``np.unique(axis=0)`` with
+    ``return_index``, ``return_inverse`` and ``return_counts`` (but faster)."""
+    rows = np.asarray(rows).reshape(len(rows), -1)
+    order = np.lexsort(rows.T[::-1])
+    ordered = rows[order]
+    new = np.ones(len(rows), dtype=bool)
+    new[1:] = np.any(ordered[1:] != ordered[:-1], axis=1)
+    starts = np.flatnonzero(new)
+    inverse = np.empty(len(rows), dtype=np.int64)
+    inverse[order] = np.cumsum(new) - 1
+    first = np.minimum.reduceat(order, starts) if len(rows) else order
+    return first, inverse, np.diff(np.append(starts, len(rows)))
 
 
 def _first_appearance(values: np.ndarray) -> np.ndarray:
@@ -307,13 +321,12 @@ def _to_mesh(fm: _FileMesh, vtype: str) -> Mesh:
     rows = np.concatenate([fm.blocks[b][2] for b in volume])
     where = np.concatenate([offsets[b] + np.arange(sizes[b]) for b in volume])
     # one cell per node set: Gmsh 2.2 repeats an element once per physical group
-    _, first, inverse = np.unique(np.sort(rows, axis=1), axis=0, return_index=True,
-                                  return_inverse=True)
+    first, inverse, _ = _unique_rows(np.sort(rows, axis=1))
     rank = np.empty(len(first), dtype=np.int64)
     rank[np.argsort(first)] = np.arange(len(first))
     cells = rows[np.sort(first)]
     element_cell = np.full(offsets[-1], -1, dtype=np.int64)
-    element_cell[where] = rank[inverse.ravel()]
+    element_cell[where] = rank[inverse]
     points = _plane_points(src, fm.points, vtype)
     try:
         bare = Mesh(points, cells, vtype)
@@ -693,7 +706,8 @@ def _gmsh_with_meshio(path: Path, raw: bytes, src: str, version: str, is_ascii: 
                             f"({type(exc).__name__}: {exc}); check that the file is complete "
                             f"and saved by Gmsh") from exc
     problems = [str(w.message) for w in caught] + notes.getvalue().split("\n")
-    problems = [p.strip() for p in problems if p.strip()]
+    problems = [p.strip() for p in problems
+                if p.strip() and "tag data that couldn't be processed" not in p]  # partitions
     if problems:
         raise MeshFileError(f"{src}: the Gmsh reader reported: {'; '.join(problems)}; the "
                             f"file is damaged or uses features qsma does not read")
@@ -843,7 +857,10 @@ def _inp_cards(path: Path) -> list:
 def _rows(card: _Card):
     """((file, line), tokens) of the data lines; a trailing comma adds no token."""
     for file, number, text in card.data:
-        tokens = [_unquote(t) for t in _split_fields(text)]
+        if '"' in text:
+            tokens = [_unquote(t) for t in _split_fields(text)]
+        else:
+            tokens = [t.strip() for t in text.split(",")]
         if tokens and tokens[-1] == "" and len(tokens) > 1:
             tokens.pop()
         yield (file, number), tokens, text
@@ -881,9 +898,9 @@ class _InpSet:
 class _InpBlock:
     cell_type: str
     abaqus_type: str
-    ids: list = field(default_factory=list)
-    conn: list = field(default_factory=list)
-    where: list = field(default_factory=list)
+    ids: np.ndarray             # element ids
+    conn: np.ndarray            # (k, nodes) node ids
+    where: list                 # (file, line) of each row
 
 
 class _InpReader:
@@ -921,22 +938,21 @@ class _InpReader:
     # --- after the last card -----------------------------------------------------------
     def file_mesh(self, cell_type):
         src = self.source
-        if not self.node_ids:
+        if not sum(len(ids) for ids in self.node_ids):
             raise MeshFileError(f"{src}: no nodes (no *NODE data lines); an empty mesh "
                                 f"cannot be read: check that this is the model's input file")
-        node_ids = np.array(self.node_ids, dtype=np.int64)
+        node_ids = np.concatenate(self.node_ids)
         nodes = _IdLookup(node_ids)
         if nodes.duplicate is not None:
             raise _inp_error(self.node_where[nodes.duplicate],
                              f"node {node_ids[nodes.duplicate]} is defined twice",
                              "give every node a distinct id")
-        node_xyz = np.array(self.node_xyz, dtype=float).reshape(-1, 3)[nodes.order]
+        node_xyz = np.concatenate(self.node_xyz)[nodes.order]
         node_ids = node_ids[nodes.order]                   # nodes in id order
         nodes = _IdLookup(node_ids)
         blocks = []
         for blk in self.blocks:
-            nv = _N_NODES[blk.cell_type]
-            conn_ids = np.array(blk.conn, dtype=np.int64).reshape(len(blk.conn), nv)
+            conn_ids = blk.conn
             conn = nodes(conn_ids)
             if (conn < 0).any():
                 row, col = np.argwhere(conn < 0)[0]
@@ -945,7 +961,7 @@ class _InpReader:
                                  "define the node or correct the element row")
             blocks.append((blk.cell_type, _TOPO_DIM[blk.cell_type], conn,
                            _is_continuum(blk.abaqus_type)))
-        element_ids = np.array([i for b in self.blocks for i in b.ids], dtype=np.int64)
+        element_ids = np.concatenate([b.ids for b in self.blocks] + [np.zeros(0, np.int64)])
         element_where = [w for b in self.blocks for w in b.where]
         elements = _IdLookup(element_ids)
         if elements.duplicate is not None:
@@ -1051,25 +1067,39 @@ def _inp_node(r: _InpReader, card: _Card):
     if "INPUT" in card.params:
         raise _inp_error(card.where, "INPUT= on *NODE is not supported",
                          "put the data lines in the file or use *INCLUDE, INPUT=")
-    ids = []
-    for where, tokens, text in _rows(card):
+    rows = list(_rows(card))
+    try:      # fast path: plain numbers in every row
+        ids = np.array([tokens[0] for _, tokens, _ in rows], dtype=np.int64)
+        xyz = np.array([(tokens + ["0", "0", "0"])[1:4] for _, tokens, _ in rows],
+                       dtype=float).reshape(len(rows), 3)
+        if np.abs(ids).max(initial=0) >= _MAX_ID:
+            raise ValueError("id out of range")
+    except (ValueError, OverflowError):
+        ids, xyz = _node_rows(rows)
+    bad = np.flatnonzero(~np.isfinite(xyz).all(axis=1))
+    if bad.size:
+        raise _inp_error(rows[bad[0]][0], f"node {ids[bad[0]]} has a non-finite coordinate",
+                         "give finite coordinates")
+    r.node_ids.append(ids)
+    r.node_xyz.append(xyz)
+    r.node_where += [where for where, _, _ in rows]
+    name = card.params.get("NSET")
+    if isinstance(name, str) and name:
+        r.named_set("NSET", name, False).chunks.append((ids, card.where))
+
+
+def _node_rows(rows) -> tuple:
+    """Node ids and coordinates row by row (Fortran exponents, empty fields), with the
+    line of the first row that cannot be read."""
+    ids, xyz = [], []
+    for where, tokens, text in rows:
         try:
-            nid = _integer(tokens[0])
-            xyz = [_abaqus_float(t) for t in tokens[1:4]]
+            ids.append(_integer(tokens[0]))
+            xyz.append([_abaqus_float(t) for t in (tokens + ["", "", ""])[1:4]])
         except ValueError:
             raise _inp_error(where, f"cannot read the node row {text!r}",
                              "expected 'node id, x, y[, z]' with an integer id") from None
-        xyz += [0.0] * (3 - len(xyz))
-        if not np.all(np.isfinite(xyz)):
-            raise _inp_error(where, f"node {nid} has a non-finite coordinate",
-                             "give finite coordinates")
-        ids.append(nid)
-        r.node_xyz.append(xyz)
-        r.node_where.append(where)
-    r.node_ids += ids
-    name = card.params.get("NSET")
-    if isinstance(name, str) and name:
-        r.named_set("NSET", name, False).chunks.append((np.array(ids, np.int64), card.where))
+    return np.array(ids, dtype=np.int64), np.array(xyz, dtype=float).reshape(-1, 3)
 
 
 def _inp_element(r: _InpReader, card: _Card):
@@ -1084,7 +1114,7 @@ def _inp_element(r: _InpReader, card: _Card):
                          f"qsma reads the linear types {', '.join(ABAQUS_ELEMENT_TYPES)} "
                          f"(with R/I/H/T variants); convert the mesh to one of them")
     nv = _N_NODES[cell_type]
-    blk = _InpBlock(cell_type, etype)
+    rows, starts, texts = [], [], []
     pending, start = [], None
     for where, tokens, text in _rows(card):
         if not pending:
@@ -1092,27 +1122,34 @@ def _inp_element(r: _InpReader, card: _Card):
         pending += tokens
         if len(pending) < 1 + nv and text.rstrip().endswith(","):
             continue                                   # the row continues on the next line
-        try:
-            values = [_integer(t) for t in pending]
-        except ValueError:
-            raise _inp_error(start, f"cannot read the element row {text!r}",
-                             "expected integer element and node ids") from None
-        if len(values) != 1 + nv:
-            raise _inp_error(start, f"element row with {len(values) - 1} node ids, but "
+        if len(pending) != 1 + nv:
+            raise _inp_error(start, f"element row with {len(pending) - 1} node ids, but "
                              f"{etype} elements have {nv}", f"give 'element id' and {nv} "
                              f"node ids (continue a long row by ending the line with a comma)")
-        blk.ids.append(values[0])
-        blk.conn.append(values[1:])
-        blk.where.append(start)
+        rows.append(pending)
+        starts.append(start)
+        texts.append(text)
         pending = []
     if pending:
         raise _inp_error(start, "the last element row is incomplete",
                          f"give {nv} node ids for each {etype} element")
-    r.blocks.append(blk)
+    try:
+        table = np.array(rows, dtype=np.int64).reshape(len(rows), 1 + nv)
+        if np.abs(table).max(initial=0) >= _MAX_ID:
+            raise ValueError("id out of range")
+    except (ValueError, OverflowError):
+        for row, where, text in zip(rows, starts, texts):
+            try:
+                [_integer(t) for t in row]
+            except ValueError:
+                raise _inp_error(where, f"cannot read the element row {text!r}",
+                                 "expected integer element and node ids") from None
+        raise _inp_error(card.where, "cannot read the element rows",
+                         "expected integer element and node ids") from None
+    r.blocks.append(_InpBlock(cell_type, etype, table[:, 0], table[:, 1:], starts))
     name = card.params.get("ELSET")
     if isinstance(name, str) and name:
-        r.named_set("ELSET", name, False).chunks.append((np.array(blk.ids, np.int64),
-                                                         card.where))
+        r.named_set("ELSET", name, False).chunks.append((table[:, 0], card.where))
 
 
 def _inp_set(kind: str):
@@ -1330,7 +1367,7 @@ def _format_gmsh41(mesh: Mesh) -> str:
     xyz, n = _xyz(mesh), mesh.n_nodes
     entities = [[] for _ in range(4)]
     for dim, entity, _, rows, g in blocks:
-        p = xyz[np.unique(rows)]
+        p = xyz[rows.ravel()]
         where = p[0] if dim == 0 else np.concatenate([p.min(axis=0), p.max(axis=0)])
         bounded_by = "" if dim == 0 else " 0"
         entities[dim].append(f"{entity} {' '.join(map(_number, where))} "

@@ -1,0 +1,50 @@
+"""Time the whole QSMA of sandwich-2d per stage (median of several runs).
+
+Usage: python benchmarks/bench_analysis.py [--refine 1 2 4 8] [--repeat 5] [--method basket]
+
+Stages are those of results.json ``timings_s`` (model to results, excluding
+interpreter start-up, plots and file writing). The last columns compare the
+contact ramp and the whole analysis with the published reference (4 s of Matlab
+for the 51-level contact ramp; 201 s of a commercial FE code for the 51 levels).
+"""
+import argparse
+import statistics
+
+import qsma
+from qsma.analysis import STAGES
+from qsma.examples import sandwich_2d
+
+MATLAB_RAMP_S, COMMERCIAL_S = 4.0, 201.0
+
+
+def measure(refine, repeat, method):
+    runs = []
+    for _ in range(repeat):
+        res = qsma.run(sandwich_2d(refine), method=method)
+        assert res.success, res.message
+        runs.append(res.timings_s)
+    med = {k: statistics.median(r[k] for r in runs) for k in STAGES}
+    return med, res
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--refine", type=int, nargs="+", default=[1, 2, 4, 8])
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--method", default="basket")
+    args = ap.parse_args()
+    print(f"method {args.method}, median of {args.repeat} runs, seconds")
+    print("| refine | nodes | pairs | " + " | ".join(STAGES)
+          + " | ramp vs Matlab 4 s | total vs FE 201 s |")
+    print("|---" * (len(STAGES) + 5) + "|")
+    for r in args.refine:
+        med, res = measure(r, args.repeat if r <= 4 else max(1, args.repeat // 2), args.method)
+        info = res.model_info
+        print(f"| {r} | {info['n_nodes']} | {info['n_pairs']} | "
+              + " | ".join(f"{med[k]:.4f}" for k in STAGES)
+              + f" | {MATLAB_RAMP_S / med['contact']:.0f}x | {COMMERCIAL_S / med['total']:.0f}x |",
+              flush=True)
+
+
+if __name__ == "__main__":
+    main()
