@@ -60,3 +60,59 @@ def sandwich_2d(refine: int = 1, mu: float | None = None) -> Model:
         mu=s["mu"] if mu is None else mu,
         name=f"sandwich-2d (refine={refine})",
     )
+
+
+#: parameters of shared/spec/sandwich-3d.md (SI units)
+SANDWICH_3D = dict(
+    L=0.2032, h=0.00635, b=0.0254, contact_length=0.0508, E=200e9, nu=0.285, rho=6600.0,
+    x_bolt=0.2032 - 0.0254, a_washer=0.0127, bolt_force=4450.0, mu=0.6,
+    n_thick=4, n_coarse=30, n_fine=32, n_width=16,
+)
+
+
+def _beam_3d(y0, refine, top):
+    s = SANDWICH_3D
+    L, h, b, lc, a = s["L"], s["h"], s["b"], s["contact_length"], s["a_washer"]
+    xs = graded_axis((0.0, L - lc, s["n_coarse"] * refine), (L - lc, L, s["n_fine"] * refine))
+    ys = np.linspace(y0, y0 + h, s["n_thick"] * refine + 1)
+    zs = np.linspace(0.0, b, s["n_width"] * refine + 1)
+    mesh = structured_mesh(xs, ys, zs)
+    eps = 1e-9 * L
+    xb0, xb1 = s["x_bolt"] - a / 2, s["x_bolt"] + a / 2
+    zb0, zb1 = b / 2 - a / 2, b / 2 + a / 2
+    y_if = y0 if top else y0 + h
+    y_bolt = y0 + h if top else y0
+    on = lambda y: (lambda p: np.abs(p[:, 1] - y) < eps)
+    washer = lambda p: ((p[:, 0] >= xb0 - eps) & (p[:, 0] <= xb1 + eps)
+                        & (p[:, 2] >= zb0 - eps) & (p[:, 2] <= zb1 + eps))
+    facet_sets = {
+        "interface": mesh.boundary_facets_where(
+            lambda p: on(y_if)(p) & (p[:, 0] >= L - lc - eps)),
+        "bolt": mesh.boundary_facets_where(lambda p: on(y_bolt)(p) & washer(p)),
+        "outer": mesh.boundary_facets_where(on(y_bolt)),
+        "end": mesh.boundary_facets_where(lambda p: np.abs(p[:, 0] - L) < eps),
+    }
+    node_sets = {"clamp": np.flatnonzero(np.abs(mesh.points[:, 0]) < eps),
+                 "tip": np.flatnonzero(np.abs(mesh.points[:, 0] - L) < eps)}
+    return mesh.with_sets(node_sets=node_sets, facet_sets=facet_sets)
+
+
+def sandwich_3d(refine: int = 1, mu: float | None = None) -> Model:
+    """The sandwich-3d model (``shared/spec/sandwich-3d.md``): 10,710 nodes and 561
+    interface pairs at ``refine=1``; every hexahedron divided ``refine^3``."""
+    if not isinstance(refine, (int, np.integer)) or refine < 1:
+        raise InputError(f"refine must be a positive integer, got {refine!r}")
+    s = SANDWICH_3D
+    steel = Material(s["E"], s["nu"], s["rho"])
+    p = s["bolt_force"] / s["a_washer"] ** 2
+    bottom = Body("bottom", _beam_3d(0.0, refine, top=False), steel,
+                  clamps=(Clamp("clamp"),), pressures=(Pressure("bolt", p),))
+    top = Body("top", _beam_3d(s["h"], refine, top=True), steel,
+               clamps=(Clamp("clamp"),), pressures=(Pressure("bolt", p),))
+    return Model(
+        bodies=(bottom, top),
+        interface=Interface("bottom", "interface", "top", "interface"),
+        tip=Probe(sets=(("bottom", "tip"), ("top", "tip")), direction=(0.0, 1.0, 0.0)),
+        mu=s["mu"] if mu is None else mu,
+        name=f"sandwich-3d (refine={refine})",
+    )

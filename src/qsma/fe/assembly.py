@@ -24,7 +24,7 @@ _SKFEM = {
     "hexahedron": (skfem.MeshHex1, skfem.ElementHex1, 2),  # 2x2x2 Gauss
 }
 # meshio -> scikit-fem local node order (hexahedron differs)
-_HEX_ORDER = [0, 1, 3, 4, 2, 5, 7, 6]
+_HEX_ORDER = [0, 4, 3, 1, 7, 5, 2, 6]   # skfem.io.meshio INV_HEX_MAPPING
 
 
 def skfem_mesh(mesh: Mesh):

@@ -110,9 +110,10 @@ def read_mesh(path, *, cell_type: str | None = None) -> Mesh:
     Returns
     -------
     Mesh
-        Nodes in file order (ids remapped to 0-based indices), cells of one type,
-        and the sets (see the module docstring). 2D meshes (triangles, quads) must
-        lie in the plane z = 0 and come back with 2D points.
+        Nodes in the order of their ids (Gmsh tags, Abaqus node numbers), remapped
+        to 0-based indices; cells of one type in file order; the sets (see the module
+        docstring). 2D meshes (triangles, quads) must lie in the plane z = 0 and come
+        back with 2D points.
 
     Raises
     ------
@@ -223,6 +224,21 @@ class _FileMesh:
     empty_sets: dict = field(default_factory=dict)     # name -> "cell" | "facet" | "node"
 
 
+class _Elements:
+    """Global element indices (rows of all blocks, in order) and their blocks."""
+
+    def __init__(self, blocks: list):
+        sizes = [len(conn) for _, _, conn, _ in blocks]
+        self.blocks = blocks
+        self.offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+        self.block_of = np.repeat(np.arange(len(blocks)), sizes)
+
+    def by_block(self, members: np.ndarray):
+        """``(block, rows within the block)`` of global element indices ``members``."""
+        for b in np.unique(self.block_of[members]):
+            yield int(b), members[self.block_of[members] == b] - self.offsets[b]
+
+
 def _cell_type_of(source: str, blocks: list, requested: str | None) -> str:
     """The cell type of a file: the type of the highest-dimensional elements that may be
     cells (one type only)."""
@@ -315,17 +331,16 @@ def _to_mesh(fm: _FileMesh, vtype: str) -> Mesh:
     matched to boundary facets."""
     src = fm.source
     dim = CELL_TYPES[vtype][0]
-    sizes = np.array([len(conn) for _, _, conn, _ in fm.blocks], dtype=np.int64)
-    offsets = np.concatenate([[0], np.cumsum(sizes)])
+    elements = _Elements(fm.blocks)
     volume = [b for b, (t, _, _, cell) in enumerate(fm.blocks) if t == vtype and cell]
     rows = np.concatenate([fm.blocks[b][2] for b in volume])
-    where = np.concatenate([offsets[b] + np.arange(sizes[b]) for b in volume])
-    # one cell per node set: Gmsh 2.2 repeats an element once per physical group
+    where = np.concatenate([np.arange(*elements.offsets[b:b + 2]) for b in volume])
+    # one cell per set of nodes: Gmsh 2.2 repeats an element once per physical group
     first, inverse, _ = _unique_rows(np.sort(rows, axis=1))
     rank = np.empty(len(first), dtype=np.int64)
     rank[np.argsort(first)] = np.arange(len(first))
     cells = rows[np.sort(first)]
-    element_cell = np.full(offsets[-1], -1, dtype=np.int64)
+    element_cell = np.full(elements.offsets[-1], -1, dtype=np.int64)
     element_cell[where] = rank[inverse]
     points = _plane_points(src, fm.points, vtype)
     try:
@@ -337,14 +352,11 @@ def _to_mesh(fm: _FileMesh, vtype: str) -> Mesh:
     cell_sets: dict = {}
     node_sets = {k: list(v) for k, v in fm.node_sets.items()}
     facet_rows = {k: list(v) for k, v in fm.facet_rows.items()}
-    block_of = np.repeat(np.arange(len(fm.blocks)), sizes)
     for name, parts in fm.element_sets.items():
-        members = np.unique(np.concatenate(parts)) if parts else np.zeros(0, np.int64)
-        for b in np.unique(block_of[members]):
+        for b, mine in elements.by_block(np.unique(_joined(parts, (0,)))):
             etype, edim, conn, cell = fm.blocks[b]
-            mine = members[block_of[members] == b]
             if etype == vtype and cell:
-                cell_sets.setdefault(name, []).append(element_cell[mine])
+                cell_sets.setdefault(name, []).append(element_cell[elements.offsets[b] + mine])
             elif edim >= dim:
                 raise MeshFileError(f"{src}: set {name!r} holds {edim}D {etype} elements that "
                                     f"are neither cells nor facets of the {vtype} mesh; remove "
@@ -354,9 +366,9 @@ def _to_mesh(fm: _FileMesh, vtype: str) -> Mesh:
                     raise MeshFileError(
                         f"{src}: set {name!r} holds {etype} elements, but the facets of a "
                         f"{vtype} mesh are {bare.facet_type}s; remove them from the set")
-                facet_rows.setdefault(name, []).append(conn[mine - offsets[b]])
+                facet_rows.setdefault(name, []).append(conn[mine])
             else:
-                node_sets.setdefault(name, []).append(conn[mine - offsets[b]].ravel())
+                node_sets.setdefault(name, []).append(conn[mine].ravel())
     for name, parts in fm.free_faces.items():
         cells_in = np.unique(element_cell[np.concatenate(parts)])
         on = np.isin(boundary.cell, cells_in)
@@ -545,12 +557,11 @@ class _Stream:
         self.pos = 0 if self.ascii else start
 
     def where(self) -> str:
-        if self.ascii:
-            k = min(self.pos, len(self.tokens) - 1)
-            line = self.line0 + (int(self.token_line[k]) if k >= 0 else 0)
-        else:
+        """File and line (ASCII) or byte offset (binary) of the next value."""
+        if not self.ascii:
             return f"{self.src}, byte {self.pos}"
-        return f"{self.src}, line {line}"
+        k = min(self.pos, len(self.tokens) - 1)
+        return f"{self.src}, line {self.line0 + (int(self.token_line[k]) if k >= 0 else 0)}"
 
     def _take(self, n: int, dtype) -> np.ndarray:
         n = int(n)
@@ -705,9 +716,11 @@ def _gmsh_with_meshio(path: Path, raw: bytes, src: str, version: str, is_ascii: 
         raise MeshFileError(f"{src}: cannot be read as a Gmsh {version} file "
                             f"({type(exc).__name__}: {exc}); check that the file is complete "
                             f"and saved by Gmsh") from exc
-    problems = [str(w.message) for w in caught] + notes.getvalue().split("\n")
-    problems = [p.strip() for p in problems
-                if p.strip() and "tag data that couldn't be processed" not in p]  # partitions
+    problems = [str(w.message) for w in caught
+                if not issubclass(w.category, (DeprecationWarning, FutureWarning))
+                or "could not be read" in str(w.message)]
+    problems += [p.strip() for p in notes.getvalue().split("\n")     # partition tags: fine
+                 if p.strip() and "tag data that couldn't be processed" not in p]
     if problems:
         raise MeshFileError(f"{src}: the Gmsh reader reported: {'; '.join(problems)}; the "
                             f"file is damaged or uses features qsma does not read")
@@ -891,7 +904,7 @@ def _abaqus_cell_type(name: str):
 class _InpSet:
     name: str
     internal: bool
-    chunks: list = field(default_factory=list)   # (ids array, where) or ("elset", key, where)
+    chunks: list = field(default_factory=list)   # (ids array, where) or ("elset", key)
 
 
 @dataclass
@@ -937,92 +950,94 @@ class _InpReader:
 
     # --- after the last card -----------------------------------------------------------
     def file_mesh(self, cell_type):
-        src = self.source
-        if not sum(len(ids) for ids in self.node_ids):
-            raise MeshFileError(f"{src}: no nodes (no *NODE data lines); an empty mesh "
-                                f"cannot be read: check that this is the model's input file")
-        node_ids = np.concatenate(self.node_ids)
+        """What the file holds (nodes in id order), and its cell type."""
+        node_ids, xyz = self._nodes()
         nodes = _IdLookup(node_ids)
-        if nodes.duplicate is not None:
-            raise _inp_error(self.node_where[nodes.duplicate],
-                             f"node {node_ids[nodes.duplicate]} is defined twice",
-                             "give every node a distinct id")
-        node_xyz = np.concatenate(self.node_xyz)[nodes.order]
-        node_ids = node_ids[nodes.order]                   # nodes in id order
-        nodes = _IdLookup(node_ids)
-        blocks = []
-        for blk in self.blocks:
-            conn_ids = blk.conn
-            conn = nodes(conn_ids)
-            if (conn < 0).any():
-                row, col = np.argwhere(conn < 0)[0]
-                raise _inp_error(blk.where[row], f"element {blk.ids[row]} refers to node "
-                                 f"{conn_ids[row, col]}, which no *NODE defines",
-                                 "define the node or correct the element row")
-            blocks.append((blk.cell_type, _TOPO_DIM[blk.cell_type], conn,
-                           _is_continuum(blk.abaqus_type)))
-        element_ids = np.concatenate([b.ids for b in self.blocks] + [np.zeros(0, np.int64)])
-        element_where = [w for b in self.blocks for w in b.where]
-        elements = _IdLookup(element_ids)
-        if elements.duplicate is not None:
-            raise _inp_error(element_where[elements.duplicate],
-                             f"element {element_ids[elements.duplicate]} is defined twice",
-                             "give every element a distinct id")
-        vtype = _cell_type_of(src, blocks, cell_type)
-        offsets = np.concatenate([[0], np.cumsum([len(c) for *_, c, _ in blocks])])
-        block_of = np.repeat(np.arange(len(blocks)), np.diff(offsets))
-
-        def element_indices(s: _InpSet) -> np.ndarray:
-            parts = [np.zeros(0, np.int64)]
-            for ids, where in s.chunks:
-                idx = elements(ids)
-                if (idx < 0).any():
-                    raise _inp_error(where, f"element set {s.name!r} refers to element "
-                                     f"{ids[idx < 0][0]}, which no *ELEMENT defines",
-                                     "correct the id or define the element")
-                parts.append(idx)
-            return np.unique(np.concatenate(parts))
-
-        elsets = {k: element_indices(s) for k, s in self.sets["ELSET"].items()}
-
-        def node_indices(s: _InpSet) -> np.ndarray:
-            parts = [np.zeros(0, np.int64)]
-            for chunk in s.chunks:
-                if isinstance(chunk[0], str):
-                    members = elsets.get(chunk[1])
-                    if members is None:
-                        raise _inp_error(chunk[2], f"unknown element set {chunk[1]!r} in "
-                                         f"ELSET=", "define the element set first")
-                    parts += [blocks[b][2][members[block_of[members] == b] - offsets[b]].ravel()
-                              for b in np.unique(block_of[members])]
-                    continue
-                ids, where = chunk
-                idx = nodes(ids)
-                if (idx < 0).any():
-                    raise _inp_error(where, f"node set {s.name!r} refers to node "
-                                     f"{ids[idx < 0][0]}, which no *NODE defines",
-                                     "correct the id or define the node")
-                parts.append(idx)
-            return np.unique(np.concatenate(parts))
-
-        fm = _FileMesh(src, node_xyz, node_ids, blocks)
-        for key, s in self.sets["NSET"].items():
+        blocks = [(b.cell_type, _TOPO_DIM[b.cell_type], self._connectivity(b, nodes),
+                   _is_continuum(b.abaqus_type)) for b in self.blocks]
+        vtype = _cell_type_of(self.source, blocks, cell_type)
+        elements = self._element_lookup()
+        index = _Elements(blocks)
+        elsets = {k: self._element_indices(s, elements) for k, s in self.sets["ELSET"].items()}
+        fm = _FileMesh(self.source, xyz, node_ids, blocks)
+        for s in self.sets["NSET"].values():
             if not s.internal:
-                fm.node_sets[s.name] = [node_indices(s)]
-        for key, s in self.node_surfaces.items():
-            fm.node_sets.setdefault(s.name, []).append(node_indices(s))
+                fm.node_sets[s.name] = [self._node_indices(s, nodes, elsets, index)]
+        for s in self.node_surfaces.values():
+            fm.node_sets.setdefault(s.name, []).append(
+                self._node_indices(s, nodes, elsets, index))
         for key, s in self.sets["ELSET"].items():
-            if s.internal:
-                continue
-            if len(elsets[key]):
+            if not s.internal and len(elsets[key]):
                 fm.element_sets[s.name] = [elsets[key]]
-            else:
+            elif not s.internal:
                 fm.empty_sets[s.name] = "cell"
         for name, rows in self.surfaces.values():
-            self._surface(fm, name, rows, vtype, elements, elsets, block_of, offsets)
+            self._surface(fm, name, rows, vtype, elements, elsets, index)
         return fm, vtype
 
-    def _surface(self, fm, name, rows, vtype, elements, elsets, block_of, offsets):
+    def _nodes(self):
+        if not sum(len(ids) for ids in self.node_ids):
+            raise MeshFileError(f"{self.source}: no nodes (no *NODE data lines); an empty "
+                                f"mesh cannot be read: check that this is the model's input "
+                                f"file")
+        ids = np.concatenate(self.node_ids)
+        lookup = _IdLookup(ids)
+        if lookup.duplicate is not None:
+            raise _inp_error(self.node_where[lookup.duplicate],
+                             f"node {ids[lookup.duplicate]} is defined twice",
+                             "give every node a distinct id")
+        return ids[lookup.order], np.concatenate(self.node_xyz)[lookup.order]
+
+    @staticmethod
+    def _connectivity(block: _InpBlock, nodes: _IdLookup) -> np.ndarray:
+        conn = nodes(block.conn)
+        if (conn < 0).any():
+            row, col = np.argwhere(conn < 0)[0]
+            raise _inp_error(block.where[row], f"element {block.ids[row]} refers to node "
+                             f"{block.conn[row, col]}, which no *NODE defines",
+                             "define the node or correct the element row")
+        return conn
+
+    def _element_lookup(self) -> _IdLookup:
+        ids = np.concatenate([b.ids for b in self.blocks] + [np.zeros(0, np.int64)])
+        lookup = _IdLookup(ids)
+        if lookup.duplicate is not None:
+            where = [w for b in self.blocks for w in b.where][lookup.duplicate]
+            raise _inp_error(where, f"element {ids[lookup.duplicate]} is defined twice",
+                             "give every element a distinct id")
+        return lookup
+
+    @staticmethod
+    def _element_indices(s: _InpSet, elements: _IdLookup) -> np.ndarray:
+        parts = [np.zeros(0, np.int64)]
+        for ids, where in s.chunks:
+            idx = elements(ids)
+            if (idx < 0).any():
+                raise _inp_error(where, f"element set {s.name!r} refers to element "
+                                 f"{ids[idx < 0][0]}, which no *ELEMENT defines",
+                                 "correct the id or define the element")
+            parts.append(idx)
+        return np.unique(np.concatenate(parts))
+
+    @staticmethod
+    def _node_indices(s: _InpSet, nodes: _IdLookup, elsets: dict, index: _Elements):
+        parts = [np.zeros(0, np.int64)]
+        for chunk in s.chunks:
+            if isinstance(chunk[0], str):           # *NSET, ELSET=...: nodes of elements
+                parts += [index.blocks[b][2][rows].ravel()
+                          for b, rows in index.by_block(elsets[chunk[1]])]
+                continue
+            ids, where = chunk
+            idx = nodes(ids)
+            if (idx < 0).any():
+                raise _inp_error(where, f"node set {s.name!r} refers to node "
+                                 f"{ids[idx < 0][0]}, which no *NODE defines",
+                                 "correct the id or define the node")
+            parts.append(idx)
+        return np.unique(np.concatenate(parts))
+
+    def _surface(self, fm, name, rows, vtype, elements, elsets, index: _Elements):
+        """Facets of an element-based surface: ``(element or set, face)`` rows."""
         faces = ABAQUS_FACES[vtype]
         if not rows:
             fm.empty_sets.setdefault(name, "facet")
@@ -1034,13 +1049,13 @@ class _InpReader:
                                      f"which no *ELEMENT defines", "correct the element id")
             else:
                 members = elsets[self.find_set("ELSET", reference, where).name.upper()]
-            wrong = [b for b in np.unique(block_of[members])
-                     if fm.blocks[b][0] != vtype or not fm.blocks[b][3]]
+            by_block = list(index.by_block(members))
+            wrong = [b for b, _ in by_block if fm.blocks[b][0] != vtype or not fm.blocks[b][3]]
             if wrong:
                 raise _inp_error(where, f"surface {name!r} uses faces of "
                                  f"{fm.blocks[wrong[0]][0]} elements", f"a surface is made "
                                  f"of faces of the {vtype} cells; refer to those")
-            if face is None:
+            if face is None:                            # every boundary face
                 fm.free_faces.setdefault(name, []).append(members)
                 continue
             m = re.fullmatch(r"S(\d)", face.upper())
@@ -1048,9 +1063,8 @@ class _InpReader:
                 raise _inp_error(where, f"face {face!r} does not exist on {vtype} elements",
                                  f"use S1..S{len(faces)} (Abaqus face numbering)")
             local = list(faces[int(m.group(1)) - 1])
-            rows_of = [fm.blocks[b][2][members[block_of[members] == b] - offsets[b]][:, local]
-                       for b in np.unique(block_of[members])]
-            fm.facet_rows.setdefault(name, []).extend(rows_of)
+            fm.facet_rows.setdefault(name, []).extend(
+                fm.blocks[b][2][rows][:, local] for b, rows in by_block)
 
 
 def _is_continuum(abaqus_type: str) -> bool:
@@ -1162,8 +1176,7 @@ def _inp_set(kind: str):
         s = r.named_set(kind, name, card.params.get("INTERNAL") is True)
         from_elset = card.params.get("ELSET") if kind == "NSET" else None
         if isinstance(from_elset, str):
-            s.chunks.append(("elset", r.find_set("ELSET", from_elset, card.where).name.upper(),
-                             card.where))
+            s.chunks.append(("elset", r.find_set("ELSET", from_elset, card.where).name.upper()))
         generate = card.params.get("GENERATE") is True
         for where, tokens, text in _rows(card):
             s.chunks.append((_set_row(r, kind, s, tokens, text, where, generate), where))
