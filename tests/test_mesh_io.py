@@ -1,5 +1,8 @@
 """Mesh files with named sets (qsma.model.io): round trips, hand-written files, files
 made by Gmsh, and malformed files."""
+import re
+import shutil
+import subprocess
 from pathlib import Path
 
 import meshio
@@ -119,6 +122,16 @@ def test_round_trip_keeps_empty_sets_and_odd_names(tmp_path, name, version):
     assert_same_mesh(read_mesh(write_mesh(tmp_path / name, mesh, gmsh_version=version)), mesh)
 
 
+@pytest.mark.parametrize("name,version", WRITTEN, ids=WRITTEN_IDS)
+def test_windows_line_endings_and_latin1_comment(tmp_path, name, version):
+    mesh = hex_mesh()
+    text = write_mesh(tmp_path / name, mesh, gmsh_version=version).read_text()
+    if name.endswith(".inp"):
+        text = "** Pr\xfcfk\xf6rper\n" + text           # a latin-1 comment
+    (tmp_path / name).write_bytes(text.replace("\n", "\r\n").encode("latin-1"))
+    assert_same_mesh(read_mesh(tmp_path / name), mesh)
+
+
 @settings(max_examples=25, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(data=st.data(), three_d=st.booleans(), which=st.sampled_from(range(len(WRITTEN))))
@@ -176,6 +189,51 @@ def test_other_readers_accept_our_files(tmp_path):
         assert len(other.cells_dict["hexahedron"]) >= len(mesh.cells)
 
 
+@pytest.mark.skipif(shutil.which("ccx") is None, reason="CalculiX (ccx) is not installed")
+@pytest.mark.parametrize("make,clamp,load,force", [
+    (hex_mesh, "x0", "x_end", (2.0, 0, 0)),          # face x = 3 of 1 x 2
+    (tetra_mesh, "y0", "y2", (0, 1.0, 0)),           # face y = 2 of 1 x 1
+    (lambda: sandwich_2d().bodies[0].mesh, "clamp", "end", (0.00635, 0)),
+    (triangle_mesh, "left", "right", (0.3, 0)),
+])
+def test_calculix_applies_pressure_on_our_surfaces(tmp_path, make, clamp, load, force):
+    """CalculiX reads our .inp and loads the faces we meant: with a pressure p on a
+    facet set away from the clamp, the clamp reaction is p times the area (depth 1)."""
+    mesh = make()
+    if load not in mesh.facet_sets:
+        mesh = mesh.with_sets(facet_sets={load: mesh.boundary_facets_where(
+            lambda p: p[:, 0] > p[:, 0].max() - 1e-9)})
+    p = mesh.points[mesh.cells]
+    if mesh.cell_type == "tetra":          # CalculiX wants positive volumes
+        a, b, c = (p[:, k] - p[:, 0] for k in (1, 2, 3))
+        cells = mesh.cells.copy()
+        flip = np.einsum("ij,ij->i", np.cross(a, b), c) < 0
+        cells[flip] = cells[flip][:, [0, 2, 1, 3]]
+        mesh = Mesh(mesh.points, cells, "tetra", mesh.node_sets, mesh.facet_sets)
+    mesh = mesh.with_sets(node_sets={clamp: mesh.nodes(clamp)},
+                          cell_sets={"every": np.arange(len(mesh.cells))})
+    path = write_mesh(tmp_path / "job.inp", mesh)
+    path.write_text(path.read_text() + f"""*MATERIAL, NAME=STEEL
+*ELASTIC
+200e9, 0.3
+*SOLID SECTION, ELSET=every, MATERIAL=STEEL
+{'1.' if mesh.dim == 2 else ''}
+*STEP
+*STATIC
+*BOUNDARY
+{clamp}, 1, {mesh.dim}, 0.
+*DSLOAD
+{load}, P, 1000.
+*NODE PRINT, NSET={clamp}, TOTALS=ONLY
+RF
+*END STEP
+""")
+    subprocess.run(["ccx", "job"], cwd=tmp_path, capture_output=True, check=True, timeout=120)
+    totals = re.findall(r"total force.*\n\s*\n?\s*(.*)", (tmp_path / "job.dat").read_text())
+    reaction = np.array(totals[-1].split(), dtype=float)[:len(force)]
+    np.testing.assert_allclose(reaction, 1000.0 * np.array(force), rtol=1e-9, atol=1e-6)
+
+
 # --- hand-written Abaqus input --------------------------------------------------------
 
 TWO_QUADS = """\
@@ -200,6 +258,7 @@ TWO_QUADS = """\
  200,
 *NSET, NSET=Ref
  first, 50
+*NSET, NSET=on_second, ELSET=second
 *material, name=steel
 *elastic
  210e9, 0.3
@@ -212,7 +271,7 @@ def test_inp_nodes_blocks_generate_comments_lower_case(tmp_path):
     np.testing.assert_array_equal(m.points, [[0, 0], [1, 0], [1, 1], [0, 1], [2, 0], [2, 1]])
     np.testing.assert_array_equal(m.cells, [[0, 1, 2, 3], [1, 4, 5, 2]])
     assert {k: v.tolist() for k, v in m.node_sets.items()} == \
-        {"first": [0, 1], "gen": [1, 3, 5], "Ref": [0, 1, 4]}
+        {"first": [0, 1], "gen": [1, 3, 5], "Ref": [0, 1, 4], "on_second": [1, 2, 4, 5]}
     assert {k: v.tolist() for k, v in m.cell_sets.items()} == {"plate": [0, 1], "Second": [1]}
 
 
@@ -358,6 +417,8 @@ _Surf-1_S4, S4
  1, 2
 *Surface, type=ELEMENT, name=Load
 _Load_S3, S3
+*Surface, type=ELEMENT, name=Left
+Beam-1._Surf-1_S4, S4
 *End Assembly
 *Material, name=Steel
 *Elastic
@@ -374,13 +435,15 @@ def test_inp_one_part_one_instance(tmp_path):
     assert {k: v.tolist() for k, v in m.node_sets.items()} == {"Set-1": [0, 3], "Fixed": [2, 5]}
     assert facet_keys(m.facet_sets["Surf-1"]) == {(0, 3)}
     assert facet_keys(m.facet_sets["Load"]) == {(3, 4), (4, 5)}
+    assert facet_keys(m.facet_sets["Left"]) == {(0, 3)}
     assert m.cell_sets == {}
 
 
 # --- files made by Gmsh (tests/data/make_gmsh_fixtures.py) ------------------------------
 
 @pytest.mark.parametrize("name", ["gmsh_rect_v41.msh", "gmsh_rect_v41_binary.msh",
-                                  "gmsh_rect_v22.msh"])
+                                  "gmsh_rect_v40.msh", "gmsh_rect_v22.msh",
+                                  "gmsh_rect_v22_binary.msh"])
 def test_gmsh_files(name):
     m = read_mesh(DATA / name)
     assert (m.cell_type, m.points.shape, len(m.cells)) == ("triangle", (71, 2), 112)
@@ -510,6 +573,38 @@ def test_hand_written_gmsh_41_entity_in_two_groups_and_one_in_none(tmp_path):
     assert len(m.facet_sets) == 2
 
 
+def test_gmsh_41_nodes_come_in_tag_order(tmp_path):
+    shuffled = SQUARE_V41.replace("""$Nodes
+1 4 1 4
+2 1 0 4
+1
+2
+3
+4
+0 0 0
+1 0 0
+1 1 0
+0 1 0
+$EndNodes""", """$Nodes
+2 4 1 4
+1 1 0 2
+4
+3
+0 1 0
+1 1 0
+1 2 0 2
+2
+1
+1 0 0
+0 0 0
+$EndNodes""")
+    m = read_mesh(write_text(tmp_path, "shuffled.msh", shuffled))
+    reference = read_mesh(write_text(tmp_path, "square.msh", SQUARE_V41))
+    np.testing.assert_array_equal(m.points, [[0, 0], [1, 0], [1, 1], [0, 1]])
+    np.testing.assert_array_equal(m.cells, reference.cells)
+    assert facet_keys(m.facet_sets["bottom"]) == {(0, 1)}
+
+
 # --- malformed files -----------------------------------------------------------------
 
 def inp_error(tmp_path, text, name="bad.inp") -> str:
@@ -533,8 +628,10 @@ def inp_error(tmp_path, text, name="bad.inp") -> str:
     (QUAD_GRID.replace("_first, s3", "_second, s3"), 18, "_second"),
     (QUAD_GRID.replace("1, 0, 0\n", "1, zero, 0\n"), 2, "node row"),
     ("1, 2, 3\n*NODE\n", 1, "before any keyword"),
-    (CAE_STYLE.replace("*End Assembly", "*Instance, name=B2, part=Beam\n*End Assembly"), 33,
+    (CAE_STYLE.replace("*End Assembly", "*Instance, name=B2, part=Beam\n*End Assembly"), 35,
      "second *INSTANCE"),
+    (CAE_STYLE.replace("*Instance, name=Beam-1, part=Beam", "*Instance, name=Beam-1, part=Beam"
+                       "\n 1., 0., 0."), 22, "translated"),
 ])
 def test_inp_errors_name_file_and_line(tmp_path, text, line, words):
     message = inp_error(tmp_path, text)
@@ -612,6 +709,7 @@ def test_truncated_binary_gmsh_file(tmp_path):
     (SQUARE_V41.replace("2 1 2 2\n", "2 1 99 2\n"), "type number 99"),
     (SQUARE_V41.replace("1 1 0\n0 1 0", "1 1 0.25\n0 1 0"), "non-zero z"),
     ("$MeshFormat\n3.0 0 8\n$EndMeshFormat\n", "version 3.0"),
+    ("$MeshFormat\n4 1 8\n\x01\x00\x00\x00\n$EndMeshFormat\n", "binary Gmsh 4.0"),
 ])
 def test_gmsh_errors(tmp_path, text, words):
     path = write_text(tmp_path, "bad.msh", text)

@@ -7,8 +7,8 @@ dependency; the files below are committed, made with Gmsh 4.15.2):
 
 Files (coarse on purpose, a few kB each):
 
-- ``gmsh_rect_v41.msh``, ``gmsh_rect_v41_binary.msh``, ``gmsh_rect_v22.msh``: the
-  rectangle [0, 2] x [0, 1] in triangles with physical groups: surface 7 "plate",
+- ``gmsh_rect_v41.msh``, ``gmsh_rect_v41_binary.msh``, ``gmsh_rect_v40.msh``,
+  ``gmsh_rect_v22.msh``, ``gmsh_rect_v22_binary.msh``: the rectangle [0, 2] x [0, 1] in triangles with physical groups: surface 7 "plate",
   curves 3 "left" (x = 0), 4 "bottom and left", 9 (y = 0, no name), point 5 "origin".
 - ``gmsh_rect.inp``: the same mesh exported by Gmsh as Abaqus input (elements of every
   entity as T3D2/CPS3 element sets, groups as *ELSET and *NSET).
@@ -37,7 +37,9 @@ def rectangle():
     gmsh.model.mesh.generate(2)
     save("gmsh_rect_v41.msh", 4.1)
     save("gmsh_rect_v41_binary.msh", 4.1, binary=True)
+    save("gmsh_rect_v40.msh", 4.0)
     save("gmsh_rect_v22.msh", 2.2)
+    save("gmsh_rect_v22_binary.msh", 2.2, binary=True)
     gmsh.option.setNumber("Mesh.SaveGroupsOfNodes", 1)
     gmsh.write("gmsh_rect.inp")
     gmsh.option.setNumber("Mesh.SaveGroupsOfNodes", 0)

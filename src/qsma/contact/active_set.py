@@ -31,7 +31,7 @@ import numpy as np
 from ..errors import InputError
 from .basket import run_baskets
 from .law import augmented_forces, pair_quantities, slip_directions_from_forces
-from .linear import free_components, known_displacement, open_rows, solve_partitioned
+from .linear import basket_system, solve_partitioned
 from .registry import Iterate, register_method
 from .residual import residual
 from .state import OPEN, SLIPPING, STUCK, ContactState
@@ -159,33 +159,16 @@ class _Newton:
         self.seen.add(key)
 
     def _newton_point(self, sets):
-        """Full Newton step: solve ``J d_new = J d - F`` with the fixed components known."""
-        p, st = self.problem, sets.status
-        opened, slip = np.flatnonzero(st == OPEN), np.flatnonzero(st == SLIPPING)
-        Ro, bo = open_rows(p, self.lw, opened)
-        Rs, bs = self._slip_rows(slip, sets)
-        unknown = free_components(p, opened, slip)
-        return solve_partitioned(np.vstack([Ro, Rs]), np.concatenate([bo, bs]), unknown,
-                                 known_displacement(p, st, self.prev))
+        """Full Newton step: ``J d_new = J d - F`` with the fixed components known.
 
-    def _slip_rows(self, pairs, sets):
-        """Jacobian rows of ``F_t = Q - mu sigma_n h`` at slipping pairs: ``(J, J d - F_t)``.
-
-        ``J = (I - alpha P) K_t - mu h (K_n - c e_n) + alpha c P e_t`` with
-        ``P = I - h h^T`` (zero in 2D).
+        On the stuck components and closed normals ``J = c I`` and the step
+        lands on ``d_t = d_t,prev``, ``d_n = -g0``; on open pairs ``J = K``
+        and ``J d - F = -lam_w``; on slipping pairs the rows are those of
+        :func:`qsma.contact.linear.slip_rows` with ``s = -h``.
         """
-        p, c, m = self.problem, self.c, self.problem.dim - 1
-        T, N, h = p.tangent_index[pairs], p.normal_index[pairs], sets.h[pairs]
-        alpha, mu = sets.alpha[pairs], p.mu[pairs]
-        proj = np.eye(m) - h[:, :, None] * h[:, None, :]
-        A = np.eye(m) - alpha[:, None, None] * proj
-        rows = np.einsum("kij,kjc->kic", A, p.K[T]) - (mu[:, None] * h)[:, :, None] * p.K[N][:, None, :]
-        k = np.arange(len(pairs))
-        rows[k, :, N] += c * mu[:, None] * h
-        rows[k[:, None, None], np.arange(m)[None, :, None], T[:, None, :]] += (
-            c * alpha[:, None, None] * proj)
-        rows = rows.reshape(-1, p.size)
-        return rows, rows @ self.d - sets.F[pairs, :-1].ravel()
+        R, b, unknown, d_known = basket_system(self.problem, self.lw, sets.status, -sets.h,
+                                               sets.alpha, self.prev, self.c)
+        return solve_partitioned(R, b, unknown, d_known)
 
     def _line_search(self, sets, delta):
         """Backtracking on ``|F|^2`` along ``delta``; the step length or None."""

@@ -20,9 +20,19 @@ Block step (``coupling``):
   relative change of displacement (paper eq. 19) decides when it has
   settled.
 
-In 3D the slip direction of a slipping pair is updated to its slip increment
-direction after every step, and the block step uses the curvature of the
-cone (a Newton step on the direction; exact in 2D).
+A failed check sends a pair to the basket its one-pair solution allows
+(:func:`qsma.contact.law.local_states`). If a configuration of baskets
+comes back (a cycle), pairs move one at a time, each time to a
+configuration not yet visited.
+
+In 3D the slip direction of a slipping pair is a continuous unknown: with
+the baskets held, the block step is repeated as a damped Newton iteration
+on the slip law (direction ``-(Q - kappa dv)/|Q - kappa dv|``, the
+projection on the friction disk; rows of
+:func:`qsma.contact.linear.slip_rows`) until the slip law holds, and only
+then are the baskets checked ("the algorithm cycles over the basket until
+the governing equations at all basket nodes are satisfied"). In 2D the
+direction is a sign and one block step is exact.
 """
 from __future__ import annotations
 
@@ -41,6 +51,9 @@ from .state import OPEN, SLIPPING, STUCK
 #: ``0.01 tol`` to the residual.
 CHECK_FRACTION = 0.01
 COUPLINGS = ("joint", "gauss_seidel")
+#: 3D: Newton steps on the slip directions per basket configuration, and the
+#: Armijo constant and smallest step of their line search.
+DIRECTION_STEPS, ARMIJO, MIN_STEP = 30, 1e-4, 2.0 ** -20
 
 
 @register_method("basket")
@@ -69,43 +82,44 @@ def run_baskets(problem, lam_w, previous, *, tol, maxiter=None, coupling="joint"
     Parameters
     ----------
     guess : ContactState, optional
-        Initial baskets (``status``) and slip directions (from ``lam``);
-        default ``previous``. The slip reference is always ``previous``.
+        Initial baskets (``status``), displacement and slip directions (from
+        ``lam``); default ``previous``. The slip reference is always
+        ``previous``.
 
     Returns
     -------
     Iterate
+        ``nit`` counts block steps (linear solves).
     """
     if coupling not in COUPLINGS:
         raise InputError(f"coupling must be one of {COUPLINGS}, got {coupling!r}")
     maxiter = maxiter or (200 if coupling == "joint" else 20000)
     run = _BasketRun(problem, lam_w, previous, guess or previous, coupling, tol,
-                     pass_tol or tol)
-    for it in range(1, maxiter + 1):
+                     pass_tol or tol, maxiter)
+    while run.solves < maxiter:
         verdict = run.iterate()
         if verdict is not None:
-            return Iterate(run.d2, run.lam2, it, verdict[0], verdict[1])
-    return Iterate(run.d2, run.lam2, maxiter, False,
+            return Iterate(run.d2, run.lam2, run.solves, verdict[0], verdict[1])
+    return Iterate(run.d2, run.lam2, run.solves, False,
                    f"no convergence in maxiter={maxiter} block steps ({run.summary()})")
 
 
 class _BasketRun:
     """Mutable working state of one basket solve (baskets, iterate, history)."""
 
-    def __init__(self, problem, lam_w, previous, guess, coupling, tol, pass_tol):
-        self.problem, self.lw, self.prev = problem, lam_w.ravel(), previous.d
-        self.lam_w, self.previous = lam_w, previous
-        self.coupling, self.tol, self.pass_tol = coupling, tol, pass_tol
-        n, m = problem.n_pairs, problem.dim - 1
+    def __init__(self, problem, lam_w, previous, guess, coupling, tol, pass_tol, maxiter):
+        self.problem, self.lam_w, self.previous = problem, lam_w, previous
+        self.lw, self.prev = lam_w.ravel(), previous.d
+        self.coupling, self.tol, self.pass_tol, self.maxiter = coupling, tol, pass_tol, maxiter
+        n = problem.n_pairs
         self.status = np.array(guess.status)
         self.direction = slip_directions_from_forces(guess.lam[:, :-1], self.status)
-        self.curvature = np.zeros(n)
+        self.alpha = np.zeros(n)
         self.final = np.zeros(n, bool)
         self.confirmed = np.zeros(n, int)
         self.ever_moved = np.zeros(n, bool)
-        self.d = np.array(guess.d, dtype=float).ravel()
-        self.lam = problem.K @ self.d + self.lw
-        self.cautious, self.m = False, m
+        self._set_iterate(np.array(guess.d, dtype=float).ravel())
+        self.cautious, self.solves = False, 0
         self.seen = {self._key(self.status, self.direction)}
 
     @property
@@ -122,27 +136,30 @@ class _BasketRun:
                 f"{', cycling detected' if self.cautious else ''}")
 
     def iterate(self):
-        """One block step and state check; ``(converged, message)`` when done."""
+        """Block step(s) and state check; ``(converged, message)`` when done."""
         try:
             d_new = self._block_step()
+            change = self._relative_change(d_new)
+            self._set_iterate(d_new)
+            if self.problem.dim == 3 and self.coupling == "joint":
+                change = self._settle_directions()
         except np.linalg.LinAlgError:
             return False, f"singular block system ({self.summary()})"
-        change = self._relative_change(d_new)
-        self.d = d_new
-        self.lam = self.problem.K @ d_new + self.lw
         q = pair_quantities(self.problem, self.d2, self.lam2, self.prev)
         threshold = CHECK_FRACTION * self.tol * force_scale(self.lw, self.lam)
         local = local_states(self.problem, self.d2, self.lam2, self.prev, threshold)
         tr = basket_transitions(self.status, self.direction, q, self.problem.mu,
                                 self.problem.kappa, threshold, local)
-        turned = self._direction_change(tr)
         self._update_directions(tr, q)
         if self._move(tr, temporary=~self.final):
             return None
-        settled = change <= self.pass_tol or (self.coupling == "joint" and turned <= self.pass_tol)
-        if not settled:
+        if self.coupling == "gauss_seidel" and change > self.pass_tol:
             return None
-        return self._end_of_pass(tr, stalled=(change == 0.0))
+        return self._end_of_pass(tr, stalled=change <= self.pass_tol)
+
+    def _set_iterate(self, d):
+        self.d = d
+        self.lam = self.problem.K @ d + self.lw
 
     def _end_of_pass(self, tr, stalled):
         """Reopen the final baskets and recheck them; accept on the residual."""
@@ -157,6 +174,8 @@ class _BasketRun:
         if stalled:
             return False, f"baskets settled but residual {r:.3e} > tol ({self.summary()})"
         return None
+
+    # -- baskets -------------------------------------------------------------
 
     def _move(self, tr, temporary):
         """Move the temporary pairs that failed their check; True if any moved.
@@ -177,7 +196,7 @@ class _BasketRun:
             self.cautious = True
             status, direction = self._new_single_move(tr, wants, status, direction)
         self.ever_moved |= status != self.status
-        self.curvature[status != self.status] = 0.0
+        self.alpha[status != self.status] = 0.0
         self.status, self.direction = status, direction
         self.seen.add(self._key(status, direction))
         return True
@@ -195,37 +214,27 @@ class _BasketRun:
 
     def _targets(self, i, proposed):
         """Baskets to try for pair ``i``: the proposed one first, then the others."""
-        order = [proposed] + [c for c in (STUCK, SLIPPING, OPEN) if c not in (proposed, self.status[i])]
-        out = [(c, 1.0) for c in order]
-        if self.m == 1:
+        others = [c for c in (STUCK, SLIPPING, OPEN) if c not in (proposed, self.status[i])]
+        out = [(c, 1.0) for c in [proposed] + others]
+        if self.problem.dim == 2:
             out.append((SLIPPING, -1.0))
         return out
 
     def _key(self, status, direction):
-        return status.tobytes() + np.where(status == SLIPPING, direction[:, 0] > 0, False).tobytes()
+        """A configuration: baskets, and in 2D the slip signs."""
+        if self.problem.dim == 3:
+            return status.tobytes()
+        return status.tobytes() + np.where(status == SLIPPING, direction[:, 0] > 0,
+                                           False).tobytes()
 
-    def _direction_change(self, tr):
-        slipping = (self.status == SLIPPING) & (tr.status == SLIPPING)
-        if not slipping.any():
-            return 0.0
-        return float(np.max(np.abs(tr.direction[slipping] - self.direction[slipping])))
-
-    def _update_directions(self, tr, q):
-        """3D: slip direction from the increment, cone curvature for the next step."""
-        slipping = (self.status == SLIPPING) & (tr.status == SLIPPING)
-        self.direction[slipping] = tr.direction[slipping]
-        if self.m < 2:
-            return
-        norm = np.linalg.norm(q.dv, axis=1)
-        scale = 1e-12 * force_scale(self.lw, self.lam) / self.problem.kappa
-        ok = slipping & (norm > scale)
-        self.curvature = np.zeros_like(self.curvature)
-        self.curvature[ok] = self.problem.mu[ok] * np.maximum(q.P[ok], 0.0) / norm[ok]
+    # -- block steps ---------------------------------------------------------
 
     def _block_step(self):
+        self.solves += 1
         if self.coupling == "joint":
             R, b, unknown, d_known = basket_system(self.problem, self.lw, self.status,
-                                                   self.direction, self.curvature, self.prev)
+                                                   self.direction, self.alpha, self.prev,
+                                                   self.problem.kappa)
             return solve_partitioned(R, b, unknown, d_known)
         return self._gauss_seidel_step()
 
@@ -234,8 +243,8 @@ class _BasketRun:
         p, st = self.problem, self.status
         d = np.where(_known_mask(p, st), known_displacement(p, st, self.prev), self.d)
         slip, opened = np.flatnonzero(st == SLIPPING), np.flatnonzero(st == OPEN)
-        R, b = slip_rows(p, self.lw, slip, self.direction[slip], self.curvature[slip],
-                         self.prev[slip, :-1])
+        R, b = slip_rows(p, self.lw, slip, self.direction[slip], self.alpha[slip],
+                         self.prev[slip, :-1], p.kappa)
         d = solve_partitioned(R, b, p.tangent_index[slip].ravel(), d)
         R, b = open_rows(p, self.lw, opened)
         return solve_partitioned(R, b, (opened[:, None] * p.dim + np.arange(p.dim)).ravel(), d)
@@ -248,6 +257,68 @@ class _BasketRun:
         delta = np.max(np.abs(d_new[moving] - self.d[moving]))
         size = np.max(np.abs(d_new[moving] - self.prev.ravel()[moving]))
         return float(delta / max(size, np.finfo(float).tiny))
+
+    # -- slip directions (3D) ------------------------------------------------
+
+    def _slip_law(self, d):
+        """Augmented slip directions at ``d`` and the slip-law misfit of slipping pairs.
+
+        Returns ``(s, alpha, misfit)``: ``s = -sigma_t/|sigma_t|`` with
+        ``sigma_t = Q - kappa dv``, ``alpha = mu P / |sigma_t|`` (clipped to
+        [0, 1]) and ``sum |Q + mu P s|^2`` over slipping pairs.
+        """
+        slip = self.status == SLIPPING
+        d2 = d.reshape(-1, self.problem.dim)
+        lam2 = (self.problem.K @ d + self.lw).reshape(d2.shape)
+        q = pair_quantities(self.problem, d2, lam2, self.prev)
+        sigma = q.Q[slip] - self.problem.kappa * q.dv[slip]
+        norm = np.maximum(np.linalg.norm(sigma, axis=1), np.finfo(float).tiny)
+        s = -sigma / norm[:, None]
+        mu_p = self.problem.mu[slip] * np.maximum(q.P[slip], 0.0)
+        misfit = float(np.sum((q.Q[slip] + mu_p[:, None] * s) ** 2))
+        return s, np.minimum(1.0, mu_p / norm), misfit
+
+    def _settle_directions(self):
+        """Damped Newton on the 3D slip law with the baskets held.
+
+        Returns the relative change of displacement of the last step (0 if
+        the slip law already held).
+        """
+        slip = self.status == SLIPPING
+        change = 0.0
+        for _ in range(DIRECTION_STEPS):
+            s, alpha, misfit = self._slip_law(self.d)
+            goal = CHECK_FRACTION * self.tol * force_scale(self.lw, self.lam)
+            if not slip.any() or misfit <= goal ** 2 or self.solves >= self.maxiter:
+                return change
+            self.direction[slip], self.alpha[slip] = s, alpha
+            target = self._block_step()
+            t = self._line_search(target - self.d, misfit)
+            if t is None:
+                return change
+            d_new = self.d + t * (target - self.d)
+            change = self._relative_change(d_new)
+            self._set_iterate(d_new)
+        return change
+
+    def _line_search(self, delta, misfit0):
+        t = 1.0
+        while t >= MIN_STEP:
+            if self._slip_law(self.d + t * delta)[2] <= (1.0 - 2.0 * ARMIJO * t) * misfit0:
+                return t
+            t *= 0.5
+        return None
+
+    def _update_directions(self, tr, q):
+        """Pairs that stay slipping take the checked direction (2D: its sign)."""
+        slipping = (self.status == SLIPPING) & (tr.status == SLIPPING)
+        if self.problem.dim == 2 or self.coupling == "gauss_seidel":
+            self.direction[slipping] = tr.direction[slipping]
+        if self.problem.dim == 3 and self.coupling == "gauss_seidel":
+            sigma = np.linalg.norm(q.Q - self.problem.kappa * q.dv, axis=1)
+            ok = slipping & (sigma > 0)
+            self.alpha[ok] = np.minimum(1.0, self.problem.mu[ok] * np.maximum(q.P[ok], 0)
+                                        / sigma[ok])
 
 
 def _known_mask(problem, status):

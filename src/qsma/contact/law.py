@@ -155,7 +155,7 @@ def basket_transitions(status, direction, q, mu, kappa, threshold, local):
     s = direction.copy()
     fresh = failed & (new == SLIPPING)
     s[fresh] = local.direction[fresh]
-    s = _updated_directions(s, new == SLIPPING, slipping & ~failed, q.dv)
+    s = _updated_directions(s, new == SLIPPING, slipping & ~failed, q.Q - kappa * q.dv)
     return Transitions(new, s, np.where(failed, viol, 0.0))
 
 
@@ -231,11 +231,16 @@ def _slip_consistent(Kii, Q0, P0, s, mu, kappa, threshold):
     return ~singular & (P >= -threshold) & (kappa * np.sum(v * s, axis=1) >= -threshold)
 
 
-def _updated_directions(s, slipping_now, slipping_before, dv):
-    """Slip direction of pairs that stay slipping: the unit slip increment."""
-    norm = np.linalg.norm(dv, axis=1)
+def _updated_directions(s, slipping_now, slipping_before, sigma_t):
+    """Slip direction of pairs that stay slipping: ``-sigma_t/|sigma_t|``.
+
+    ``sigma_t = Q - kappa dv`` is the augmented shear; its projection on the
+    friction disk is the next shear, so the slip direction is opposite to it
+    (at a solution, ``sigma_t = -(mu P + kappa |dv|) s``).
+    """
+    norm = np.linalg.norm(sigma_t, axis=1)
     keep = slipping_now & slipping_before & (norm > 0)
-    s[keep] = dv[keep] / norm[keep, None]
+    s[keep] = -sigma_t[keep] / norm[keep, None]
     return s
 
 

@@ -6,3 +6,7 @@ from .interface import Interface, Pairing, make_pairing, pair_nodes, local_frame
 __all__ = ["Mesh", "boundary_facets", "CELL_TYPES", "Material", "Clamp", "Pressure",
            "Body", "Probe", "Model", "Interface", "Pairing", "make_pairing", "pair_nodes",
            "local_frames"]
+
+from .io import read_mesh, write_mesh  # noqa: E402
+
+__all__ += ["read_mesh", "write_mesh"]

@@ -455,9 +455,12 @@ def _read_gmsh(path: Path, cell_type: str | None) -> Mesh:
     raw = _read_bytes(path)
     src = str(path)
     version, is_ascii, size_t = _gmsh_header(raw, src)
-    if version in ("4", "4.1"):
-        fm, dims = _Gmsh41(raw, src, is_ascii, size_t).file_mesh()
-    elif version.split(".")[0] == "2" or version == "4.0":
+    if version in ("4", "4.0") and not is_ascii:
+        raise MeshFileError(f"{src}: binary Gmsh 4.0 files are not supported; save the mesh "
+                            f"as version 4.1 (Gmsh: Mesh.MshFileVersion = 4.1)")
+    if version in ("4", "4.0", "4.1"):    # Gmsh writes format 4.0 as version "4"
+        fm, dims = _Gmsh4(raw, src, is_ascii, size_t, version == "4.1").file_mesh()
+    elif version in ("2", "2.0", "2.1", "2.2"):
         fm, dims = _gmsh_with_meshio(path, raw, src, version, is_ascii)
     else:
         raise MeshFileError(f"{src}: Gmsh format version {version} is not supported; save "
@@ -604,16 +607,18 @@ class _Stream:
                              f"from Gmsh")
 
 
-class _Gmsh41:
-    """Reader of Gmsh 4.1 files (ASCII and binary) that keeps every physical group.
+class _Gmsh4:
+    """Reader of Gmsh 4.1 (ASCII and binary) and 4.0 (ASCII) files that keeps every
+    physical group.
 
     meshio 5.3.5 keeps only the first physical tag of an entity unless it is named,
-    merges names of different dimensions and fails on files where some entities have no
-    physical group; hence this reader.
+    merges names of different dimensions, fails on 4.1 files where some entities have no
+    physical group, and reads Gmsh's version "4" (format 4.0) as 4.1; hence this reader.
     """
 
-    def __init__(self, raw: bytes, src: str, is_ascii: bool, size_t: int):
+    def __init__(self, raw: bytes, src: str, is_ascii: bool, size_t: int, v41: bool):
         self.raw, self.src, self.is_ascii, self.size_t = raw, src, is_ascii, size_t
+        self.v41 = v41
         self.names, self.entity_groups = {}, {}
         self.node_tags, self.node_xyz, self.blocks = [], [], []
         self.saw_nodes = self.saw_elements = False
@@ -660,7 +665,7 @@ class _Gmsh41:
         for dim in range(4):
             for _ in range(int(counts[dim])):
                 tag = int(s.ints(1)[0])
-                s.doubles(3 if dim == 0 else 6)
+                s.doubles(3 if dim == 0 and self.v41 else 6)
                 groups = s.ints(int(s.sizes(1)[0]))
                 if dim > 0:
                     s.ints(int(s.sizes(1)[0]))   # bounding entities
@@ -669,35 +674,49 @@ class _Gmsh41:
 
     def _nodes(self, data, start):
         s = self._stream(data, start, "Nodes")
-        n_blocks = int(s.sizes(4)[0])
+        n_blocks = int(s.sizes(4 if self.v41 else 2)[0])
         for _ in range(n_blocks):
-            dim, _, parametric = (int(v) for v in s.ints(3))
+            where = s.where()
+            first, second, parametric = (int(v) for v in s.ints(3))
+            dim = first if self.v41 else second         # 4.0: entity tag, then dimension
+            if not 0 <= dim <= 3 or parametric not in (0, 1):
+                raise MeshFileError(f"{where}: node block of dimension {dim} with parametric "
+                                    f"flag {parametric}; the file is damaged")
             n = int(s.sizes(1)[0])
-            self.node_tags.append(s.sizes(n))
             width = 3 + (dim if parametric else 0)
-            self.node_xyz.append(s.doubles(n * width).reshape(n, width)[:, :3])
+            if self.v41:                                # tags, then coordinates
+                self.node_tags.append(s.sizes(n))
+                self.node_xyz.append(s.doubles(n * width).reshape(n, width)[:, :3])
+            else:                                       # tag x y z per node (ASCII)
+                table = s.doubles(n * (1 + width)).reshape(n, 1 + width)
+                if not np.all(np.abs(table[:, 0]) < _MAX_ID) or np.any(table[:, 0] % 1):
+                    raise MeshFileError(f"{where}: node tags that are not integers; the "
+                                        f"file is damaged")
+                self.node_tags.append(table[:, 0].astype(np.int64))
+                self.node_xyz.append(table[:, 1:4])
         self.saw_nodes = True
         return s.pos
 
     def _elements(self, data, start):
         s = self._stream(data, start, "Elements")
-        n_blocks = int(s.sizes(4)[0])
+        n_blocks = int(s.sizes(4 if self.v41 else 2)[0])
         for _ in range(n_blocks):
             where = s.where()
-            dim, entity, number = (int(v) for v in s.ints(3))
+            first, second, number = (int(v) for v in s.ints(3))
+            dim, entity = (first, second) if self.v41 else (second, first)
             if number not in _GMSH_TYPES:
                 raise MeshFileError(f"{where}: unknown Gmsh element type number {number}; "
                                     f"qsma reads linear meshes (Gmsh types 1-5 and 15)")
             etype, nv, _ = _GMSH_TYPES[number]
             n = int(s.sizes(1)[0])
-            rows = s.sizes(n * (1 + nv)).reshape(n, 1 + nv)
+            rows = (s.sizes if self.v41 else s.ints)(n * (1 + nv)).reshape(n, 1 + nv)
             self.blocks.append((dim, entity, etype, rows[:, 1:], where))
         self.saw_elements = True
         return s.pos
 
 
 def _gmsh_with_meshio(path: Path, raw: bytes, src: str, version: str, is_ascii: bool):
-    """Gmsh 2.2 (and 4.0) files through meshio, with names and checks of our own."""
+    """Gmsh 2.x files through meshio, with names and checks of our own."""
     import meshio
 
     names = {}
@@ -1466,8 +1485,10 @@ def _format_abaqus(mesh: Mesh, _version=None) -> str:
         surface = []
         for face in np.unique(faces).tolist():
             elset = f"_{name}_S{face}"
-            if elset.upper() in taken or len(elset) > 80 or not _PLAIN_NAME.fullmatch(elset[1:]):
+            if len(elset) > 80 or not _PLAIN_NAME.fullmatch(elset[1:]):
                 elset = f"_SURFACE{k + 1}_S{face}"
+            while elset.upper() in taken:                  # a cell set of that name
+                elset = f"_{elset}"
             taken.add(elset.upper())
             out += [f"*ELSET, ELSET={elset}, INTERNAL",
                     *_id_lines(np.sort(boundary.cell[idx[faces == face]]))]
