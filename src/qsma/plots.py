@@ -106,6 +106,40 @@ def plot_interface(res, path, levels=None):
     return _save(fig, path)
 
 
+def plot_interface_map(res, path, levels=None):
+    """3D: maps over the interface plane (first two in-plane coordinates of the pair
+    frames, x and z for sandwich-3d) of pressure, shear magnitude and state."""
+    from matplotlib.colors import ListedColormap
+    n = res.n_levels
+    levels = sorted({n // 2, (3 * n) // 4, n - 1}) if levels is None else levels
+    p = res.pairing
+    t1, t2 = p.frames[0, 0], p.frames[0, 1]
+    u, v = p.x @ t1, p.x @ t2
+    fig, axes = _figure(3, len(levels), figsize=(4 * len(levels), 9), squeeze=False)
+    states = ListedColormap(["tab:blue", "tab:orange", "lightgray"])
+    pmax = max(res.states.lam[k][:, -1].max() for k in levels) / p.area.max() / 1e6
+    for j, k in enumerate(levels):
+        lam = res.states.lam[k]
+        for i, (val, cmap, label, kw) in enumerate((
+                (lam[:, -1] / p.area / 1e6, "viridis", "pressure [MPa]",
+                 dict(vmin=0, vmax=pmax)),
+                (np.linalg.norm(lam[:, :-1], axis=1) / p.area / 1e6, "magma",
+                 "shear [MPa]", {}),
+                (res.states.status[k], states, "0 stuck, 1 slip, 2 open",
+                 dict(vmin=-0.5, vmax=2.5)))):
+            ax = axes[i, j]
+            sc = ax.scatter(u, v, c=val, cmap=cmap, s=12, marker="s", **kw)
+            ax.set_aspect("equal")
+            fig.colorbar(sc, ax=ax, shrink=0.8, label=label)
+            if i == 0:
+                ax.set_title(f"level {k}, tip {res.tip[k]:.2e} m", fontsize=9)
+            if i == 2:
+                ax.set_xlabel("t1 coordinate [m]")
+            if j == 0:
+                ax.set_ylabel("t2 coordinate [m]")
+    return _save(fig, path)
+
+
 def write_plots(res, out) -> dict:
     out = Path(out)
     paths = {
@@ -115,4 +149,6 @@ def write_plots(res, out) -> dict:
     }
     if res.model.dim == 2:
         paths["interface"] = plot_interface(res, out / "interface.png")
+    else:
+        paths["interface"] = plot_interface_map(res, out / "interface_map.png")
     return paths

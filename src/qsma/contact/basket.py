@@ -39,7 +39,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
-from .law import (basket_transitions, local_states, pair_quantities,
+from .law import (basket_transitions, local_states, pair_quantities, row_norm,
                   slip_directions_from_forces)
 from .linear import basket_system, known_displacement, open_rows, slip_rows, solve_partitioned
 from .registry import Iterate, register_method
@@ -58,7 +58,7 @@ DIRECTION_STEPS, ARMIJO, MIN_STEP = 30, 1e-4, 2.0 ** -20
 
 @register_method("basket")
 def solve_basket(problem, lam_w, previous, *, tol, maxiter=None, coupling="joint",
-                 pass_tol=None):
+                 pass_tol=None, fallback=True):
     """Block Gauss-Seidel with baskets.
 
     Parameters
@@ -70,9 +70,18 @@ def solve_basket(problem, lam_w, previous, *, tol, maxiter=None, coupling="joint
         which a pass has settled (paper eq. 19); default ``tol``.
     maxiter : int, optional
         Block steps; default 200 (``"joint"``) or 20000 (``"gauss_seidel"``).
+    fallback : bool
+        If the baskets fail, hand over to ``"active_set"`` (without its own
+        fallback) from the previous state; the message says so.
     """
-    return run_baskets(problem, lam_w, previous, tol=tol, maxiter=maxiter, coupling=coupling,
-                       pass_tol=pass_tol)
+    out = run_baskets(problem, lam_w, previous, tol=tol, maxiter=maxiter, coupling=coupling,
+                      pass_tol=pass_tol)
+    if out.converged or not fallback:
+        return out
+    from .active_set import solve_active_set  # deferred: active_set imports this module
+    rescue = solve_active_set(problem, lam_w, previous, tol=tol, fallback=False)
+    return rescue._replace(nit=out.nit + rescue.nit,
+                           message=f"{out.message}; fell back to active_set: {rescue.message}")
 
 
 def run_baskets(problem, lam_w, previous, *, tol, maxiter=None, coupling="joint",
@@ -118,13 +127,19 @@ class _BasketRun:
         self.final = np.zeros(n, bool)
         self.confirmed = np.zeros(n, int)
         self.ever_moved = np.zeros(n, bool)
-        self._set_iterate(np.array(guess.d, dtype=float).ravel())
-        self.cautious, self.solves = False, 0
+        self.d, self._lam = np.array(guess.d, dtype=float).ravel(), None
+        self.cautious, self.solves, self.quiet = False, 0, 0
         self.seen = {self._key(self.status, self.direction)}
 
     @property
     def d2(self):
         return self.d.reshape(-1, self.problem.dim)
+
+    @property
+    def lam(self):
+        if self._lam is None:
+            self._lam = self.problem.K @ self.d + self.lw
+        return self._lam
 
     @property
     def lam2(self):
@@ -139,7 +154,7 @@ class _BasketRun:
         """Block step(s) and state check; ``(converged, message)`` when done."""
         try:
             d_new = self._block_step()
-            change = self._relative_change(d_new)
+            change = self._relative_change(d_new) if self.coupling == "gauss_seidel" else 0.0
             self._set_iterate(d_new)
             if self.problem.dim == 3 and self.coupling == "joint":
                 change = self._settle_directions()
@@ -147,19 +162,22 @@ class _BasketRun:
             return False, f"singular block system ({self.summary()})"
         q = pair_quantities(self.problem, self.d2, self.lam2, self.prev)
         threshold = CHECK_FRACTION * self.tol * force_scale(self.lw, self.lam)
-        local = local_states(self.problem, self.d2, self.lam2, self.prev, threshold)
-        tr = basket_transitions(self.status, self.direction, q, self.problem.mu,
-                                self.problem.kappa, threshold, local)
-        self._update_directions(tr, q)
+        tr = basket_transitions(
+            self.status, self.direction, q, self.problem.mu, self.problem.kappa, threshold,
+            lambda pairs: local_states(self.problem, self.d2, self.lam2, self.prev, threshold,
+                                       pairs))
         if self._move(tr, temporary=~self.final):
+            self.quiet = 0
             return None
-        if self.coupling == "gauss_seidel" and change > self.pass_tol:
+        self.quiet += 1
+        self._update_directions(q)
+        if change > self.pass_tol:
             return None
-        return self._end_of_pass(tr, stalled=change <= self.pass_tol)
+        stalled = self.quiet >= 2 if self.coupling == "joint" else change == 0.0
+        return self._end_of_pass(tr, stalled)
 
     def _set_iterate(self, d):
-        self.d = d
-        self.lam = self.problem.K @ d + self.lw
+        self.d, self._lam = d, None
 
     def _end_of_pass(self, tr, stalled):
         """Reopen the final baskets and recheck them; accept on the residual."""
@@ -265,7 +283,8 @@ class _BasketRun:
 
         Returns ``(s, alpha, misfit)``: ``s = -sigma_t/|sigma_t|`` with
         ``sigma_t = Q - kappa dv``, ``alpha = mu P / |sigma_t|`` (clipped to
-        [0, 1]) and ``sum |Q + mu P s|^2`` over slipping pairs.
+        [0, 1]) and ``sum |Q + mu P s|^2`` over slipping pairs (the rows of
+        the block step, linear in ``P``: no clipping of ``P``).
         """
         slip = self.status == SLIPPING
         d2 = d.reshape(-1, self.problem.dim)
@@ -274,9 +293,9 @@ class _BasketRun:
         sigma = q.Q[slip] - self.problem.kappa * q.dv[slip]
         norm = np.maximum(np.linalg.norm(sigma, axis=1), np.finfo(float).tiny)
         s = -sigma / norm[:, None]
-        mu_p = self.problem.mu[slip] * np.maximum(q.P[slip], 0.0)
+        mu_p = self.problem.mu[slip] * q.P[slip]
         misfit = float(np.sum((q.Q[slip] + mu_p[:, None] * s) ** 2))
-        return s, np.minimum(1.0, mu_p / norm), misfit
+        return s, np.clip(mu_p / norm, 0.0, 1.0), misfit
 
     def _settle_directions(self):
         """Damped Newton on the 3D slip law with the baskets held.
@@ -309,16 +328,16 @@ class _BasketRun:
             t *= 0.5
         return None
 
-    def _update_directions(self, tr, q):
-        """Pairs that stay slipping take the checked direction (2D: its sign)."""
-        slipping = (self.status == SLIPPING) & (tr.status == SLIPPING)
-        if self.problem.dim == 2 or self.coupling == "gauss_seidel":
-            self.direction[slipping] = tr.direction[slipping]
-        if self.problem.dim == 3 and self.coupling == "gauss_seidel":
-            sigma = np.linalg.norm(q.Q - self.problem.kappa * q.dv, axis=1)
-            ok = slipping & (sigma > 0)
-            self.alpha[ok] = np.minimum(1.0, self.problem.mu[ok] * np.maximum(q.P[ok], 0)
-                                        / sigma[ok])
+    def _update_directions(self, q):
+        """Literal scheme in 3D: pairs that stay slipping turn to ``-(Q - kappa dv)``."""
+        if self.problem.dim == 2 or self.coupling == "joint":
+            return                   # 2D: a passed check keeps the sign; joint 3D: settled
+        slipping = self.status == SLIPPING
+        sigma = q.Q - self.problem.kappa * q.dv
+        size = row_norm(sigma)
+        ok = slipping & (size > 0)
+        self.direction[ok] = -sigma[ok] / size[ok, None]
+        self.alpha[ok] = np.clip(self.problem.mu[ok] * q.P[ok] / size[ok], 0.0, 1.0)
 
 
 def _known_mask(problem, status):

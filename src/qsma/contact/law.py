@@ -28,6 +28,13 @@ class PairQuantities(NamedTuple):
     dv: np.ndarray
 
 
+def row_norm(x):
+    """Euclidean norm of each row of ``x`` ``(n, m)`` (``|x|`` when ``m = 1``)."""
+    if x.shape[1] == 1:
+        return np.abs(x[:, 0])
+    return np.sqrt(np.einsum("ij,ij->i", x, x))
+
+
 def pair_quantities(problem, d, lam, d_prev):
     """Split ``(d, lam)`` of shape ``(n_pairs, dim)`` into :class:`PairQuantities`."""
     return PairQuantities(lam[:, -1], lam[:, :-1], d[:, -1] + problem.gap0,
@@ -46,8 +53,12 @@ def project_disk(x, radius):
     radius : (n,)
         Non-negative radii.
     """
-    norm = np.linalg.norm(x, axis=1)
-    scale = np.minimum(1.0, radius / np.maximum(norm, np.finfo(float).tiny))
+    if x.shape[1] == 1:
+        return np.clip(x, -radius[:, None], radius[:, None])
+    norm = row_norm(x)
+    outside = norm > radius
+    scale = np.ones_like(norm)
+    scale[outside] = radius[outside] / norm[outside]
     return x * scale[:, None]
 
 
@@ -63,7 +74,7 @@ def natural_map(q, mu, c):
     """
     r_n = np.abs(q.P - np.maximum(0.0, q.P - c * q.w))
     radius = mu * np.maximum(q.P, 0.0)
-    r_t = np.linalg.norm(q.Q - project_disk(q.Q - c * q.dv, radius), axis=1)
+    r_t = row_norm(q.Q - project_disk(q.Q - c * q.dv, radius))
     return r_n, r_t
 
 
@@ -85,7 +96,7 @@ def augmented_forces(q, mu, c):
     sigma_n = q.P - c * q.w
     sigma_t = q.Q - c * q.dv
     closed = sigma_n > 0
-    stick = closed & (np.linalg.norm(sigma_t, axis=1) <= mu * sigma_n)
+    stick = closed & (row_norm(sigma_t) <= mu * sigma_n)
     return AugmentedForces(sigma_n, sigma_t, closed, stick)
 
 
@@ -106,8 +117,8 @@ def classify(q, mu, c):
 class Transitions(NamedTuple):
     """Result of the basket state checks.
 
-    ``status`` (n,) proposed status, ``direction`` (n, m) proposed slip
-    direction (unit vector of the slip increment for slipping pairs),
+    ``status`` (n,) proposed status, ``direction`` (n, m) slip direction
+    of the pairs that start slipping (unchanged elsewhere),
     ``violation`` (n,) size of the violated inequality in force units (0
     where the check passed).
     """
@@ -132,30 +143,36 @@ def basket_transitions(status, direction, q, mu, kappa, threshold, local):
     else stuck; open -> stuck) if its exact one-pair solution with the other
     pairs held (``local``, :func:`local_states`) allows that state; otherwise
     to the first other state the one-pair solution allows (stuck, slipping,
-    open), or to the default if none does. Pairs that stay slipping take the direction
-    of their slip increment (3D). A check fails only if its violation exceeds
+    open), or to the default if none does; ``direction`` is then the slip
+    direction of the one-pair solution. A check fails only if its violation
+    exceeds
     ``threshold`` (force units; displacements are turned into forces with
     ``kappa``), so that round-off does not move pairs back and forth.
 
     Parameters
     ----------
-    local : LocalStates
-        One-pair solutions at the current iterate.
+    local : callable
+        ``local(pairs) -> LocalStates``, the one-pair solutions at the
+        current iterate of the pairs ``pairs`` (an index array); called only
+        for the pairs that failed.
     """
-    q_norm = np.linalg.norm(q.Q, axis=1)
     stuck, slipping, opened = status == STUCK, status == SLIPPING, status == OPEN
-    tension = np.where(stuck | slipping, -q.P, 0.0)
-    overload = np.where(stuck, q_norm - mu * q.P, 0.0)
-    backward = np.where(slipping & (mu * q.P > 0), -kappa * np.sum(q.dv * direction, axis=1), 0.0)
-    closing = np.where(opened, -kappa * q.w, 0.0)
-    viol = np.max([tension, overload, backward, closing], axis=0)
+    mu_p = mu * q.P
+    viol = np.where(opened, -kappa * q.w, -q.P)                      # closing / tension
+    viol[stuck] = np.maximum(viol[stuck], row_norm(q.Q[stuck]) - mu_p[stuck])
+    back = slipping & (mu_p > 0)
+    along = np.einsum("ij,ij->i", q.dv[back], direction[back])
+    viol[back] = np.maximum(viol[back], -kappa * along)
     failed = viol > threshold
-    default = np.where(opened | (tension > threshold), OPEN, np.where(stuck, SLIPPING, STUCK))
-    new = np.where(failed, _target(status, default, local.valid), status)
-    s = direction.copy()
-    fresh = failed & (new == SLIPPING)
-    s[fresh] = local.direction[fresh]
-    s = _updated_directions(s, new == SLIPPING, slipping & ~failed, q.Q - kappa * q.dv)
+    tension = ~opened & (q.P < -threshold)
+    default = np.where(opened | tension, OPEN, np.where(stuck, SLIPPING, STUCK))
+    new, s = status.copy(), direction.copy()
+    pairs = np.flatnonzero(failed)
+    if pairs.size:
+        alone = local(pairs)
+        new[pairs] = _target(status[pairs], default[pairs], alone.valid)
+        fresh = new[pairs] == SLIPPING
+        s[pairs[fresh]] = alone.direction[fresh]
     return Transitions(new, s, np.where(failed, viol, 0.0))
 
 
@@ -180,7 +197,7 @@ class LocalStates(NamedTuple):
     direction: np.ndarray
 
 
-def local_states(problem, d, lam, d_prev, threshold):
+def local_states(problem, d, lam, d_prev, threshold, pairs):
     """Which rows of the contact law each pair can satisfy when solved alone.
 
     With the other pairs held, pair ``i`` sees ``lam_i = K_ii d_i + r_i``,
@@ -195,16 +212,18 @@ def local_states(problem, d, lam, d_prev, threshold):
     d, lam, d_prev : (n_pairs, dim)
     threshold : float
         Tolerance of the inequalities, force units.
+    pairs : (k,) int
+        The pairs to solve; the result has ``k`` rows.
     """
-    Kii, mu, kappa = problem.diagonal_blocks, problem.mu, problem.kappa
+    Kii, mu, kappa = problem.diagonal_blocks[pairs], problem.mu[pairs], problem.kappa
+    d, lam, d_prev, gap0 = d[pairs], lam[pairs], d_prev[pairs], problem.gap0[pairs]
     r = lam - np.einsum("kij,kj->ki", Kii, d)
-    d_stuck = np.concatenate([d_prev[:, :-1], -problem.gap0[:, None]], axis=1)
+    d_stuck = np.concatenate([d_prev[:, :-1], -gap0[:, None]], axis=1)
     lam_stuck = np.einsum("kij,kj->ki", Kii, d_stuck) + r
     P, Q = lam_stuck[:, -1], lam_stuck[:, :-1]
-    q_norm = np.linalg.norm(Q, axis=1)
+    q_norm = row_norm(Q)
     stuck_ok = (P >= -threshold) & (q_norm - mu * P <= threshold)
-    w_open = -np.linalg.solve(Kii, r[:, :, None])[:, -1, 0] + problem.gap0
-    open_ok = kappa * w_open >= -threshold
+    open_ok = kappa * (gap0 - _solve_small(Kii, r)[:, -1]) >= -threshold
     s = -Q / np.maximum(q_norm, np.finfo(float).tiny)[:, None]
     s[q_norm == 0, 0] = 1.0
     slip_ok = _slip_consistent(Kii, Q, P, s, mu, kappa, threshold)
@@ -224,29 +243,37 @@ def _slip_consistent(Kii, Q0, P0, s, mu, kappa, threshold):
     A, b = Kii[:, :-1, :-1], Kii[:, -1, :-1]
     M = A + mu[:, None, None] * s[:, :, None] * b[:, None, :]
     rhs = -(Q0 + (mu * P0)[:, None] * s)
-    singular = np.abs(np.linalg.det(M)) <= 1e-14 * np.abs(np.linalg.det(A))
+    singular = np.abs(_det_small(M)) <= 1e-14 * np.abs(_det_small(A))
     M[singular] = A[singular]
-    v = np.linalg.solve(M, rhs[:, :, None])[:, :, 0]
-    P = P0 + np.sum(b * v, axis=1)
-    return ~singular & (P >= -threshold) & (kappa * np.sum(v * s, axis=1) >= -threshold)
+    v = _solve_small(M, rhs)
+    P = P0 + np.einsum("ij,ij->i", b, v)
+    return ~singular & (P >= -threshold) & (kappa * np.einsum("ij,ij->i", v, s) >= -threshold)
 
 
-def _updated_directions(s, slipping_now, slipping_before, sigma_t):
-    """Slip direction of pairs that stay slipping: ``-sigma_t/|sigma_t|``.
+def _det_small(M):
+    """Determinants of a stack of small matrices (closed form up to 2x2)."""
+    if M.shape[1] == 1:
+        return M[:, 0, 0]
+    if M.shape[1] == 2:
+        return M[:, 0, 0] * M[:, 1, 1] - M[:, 0, 1] * M[:, 1, 0]
+    return np.linalg.det(M)
 
-    ``sigma_t = Q - kappa dv`` is the augmented shear; its projection on the
-    friction disk is the next shear, so the slip direction is opposite to it
-    (at a solution, ``sigma_t = -(mu P + kappa |dv|) s``).
-    """
-    norm = np.linalg.norm(sigma_t, axis=1)
-    keep = slipping_now & slipping_before & (norm > 0)
-    s[keep] = -sigma_t[keep] / norm[keep, None]
-    return s
+
+def _solve_small(M, rhs):
+    """Solve a stack of small systems ``M x = rhs`` (closed form up to 2x2)."""
+    if M.shape[1] == 1:
+        return rhs / M[:, 0, :]
+    if M.shape[1] == 2:
+        det = _det_small(M)
+        x0 = (M[:, 1, 1] * rhs[:, 0] - M[:, 0, 1] * rhs[:, 1]) / det
+        x1 = (M[:, 0, 0] * rhs[:, 1] - M[:, 1, 0] * rhs[:, 0]) / det
+        return np.stack([x0, x1], axis=1)
+    return np.linalg.solve(M, rhs[:, :, None])[:, :, 0]
 
 
 def slip_directions_from_forces(Q, status):
     """Slip direction ``-Q/|Q|`` of slipping pairs (zero where ``Q = 0``)."""
-    norm = np.linalg.norm(Q, axis=1)
+    norm = row_norm(Q)
     s = np.zeros_like(Q)
     ok = (status == SLIPPING) & (norm > 0)
     s[ok] = -Q[ok] / norm[ok, None]

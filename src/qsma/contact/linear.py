@@ -78,6 +78,9 @@ def slip_rows(problem, lam_w, pairs, direction, alpha, t_prev, c):
     K, m = problem.K, problem.dim - 1
     T, N = problem.tangent_index[pairs], problem.normal_index[pairs]
     ms = problem.mu[pairs, None] * direction
+    if m == 1:                                   # 2D: plain rows Q + mu s P = 0
+        return (K[T[:, 0]] + ms * K[N],
+                -(lam_w[T[:, 0]] + ms[:, 0] * lam_w[N]))
     rows = K[T] + ms[:, :, None] * K[N][:, None, :]
     rhs = -(lam_w[T] + ms * lam_w[N][:, None])
     if m > 1 and np.any(alpha):

@@ -14,6 +14,8 @@ from .state import ContactResult, ContactState
 
 #: name -> solver function; filled by :func:`register_method`.
 METHODS = {}
+#: name -> the method's own keyword options.
+_OPTIONS = {}
 
 #: Default relative tolerance of :func:`solve` on :func:`residual`. The exact
 #: block solves reach ~1e-15 (round-off of ``K d`` relative to the force
@@ -38,7 +40,7 @@ class Iterate(NamedTuple):
 
 
 def register_method(name):
-    """Class decorator-like registration of a solver function under ``name``.
+    """Decorator registering a solver function under ``name`` in :data:`METHODS`.
 
     The function is called as ``fn(problem, lam_w, previous, *, tol, maxiter,
     **options)`` with ``lam_w`` ``(n_pairs, dim)``, ``previous`` a
@@ -50,6 +52,8 @@ def register_method(name):
         if name in METHODS:
             raise ValueError(f"contact method {name!r} registered twice")
         METHODS[name] = fn
+        _OPTIONS[name] = tuple(p.name for p in inspect.signature(fn).parameters.values()
+                               if p.kind is p.KEYWORD_ONLY and p.name not in ("tol", "maxiter"))
         return fn
     return register
 
@@ -104,14 +108,11 @@ def solve(problem, lam_w, state=None, *, method="basket", tol=DEFAULT_TOL, maxit
 def _lookup(method, options):
     if method not in METHODS:
         raise InputError(f"unknown contact method {method!r}; valid: {sorted(METHODS)}")
-    fn = METHODS[method]
-    valid = [p.name for p in inspect.signature(fn).parameters.values()
-             if p.kind is p.KEYWORD_ONLY and p.name not in ("tol", "maxiter")]
-    unknown = sorted(set(options) - set(valid))
+    unknown = sorted(set(options) - set(_OPTIONS[method]))
     if unknown:
         raise InputError(f"unknown option(s) {unknown} for contact method {method!r}; "
-                         f"valid: {['tol', 'maxiter'] + valid}")
-    return fn
+                         f"valid: {['tol', 'maxiter', *_OPTIONS[method]]}")
+    return METHODS[method]
 
 
 def _check_load(problem, lam_w):

@@ -47,7 +47,7 @@ class ResidualComponents:
 
 def force_scale(lam_w, lam):
     """``F = max(max|lam_w|, max|lam|, tiny)``, the force unit of the residual."""
-    return float(max(np.max(np.abs(lam_w)), np.max(np.abs(lam)), TINY_FORCE))
+    return float(max(np.abs(lam_w).max(), np.abs(lam).max(), TINY_FORCE))
 
 
 def residual_components(problem, lam_w, d, lam, previous_state=None):
@@ -78,12 +78,17 @@ def residual_components(problem, lam_w, d, lam, previous_state=None):
     ResidualComponents
     """
     lam_w, d, lam = (np.asarray(a, dtype=float) for a in (lam_w, d, lam))
-    F = force_scale(lam_w, lam)
     d_prev = _previous_displacement(problem, previous_state)
-    imbalance = lam.ravel() - problem.K @ d.ravel() - lam_w.ravel()
+    F, imbalance, r_n, r_t = _parts(problem, lam_w, d, lam, d_prev)
+    return ResidualComponents(imbalance / F, r_n / F, r_t / F, F, problem.kappa)
+
+
+def _parts(problem, lam_w, d, lam, d_prev):
+    """``F``, ``max|lam - K d - lam_w|`` and the absolute natural-map residuals."""
+    F = force_scale(lam_w, lam)
+    imbalance = np.abs(lam.ravel() - problem.K @ d.ravel() - lam_w.ravel()).max()
     r_n, r_t = natural_map(pair_quantities(problem, d, lam, d_prev), problem.mu, problem.kappa)
-    return ResidualComponents(float(np.max(np.abs(imbalance))) / F, r_n / F, r_t / F,
-                              F, problem.kappa)
+    return F, float(imbalance), r_n, r_t
 
 
 def residual(problem, lam_w, d, lam, previous_state=None):
@@ -98,7 +103,10 @@ def residual(problem, lam_w, d, lam, previous_state=None):
     -------
     float
     """
-    return residual_components(problem, lam_w, d, lam, previous_state).total
+    lam_w, d, lam = (np.asarray(a, dtype=float) for a in (lam_w, d, lam))
+    F, imbalance, r_n, r_t = _parts(problem, lam_w, d, lam,
+                                    _previous_displacement(problem, previous_state))
+    return float(max(imbalance, r_n.max(initial=0.0), r_t.max(initial=0.0)) / F)
 
 
 def _previous_displacement(problem, previous_state):

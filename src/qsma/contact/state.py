@@ -51,7 +51,8 @@ class ContactState:
             if getattr(self, name).shape != shape:
                 raise InputError(f"state.{name} must have shape {shape} (n_pairs, dim), "
                                  f"got {getattr(self, name).shape}")
-        if self.status.shape != shape[:1] or not np.isin(self.status, list(STATUS_NAMES)).all():
+        if self.status.shape != shape[:1] or self.status.min(initial=0) < 0 \
+                or self.status.max(initial=0) > 2:
             raise InputError(f"state.status must be {shape[0]} codes in {{0, 1, 2}}, "
                              f"got shape {self.status.shape}")
         if not (np.all(np.isfinite(self.d)) and np.all(np.isfinite(self.lam))):

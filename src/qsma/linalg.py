@@ -1,0 +1,506 @@
+r"""Static condensation of a sparse SPD stiffness onto a set of DOFs.
+
+For ``K`` (n x n, sparse, symmetric positive definite), interface DOFs ``C`` and
+the rest ``E = np.setdiff1d(np.arange(n), C)`` (sorted)::
+
+    Kc = K_CC - K_CE K_EE^-1 K_EC            (the Schur complement of K_EE)
+    solver(b) = K_EE^-1 b                    (recovery, condensed loads)
+
+Several backends compute the same two objects; :data:`SCHUR_BACKENDS` maps a
+name to its function and ``backend="auto"`` takes the first available one of
+:data:`AUTO_ORDER` (fastest first, measured by ``benchmarks/bench_schur.py``;
+the numbers are in ``docs/schur.md``):
+
+``"pardiso"``
+    Intel MKL PARDISO through ``pypardiso``'s ``mkl_rt``: nested-dissection
+    ordering and the Schur complement computed during the factorisation
+    (``iparm(36) = 1``), plus a plain Cholesky of ``K_EE`` for the solver.
+``"cholmod"``
+    CHOLMOD (supernodal Cholesky, from the ``cvxopt`` wheel) of ``K`` ordered
+    ``[E by AMD, C last]``: ``K = L L^T`` with ``Kc = L_CC L_CC^T``.
+``"superlu_schur"``
+    scipy only, the same partial factorisation with SuperLU: ``K`` ordered
+    ``[E by SuperLU's MMD, C last]`` factorised without pivoting, so that
+    ``Kc = U_CC^T D_C^-1 U_CC``.
+``"splu"``
+    scipy only, the former method: ``X = K_EE^-1 K_EC`` by a dense multi-RHS
+    solve (in column blocks of bounded memory), ``Kc = K_CC - K_EC^T X``.
+
+Every backend checks that ``K_EE`` is positive definite through its pivots:
+the smallest pivot relative to its diagonal entry, ``min_i d_i / (K_EE)_ii``,
+must exceed :data:`PIVOT_RATIO_MIN`; otherwise :class:`~qsma.errors.InputError`
+(a body not held against rigid-body motion apart from the interface).
+"""
+from __future__ import annotations
+
+import ctypes
+from dataclasses import dataclass, field
+import importlib.util
+import time
+import weakref
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from .errors import AnalysisError, InputError
+
+#: Smallest accepted ``d_i / (K_EE)_ii`` over the pivots ``d_i`` of ``K_EE``. It is
+#: ``>= 1 / cond`` of the Jacobi-scaled ``K_EE`` when that is SPD (the sandwich and
+#: 3D block models measure 4e-7 .. 1e-4); a rigid-body mode leaves a pivot at
+#: round-off level (measured 1e-17 .. 1e-15 in tests/test_linalg.py).
+PIVOT_RATIO_MIN = 1e-12
+
+#: Relative asymmetry ``max|K - K^T| / max|K|`` accepted by :func:`schur_complement`.
+SYMMETRY_TOL = 1e-10
+
+#: Memory bound of one dense block of ``K_EE^-1 K_EC`` columns in the ``"splu"`` backend.
+SPLU_BLOCK_BYTES = 128 * 2**20
+
+#: name -> :class:`SchurBackend`, filled by :func:`register_backend`.
+SCHUR_BACKENDS: dict = {}
+
+#: Order in which ``backend="auto"`` tries the backends (fastest first, docs/schur.md).
+AUTO_ORDER = ("pardiso", "cholmod", "superlu_schur", "splu")
+
+
+@dataclass(frozen=True)
+class SchurBackend:
+    """A registered way to compute ``(Kc, K_EE^-1)``; ``requires`` names the optional
+    Python package it imports (``None``: numpy/scipy only)."""
+
+    name: str
+    function: object
+    requires: str | None = None
+
+    @property
+    def available(self) -> bool:
+        return self.requires is None or importlib.util.find_spec(self.requires) is not None
+
+
+@dataclass(frozen=True)
+class SchurParts:
+    """What a backend returns: ``Kc`` in the caller's ``C`` order (not yet
+    symmetrised), ``solve`` with ``K_EE^-1`` on (n_E,) or (n_E, k) arrays, the
+    smallest pivot ratio of ``K_EE`` and a few named times (s)."""
+
+    Kc: np.ndarray
+    solve: object
+    min_pivot_ratio: float
+    timings: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True, eq=False)
+class EESolver:
+    r"""``x = K_EE^-1 b`` for ``b`` of shape (n_E,) or (n_E, k), E in sorted order
+    (``E = np.setdiff1d(np.arange(n), C)``); returns an array of ``b``'s shape.
+
+    Attributes
+    ----------
+    E : positions of the E DOFs in K
+    backend : name of the backend that factorised ``K_EE``
+    min_pivot_ratio : ``min_i d_i / (K_EE)_ii`` over the pivots (positive definite check)
+    timings : seconds spent per stage of :func:`schur_complement`
+    """
+
+    E: np.ndarray
+    backend: str
+    min_pivot_ratio: float
+    timings: dict
+    _solve: object = field(repr=False)
+
+    @property
+    def n(self) -> int:
+        return len(self.E)
+
+    def __call__(self, b) -> np.ndarray:
+        b = np.asarray(b, dtype=float)
+        if b.ndim not in (1, 2) or b.shape[0] != self.n:
+            raise InputError(f"K_EE solve: right-hand side must have shape ({self.n},) or "
+                             f"({self.n}, k), got {b.shape}")
+        if b.ndim == 2 and b.shape[1] == 0:
+            return np.zeros_like(b)
+        return self._solve(b)
+
+    def __repr__(self):
+        return (f"EESolver(n={self.n}, backend={self.backend!r}, "
+                f"min_pivot_ratio={self.min_pivot_ratio:.3g})")
+
+
+def register_backend(name: str, *, requires: str | None = None):
+    """Decorator: register ``function(K, C, E) -> SchurParts`` under ``name``."""
+    def decorate(function):
+        SCHUR_BACKENDS[name] = SchurBackend(name, function, requires)
+        return function
+    return decorate
+
+
+def available_backends() -> list:
+    """Names of the registered backends whose optional package is installed."""
+    return [name for name, b in SCHUR_BACKENDS.items() if b.available]
+
+
+def schur_complement(K, C, *, backend: str = "auto"):
+    r"""Condense the SPD matrix ``K`` onto the DOFs ``C``.
+
+    Parameters
+    ----------
+    K : scipy sparse (n, n), symmetric positive definite (Dirichlet DOFs removed)
+    C : int array of distinct positions in ``0..n-1``; the rows/columns of ``Kc``
+        follow this order
+    backend : ``"auto"`` or a key of :data:`SCHUR_BACKENDS`
+
+    Returns
+    -------
+    Kc : (|C|, |C|) dense symmetric ``K_CC - K_CE K_EE^-1 K_EC`` (symmetrised,
+        ``(Kc + Kc^T) / 2``)
+    solver : :class:`EESolver`, ``solver(b) = K_EE^-1 b`` with the E DOFs in the order
+        ``E = np.setdiff1d(np.arange(n), C)``
+
+    Raises
+    ------
+    InputError
+        bad ``K`` or ``C``, unknown or unavailable backend, or ``K_EE`` not positive
+        definite (smallest pivot ratio below :data:`PIVOT_RATIO_MIN`).
+    """
+    K, C, E = _validated(K, C)
+    name = _chosen_backend(backend)
+    t0 = time.perf_counter()
+    parts = SCHUR_BACKENDS[name].function(K, C, E)
+    _check_pivots(parts.min_pivot_ratio, name)
+    Kc = 0.5 * (parts.Kc + parts.Kc.T)
+    if not np.all(np.isfinite(Kc)):
+        raise AnalysisError(f"Schur complement ({name}) has NaN/Inf entries", partial=Kc)
+    timings = {**parts.timings, "total": time.perf_counter() - t0}
+    return Kc, EESolver(E, name, parts.min_pivot_ratio, timings, parts.solve)
+
+
+def _validated(K, C):
+    if not sp.issparse(K) or K.ndim != 2 or K.shape[0] != K.shape[1]:
+        raise InputError(f"K must be a square scipy sparse matrix, got "
+                         f"{type(K).__name__} of shape {getattr(K, 'shape', None)}")
+    n = K.shape[0]
+    C = np.asarray(C)
+    if C.ndim != 1 or not np.issubdtype(C.dtype, np.integer):
+        raise InputError(f"C must be a 1-D integer array, got dtype {C.dtype} and shape "
+                         f"{C.shape}")
+    if len(C) == 0 or len(C) >= n:
+        raise InputError(f"C must hold between 1 and n - 1 = {n - 1} DOFs, got {len(C)}")
+    if C.min() < 0 or C.max() >= n:
+        raise InputError(f"C holds positions outside 0..{n - 1}: {C.min()}..{C.max()}")
+    if len(np.unique(C)) != len(C):
+        raise InputError("C holds repeated positions")
+    K = sp.csr_matrix(K, dtype=float)
+    K.sum_duplicates()
+    scale = abs(K).max()
+    if not np.isfinite(scale) or scale == 0:
+        raise InputError(f"K must have finite, not all zero entries (max |K| = {scale})")
+    asym = abs(K - K.T).max() / scale
+    if asym > SYMMETRY_TOL:
+        raise InputError(f"K must be symmetric: max|K - K^T| / max|K| = {asym:.3g} > "
+                         f"{SYMMETRY_TOL}")
+    return K, C.astype(np.int64), np.setdiff1d(np.arange(n), C)
+
+
+def _chosen_backend(backend):
+    if backend == "auto":
+        return next(n for n in AUTO_ORDER if n in SCHUR_BACKENDS and SCHUR_BACKENDS[n].available)
+    if backend not in SCHUR_BACKENDS:
+        raise InputError(f"unknown Schur backend {backend!r}; registered: "
+                         f"{sorted(SCHUR_BACKENDS)}")
+    b = SCHUR_BACKENDS[backend]
+    if not b.available:
+        raise InputError(f"Schur backend {backend!r} needs the package {b.requires!r}, "
+                         f"which is not installed; available: {available_backends()}")
+    return backend
+
+
+def _check_pivots(ratio, name):
+    if not ratio > PIVOT_RATIO_MIN:          # also catches NaN
+        raise InputError(
+            f"K_EE is singular or not positive definite (backend {name!r}: smallest pivot "
+            f"/ diagonal = {ratio:.3g}, expected > {PIVOT_RATIO_MIN}); the body is not "
+            f"held against rigid-body motion apart from its interface: add clamps")
+
+
+def _blocks(K, C, E):
+    """``K_EE`` (csc), ``K_EC`` (csc) and dense ``K_CC``."""
+    KE = K[E]
+    return KE[:, E].tocsc(), KE[:, C].tocsc(), K[C][:, C].toarray()
+
+
+# ----------------------------------------------------------------------------------
+# SuperLU (scipy only)
+
+def _superlu(A):
+    """LU of the SPD matrix ``A`` without row pivoting (symmetric fill-reducing
+    ordering, MMD on A + A^T), and its smallest pivot ratio."""
+    try:
+        lu = spla.splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                       options={"SymmetricMode": True})
+    except RuntimeError as exc:      # "Factor is exactly singular"
+        return None, -np.inf, exc
+    if not np.array_equal(lu.perm_r, lu.perm_c):
+        return lu, -np.inf, None     # pivoting happened: not SPD
+    pivots = lu.U.diagonal()[lu.perm_c]          # pivot of original column k
+    return lu, float(np.min(pivots / A.diagonal())), None
+
+
+def _superlu_solver(lu):
+    def solve(b):
+        return lu.solve(b if b.ndim == 1 else np.asfortranarray(b))
+    return solve
+
+
+def _factorised_EE(K_EE):
+    lu, ratio, exc = _superlu(K_EE)
+    if lu is None:
+        raise InputError(f"K_EE is singular ({exc}); the body is not held against "
+                         f"rigid-body motion apart from its interface: add clamps") from exc
+    return lu, ratio
+
+
+@register_backend("splu")
+def _schur_splu(K, C, E) -> SchurParts:
+    """``Kc = K_CC - K_EC^T (K_EE^-1 K_EC)``, the solve in column blocks of at most
+    :data:`SPLU_BLOCK_BYTES`."""
+    t0 = time.perf_counter()
+    K_EE, K_EC, Kc = _blocks(K, C, E)
+    lu, ratio = _factorised_EE(K_EE)
+    t1 = time.perf_counter()
+    if ratio > PIVOT_RATIO_MIN:
+        width = max(1, SPLU_BLOCK_BYTES // (8 * len(E)))
+        for j in range(0, len(C), width):
+            X = lu.solve(np.asfortranarray(K_EC[:, j:j + width].toarray()))
+            Kc[:, j:j + width] -= K_EC.T @ X
+    t2 = time.perf_counter()
+    return SchurParts(Kc, _superlu_solver(lu), ratio,
+                      {"factorization": t1 - t0, "schur": t2 - t1})
+
+
+@register_backend("superlu_schur")
+def _schur_superlu_partial(K, C, E) -> SchurParts:
+    r"""Partial factorisation with SuperLU: ``P K P^T = L U`` for the ordering
+    ``[E (MMD of K_EE), C]`` without pivoting; the trailing block gives
+    ``Kc = L_CC U_CC = U_CC^T D_C^{-1} U_CC`` (``L = U^T D^{-1}`` for symmetric K).
+    A second LU, of ``K_EE`` alone, supplies the ordering and the solver."""
+    t0 = time.perf_counter()
+    K_EE = K[E][:, E].tocsc()
+    lu, ratio = _factorised_EE(K_EE)
+    t1 = time.perf_counter()
+    if not ratio > PIVOT_RATIO_MIN:
+        return SchurParts(np.zeros((len(C), len(C))), None, ratio, {})
+    order = np.concatenate([E[np.argsort(lu.perm_c)], C])
+    Kc = _superlu_trailing_schur(K[order][:, order], len(E))
+    if Kc is None:                   # SuperLU's postorder moved C: use the dense solve
+        return _schur_splu(K, C, E)
+    t2 = time.perf_counter()
+    return SchurParts(Kc, _superlu_solver(lu), ratio,
+                      {"factorization": t1 - t0, "schur": t2 - t1})
+
+
+def _superlu_trailing_schur(Kp, nE):
+    """Schur complement of the leading ``nE`` block of ``Kp`` from its LU in the given
+    order (``None`` if SuperLU's elimination-tree postorder mixed the two blocks)."""
+    n = Kp.shape[0]
+    try:
+        lu = spla.splu(Kp.tocsc(), permc_spec="NATURAL", diag_pivot_thresh=0.0,
+                       options={"SymmetricMode": True})
+    except RuntimeError:
+        return None
+    pc = lu.perm_c
+    if not np.array_equal(lu.perm_r, pc) or np.any(pc[nE:] < nE):
+        return None
+    U = lu.U.tocsc()[:, nE:][nE:].toarray()      # trailing rows/cols, SuperLU order
+    S = U.T @ (U / np.diag(U)[:, None])
+    pos = pc[nE:] - nE                            # C-local i sits at trailing pos[i]
+    return S[np.ix_(pos, pos)]
+
+
+# ----------------------------------------------------------------------------------
+# CHOLMOD through cvxopt
+
+@register_backend("cholmod", requires="cvxopt")
+def _schur_cholmod(K, C, E) -> SchurParts:
+    r"""Supernodal Cholesky ``P K P^T = L L^T`` (CHOLMOD, cvxopt's wheel) with
+    ``P = [E (AMD of K_EE), C]`` and no postorder, so that ``Kc = L_CC L_CC^T``.
+    Reading ``L`` turns cvxopt's factor into a symbolic one, so the solver is a second
+    CHOLMOD factor, of ``K_EE`` with CHOLMOD's own ordering (cheap: no dense C block)."""
+    import cvxopt
+    from cvxopt import amd, cholmod
+
+    t0 = time.perf_counter()
+    nE, n = len(E), K.shape[0]
+    K_EE = K[E][:, E]
+    A_EE = _cvx_lower(K_EE, cvxopt)
+    pE = np.asarray(amd.order(A_EE), dtype=np.int64).ravel()
+    order = np.concatenate([E[pE], C])
+    A = _cvx_lower(K[order][:, order], cvxopt)
+    L = _cholmod_factor(A, cvxopt, cholmod, p=cvxopt.matrix(np.arange(n).tolist()),
+                        supernodal=2, postorder=False, nmethods=1)
+    if L is None:
+        return SchurParts(np.zeros((len(C), len(C))), None, -np.inf, {})
+    colptr, rows, vals = (np.asarray(a).ravel() for a in cholmod.getfactor(L).CCS)
+    diag = vals[colptr[:-1]]                      # sorted columns: diagonal first
+    ratio = float(np.min(diag[:nE] ** 2 / K_EE.diagonal()[pE]))
+    s = colptr[nE]
+    L_CC = sp.csc_matrix((vals[s:], rows[s:] - nE, colptr[nE:] - s),
+                         shape=(len(C), len(C))).toarray()
+    Kc = L_CC @ L_CC.T
+    t1 = time.perf_counter()
+    F = _cholmod_factor(A_EE, cvxopt, cholmod)
+    t2 = time.perf_counter()
+    return SchurParts(Kc, _cholmod_solver(F, cvxopt, cholmod), ratio if F else -np.inf,
+                      {"schur": t1 - t0, "factorization": t2 - t1})
+
+
+def _cvx_lower(A, cvxopt):
+    A = sp.tril(A, format="coo")
+    return cvxopt.spmatrix(A.data, A.row.astype(np.int64), A.col.astype(np.int64), A.shape)
+
+
+def _cholmod_factor(A, cvxopt, cholmod, p=None, **options):
+    """Numeric CHOLMOD factor of ``A`` (None if not positive definite); ``options``
+    temporarily override ``cvxopt.cholmod.options``."""
+    saved = dict(cholmod.options)
+    cholmod.options.update(options)
+    try:
+        F = cholmod.symbolic(A) if p is None else cholmod.symbolic(A, p=p)
+        cholmod.numeric(A, F)
+        return F
+    except ArithmeticError:
+        return None
+    finally:
+        cholmod.options.clear()
+        cholmod.options.update(saved)
+
+
+def _cholmod_solver(F, cvxopt, cholmod):
+    def solve(b):
+        X = cvxopt.matrix(np.asfortranarray(b.reshape(b.shape[0], -1)))
+        cholmod.solve(F, X)
+        return np.array(X).reshape(b.shape)
+    return solve
+
+
+# ----------------------------------------------------------------------------------
+# MKL PARDISO (through pypardiso's mkl_rt)
+
+_PARDISO_ERRORS = {-1: "input inconsistent", -2: "not enough memory",
+                   -3: "reordering problem", -4: "zero pivot (matrix not positive definite)",
+                   -5: "unclassified internal error", -6: "reordering failed",
+                   -7: "diagonal matrix is singular", -8: "32-bit integer overflow",
+                   -9: "not enough memory for out-of-core", -10: "error opening OOC files",
+                   -11: "read/write error with OOC files"}
+
+
+class _Pardiso:
+    """One PARDISO handle for a real SPD matrix (``mtype = 2``, upper triangle, 0-based
+    indices), released when the object is collected."""
+
+    def __init__(self, A, *, schur_rows=None, keep_diagonal=False):
+        self.lib = _mkl_rt()
+        self.n = A.shape[0]
+        U = sp.triu(A, format="csr")
+        U.sort_indices()
+        self.a = np.ascontiguousarray(U.data, dtype=float)
+        self.ia = U.indptr.astype(np.int32)
+        self.ja = U.indices.astype(np.int32)
+        self.pt = np.zeros(64, dtype=np.int64)
+        self.iparm = np.zeros(64, dtype=np.int32)
+        self.iparm[[0, 1, 34]] = (1, 2, 1)        # own iparm, METIS ordering, 0-based
+        self.perm = np.zeros(self.n, dtype=np.int32)
+        if schur_rows is not None:
+            self.iparm[35] = 1                    # Schur complement during factorisation
+            self.perm[schur_rows] = 1
+        if keep_diagonal:
+            self.iparm[55] = 1                    # pivots for pardiso_getdiag
+        self._finalizer = weakref.finalize(self, _pardiso_release, self.lib, self.pt,
+                                           self.n, self.a, self.ia, self.ja, self.perm,
+                                           self.iparm)
+
+    def call(self, phase, b, x, nrhs=1):
+        err = _pardiso_call(self.lib, self.pt, phase, self.n, self.a, self.ia, self.ja,
+                            self.perm, nrhs, self.iparm, b, x)
+        if err == -4 or err == -7:
+            raise InputError(f"K_EE is singular or not positive definite (PARDISO error "
+                             f"{err}: {_PARDISO_ERRORS[err]}); the body is not held "
+                             f"against rigid-body motion apart from its interface: add "
+                             f"clamps")
+        if err != 0:
+            raise AnalysisError(f"PARDISO phase {phase} failed with error {err}: "
+                                f"{_PARDISO_ERRORS.get(err, 'unknown')}")
+
+    def pivot_ratio(self):
+        """``min_i d_i / a_ii`` from ``pardiso_getdiag`` (``d_i = l_ii^2`` for LL^T)."""
+        df, da = np.zeros(self.n), np.zeros(self.n)
+        err = ctypes.c_int32(0)
+        getdiag = self.lib["pardiso_getdiag"]
+        getdiag.restype = None
+        getdiag(self.pt.ctypes.data_as(ctypes.c_void_p), df.ctypes.data_as(ctypes.c_void_p),
+                da.ctypes.data_as(ctypes.c_void_p), ctypes.byref(ctypes.c_int32(1)),
+                ctypes.byref(err))
+        if err.value != 0:
+            raise AnalysisError(f"pardiso_getdiag failed with error {err.value}")
+        return float(np.min(df / da))
+
+
+def _pardiso_call(lib, pt, phase, n, a, ia, ja, perm, nrhs, iparm, b, x):
+    fn = lib["pardiso"]
+    fn.restype = None
+    i32, ptr = ctypes.c_int32, (lambda arr: arr.ctypes.data_as(ctypes.c_void_p))
+    err = i32(0)
+    fn(ptr(pt), ctypes.byref(i32(1)), ctypes.byref(i32(1)), ctypes.byref(i32(2)),
+       ctypes.byref(i32(phase)), ctypes.byref(i32(n)), ptr(a), ptr(ia), ptr(ja), ptr(perm),
+       ctypes.byref(i32(nrhs)), ptr(iparm), ctypes.byref(i32(0)), ptr(b), ptr(x),
+       ctypes.byref(err))
+    return err.value
+
+
+def _pardiso_release(lib, pt, n, a, ia, ja, perm, iparm):
+    dummy = np.zeros(1)
+    _pardiso_call(lib, pt, -1, n, a, ia, ja, perm, 1, iparm, dummy, dummy)
+
+
+_MKL_RT = []
+
+
+def _mkl_rt():
+    """``mkl_rt`` as found by pypardiso (its env variable, library path or wheel)."""
+    if not _MKL_RT:
+        import pypardiso
+        _MKL_RT.append(pypardiso.PyPardisoSolver().libmkl)
+    return _MKL_RT[0]
+
+
+@register_backend("pardiso", requires="pypardiso")
+def _schur_pardiso(K, C, E) -> SchurParts:
+    r"""PARDISO (MKL) factorises ``K`` with the C rows marked as Schur rows
+    (``iparm(36) = 1``): it orders E by nested dissection, eliminates it and returns
+    the dense ``Kc`` (rows in increasing DOF number). A second PARDISO Cholesky, of
+    ``K_EE`` alone, is the solver (its partial solves in Schur mode are less accurate)
+    and gives the pivots."""
+    t0 = time.perf_counter()
+    nC = len(C)
+    full = _Pardiso(K, schur_rows=C)
+    out = np.zeros(max(nC * nC, K.shape[0]))
+    full.call(12, np.zeros_like(out), out)
+    del full                                      # release its factor now
+    rank = np.argsort(np.argsort(C))              # C[i] is the rank[i]-th Schur row
+    Kc = out[:nC * nC].reshape(nC, nC)[np.ix_(rank, rank)]
+    t1 = time.perf_counter()
+    ee = _Pardiso(K[E][:, E], keep_diagonal=True)
+    ee.call(12, np.zeros(len(E)), np.zeros(len(E)))
+    ratio = ee.pivot_ratio()
+    t2 = time.perf_counter()
+    return SchurParts(Kc, _pardiso_solver(ee), ratio,
+                      {"schur": t1 - t0, "factorization": t2 - t1})
+
+
+def _pardiso_solver(ee):
+    def solve(b):
+        B = np.asfortranarray(b.reshape(ee.n, -1))
+        X = np.zeros_like(B)
+        ee.call(33, B, X, nrhs=B.shape[1])
+        return X.reshape(b.shape)
+    return solve

@@ -1,0 +1,170 @@
+"""Schur complement backends: every registered backend against a dense reference."""
+import importlib
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from qsma import linalg
+from qsma.errors import InputError
+from qsma.examples import sandwich_2d
+from qsma.fe import assemble_body
+from qsma.linalg import AUTO_ORDER, SCHUR_BACKENDS, available_backends, schur_complement
+from qsma.model import make_pairing
+
+RTOL = 1e-10
+
+
+def _backend(name):
+    """Skip when the backend's optional package is missing."""
+    requires = SCHUR_BACKENDS[name].requires
+    if requires is not None:
+        pytest.importorskip(requires)
+    return name
+
+
+def laplacian_2d(nx, ny, shift=1e-3):
+    """5-point Laplacian on an nx x ny grid plus ``shift * I`` (SPD)."""
+    lap = lambda m: sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(m, m))
+    K = sp.kron(sp.identity(ny), lap(nx)) + sp.kron(lap(ny), sp.identity(nx))
+    return (K + shift * sp.identity(nx * ny)).tocsr()
+
+
+def sandwich_body():
+    """Free DOFs of the bottom beam of sandwich-2d (refine 1) and the positions of its
+    interface DOFs among them, in pair order."""
+    model = sandwich_2d(1)
+    a = assemble_body(model.bodies[0])
+    nodes = make_pairing(model).nodes1
+    dofs = (2 * nodes[:, None] + np.arange(2)).ravel()
+    C = np.searchsorted(a.free, dofs)
+    assert np.array_equal(a.free[C], dofs)
+    return a.K.tocsr()[a.free][:, a.free], C
+
+
+def random_spd(n, density, seed):
+    rng = np.random.default_rng(seed)
+    B = sp.random(n, n, density=density, random_state=rng)
+    return (B @ B.T + n * sp.identity(n)).tocsr()
+
+
+def problems():
+    rng = np.random.default_rng(0)
+    K1 = laplacian_2d(12, 9)
+    K3 = random_spd(80, 0.03, 3)
+    return {
+        "laplacian": (K1, rng.permutation(K1.shape[0])[:17]),
+        "elasticity": sandwich_body(),
+        "random": (K3, np.array([5, 79, 0, 33, 12])),
+    }
+
+
+PROBLEMS = problems()
+
+
+def dense_reference(K, C):
+    K = K.toarray()
+    E = np.setdiff1d(np.arange(len(K)), C)
+    Kc = K[np.ix_(C, C)] - K[np.ix_(C, E)] @ np.linalg.solve(K[np.ix_(E, E)], K[np.ix_(E, C)])
+    return Kc, K[np.ix_(E, E)], E
+
+
+@pytest.mark.parametrize("name", sorted(SCHUR_BACKENDS))
+@pytest.mark.parametrize("problem", sorted(PROBLEMS))
+def test_backend_matches_dense_reference(name, problem):
+    K, C = PROBLEMS[problem]
+    Kc, solver = schur_complement(K, C, backend=_backend(name))
+    Kc_ref, K_EE, E = dense_reference(K, C)
+    assert Kc.shape == (len(C), len(C))
+    np.testing.assert_array_equal(Kc, Kc.T)
+    assert np.abs(Kc - Kc_ref).max() <= RTOL * np.abs(Kc_ref).max()
+    np.testing.assert_array_equal(solver.E, E)
+    assert solver.backend == name and solver.min_pivot_ratio > linalg.PIVOT_RATIO_MIN
+    rng = np.random.default_rng(7)
+    B = rng.normal(size=(len(E), 3))
+    X = solver(B)
+    x = solver(B[:, 1])
+    X_ref = np.linalg.solve(K_EE, B)
+    assert X.shape == B.shape and x.shape == (len(E),)
+    assert np.abs(X - X_ref).max() <= RTOL * np.abs(X_ref).max()
+    assert np.abs(x - X_ref[:, 1]).max() <= RTOL * np.abs(X_ref).max()
+    assert solver(np.zeros((len(E), 0))).shape == (len(E), 0)
+
+
+@pytest.mark.parametrize("name", sorted(SCHUR_BACKENDS))
+def test_rows_follow_the_order_of_C(name):
+    K, C = PROBLEMS["laplacian"]
+    perm = np.random.default_rng(2).permutation(len(C))
+    Kc, _ = schur_complement(K, C, backend=_backend(name))
+    Kc_p, _ = schur_complement(K, C[perm], backend=name)
+    np.testing.assert_allclose(Kc_p, Kc[np.ix_(perm, perm)], rtol=0, atol=1e-12 * abs(Kc).max())
+
+
+@pytest.mark.parametrize("name", sorted(SCHUR_BACKENDS))
+@pytest.mark.parametrize("C", [[0, 1], [0]], ids=["one-node", "one-dof"])
+def test_singular_K_EE_raises_input_error(name, C):
+    # the whole sandwich beam without its clamp: held by one node, it can still rotate
+    a = assemble_body(sandwich_2d(1).bodies[0])
+    with pytest.raises(InputError, match="singular or not positive definite"):
+        schur_complement(a.K.tocsr(), np.array(C), backend=_backend(name))
+
+
+def test_auto_takes_the_first_available_backend_in_auto_order():
+    _, solver = schur_complement(*PROBLEMS["random"])
+    assert solver.backend == next(n for n in AUTO_ORDER if n in available_backends())
+    assert {"splu", "superlu_schur"} <= set(available_backends())
+
+
+def test_superlu_schur_falls_back_to_the_dense_solve(monkeypatch):
+    monkeypatch.setattr(linalg, "_superlu_trailing_schur", lambda Kp, nE: None)
+    K, C = PROBLEMS["laplacian"]
+    Kc, _ = schur_complement(K, C, backend="superlu_schur")
+    Kc_ref, _, _ = dense_reference(K, C)
+    assert np.abs(Kc - Kc_ref).max() <= RTOL * np.abs(Kc_ref).max()
+
+
+def test_registry_decorator_adds_a_backend(monkeypatch):
+    monkeypatch.setattr(linalg, "SCHUR_BACKENDS", dict(SCHUR_BACKENDS))
+
+    @linalg.register_backend("dense_test")
+    def _dense(K, C, E):
+        Kc, K_EE, _ = dense_reference(K, C)
+        return linalg.SchurParts(Kc, lambda b: np.linalg.solve(K_EE, b), 1.0)
+
+    Kc, solver = schur_complement(*PROBLEMS["random"], backend="dense_test")
+    assert solver.backend == "dense_test" and "dense_test" in available_backends()
+
+
+@pytest.mark.parametrize("K, C, message", [
+    (sp.identity(4, format="csr"), np.array([0, 0]), "repeated"),
+    (sp.identity(4, format="csr"), np.array([4]), "outside"),
+    (sp.identity(4, format="csr"), np.array([0.5]), "integer"),
+    (sp.identity(4, format="csr"), np.arange(4), "between 1 and n - 1"),
+    (sp.identity(4, format="csr"), np.array([], dtype=int), "between 1 and n - 1"),
+    (np.eye(4), np.array([0]), "scipy sparse"),
+    (sp.csr_matrix(np.triu(np.ones((4, 4)))), np.array([0]), "symmetric"),
+    (sp.csr_matrix((4, 4)), np.array([0]), "not all zero"),
+])
+def test_bad_input_is_rejected(K, C, message):
+    with pytest.raises(InputError, match=message):
+        schur_complement(K, C, backend="splu")
+
+
+def test_unknown_or_missing_backend():
+    K, C = PROBLEMS["random"]
+    with pytest.raises(InputError, match="unknown Schur backend 'nope'; registered"):
+        schur_complement(K, C, backend="nope")
+    missing = [n for n, b in SCHUR_BACKENDS.items()
+               if b.requires and importlib.util.find_spec(b.requires) is None]
+    for name in missing:
+        with pytest.raises(InputError, match="not installed"):
+            schur_complement(K, C, backend=name)
+
+
+def test_solver_rejects_wrong_shapes():
+    K, C = PROBLEMS["random"]
+    _, solver = schur_complement(K, C, backend="splu")
+    for b in (np.ones(3), np.ones((solver.n + 1, 2)), np.ones((solver.n, 2, 2))):
+        with pytest.raises(InputError, match="right-hand side must have shape"):
+            solver(b)
+    assert "EESolver(n=75, backend='splu'" in repr(solver)
