@@ -1,5 +1,5 @@
 """Schur complement backends: every registered backend against a dense reference."""
-import importlib
+import importlib.util
 
 import numpy as np
 import pytest

@@ -22,9 +22,9 @@ import time
 
 import numpy as np
 import scipy.linalg as sla
-import scipy.sparse.linalg as spla
 
 from .errors import InputError
+from .linalg import schur_complement
 
 
 @dataclass(frozen=True, eq=False)
@@ -84,17 +84,6 @@ def pair_rotation(frames: np.ndarray) -> np.ndarray:
     return R
 
 
-def factorize(A, what="K_EE"):
-    """Sparse LU of ``A`` (SuperLU, fill-reducing ordering for symmetric matrices) with a
-    clear error when it is singular."""
-    try:
-        return spla.splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A",
-                         options={"SymmetricMode": True})
-    except RuntimeError as exc:
-        raise InputError(f"{what} is singular ({exc}); the body is not held against "
-                         f"rigid-body motion apart from its interface: add clamps") from exc
-
-
 def rigid_body_modes(points: np.ndarray) -> np.ndarray:
     """Infinitesimal rigid-body motions (translations, rotations) as columns over the
     node-major DOFs: 3 in 2D, 6 in 3D."""
@@ -131,7 +120,7 @@ def check_constrained(assembled):
             f"on its own: add or extend a clamp set.")
 
 
-def condense_body(assembled, nodes, frames) -> CondensedBody:
+def condense_body(assembled, nodes, frames, backend="auto") -> CondensedBody:
     """Condense one assembled body onto the interface ``nodes`` (pair order, frames)."""
     body = assembled.body
     dim = body.dim
@@ -143,35 +132,22 @@ def condense_body(assembled, nodes, frames) -> CondensedBody:
         bad = nodes[np.any(fixed[C].reshape(-1, dim), axis=1)]
         raise InputError(f"body {body.name!r}: interface node(s) {bad[:10].tolist()} are "
                          f"clamped; remove them from the interface set or from the clamp")
-    isC = np.zeros(body.n_dofs, dtype=bool)
-    isC[C] = True
-    E = np.flatnonzero(~fixed & ~isC)
-    t0 = time.perf_counter()
+    free = assembled.free
     K = assembled.K.tocsr()
-    K_EE = K[E][:, E]
+    Kf = K[free][:, free]
+    try:
+        Kc_glob, solve = schur_complement(Kf, np.searchsorted(free, C), backend=backend)
+    except InputError as exc:
+        raise InputError(f"body {body.name!r}: {exc}") from exc
+    t0 = time.perf_counter()
+    E = free[solve.E]
     K_EC = K[E][:, C].tocsc()
     K_CC = K[C][:, C].toarray()
-    t1 = time.perf_counter()
-    lu = factorize(K_EE, f"body {body.name!r}: K_EE")
-    solve = _solver(lu)
-    t2 = time.perf_counter()
-    X = solve(K_EC.toarray())
-    t3 = time.perf_counter()
-    Kc_glob = K_CC - K_EC.T @ X
     R = pair_rotation(frames)
     Kc = R.T @ Kc_glob @ R
     Kc = 0.5 * (Kc + Kc.T)
-    t4 = time.perf_counter()
-    timings = {"partition": t1 - t0, "factorization": t2 - t1, "multi_rhs_solve": t3 - t2,
-               "schur": t4 - t3}
+    timings = dict(solve.timings, rotation=time.perf_counter() - t0, backend=solve.backend)
     return CondensedBody(body.name, body.n_dofs, C, E, R, Kc, solve, K_EC, K_CC, timings)
-
-
-def _solver(lu):
-    def solve(b):
-        b = np.asarray(b, dtype=float)
-        return lu.solve(b) if b.ndim == 1 else lu.solve(np.asfortranarray(b))
-    return solve
 
 
 @dataclass(frozen=True, eq=False)
@@ -260,10 +236,14 @@ def _functional(rm, l1, l2):
     return c_d, c_a
 
 
-def reduce_two_bodies(assembled1, assembled2, pairing, patterns=("preload",)) -> ReducedModel:
-    """Condense both bodies and combine them into the relative-displacement problem."""
-    b1 = condense_body(assembled1, pairing.nodes1, pairing.frames)
-    b2 = condense_body(assembled2, pairing.nodes2, pairing.frames)
+def reduce_two_bodies(assembled1, assembled2, pairing, patterns=("preload",),
+                      backend="auto") -> ReducedModel:
+    """Condense both bodies and combine them into the relative-displacement problem.
+
+    ``backend`` chooses the Schur-complement method (:data:`qsma.linalg.SCHUR_BACKENDS`).
+    """
+    b1 = condense_body(assembled1, pairing.nodes1, pairing.frames, backend)
+    b2 = condense_body(assembled2, pairing.nodes2, pairing.frames, backend)
     loads = tuple(np.column_stack([a.loads.get(p, np.zeros(a.n_dofs)) for p in patterns])
                   for a in (assembled1, assembled2))
     Fc = (b1.condensed_load(loads[0]), b2.condensed_load(loads[1]))

@@ -38,6 +38,8 @@ from .state import OPEN, SLIPPING, STUCK, ContactState
 
 #: Armijo constant and the smallest step of the damped line search.
 ARMIJO, MIN_STEP = 1e-4, 2.0 ** -30
+#: Newton steps before the fallback.
+NEWTON_STEPS = 50
 
 
 @register_method("active_set")
@@ -53,29 +55,27 @@ def solve_active_set(problem, lam_w, previous, *, tol, maxiter=None, augmentatio
     fallback : bool
         Hand over to ``"basket"`` when Newton fails (see module docstring).
     maxiter : int, optional
-        Newton steps before the fallback; default 50.
+        Cap on the iterations of the solve, fallback included: at most
+        ``min(maxiter, 50)`` Newton steps, the rest for the fallback
+        (``None``: 50 Newton steps, then the fallback's own default).
     """
     if not (np.isscalar(augmentation) and np.isfinite(augmentation) and augmentation > 0):
         raise InputError(f"augmentation must be a positive number, got {augmentation!r}")
-    maxiter = maxiter or 50
+    steps = NEWTON_STEPS if maxiter is None else min(maxiter, NEWTON_STEPS)
     newton = _Newton(problem, lam_w, previous, augmentation * problem.kappa)
-    for it in range(maxiter + 1):
+    for it in range(steps + 1):
         if residual(problem, lam_w, newton.d2, newton.lam2, previous) <= tol:
             return Iterate(newton.d2, newton.lam2, it, True,
                            f"converged in {it} Newton steps{newton.note()}")
-        if it == maxiter or not newton.step():
+        if it == steps or not newton.step():
             break
-    return _fall_back(problem, lam_w, previous, newton, it, tol, fallback)
-
-
-def _fall_back(problem, lam_w, previous, newton, nit, tol, fallback):
-    reason = newton.failure or f"no convergence in {nit} Newton steps"
-    if not fallback:
-        return Iterate(newton.d2, newton.lam2, nit, False, reason + newton.note())
+    reason = (newton.failure or f"no convergence in {it} Newton steps") + newton.note()
+    left = None if maxiter is None else maxiter - it
+    if not fallback or left == 0:
+        return Iterate(newton.d2, newton.lam2, it, False, reason)
     guess = ContactState(newton.d2, newton.lam2, newton.sets().status)
-    out = run_baskets(problem, lam_w, previous, tol=tol, guess=guess)
-    return out._replace(nit=nit + out.nit,
-                        message=f"{reason}{newton.note()}; fell back to basket: {out.message}")
+    out = run_baskets(problem, lam_w, previous, tol=tol, maxiter=left, guess=guess)
+    return out._replace(nit=it + out.nit, message=f"{reason}; fell back to basket: {out.message}")
 
 
 def _previous_sets(previous):

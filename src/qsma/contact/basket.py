@@ -31,7 +31,9 @@ on the slip law (direction ``-(Q - kappa dv)/|Q - kappa dv|``, the
 projection on the friction disk; rows of
 :func:`qsma.contact.linear.slip_rows`) until the slip law holds, and only
 then are the baskets checked ("the algorithm cycles over the basket until
-the governing equations at all basket nodes are satisfied"). In 2D the
+the governing equations at all basket nodes are satisfied"). If no
+direction satisfies it (the line search fails), the slipping pair of
+largest misfit fails its check and goes to the stuck basket. In 2D the
 direction is a sign and one block step is exact.
 """
 from __future__ import annotations
@@ -69,17 +71,20 @@ def solve_basket(problem, lam_w, previous, *, tol, maxiter=None, coupling="joint
         Relative change of displacement at slipping and open pairs below
         which a pass has settled (paper eq. 19); default ``tol``.
     maxiter : int, optional
-        Block steps; default 200 (``"joint"``) or 20000 (``"gauss_seidel"``).
+        Cap on the iterations of the solve, fallback included: block steps
+        (default 200 for ``"joint"``, 20000 for ``"gauss_seidel"``), then
+        what is left for the fallback (its own default if ``None``).
     fallback : bool
         If the baskets fail, hand over to ``"active_set"`` (without its own
         fallback) from the previous state; the message says so.
     """
     out = run_baskets(problem, lam_w, previous, tol=tol, maxiter=maxiter, coupling=coupling,
                       pass_tol=pass_tol)
-    if out.converged or not fallback:
+    left = None if maxiter is None else maxiter - out.nit
+    if out.converged or not fallback or left == 0:
         return out
     from .active_set import solve_active_set  # deferred: active_set imports this module
-    rescue = solve_active_set(problem, lam_w, previous, tol=tol, fallback=False)
+    rescue = solve_active_set(problem, lam_w, previous, tol=tol, maxiter=left, fallback=False)
     return rescue._replace(nit=out.nit + rescue.nit,
                            message=f"{out.message}; fell back to active_set: {rescue.message}")
 
@@ -123,6 +128,8 @@ class _BasketRun:
         n = problem.n_pairs
         self.status = np.array(guess.status)
         self.direction = slip_directions_from_forces(guess.lam[:, :-1], self.status)
+        undirected = (self.status == SLIPPING) & ~self.direction.any(axis=1)
+        self.status[undirected] = STUCK          # no slip direction to hold: recheck
         self.alpha = np.zeros(n)
         self.final = np.zeros(n, bool)
         self.confirmed = np.zeros(n, int)
@@ -156,8 +163,9 @@ class _BasketRun:
             d_new = self._block_step()
             change = self._relative_change(d_new) if self.coupling == "gauss_seidel" else 0.0
             self._set_iterate(d_new)
+            unsettled = None
             if self.problem.dim == 3 and self.coupling == "joint":
-                change = self._settle_directions()
+                change, unsettled = self._settle_directions()
         except np.linalg.LinAlgError:
             return False, f"singular block system ({self.summary()})"
         q = pair_quantities(self.problem, self.d2, self.lam2, self.prev)
@@ -166,6 +174,9 @@ class _BasketRun:
             self.status, self.direction, q, self.problem.mu, self.problem.kappa, threshold,
             lambda pairs: local_states(self.problem, self.d2, self.lam2, self.prev, threshold,
                                        pairs))
+        if unsettled is not None and tr.status[unsettled[0]] == SLIPPING:
+            tr.status[unsettled[0]] = STUCK       # no slip direction satisfies the law
+            tr.violation[unsettled[0]] = unsettled[1]
         if self._move(tr, temporary=~self.final):
             self.quiet = 0
             return None
@@ -281,49 +292,53 @@ class _BasketRun:
     def _slip_law(self, d):
         """Augmented slip directions at ``d`` and the slip-law misfit of slipping pairs.
 
-        Returns ``(s, alpha, misfit)``: ``s = -sigma_t/|sigma_t|`` with
-        ``sigma_t = Q - kappa dv``, ``alpha = mu P / |sigma_t|`` (clipped to
-        [0, 1]) and ``sum |Q + mu P s|^2`` over slipping pairs (the rows of
-        the block step, linear in ``P``: no clipping of ``P``).
+        Returns ``(s, alpha, misfit)`` for the slipping pairs:
+        ``s = -sigma_t/|sigma_t|`` with ``sigma_t = Q - kappa dv``,
+        ``alpha = mu P / |sigma_t|`` (clipped to [0, 1]) and
+        ``|Q + mu P s|^2`` (the rows of the block step, linear in ``P``: no
+        clipping of ``P``).
         """
         slip = self.status == SLIPPING
         d2 = d.reshape(-1, self.problem.dim)
         lam2 = (self.problem.K @ d + self.lw).reshape(d2.shape)
         q = pair_quantities(self.problem, d2, lam2, self.prev)
         sigma = q.Q[slip] - self.problem.kappa * q.dv[slip]
-        norm = np.maximum(np.linalg.norm(sigma, axis=1), np.finfo(float).tiny)
+        norm = np.maximum(row_norm(sigma), np.finfo(float).tiny)
         s = -sigma / norm[:, None]
         mu_p = self.problem.mu[slip] * q.P[slip]
-        misfit = float(np.sum((q.Q[slip] + mu_p[:, None] * s) ** 2))
+        misfit = np.sum((q.Q[slip] + mu_p[:, None] * s) ** 2, axis=1)
         return s, np.clip(mu_p / norm, 0.0, 1.0), misfit
 
     def _settle_directions(self):
         """Damped Newton on the 3D slip law with the baskets held.
 
         Returns the relative change of displacement of the last step (0 if
-        the slip law already held).
+        the slip law already held) and, if the slip law could not be met (the
+        line search failed), the slipping pair of largest misfit and the
+        misfit (force units), else None.
         """
         slip = self.status == SLIPPING
         change = 0.0
         for _ in range(DIRECTION_STEPS):
             s, alpha, misfit = self._slip_law(self.d)
             goal = CHECK_FRACTION * self.tol * force_scale(self.lw, self.lam)
-            if not slip.any() or misfit <= goal ** 2 or self.solves >= self.maxiter:
-                return change
+            if not slip.any() or misfit.sum() <= goal ** 2 or self.solves >= self.maxiter:
+                return change, None
             self.direction[slip], self.alpha[slip] = s, alpha
             target = self._block_step()
-            t = self._line_search(target - self.d, misfit)
+            t = self._line_search(target - self.d, misfit.sum())
             if t is None:
-                return change
+                worst = np.argmax(misfit)
+                return change, (np.flatnonzero(slip)[worst], float(np.sqrt(misfit[worst])))
             d_new = self.d + t * (target - self.d)
             change = self._relative_change(d_new)
             self._set_iterate(d_new)
-        return change
+        return change, None
 
     def _line_search(self, delta, misfit0):
         t = 1.0
         while t >= MIN_STEP:
-            if self._slip_law(self.d + t * delta)[2] <= (1.0 - 2.0 * ARMIJO * t) * misfit0:
+            if self._slip_law(self.d + t * delta)[2].sum() <= (1.0 - 2.0 * ARMIJO * t) * misfit0:
                 return t
             t *= 0.5
         return None

@@ -100,25 +100,28 @@ def augmented_forces(q, mu, c):
     return AugmentedForces(sigma_n, sigma_t, closed, stick)
 
 
-def classify(q, mu, c):
+def classify(q, mu, c, threshold=0.0):
     """Status of every pair from its forces and kinematics.
 
     Open where ``P - c w <= 0``; otherwise stuck where
-    ``|Q - c dv| <= mu (P - c w)`` and slipping elsewhere (the Alart-Curnier
-    sets with ``c`` the stiffness scale). At a solution this is the row of
-    the table of method.md section 4 that the pair satisfies; a pair on the
-    border of two rows (zero pressure and zero opening, or ``|Q| = mu P`` with
-    zero slip) satisfies both and is reported in the first of open, stuck.
+    ``|Q - c dv| <= mu (P - c w) + threshold`` and slipping elsewhere (the
+    Alart-Curnier sets with ``c`` the stiffness scale). At a solution this is
+    the row of the table of method.md section 4 that the pair satisfies. A
+    pair on the border of two rows satisfies both: zero pressure and zero
+    opening is reported open, a shear at the friction limit with a slip
+    increment below ``threshold / c`` (round-off) is reported stuck.
     """
     a = augmented_forces(q, mu, c)
-    return np.where(~a.closed, OPEN, np.where(a.stick, STUCK, SLIPPING))
+    stick = row_norm(a.sigma_t) <= mu * a.sigma_n + threshold
+    return np.where(~a.closed, OPEN, np.where(stick, STUCK, SLIPPING))
 
 
 class Transitions(NamedTuple):
     """Result of the basket state checks.
 
     ``status`` (n,) proposed status, ``direction`` (n, m) slip direction
-    of the pairs that start slipping (unchanged elsewhere),
+    of the one-pair solution for the pairs that failed (the current
+    direction elsewhere),
     ``violation`` (n,) size of the violated inequality in force units (0
     where the check passed).
     """
@@ -171,8 +174,7 @@ def basket_transitions(status, direction, q, mu, kappa, threshold, local):
     if pairs.size:
         alone = local(pairs)
         new[pairs] = _target(status[pairs], default[pairs], alone.valid)
-        fresh = new[pairs] == SLIPPING
-        s[pairs[fresh]] = alone.direction[fresh]
+        s[pairs] = alone.direction
     return Transitions(new, s, np.where(failed, viol, 0.0))
 
 

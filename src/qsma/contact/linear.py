@@ -48,7 +48,7 @@ def open_rows(problem, lam_w, pairs):
 
 
 def slip_rows(problem, lam_w, pairs, direction, alpha, t_prev, c):
-    """Rows of the slip law of slipping pairs: ``(R, b)`` with ``R d = b``.
+    r"""Rows of the slip law of slipping pairs: ``(R, b)`` with ``R d = b``.
 
     The slip law ``Q = -mu P s`` with the slip direction ``s`` taken from the
     augmented shear, ``s = -sigma_t/|sigma_t|``, ``sigma_t = Q - c dv``,

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..errors import ContactConvergenceWarning, InputError
 from .law import classify, pair_quantities
-from .residual import residual
+from .residual import force_scale, residual
 from .state import ContactResult, ContactState
 
 #: name -> solver function; filled by :func:`register_method`.
@@ -148,7 +148,7 @@ def _result(problem, lam_w, previous, out, method, tol):
     if out.converged and not success:
         message = f"{message}; rejected: residual {r:.3e} > tol {tol:.1e}"
     q = pair_quantities(problem, out.d, out.lam, previous.d)
-    status = classify(q, problem.mu, problem.kappa)
+    status = classify(q, problem.mu, problem.kappa, tol * force_scale(lam_w, out.lam))
     state = ContactState(out.d, out.lam, status)
     if not success:
         warnings.warn(f"contact method {method!r}: {message} (residual {r:.3e}, tol {tol:.1e})",

@@ -1,0 +1,139 @@
+"""ContactProblem validation and the input checks of solve()."""
+import numpy as np
+import pytest
+
+from qsma.contact import METHODS, ContactProblem, ContactState, solve
+from qsma.errors import InputError
+
+
+def spd(n, seed=0):
+    rng = np.random.default_rng(seed)
+    A = rng.standard_normal((n, n))
+    return A @ A.T + n * np.eye(n)
+
+
+def test_stores_symmetrised_readonly_arrays_and_per_pair_mu():
+    K = spd(6)
+    K[0, 1] += 1e-12 * np.abs(K).max()            # round-off asymmetry is accepted
+    p = ContactProblem(K, 0.3, dim=2)
+    assert p.n_pairs == 3 and p.size == 6
+    np.testing.assert_array_equal(p.K, p.K.T)
+    np.testing.assert_array_equal(p.mu, [0.3, 0.3, 0.3])
+    np.testing.assert_array_equal(p.gap0, [0.0, 0.0, 0.0])
+    assert p.kappa == pytest.approx(np.mean(np.diag(K)))
+    np.testing.assert_array_equal(p.normal_index, [1, 3, 5])
+    np.testing.assert_array_equal(p.tangent_index, [[0], [2], [4]])
+    np.testing.assert_array_equal(p.diagonal_blocks[1], p.K[2:4, 2:4])
+    with pytest.raises(ValueError):
+        p.K[0, 0] = 1.0
+    with pytest.raises(AttributeError):
+        p.mu = np.zeros(3)
+    assert "n_pairs=3" in repr(p) and "mu=0.3" in repr(p)
+
+
+def test_3d_indices():
+    p = ContactProblem(spd(6), [0.1, 0.2], gap0=[0.0, 1e-3], dim=3)
+    np.testing.assert_array_equal(p.normal_index, [2, 5])
+    np.testing.assert_array_equal(p.tangent_index, [[0, 1], [3, 4]])
+    np.testing.assert_array_equal(p.mu, [0.1, 0.2])
+
+
+@pytest.mark.parametrize("K, dim, match", [
+    (np.ones((4, 3)), 2, r"square.*expected shape \(N, N\), got \(4, 3\)"),
+    (np.eye(5), 2, "multiple of dim=2.*got 5"),
+    (np.eye(4), 3, "multiple of dim=3.*got 4"),
+    (np.zeros((0, 0)), 2, "positive multiple"),
+    (np.diag([1.0, np.nan, 1.0, 1.0]), 2, "finite: found 1 NaN/Inf"),
+    (np.diag([1.0, 1.0, -1.0, 1.0]), 2, "positive definite"),
+])
+def test_bad_stiffness_raises_with_expected_and_actual(K, dim, match):
+    with pytest.raises(InputError, match=match):
+        ContactProblem(K, 0.5, dim=dim)
+
+
+def test_asymmetric_stiffness_names_the_entries():
+    K = spd(4)
+    K[0, 3] += 0.1 * np.abs(K).max()
+    with pytest.raises(InputError, match=r"symmetric: expected max\|K - K\^T\| <= .* got .*K\[0,3\]"):
+        ContactProblem(K, 0.5)
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"mu": -0.1}, "mu must be >= 0: got -0.1 at pair 0"),
+    ({"mu": [0.2, -0.5]}, "at pair 1"),
+    ({"mu": [0.2, 0.2, 0.2]}, r"one value per pair: expected shape \(2,\), got \(3,\)"),
+    ({"mu": np.nan}, "mu must be finite"),
+    ({"mu": None}, "mu is required"),
+    ({"mu": 0.3, "gap0": [0.0]}, r"gap0.*expected shape \(2,\), got \(1,\)"),
+    ({"mu": 0.3, "gap0": [0.0, np.inf]}, "gap0 must be finite"),
+    ({"mu": 0.3, "dim": 4}, "dim must be 2 or 3, got 4"),
+])
+def test_bad_friction_gap_or_dim_raises(kwargs, match):
+    with pytest.raises(InputError, match=match):
+        ContactProblem(spd(4), **kwargs)
+
+
+def test_input_error_is_a_value_error():
+    with pytest.raises(ValueError):
+        ContactProblem(np.eye(3), 0.5)
+
+
+@pytest.fixture
+def problem():
+    return ContactProblem(np.diag([10.0, 100.0, 10.0, 100.0]), 0.5)
+
+
+def test_unknown_method_lists_valid_ones(problem):
+    with pytest.raises(InputError, match=r"unknown contact method 'newton'; valid: \['active_set', 'basket', 'nodal_gs'\]"):
+        solve(problem, np.ones((2, 2)), method="newton")
+
+
+@pytest.mark.parametrize("method", sorted(METHODS))
+def test_unknown_option_raises(problem, method):
+    with pytest.raises(InputError, match=r"unknown option\(s\) \['tolerance'\] .* valid: \['tol', 'maxiter'"):
+        solve(problem, np.ones((2, 2)), method=method, tolerance=1e-3)
+
+
+@pytest.mark.parametrize("method, options, match", [
+    ("basket", {"coupling": "jacobi"}, "coupling must be one of"),
+    ("active_set", {"augmentation": -1.0}, "augmentation must be a positive number"),
+    ("nodal_gs", {"check_every": 0}, "check_every must be a positive integer"),
+])
+def test_bad_option_values_raise(problem, method, options, match):
+    with pytest.raises(InputError, match=match):
+        solve(problem, np.ones((2, 2)), method=method, **options)
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_non_finite_load_raises(problem, bad):
+    lam_w = np.ones((2, 2))
+    lam_w[1, 0] = bad
+    with pytest.raises(InputError, match="lam_w must be finite: found 1"):
+        solve(problem, lam_w)
+
+
+def test_load_of_wrong_shape_raises(problem):
+    with pytest.raises(InputError, match=r"lam_w must have shape \(2, 2\) \(n_pairs, dim\), got \(4,\)"):
+        solve(problem, np.ones(4))
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"tol": 0.0}, "tol must be a positive finite number"),
+    ({"tol": np.nan}, "tol must be a positive finite number"),
+    ({"maxiter": 0}, "maxiter must be a positive integer"),
+    ({"maxiter": 2.5}, "maxiter must be a positive integer"),
+])
+def test_bad_tol_or_maxiter_raises(problem, kwargs, match):
+    with pytest.raises(InputError, match=match):
+        solve(problem, np.ones((2, 2)), **kwargs)
+
+
+def test_state_of_another_problem_raises(problem):
+    other = ContactState.reference(ContactProblem(np.eye(6), 0.5))
+    with pytest.raises(InputError, match=r"state.d must have shape \(2, 2\)"):
+        solve(problem, np.ones((2, 2)), other)
+
+
+def test_options_are_keyword_only(problem):
+    with pytest.raises(TypeError):
+        solve(problem, np.ones((2, 2)), None, "basket")
