@@ -14,6 +14,7 @@ import warnings
 import numpy as np
 
 from . import __version__
+from ._threads import blas_threads as threads_limited, threads_for
 from .condense import reduce_two_bodies
 from .contact import DEFAULT_TOL, ContactProblem, METHODS, solve as contact_solve
 from .errors import AnalysisError, ContactConvergenceWarning, InputError
@@ -147,7 +148,7 @@ class _Timer:
 
 def run(model, *, mode=0, levels: Levels | None = None, method="basket", tol=None,
         maxiter=None, direct_loop=False, n_modes=None, continue_on_failure=False,
-        progress=None) -> QSMAResult:
+        progress=None, schur_backend="auto", blas_threads="auto") -> QSMAResult:
     """Quasi-static modal analysis of ``model``.
 
     Parameters
@@ -159,6 +160,9 @@ def run(model, *, mode=0, levels: Levels | None = None, method="basket", tol=Non
     direct_loop : also compute the hysteresis loop at the largest level directly
     continue_on_failure : keep ramping after a level whose contact solve failed
     progress : callable ``progress(k, n)`` called after each level
+    schur_backend : static condensation backend (:data:`qsma.linalg.SCHUR_BACKENDS`)
+    blas_threads : BLAS thread limit; ``"auto"``: one thread for interface problems of
+        up to :data:`qsma._threads.SMALL_PROBLEM` unknowns, ``None``: no limit
 
     Returns
     -------
@@ -174,11 +178,19 @@ def run(model, *, mode=0, levels: Levels | None = None, method="basket", tol=Non
     levels = spec_levels() if levels is None else levels
     opts = {k: v for k, v in (("tol", tol), ("maxiter", maxiter)) if v is not None}
     clock = _Timer()
-
     with clock.stage("model"):
         pairing = make_pairing(model)
-        i1 = model.body_index(model.interface.body1)
-        i2 = model.body_index(model.interface.body2)
+    limit = threads_for(pairing.n_pairs * model.dim) if blas_threads == "auto" else blas_threads
+    with threads_limited(limit):
+        return _run(model, pairing, mode, levels, method, opts, direct_loop, n_modes,
+                    continue_on_failure, progress, schur_backend, clock)
+
+
+def _run(model, pairing, mode, levels, method, opts, direct_loop, n_modes,
+         continue_on_failure, progress, schur_backend, clock):
+
+    i1 = model.body_index(model.interface.body1)
+    i2 = model.body_index(model.interface.body2)
     with clock.stage("assembly"):
         assembled = [assemble_body(b) for b in model.bodies]
         for a in assembled:
@@ -186,7 +198,8 @@ def run(model, *, mode=0, levels: Levels | None = None, method="basket", tol=Non
                 if not np.all(np.isfinite(F)):
                     raise InputError(f"load {name!r} of body {a.body.name!r} is not finite")
     with clock.stage("condensation"):
-        reduced = reduce_two_bodies(assembled[i1], assembled[i2], pairing)
+        reduced = reduce_two_bodies(assembled[i1], assembled[i2], pairing,
+                                    backend=schur_backend)
         problem = ContactProblem(reduced.K, model.mu, dim=model.dim)
 
     with clock.stage("contact"):
