@@ -59,7 +59,7 @@ def test_nodal_gauss_seidel_is_honest_on_an_ill_conditioned_problem():
     assert np.linalg.cond(problem.K) == pytest.approx(1e6, rel=0.05)
     with pytest.warns(ContactConvergenceWarning):
         slow = solve(problem, lam_w, method="nodal_gs", maxiter=300)
-    assert not slow.success and slow.nit == 300 and slow.residual > 1e3 * 1e-10
+    assert not slow.success and slow.nit == 300 and slow.residual > 1e2 * 1e-10
     for method in ("basket", "active_set"):
         fast = solve(problem, lam_w, method=method)
         assert fast.success and fast.nit <= 10 and fast.residual <= 1e-13

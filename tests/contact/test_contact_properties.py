@@ -74,7 +74,9 @@ def check_chain(problem, loads, methods):
         if not all(chains[m][i].success for m in methods for i in range(level + 1)):
             break                     # histories differ after a failure: stop comparing
         ref = chains["basket"][level]
-        F = max(np.abs(lam_w).max(), np.abs(ref.lam).max())
+        # the residual's force unit: max(|lam_w|, |lam|, |K| |d|) (contact/residual.py)
+        F = max(np.abs(lam_w).max(), np.abs(ref.lam).max(),
+                (np.abs(problem.K) @ np.abs(ref.d.ravel())).max())
         for method in methods:
             r = chains[method][level]
             np.testing.assert_allclose(r.lam, ref.lam, atol=1e-7 * F, rtol=0)

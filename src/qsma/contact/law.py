@@ -119,11 +119,10 @@ def classify(q, mu, c, threshold=0.0):
 class Transitions(NamedTuple):
     """Result of the basket state checks.
 
-    ``status`` (n,) proposed status, ``direction`` (n, m) slip direction
-    of the one-pair solution for the pairs that failed (the current
-    direction elsewhere),
-    ``violation`` (n,) size of the violated inequality in force units (0
-    where the check passed).
+    ``status`` (n,) proposed status, ``direction`` (n, m) slip direction of
+    the one-pair solution for the pairs that failed (the current direction
+    elsewhere), ``violation`` (n,) size of the violated inequality in force
+    units (0 where the check passed). New arrays, never the inputs.
     """
 
     status: np.ndarray
@@ -148,9 +147,8 @@ def basket_transitions(status, direction, q, mu, kappa, threshold, local):
     to the first other state the one-pair solution allows (stuck, slipping,
     open), or to the default if none does; ``direction`` is then the slip
     direction of the one-pair solution. A check fails only if its violation
-    exceeds
-    ``threshold`` (force units; displacements are turned into forces with
-    ``kappa``), so that round-off does not move pairs back and forth.
+    exceeds ``threshold`` (force units; displacements are turned into forces
+    with ``kappa``), so that round-off does not move pairs back and forth.
 
     Parameters
     ----------
@@ -159,22 +157,22 @@ def basket_transitions(status, direction, q, mu, kappa, threshold, local):
         current iterate of the pairs ``pairs`` (an index array); called only
         for the pairs that failed.
     """
-    stuck, slipping, opened = status == STUCK, status == SLIPPING, status == OPEN
+    opened, stuck = status == OPEN, status == STUCK
     mu_p = mu * q.P
-    viol = np.where(opened, -kappa * q.w, -q.P)                      # closing / tension
-    viol[stuck] = np.maximum(viol[stuck], row_norm(q.Q[stuck]) - mu_p[stuck])
-    back = slipping & (mu_p > 0)
-    along = np.einsum("ij,ij->i", q.dv[back], direction[back])
-    viol[back] = np.maximum(viol[back], -kappa * along)
+    shear = np.where(stuck, row_norm(q.Q) - mu_p,                              # overload
+                     np.where(mu_p > 0, -kappa * np.einsum("ij,ij->i", q.dv, direction),
+                              -np.inf))                                        # reversal
+    viol = np.where(opened, -kappa * q.w, np.maximum(-q.P, shear))             # closing, tension
     failed = viol > threshold
+    if not failed.any():
+        return Transitions(status.copy(), direction.copy(), np.zeros_like(viol))
     tension = ~opened & (q.P < -threshold)
     default = np.where(opened | tension, OPEN, np.where(stuck, SLIPPING, STUCK))
     new, s = status.copy(), direction.copy()
     pairs = np.flatnonzero(failed)
-    if pairs.size:
-        alone = local(pairs)
-        new[pairs] = _target(status[pairs], default[pairs], alone.valid)
-        s[pairs] = alone.direction
+    alone = local(pairs)
+    new[pairs] = _target(status[pairs], default[pairs], alone.valid)
+    s[pairs] = alone.direction
     return Transitions(new, s, np.where(failed, viol, 0.0))
 
 

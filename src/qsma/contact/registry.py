@@ -80,7 +80,8 @@ def solve(problem, lam_w, state=None, *, method="basket", tol=DEFAULT_TOL, maxit
     tol : float
         Success means ``residual(...) <= tol`` (relative, see :func:`residual`).
     maxiter : int, optional
-        Iteration cap of the method (its own default if ``None``).
+        Cap on ``nit``, the iterations of the method including any fallback
+        (``None``: the method's own defaults, see docs/contact.md).
     **options
         Keyword options of the method; an unknown name raises.
 
