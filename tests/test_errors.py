@@ -124,6 +124,7 @@ def starved_solver(monkeypatch):
     """Fault injection: the preload solves normally, every later level gets one
     iteration of the nodal Gauss-Seidel, which cannot converge on this problem."""
     import qsma.analysis as analysis
+    import qsma.contact.zone as zone
     real = analysis.contact_solve
     calls = {"n": 0}
 
@@ -133,6 +134,7 @@ def starved_solver(monkeypatch):
             kw.update(method="nodal_gs", maxiter=1)
         return real(problem, lam_w, state, **kw)
     monkeypatch.setattr(analysis, "contact_solve", starved)
+    monkeypatch.setattr(zone, "solve", starved)       # the ramp solves on the zone
     return calls
 
 
@@ -157,9 +159,11 @@ def test_cli_exit_1_names_the_level(starved_solver, tmp_path, capsys):
                  "--no-plots", "--no-vtu"])
     assert code == 1
     err = capsys.readouterr().err
-    assert "load level 0" in err and "Traceback" not in err
+    assert "contact solve failed at load level" in err and "Traceback" not in err
+    import re
+    k = int(re.search(r"load level (\d+)", err).group(1))
     data = json.loads((tmp_path / "results.json").read_text())
-    assert data["success"] is False and data["levels"]["alpha"] == []
+    assert data["success"] is False and len(data["levels"]["alpha"]) == k   # levels before
 
 
 def test_unwritable_output_folder_fails_before_computing(tmp_path, capsys):

@@ -17,6 +17,7 @@ from . import __version__
 from ._threads import blas_threads as threads_limited, threads_for
 from .condense import reduce_two_bodies
 from .contact import DEFAULT_TOL, ContactProblem, METHODS, solve as contact_solve
+from .contact.zone import solve_in_zone, zone_from_state
 from .errors import AnalysisError, ContactConvergenceWarning, InputError
 from .fe import assemble_body
 from .levels import Levels, spec_levels
@@ -148,7 +149,8 @@ class _Timer:
 
 def run(model, *, mode=0, levels: Levels | None = None, method="basket", tol=None,
         maxiter=None, direct_loop=False, n_modes=None, continue_on_failure=False,
-        progress=None, schur_backend="auto", blas_threads="auto") -> QSMAResult:
+        progress=None, schur_backend="auto", blas_threads="auto",
+        eliminate_open=True) -> QSMAResult:
     """Quasi-static modal analysis of ``model``.
 
     Parameters
@@ -163,6 +165,8 @@ def run(model, *, mode=0, levels: Levels | None = None, method="basket", tol=Non
     schur_backend : static condensation backend (:data:`qsma.linalg.SCHUR_BACKENDS`)
     blas_threads : BLAS thread limit; ``"auto"``: one thread for interface problems of
         up to :data:`qsma._threads.SMALL_PROBLEM` unknowns, ``None``: no limit
+    eliminate_open : solve the ramp on the pairs closed after the preload, the open ones
+        eliminated exactly (:mod:`qsma.contact.zone`; a pair that would close joins)
 
     Returns
     -------
@@ -183,11 +187,11 @@ def run(model, *, mode=0, levels: Levels | None = None, method="basket", tol=Non
     limit = threads_for(pairing.n_pairs * model.dim) if blas_threads == "auto" else blas_threads
     with threads_limited(limit):
         return _run(model, pairing, mode, levels, method, opts, direct_loop, n_modes,
-                    continue_on_failure, progress, schur_backend, clock)
+                    continue_on_failure, progress, schur_backend, clock, eliminate_open)
 
 
 def _run(model, pairing, mode, levels, method, opts, direct_loop, n_modes,
-         continue_on_failure, progress, schur_backend, clock):
+         continue_on_failure, progress, schur_backend, clock, eliminate_open):
 
     i1 = model.body_index(model.interface.body1)
     i2 = model.body_index(model.interface.body2)
@@ -203,7 +207,7 @@ def _run(model, pairing, mode, levels, method, opts, direct_loop, n_modes,
         problem = ContactProblem(reduced.K, model.mu, dim=model.dim)
 
     with clock.stage("contact"):
-        pre = _solve(problem, reduced, 0.0, None, method, opts, "preload")
+        pre, _ = _solve(problem, reduced, 0.0, None, method, opts, "preload")
     if not pre.success:
         raise AnalysisError(f"the preload contact solve failed: {pre.message} "
                             f"(residual {pre.residual:.2e})", partial=pre)
@@ -241,7 +245,9 @@ def _run(model, pairing, mode, levels, method, opts, direct_loop, n_modes,
 
     alpha = levels.alpha(omega0, phi_tip)
     with clock.stage("contact"):
-        ramp = _ramp(problem, reduced, alpha, pre, method, opts, continue_on_failure, progress)
+        solver = _Solver(problem, reduced, method, opts,
+                         zone_from_state(problem, pre.state) if eliminate_open else None)
+        ramp = _ramp(solver, alpha, pre, continue_on_failure, progress)
     n_ok = len(ramp["d"])
 
     with clock.stage("postprocess"):
@@ -260,8 +266,8 @@ def _run(model, pairing, mode, levels, method, opts, direct_loop, n_modes,
     loop = None
     if direct_loop and n_ok:
         with clock.stage("contact"):
-            loop = _direct_loop(problem, reduced, al, ramp["states"][-1], method, opts,
-                                q0, t0, float(ms.dissipation[-1]))
+            loop = _direct_loop(solver, al, ramp["states"][-1], q0, t0,
+                                float(ms.dissipation[-1]))
 
     timings = clock.done()
     empty = np.zeros(0)
@@ -292,23 +298,40 @@ def _run(model, pairing, mode, levels, method, opts, direct_loop, n_modes,
 QSMAResult.iterations = property(lambda self: self.states.iterations)
 
 
-def _solve(problem, reduced, alpha, state, method, opts, where):
+def _solve(problem, reduced, alpha, state, method, opts, where, zone=None):
+    """One contact solve at modal force ``alpha``; returns ``(result, zone)``."""
     lam_w = reduced.welded_contact_force(_load_factors(reduced, alpha))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ContactConvergenceWarning)
-        res = contact_solve(problem, lam_w, state, method=method, **opts)
+        if zone is None:
+            res = contact_solve(problem, lam_w, state, method=method, **opts)
+        else:
+            res, zone = solve_in_zone(zone, lam_w, state, method=method, **opts)
     if not res.success:
         warnings.warn(f"contact solve at {where} did not converge: {res.message} "
                       f"(residual {res.residual:.2e})", ContactConvergenceWarning,
                       stacklevel=3)
-    return res
+    return res, zone
 
 
-def _ramp(problem, reduced, alpha, pre, method, opts, keep_going, progress):
+class _Solver:
+    """The contact solve of a load level, with the open-pair elimination if enabled."""
+
+    def __init__(self, problem, reduced, method, opts, zone):
+        self.problem, self.reduced, self.method, self.opts = problem, reduced, method, opts
+        self.zone = zone
+
+    def __call__(self, alpha, state, where):
+        res, self.zone = _solve(self.problem, self.reduced, alpha, state, self.method,
+                                self.opts, where, self.zone)
+        return res
+
+
+def _ramp(solver, alpha, pre, keep_going, progress):
     out = {k: [] for k in ("d", "lam", "status", "residual", "nit", "states")}
     state, success, message = pre.state, True, "all levels converged"
     for k, a in enumerate(alpha):
-        res = _solve(problem, reduced, a, state, method, opts, f"load level {k} (alpha={a:.4g})")
+        res = solver(a, state, f"load level {k} (alpha={a:.4g})")
         if not res.success:
             success = False
             message = (f"contact solve failed at load level {k} (alpha={a:.6g}): "
@@ -325,7 +348,7 @@ def _ramp(problem, reduced, alpha, pre, method, opts, keep_going, progress):
     return out
 
 
-def _direct_loop(problem, reduced, alpha, top_state, method, opts, q0, t0, d_masing):
+def _direct_loop(solver, alpha, top_state, q0, t0, d_masing):
     """Unload from +alpha_max to -alpha_max, reload to +alpha_max; the steps mirror the
     Masing construction (unloading by twice each backbone level)."""
     amax = alpha[-1]
@@ -333,9 +356,10 @@ def _direct_loop(problem, reduced, alpha, top_state, method, opts, q0, t0, d_mas
     path = np.concatenate([amax - steps, -amax + steps[1:]])
     state, qs, ts, ok = top_state, [], [], True
     for a in path:
-        res = _solve(problem, reduced, a, state, method, opts, f"direct loop (alpha={a:.4g})")
+        res = solver(a, state, f"direct loop (alpha={a:.4g})")
         ok &= bool(res.success)
         state = res.state
+        reduced = solver.reduced
         af = _load_factors(reduced, a)
         qs.append(reduced.evaluate("q", res.d, af) - q0)
         ts.append(reduced.evaluate("tip", res.d, af) - t0)
