@@ -1,6 +1,7 @@
 """Time the whole QSMA of sandwich-2d per stage (median of several runs).
 
-Usage: python benchmarks/bench_analysis.py [--refine 1 2 4 8] [--repeat 5] [--method basket]
+Usage: python benchmarks/bench_analysis.py [--example sandwich-2d|sandwich-3d]
+                                          [--refine 1 2 4 8] [--repeat 5] [--method basket]
 
 Stages are those of results.json ``timings_s`` (model to results, excluding
 interpreter start-up, plots and file writing). The last columns compare the
@@ -12,15 +13,15 @@ import statistics
 
 import qsma
 from qsma.analysis import STAGES
-from qsma.examples import sandwich_2d
+from qsma.examples import EXAMPLES
 
 MATLAB_RAMP_S, COMMERCIAL_S = 4.0, 201.0
 
 
-def measure(refine, repeat, method):
+def measure(example, refine, repeat, method):
     runs = []
     for _ in range(repeat):
-        res = qsma.run(sandwich_2d(refine), method=method)
+        res = qsma.run(EXAMPLES[example](refine), method=method)
         assert res.success, res.message
         runs.append(res.timings_s)
     med = {k: statistics.median(r[k] for r in runs) for k in STAGES}
@@ -32,13 +33,16 @@ def main():
     ap.add_argument("--refine", type=int, nargs="+", default=[1, 2, 4, 8])
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--method", default="basket")
+    ap.add_argument("--example", default="sandwich-2d", choices=sorted(EXAMPLES))
     args = ap.parse_args()
-    print(f"method {args.method}, median of {args.repeat} runs, seconds")
+    print(f"{args.example}, method {args.method}, median of {args.repeat} runs "
+          f"(refine > 4: half as many), seconds")
     print("| refine | nodes | pairs | " + " | ".join(STAGES)
           + " | ramp vs Matlab 4 s | total vs FE 201 s |")
     print("|---" * (len(STAGES) + 5) + "|")
     for r in args.refine:
-        med, res = measure(r, args.repeat if r <= 4 else max(1, args.repeat // 2), args.method)
+        med, res = measure(args.example, r, args.repeat if r <= 4 else max(1, args.repeat // 2),
+                           args.method)
         info = res.model_info
         print(f"| {r} | {info['n_nodes']} | {info['n_pairs']} | "
               + " | ".join(f"{med[k]:.4f}" for k in STAGES)
