@@ -86,3 +86,50 @@ def test_modal_projection_equals_phi_M_x_of_recovered_field(setup):
     u1, u2 = rm2.recover(d, a)
     q_full = Mphi[0] @ u1 + Mphi[1] @ u2
     assert rm2.evaluate("q", d, a) == pytest.approx(q_full, rel=1e-10)
+
+
+def _two_hex_beams():
+    """A small 3D sandwich: two clamped hexahedral beams, pressure on a patch."""
+    from qsma.model import Body, Clamp, Interface, Material, Model, Pressure
+    from qsma.model.generate import structured_mesh
+    xs, zs = np.linspace(0, 0.1, 21), np.linspace(0, 0.02, 5)
+    steel = Material(200e9, 0.3, 7800.0)
+    bodies = []
+    for name, y0, top in (("bottom", 0.0, False), ("top", 0.005, True)):
+        m = structured_mesh(xs, np.linspace(y0, y0 + 0.005, 4), zs)
+        y_if, y_out = (y0, y0 + 0.005) if top else (y0 + 0.005, y0)
+        e = 1e-12
+        m = m.with_sets(
+            node_sets={"clamp": np.flatnonzero(m.points[:, 0] < e)},
+            facet_sets={
+                "interface": m.boundary_facets_where(
+                    lambda p: (np.abs(p[:, 1] - y_if) < e) & (p[:, 0] > 0.05 - e)),
+                "bolt": m.boundary_facets_where(
+                    lambda p: (np.abs(p[:, 1] - y_out) < e) & (p[:, 0] > 0.07 - e)
+                    & (p[:, 0] < 0.08 + e))})
+        bodies.append(Body(name, m, steel, clamps=(Clamp("clamp"),),
+                           pressures=(Pressure("bolt", 5e6),)))
+    return Model(tuple(bodies), Interface("bottom", "interface", "top", "interface"))
+
+
+def test_welded_interface_equals_full_tied_solve_3d():
+    m = _two_hex_beams()
+    A = [assemble_body(b) for b in m.bodies]
+    p = make_pairing(m)
+    assert p.n_pairs == 11 * 5 and np.allclose(p.normals, [0, 1, 0])
+    rm = reduce_two_bodies(A[0], A[1], p)
+    T = tie_transform(m, A, p, np.ones(p.n_pairs, bool))
+    K = (T.T @ stacked([a.K for a in A]) @ T).tocsc()
+    F = np.concatenate([a.loads["preload"] for a in A])
+    x = T @ spla.spsolve(K, T.T @ F)
+    u1, u2 = rm.recover(np.zeros(rm.K.shape[0]), [1.0])
+    off = m.dof_offsets()
+    scale = np.abs(x).max()
+    assert np.abs(x[:off[1]] - u1).max() < 1e-9 * scale
+    assert np.abs(x[off[1]:] - u2).max() < 1e-9 * scale
+    r_top = A[1].K @ x[off[1]:] - A[1].loads["preload"]
+    lam_full = np.stack([r_top[3 * p.nodes2 + c] for c in range(3)], axis=1)
+    lam_local = np.einsum("pij,pj->pi", p.frames, lam_full)     # rows of frames: (t1, t2, n)
+    lam_w = rm.welded_contact_force([1.0])
+    assert np.abs(lam_local - lam_w).max() < 1e-9 * np.abs(lam_w).max()
+    assert np.linalg.eigvalsh(rm.K).min() > 0
