@@ -83,3 +83,16 @@ def test_bad_input_exit_code_2_without_traceback(tmp_path, capsys):
     assert main(["run", "--example", "sandwich-2d", "--out", str(tmp_path),
                  "--method", "magic"]) == 2
     assert "valid" in capsys.readouterr().err
+
+
+def test_levels_option(tmp_path, capsys):
+    out = tmp_path / "lv"
+    assert main(["run", "--example", "sandwich-2d", "--out", str(out), "--quiet", "--no-plots",
+                 "--no-vtu", "--levels", "alpha:list:10,100,1000", "--mode", "0"]) == 0
+    data = json.loads((out / "results.json").read_text())
+    assert data["levels"]["alpha"] == [10.0, 100.0, 1000.0]
+    assert main(["run", "--example", "sandwich-2d", "--out", str(out), "--levels",
+                 "tip:cubic:1:2:3"]) == 2
+    assert "spacing must be" in capsys.readouterr().err
+    assert main(["run", "--example", "sandwich-2d", "--out", str(out), "--levels", "x"]) == 2
+    assert "expected KIND" in capsys.readouterr().err

@@ -15,6 +15,10 @@ def add_arguments(p):
     p.add_argument("--mode", type=int, help="mode index of the tied structure (default 0)")
     p.add_argument("--method", help="contact solver (default from the config or 'basket')")
     p.add_argument("--tol", type=float, help="contact solver tolerance")
+    p.add_argument("--levels", metavar="SPEC",
+                   help="load levels KIND:log|linear:START:STOP:N or KIND:list:V1,V2,...; "
+                        "KIND is tip (linear tied tip deflection [m]) or alpha (modal "
+                        "force), e.g. tip:log:1e-6:1e-3:51 (the default)")
     p.add_argument("--maxiter", type=int, help="contact solver iteration cap")
     p.add_argument("--direct-loop", action="store_true", default=None,
                    help="also compute the hysteresis loop directly (check of Masing)")
@@ -37,6 +41,8 @@ def execute(args) -> int:
     for key in ("mode", "method", "tol", "maxiter", "direct_loop", "continue_on_failure"):
         if getattr(args, key) is not None:
             options[key] = getattr(args, key)
+    if args.levels is not None:
+        options["levels"] = parse_levels_spec(args.levels)
     if "method" in options and options["method"] not in METHODS:
         raise InputError(f"unknown contact method {options['method']!r}; "
                          f"valid: {sorted(METHODS)}")
@@ -52,6 +58,25 @@ def execute(args) -> int:
               f"before it are in {out}", file=sys.stderr)
         return 1
     return 0
+
+
+def parse_levels_spec(spec: str):
+    """``KIND:log|linear:START:STOP:N`` or ``KIND:list:V1,V2,...`` -> Levels."""
+    from ..config import parse_levels
+    parts = spec.split(":")
+    try:
+        if len(parts) == 3 and parts[1] == "list":
+            table = dict(kind=parts[0], spacing="list",
+                         values=[float(v) for v in parts[2].split(",")])
+        elif len(parts) == 5:
+            table = dict(kind=parts[0], spacing=parts[1], start=float(parts[2]),
+                         stop=float(parts[3]), n=int(parts[4]))
+        else:
+            raise ValueError
+    except ValueError:
+        raise InputError(f"--levels {spec!r}: expected KIND:log|linear:START:STOP:N or "
+                         f"KIND:list:V1,V2,... (e.g. tip:log:1e-6:1e-3:51)") from None
+    return parse_levels(table, where="--levels")
 
 
 def _bar(k, n, width=40):
