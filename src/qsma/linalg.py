@@ -506,3 +506,25 @@ def _pardiso_solver(ee):
         ee.call(33, B, X, nrhs=B.shape[1])
         return X.reshape(b.shape)
     return solve
+
+
+def spd_solver(A, *, backend="auto"):
+    """``solve(b) = A^-1 b`` for a sparse symmetric positive definite ``A``: PARDISO
+    (nested dissection) when ``pypardiso`` is installed and ``backend`` is ``"auto"`` or
+    ``"pardiso"``, SuperLU (MMD ordering, no pivoting) otherwise. Used for the
+    shift-invert of the tied eigenproblem. Raises :class:`InputError` if ``A`` is
+    singular or not positive definite."""
+    A = sp.csr_matrix(A)
+    use_pardiso = backend in ("auto", "pardiso") and SCHUR_BACKENDS["pardiso"].available
+    if use_pardiso:
+        f = _Pardiso(A)
+        try:
+            f.call(12, np.zeros(A.shape[0]), np.zeros(A.shape[0]))
+        except InputError as exc:
+            raise InputError(f"matrix is singular or not positive definite ({exc})") from exc
+        return _pardiso_solver(f)
+    lu, ratio, exc = _superlu(A)
+    if lu is None or ratio <= PIVOT_RATIO_MIN:
+        raise InputError(f"matrix is singular or not positive definite "
+                         f"(smallest pivot ratio {ratio:.3g})") from exc
+    return _superlu_solver(lu)

@@ -80,8 +80,8 @@ def linear_modes(model, assembled, pairing, tied=None, n_modes=6) -> Modes:
     K = (T.T @ stacked([a.K for a in assembled]) @ T).tocsc()
     M = (T.T @ stacked([a.M for a in assembled]) @ T).tocsc()
     k = min(n_modes, K.shape[0] - 2)
-    lu = _factor(K, model, assembled, T)
-    op = spla.LinearOperator(K.shape, matvec=lu.solve, dtype=float)
+    solve = _factor(K, model, assembled, T)
+    op = spla.LinearOperator(K.shape, matvec=solve, matmat=solve, dtype=float)
     try:
         lam, vec = spla.eigsh(K, k=k, M=M, sigma=0.0, which="LM", OPinv=op)
     except spla.ArpackNoConvergence as exc:
@@ -95,14 +95,15 @@ def linear_modes(model, assembled, pairing, tied=None, n_modes=6) -> Modes:
 
 
 def _factor(K, model, assembled, T):
+    """Factorised tied stiffness (PARDISO if installed, else SuperLU; qsma.linalg)."""
+    from .linalg import spd_solver
     try:
-        lu = spla.splu(K)
-    except RuntimeError as exc:
+        return spd_solver(K)
+    except InputError as exc:
         raise InputError(
             f"the stiffness of the tied assembly is singular ({exc}): some body is not "
             f"held against rigid-body motion. Add Dirichlet conditions (clamps) to "
             f"{_unclamped(model, assembled)} or tie more interface pairs.") from exc
-    return lu
 
 
 def _unclamped(model, assembled):
