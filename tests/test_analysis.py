@@ -98,7 +98,8 @@ def test_full_field_satisfies_full_equilibrium(result):
 def test_direct_loop_close_to_masing(result):
     dl = result.direct_loop
     assert dl.success
-    assert dl.dissipation == pytest.approx(dl.dissipation_masing, rel=0.05)
+    # Masing is exact here: the modal load leaves the pressure unchanged (docs/validation.md)
+    assert dl.dissipation == pytest.approx(dl.dissipation_masing, rel=1e-8)
     # the loop closes: back at +alpha_max the state is the backbone's
     assert dl.q[-1] == pytest.approx(dl.q[0], rel=1e-6)
 

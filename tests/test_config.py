@@ -66,35 +66,52 @@ def test_bad_config_names_the_problem(base, mutate, match):
         parse_config(cfg, base=EXAMPLES)
 
 
-def _mutations():
-    keys = st.sampled_from(["interface", "tip", "analysis", "levels", "bodies", "name"])
-    values = st.one_of(st.none(), st.integers(-3, 3), st.floats(allow_nan=True),
-                       st.text(max_size=5), st.lists(st.integers(), max_size=3),
-                       st.booleans(), st.dictionaries(st.text(max_size=4), st.integers(),
-                                                      max_size=2))
-    return st.lists(st.tuples(keys, st.text(max_size=8), values, st.booleans()),
-                    min_size=1, max_size=3)
+_VALUES = st.recursive(
+    st.one_of(st.none(), st.booleans(), st.integers(-3, 3), st.floats(allow_nan=True),
+              st.text(max_size=5)),
+    lambda inner: st.one_of(st.lists(inner, max_size=3),
+                            st.dictionaries(st.text(max_size=4), inner, max_size=2)),
+    max_leaves=4)
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(_mutations())
+def _containers(node, path=()):
+    """Every (path, container) in the config tree, nested tables and lists included."""
+    out = [(path, node)]
+    items = node.items() if isinstance(node, dict) else enumerate(node)
+    for k, v in items:
+        if isinstance(v, (dict, list)):
+            out += _containers(v, path + (k,))
+    return out
+
+
+@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(st.tuples(st.integers(0, 10 ** 6), st.integers(0, 10 ** 6),
+                          st.text(max_size=6), _VALUES, st.booleans()),
+                min_size=1, max_size=3))
 def test_random_mutations_raise_only_input_errors(base, muts):
+    """Replace, add or delete a key or an item anywhere in the example file: the reader
+    either builds a model or raises InputError, never another exception."""
     cfg = copy.deepcopy(base)
-    for section, key, value, replace_existing in muts:
-        target = cfg.get(section)
-        if isinstance(target, list) and target:
-            target = target[0]
-        if isinstance(target, dict):
-            if replace_existing and target:
-                key = sorted(target)[len(key) % len(target)]
-            target[key] = value
-        else:
-            cfg[section] = value
+    for which, pick, newkey, value, delete in muts:
+        targets = _containers(cfg)
+        _, node = targets[which % len(targets)]
+        if isinstance(node, dict):
+            keys = sorted(node)
+            key = keys[pick % len(keys)] if keys and pick % 3 else newkey
+            if delete and key in node:
+                del node[key]
+            else:
+                node[key] = value
+        elif node:
+            i = pick % len(node)
+            if delete:
+                del node[i]
+            else:
+                node[i] = value
     try:
         parse_config(cfg, base=EXAMPLES)
     except InputError:
         pass                       # the expected outcome of a bad file
-    # a mutation can also leave a valid config: then nothing is raised
 
 
 def test_cli_runs_the_toml_example(tmp_path):

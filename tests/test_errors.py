@@ -7,6 +7,7 @@ import subprocess
 import sys
 import time
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -166,12 +167,15 @@ def test_cli_exit_1_names_the_level(starved_solver, tmp_path, capsys):
     assert data["success"] is False and len(data["levels"]["alpha"]) == k   # levels before
 
 
-def test_unwritable_output_folder_fails_before_computing(tmp_path, capsys):
+def test_unwritable_output_folder_fails_before_computing(tmp_path, capsys, monkeypatch):
+    import qsma.analysis
+    def must_not_run(*a, **k):
+        raise AssertionError("the analysis started although --out cannot be written")
+    monkeypatch.setattr(qsma.analysis, "run", must_not_run)
+    monkeypatch.setattr(qsma.examples.sandwich, "sandwich_2d", must_not_run)
     blocker = tmp_path / "file"
     blocker.write_text("x")
-    t = time.perf_counter()
     assert main(["run", "--example", "sandwich-2d", "--out", str(blocker / "sub")]) == 2
-    assert time.perf_counter() - t < 5.0 or True
     err = capsys.readouterr().err
     assert "cannot be written" in err and "--out" in err
 
@@ -203,13 +207,95 @@ def test_killed_run_leaves_no_partial_results(tmp_path):
 
 
 def test_sigterm_cleans_up(tmp_path):
+    """SIGTERM during the analysis: exit 130, no temporary file, no results.json."""
     out = tmp_path / "out"
     proc = subprocess.Popen([sys.executable, "-m", "qsma", "run", "--example", "sandwich-2d",
-                             "--out", str(out), "--quiet"], stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE)
-    time.sleep(2.0)
+                             "--refine", "2", "--direct-loop", "--out", str(out), "--quiet"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    t0 = time.time()
+    while not out.exists() and time.time() - t0 < 60:   # created once the handler is set
+        time.sleep(0.02)
+    time.sleep(0.3)                                     # inside the analysis (about 2 s)
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=60)
-    if proc.returncode != 0:                 # interrupted (not finished before the signal)
-        assert proc.returncode == 130 and b"interrupted" in err
-        assert not list(out.glob(".qsma-tmp-*"))
+    assert proc.returncode == 130 and b"interrupted" in err
+    assert not list(out.glob(".qsma-tmp-*")) and not (out / "results.json").exists()
+
+
+def test_pressure_of_another_load_pattern_is_rejected():
+    m = _replace_body(sandwich_2d(1), 0, pressures=(Pressure("bolt", 17.554e6, load="bolt"),))
+    with pytest.raises(InputError, match="load pattern 'bolt' is not used"):
+        qsma.run(m)
+
+
+def test_tip_probe_is_validated():
+    from qsma.model import Probe
+    m = sandwich_2d(1)
+    for probe, match in [(Probe((), (0.0, 1.0)), "at least one"),
+                         (Probe((("top", "tip"),), (0.0, 0.0)), "not all zero"),
+                         (Probe((("top", "tip"),), (0.0, 1.0, 0.0)), "2 finite numbers"),
+                         (Probe((("top", "nope"),), (0.0, 1.0)), "no node or facet set")]:
+        with pytest.raises(InputError, match=match):
+            dataclasses.replace(m, tip=probe)
+
+
+def test_interface_of_a_body_with_itself():
+    with pytest.raises(InputError, match="to itself"):
+        dataclasses.replace(sandwich_2d(1),
+                            interface=Interface("bottom", "interface", "bottom", "interface"))
+
+
+def test_mode_without_tip_motion():
+    # an axial mode of the 2-beam sandwich moves the tip along x, not y: probe along y only
+    m = sandwich_2d(1)
+    from qsma.model import Probe
+    sideways = dataclasses.replace(m, tip=Probe((("bottom", "tip"), ("top", "tip")),
+                                                (1.0, 0.0)))
+    with pytest.raises(InputError, match="no tip deflection"):
+        qsma.run(sideways, mode=0)        # first bending: no mean x motion of the tip
+
+
+def test_clamped_interface_node():
+    m = sandwich_2d(1)
+    node = int(m.bodies[1].mesh.nodes("interface")[3])
+    mesh = m.bodies[1].mesh.with_sets(node_sets={"pin": [node]})
+    bad = _replace_body(m, 1, mesh=mesh, clamps=(Clamp("clamp"), Clamp("pin")))
+    with pytest.raises(InputError, match=f"interface node.*{node}.*clamped"):
+        qsma.run(bad)
+
+
+def test_failed_preload_is_an_analysis_error():
+    with pytest.warns(ContactConvergenceWarning):
+        with pytest.raises(AnalysisError, match="preload contact solve failed"):
+            qsma.run(sandwich_2d(1), method="nodal_gs", maxiter=2)
+
+
+def test_mixed_cell_types_write_vtu(tmp_path):
+    """Bottom beam in triangles, top in quadrilaterals: analysis and every file."""
+    m = sandwich_2d(1)
+    q = m.bodies[0].mesh
+    tri = np.concatenate([q.cells[:, [0, 1, 2]], q.cells[:, [0, 2, 3]]])
+    tmesh = Mesh(q.points, tri, "triangle", q.node_sets, q.facet_sets)
+    mixed = _replace_body(m, 0, mesh=tmesh)
+    res = qsma.run(mixed, levels=Levels.log("tip", 1e-5, 1e-3, 4))
+    assert res.success
+    from qsma.results import write_all
+    import meshio
+    write_all(res, tmp_path / "mixed", plots=False)
+    vtu = meshio.read(tmp_path / "mixed" / "fields.vtu")
+    assert {c.type for c in vtu.cells} == {"triangle", "quad"}
+
+
+def test_continue_exits_zero_with_warning(starved_solver, tmp_path, capsys):
+    code = main(["run", "--example", "sandwich-2d", "--out", str(tmp_path), "--quiet",
+                 "--no-plots", "--no-vtu", "--continue", "--levels", "tip:log:1e-4:1e-3:3"])
+    assert code == 0
+    assert "warning" in capsys.readouterr().err
+    data = json.loads((tmp_path / "results.json").read_text())
+    assert data["success"] is False and len(data["levels"]["alpha"]) == 3
+
+
+def test_refine_with_config_is_rejected(tmp_path, capsys):
+    toml = Path(__file__).resolve().parents[1] / "examples" / "sandwich-2d.toml"
+    assert main(["run", str(toml), "--refine", "2", "--out", str(tmp_path)]) == 2
+    assert "--refine applies to --example" in capsys.readouterr().err

@@ -199,6 +199,11 @@ def _run(model, pairing, mode, levels, method, opts, direct_loop, n_modes,
         assembled = [assemble_body(b) for b in model.bodies]
         for a in assembled:
             for name, F in a.loads.items():
+                if name != "preload":
+                    raise InputError(f"body {a.body.name!r}: pressure load pattern {name!r} "
+                                     f"is not used by QSMA, which applies the 'preload' "
+                                     f"pattern and then the modal load; set load = "
+                                     f"'preload' (the default) or remove the pressure")
                 if not np.all(np.isfinite(F)):
                     raise InputError(f"load {name!r} of body {a.body.name!r} is not finite")
     with clock.stage("condensation"):
@@ -229,9 +234,13 @@ def _run(model, pairing, mode, levels, method, opts, direct_loop, n_modes,
         phi_tip = float(ltip @ phi)
         if phi_tip < 0:
             phi, phi_tip = -phi, -phi_tip
-        if abs(phi_tip) < 1e-12 * np.abs(phi).max():
-            raise InputError(f"mode {mode} has no tip deflection; choose a mode that moves "
-                             f"the tip (the load levels are scaled by it)")
+        probe_nodes = ltip != 0
+        rms = float(np.sqrt(np.mean(phi[probe_nodes] ** 2)))
+        if abs(phi_tip) < 1e-6 * rms or rms == 0:
+            raise InputError(f"mode {mode} ({modes.f_hz[mode]:.4g} Hz) has no tip deflection "
+                             f"along the probe direction (|phi_tip| = {abs(phi_tip):.2e}, "
+                             f"RMS of the mode at the tip nodes {rms:.2e}); choose a mode "
+                             f"that moves the tip: the load levels are scaled by it")
         omega0 = float(modes.omega[mode])
 
     with clock.stage("condensation"):

@@ -108,7 +108,7 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
         bodies=tuple(bodies),
         interface=Interface(itf["body1"], itf["set1"], itf["body2"], itf["set2"],
                             itf.get("tol")),
-        tip=Probe(tuple(tuple(s) for s in sets), tuple(float(x) for x in tip["direction"])),
+        tip=Probe(tuple(tuple(s) for s in sets), tuple(tip["direction"])),
         mu=itf["mu"], name=data.get("name", "model"))
     options = dict(_check(data.get("analysis", {}), "analysis", f"{where}: analysis"))
     options["levels"] = parse_levels(data.get("levels"), f"{where}: levels")
@@ -123,7 +123,10 @@ def parse_levels(table, where="levels") -> Levels:
     if spacing == "list":
         if "values" not in table:
             raise InputError(f"{where}: spacing 'list' needs key 'values'")
-        return Levels(kind, tuple(table["values"]))
+        values = table["values"]
+        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+            raise InputError(f"{where}: values must be a list of numbers, got {values!r}")
+        return Levels(kind, tuple(values))
     if spacing not in ("log", "linear"):
         raise InputError(f"{where}: spacing must be 'log', 'linear' or 'list', got {spacing!r}")
     for key in ("start", "stop", "n"):

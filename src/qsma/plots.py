@@ -11,15 +11,16 @@ from .masing import masing_loop
 from .results import TMP_PREFIX, replace_atomically
 
 
-def _figure(nrows=1, ncols=1, **kw):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt.subplots(nrows, ncols, **kw)
+def _figure(nrows=1, ncols=1, figsize=None, **kw):
+    """A figure on the Agg canvas, independent of pyplot and of the user's backend."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=figsize)
+    FigureCanvasAgg(fig)
+    return fig, fig.subplots(nrows, ncols, **kw)
 
 
 def _save(fig, path):
-    import matplotlib.pyplot as plt
     path = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f"{TMP_PREFIX}{path.stem}.", suffix=".png",
                                dir=path.parent)
@@ -28,7 +29,6 @@ def _save(fig, path):
         fig.savefig(tmp, dpi=120, bbox_inches="tight", format="png")
         replace_atomically(tmp, path)
     finally:
-        plt.close(fig)
         if os.path.exists(tmp):
             os.unlink(tmp)
     return path

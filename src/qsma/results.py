@@ -152,7 +152,6 @@ def write_vtu(res, path, levels=None):
         cells.append(b.mesh.cells + offsets[-1])
         offsets.append(offsets[-1] + len(p))
     pts = np.vstack(points)
-    ctype = model.bodies[0].mesh.cell_type
     point_data = {"body": np.concatenate([np.full(b.mesh.n_nodes, k, float)
                                           for k, b in enumerate(model.bodies)])}
     pre = _stack_fields(res, None)
@@ -164,7 +163,8 @@ def write_vtu(res, path, levels=None):
         point_data[f"von_mises_level{k:02d}"] = vm
         for name, v in _interface_point_data(res, k, offsets, len(pts)).items():
             point_data[f"{name}_level{k:02d}"] = v
-    mesh = meshio.Mesh(pts, [(ctype, np.vstack(cells))], point_data=point_data)
+    blocks = [(b.mesh.cell_type, c) for b, c in zip(model.bodies, cells)]  # one per body
+    mesh = meshio.Mesh(pts, blocks, point_data=point_data)
     path = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f"{TMP_PREFIX}{path.stem}.", suffix=".vtu",
                                dir=path.parent)
@@ -212,7 +212,7 @@ def _interface_point_data(res, k, offsets, n):
 
 def write_all(res, out, plots=True, vtu=True):
     """Write every result file of a run into folder ``out``; returns the paths."""
-    out = Path(out)
+    out = prepare_output_dir(out)
     paths = {"json": out / "results.json", "csv": out / "results.csv"}
     write_csv(res, paths["csv"])
     if vtu and res.n_levels:

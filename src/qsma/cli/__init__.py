@@ -67,6 +67,9 @@ def _main(argv):
     except QSMAError as exc:
         _report(args, exc, "error")
         return EXIT_FAILED
+    except Exception as exc:            # a bug of ours, not a user mistake
+        _report(args, exc, "internal error (please report it; --debug shows where)")
+        return EXIT_FAILED
     except KeyboardInterrupt:
         print("qsma: interrupted", file=sys.stderr)
         return 130
@@ -75,7 +78,8 @@ def _main(argv):
 def _report(args, exc, what):
     if getattr(args, "debug", False):
         traceback.print_exc()
-    print(f"qsma: {what}: {exc}", file=sys.stderr)
+    text = str(exc) or type(exc).__name__
+    print(f"qsma: {what}: {text}", file=sys.stderr)
 
 
 if __name__ == "__main__":

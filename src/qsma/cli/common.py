@@ -7,8 +7,8 @@ from ..errors import InputError
 def add_model_arguments(p):
     p.add_argument("config", nargs="?", help="TOML configuration file of the model and run")
     p.add_argument("--example", help="built-in benchmark model (e.g. sandwich-2d)")
-    p.add_argument("--refine", type=int, default=1,
-                   help="refinement level of the example mesh (default 1)")
+    p.add_argument("--refine", type=int,
+                   help="refinement level of the example mesh (default 1; --example only)")
     p.add_argument("--mu", type=float, help="friction coefficient (overrides the model)")
 
 
@@ -21,8 +21,12 @@ def load_model(args):
     if args.example is not None:
         if args.example not in EXAMPLES:
             raise InputError(f"unknown example {args.example!r}; valid: {sorted(EXAMPLES)}")
-        model = EXAMPLES[args.example](refine=args.refine, mu=args.mu)
+        refine = 1 if args.refine is None else args.refine
+        model = EXAMPLES[args.example](refine=refine, mu=args.mu)
         return model, {}
+    if args.refine is not None:
+        raise InputError("--refine applies to --example models only; refine the mesh files "
+                         "of a configuration instead")
     from ..config import load_config
     cfg = load_config(args.config)
     model = cfg.model

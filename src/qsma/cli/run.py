@@ -54,6 +54,11 @@ def execute(args) -> int:
     if not args.quiet:
         _summary(res, paths, args.verbose)
     if not res.success:
+        if options.get("continue_on_failure"):
+            print(f"qsma: warning: {res.message} (continued as asked: the levels whose "
+                  f"residual is above tol are flagged by 'residual' in {out})",
+                  file=sys.stderr)
+            return 0
         print(f"qsma: analysis failed: {res.message}; the {res.n_levels} levels solved "
               f"before it are in {out}", file=sys.stderr)
         return 1

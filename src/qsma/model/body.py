@@ -89,9 +89,11 @@ class Body:
                 raise InputError(f"body {self.name!r}: clamp on unknown set {c.set!r}; "
                                  f"available sets: {names}")
             comps = range(self.mesh.dim) if c.components is None else c.components
-            if any(int(k) not in range(self.mesh.dim) for k in comps):
-                raise InputError(f"body {self.name!r}: clamp components {c.components} "
-                                 f"outside 0..{self.mesh.dim - 1}")
+            if not all(isinstance(k, (int, np.integer)) and not isinstance(k, bool)
+                       and 0 <= k < self.mesh.dim for k in comps):
+                raise InputError(f"body {self.name!r}: clamp components must be integers "
+                                 f"in 0..{self.mesh.dim - 1} (0 = x, 1 = y, 2 = z), got "
+                                 f"{c.components!r}")
         for p in self.pressures:
             if p.set not in self.mesh.facet_sets:
                 raise InputError(f"body {self.name!r}: pressure on unknown facet set "
@@ -158,9 +160,23 @@ class Model:
             if b not in names:
                 raise InputError(f"interface names body {b!r}, which is not in the model "
                                  f"(bodies: {names})")
+        if self.interface.body1 == self.interface.body2:
+            raise InputError(f"the interface joins body {self.interface.body1!r} to itself; "
+                             f"body1 and body2 must be the two bodies in contact")
         if self.tip is not None:
-            for b, s in self.tip.sets:
-                self.body(b).mesh.nodes(s)
+            self._check_probe(self.tip)
+
+    def _check_probe(self, tip):
+        if len(tip.sets) == 0:
+            raise InputError("the tip probe needs at least one [body, set] pair")
+        for b, s in tip.sets:
+            self.body(b).mesh.nodes(s)
+        d = tip.direction
+        if (len(d) != self.dim or not all(isinstance(x, (int, float, np.integer, np.floating))
+                                          and not isinstance(x, bool) for x in d)
+                or not np.all(np.isfinite(d)) or np.linalg.norm(d) == 0):
+            raise InputError(f"tip direction must be {self.dim} finite numbers, not all "
+                             f"zero, got {list(d)!r}")
 
     @property
     def dim(self):
