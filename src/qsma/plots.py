@@ -115,7 +115,7 @@ def plot_interface_map(res, path, levels=None):
     p = res.pairing
     t1, t2 = p.frames[0, 0], p.frames[0, 1]
     u, v = p.x @ t1, p.x @ t2
-    fig, axes = _figure(3, len(levels), figsize=(4 * len(levels), 9), squeeze=False)
+    fig, axes = _figure(3, len(levels), figsize=(4.2 * len(levels), 6.5), squeeze=False)
     states = ListedColormap(["tab:blue", "tab:orange", "lightgray"])
     pmax = max(res.states.lam[k][:, -1].max() for k in levels) / p.area.max() / 1e6
     for j, k in enumerate(levels):
