@@ -105,3 +105,15 @@ def test_pressure_load_resultant_and_direction():
     body = Body("b", m, STEEL, pressures=(Pressure("top", 3.0e6),))
     f = assemble_body(body).loads["preload"].reshape(-1, 2)
     assert f.sum(axis=0) == pytest.approx([0.0, -3.0e6 * 2.0], abs=1e-6)
+
+
+def test_elasticity_form_equals_scikit_fem_model():
+    import skfem
+    from skfem.models.elasticity import linear_elasticity
+    from qsma.fe.assembly import _basis, _elasticity_form
+    mesh = _distorted_patch("quad")
+    _, basis = _basis(mesh)
+    lam, mu = STEEL.lame
+    K_ref = skfem.asm(linear_elasticity(lam, mu), basis)
+    K = skfem.asm(_elasticity_form(lam, mu), basis)
+    assert abs(K - K_ref).max() <= 1e-14 * abs(K_ref).max()
