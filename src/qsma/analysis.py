@@ -298,7 +298,9 @@ def _run(model, pairing, mode, levels, method, opts, direct_loop, n_modes,
         n_stuck=counts[:, 0], n_slip=counts[:, 1], n_open=counts[:, 2],
         states=states, preload=pre, modes=modes, reduced=reduced, pairing=pairing,
         model=model, solver=dict(method=method, tol=opts.get("tol", DEFAULT_TOL),
-                                 maxiter=opts.get("maxiter")),
+                                 maxiter=opts.get("maxiter"),
+                                 fallback_levels=ramp["fallback"],
+                                 open_pairs_eliminated=bool(eliminate_open)),
         timings_s=timings, direct_loop=loop,
         gross_slip_level=gross[0] if gross else None)
 
@@ -337,7 +339,7 @@ class _Solver:
 
 
 def _ramp(solver, alpha, pre, keep_going, progress):
-    out = {k: [] for k in ("d", "lam", "status", "residual", "nit", "states")}
+    out = {k: [] for k in ("d", "lam", "status", "residual", "nit", "states", "fallback")}
     state, success, message = pre.state, True, "all levels converged"
     for k, a in enumerate(alpha):
         res = solver(a, state, f"load level {k} (alpha={a:.4g})")
@@ -347,6 +349,8 @@ def _ramp(solver, alpha, pre, keep_going, progress):
                        f"{res.message}; residual {res.residual:.2e}")
             if not keep_going:
                 break
+        if "fell back to" in res.message:
+            out["fallback"].append(k)
         for name, v in (("d", res.d), ("lam", res.lam), ("status", res.status),
                         ("residual", res.residual), ("nit", res.nit), ("states", res.state)):
             out[name].append(v)
