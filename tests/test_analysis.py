@@ -39,7 +39,8 @@ def test_damping_dissipation_positive_frequency_non_increasing(result):
     assert np.all(r.zeta >= -tol) and np.all(r.dissipation >= -tol * r.dissipation.max())
     assert np.all(np.diff(r.f_hz) <= tol * r.f0_hz)
     assert np.all(r.n_stuck + r.n_slip + r.n_open == 65)
-    assert r.zeta[-1] > 100 * r.zeta[np.flatnonzero(r.n_slip > 0)[0]] / 100  # damping grows
+    first_slip = np.flatnonzero(r.n_slip > 0)[0]
+    assert r.zeta[-1] > 10 * r.zeta[first_slip]       # damping grows (recorded: 381x)
     assert r.f_hz[-1] < 0.95 * r.f0_hz                                   # softening
 
 
@@ -69,8 +70,8 @@ def test_every_level_satisfies_the_public_residual(result):
     for k in range(r.n_levels):
         lam_w = r.reduced.welded_contact_force(a(r.alpha[k]))
         res_k = residual(problem, lam_w, r.states.d[k], r.states.lam[k], prev)
-        assert res_k <= r.solver.get("tol", 1e-8) * 10
-        prev = r.states.contact_states[k]
+        assert res_k <= r.solver["tol"]          # the full-problem residual, as accepted
+        prev = r.states.state(k)
 
 
 def test_full_field_satisfies_full_equilibrium(result):

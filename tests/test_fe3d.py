@@ -6,6 +6,7 @@ import scipy.sparse.linalg as spla
 from qsma.fe import assemble_body, stress_at_nodes
 from qsma.model import Body, Clamp, Material, Mesh, boundary_facets
 from qsma.model.generate import structured_mesh
+from test_fe import check_patch
 
 STEEL = Material(200e9, 0.285, 7800.0)
 # Kuhn split along the 0-6 diagonal: conforming between neighbouring hexahedra
@@ -29,22 +30,9 @@ def _distorted(cell_type):
 
 @pytest.mark.parametrize("cell_type", ["hexahedron", "tetra"])
 def test_patch_3d(cell_type):
-    mesh = _distorted(cell_type)
-    a = assemble_body(Body("patch", mesh, STEEL))
-    assert a.M.sum() / 3 == pytest.approx(STEEL.rho, rel=1e-12)     # unit cube mass
     A = np.array([[1e-3, 2e-4, 0.0], [-5e-4, 3e-4, 1e-4], [2e-4, 0.0, -1e-4]])
-    u = (mesh.points @ A.T).ravel()
-    bnd = np.unique(boundary_facets(mesh))
-    B = (3 * bnd[:, None] + np.arange(3)).ravel()
-    I = np.setdiff1d(np.arange(a.n_dofs), B)
-    K = a.K.tocsr()
-    uI = spla.spsolve(K[I][:, I].tocsc(), -K[I][:, B] @ u[B])
-    assert np.abs(uI - u[I]).max() < 1e-12 * np.abs(u).max()
-    sig, _ = stress_at_nodes(a.body, u)
-    lam, mu = STEEL.lame
-    eps = 0.5 * (A + A.T)
-    exact = 2 * mu * eps + lam * np.trace(eps) * np.eye(3)
-    assert np.abs(sig - exact).max() < 1e-9 * np.abs(exact).max()
+    a = check_patch(_distorted(cell_type), A)
+    assert a.M.sum() / 3 == pytest.approx(STEEL.rho, rel=1e-12)     # unit cube mass
 
 
 def test_cantilever_3d_converges_to_beam_theory():

@@ -45,9 +45,8 @@ def test_spec_checks(run3d):
 def test_every_level_satisfies_the_residual(run3d):
     r, _ = run3d
     problem = ContactProblem(r.reduced.K, r.model_info["mu"], dim=3)
-    prev = r.preload.state
     for k in range(0, r.n_levels, 5):
-        prev = r.states.contact_states[k - 1] if k else r.preload.state
+        prev = r.states.state(k - 1) if k else r.preload.state
         lam_w = r.reduced.welded_contact_force([1.0, r.alpha[k]])
         assert residual(problem, lam_w, r.states.d[k], r.states.lam[k], prev) <= 1e-8
 

@@ -7,7 +7,8 @@ The pipeline (``shared/spec/method.md`` section 1)::
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from contextlib import contextmanager
+from dataclasses import dataclass
 import time
 import warnings
 
@@ -16,7 +17,7 @@ import numpy as np
 from . import __version__
 from ._threads import blas_threads as threads_limited, threads_for
 from .condense import reduce_two_bodies
-from .contact import DEFAULT_TOL, ContactProblem, METHODS, solve as contact_solve
+from .contact import DEFAULT_TOL, ContactProblem, ContactState, METHODS, solve as contact_solve
 from .contact.zone import solve_in_zone, zone_from_state
 from .errors import AnalysisError, ContactConvergenceWarning, InputError
 from .fe import assemble_body
@@ -37,7 +38,10 @@ class LevelStates:
     status: np.ndarray
     residual: np.ndarray
     iterations: np.ndarray
-    contact_states: tuple = ()
+
+    def state(self, k) -> ContactState:
+        """The contact state of level ``k`` (the history the next level starts from)."""
+        return ContactState(self.d[k], self.lam[k], self.status[k])
 
 
 @dataclass(frozen=True, eq=False)
@@ -95,6 +99,10 @@ class QSMAResult:
     def n_levels(self):
         return len(self.alpha)
 
+    @property
+    def iterations(self):
+        return self.states.iterations
+
     def fields(self, k):
         """Full displacement vectors per body at level ``k`` (``k=None``: the preload),
         measured from the undeformed configuration."""
@@ -127,20 +135,19 @@ def _counts(status):
 
 
 class _Timer:
+    """Seconds per stage of :data:`STAGES`; a stage may be entered several times."""
+
     def __init__(self):
         self.t = dict.fromkeys(STAGES, 0.0)
         self.t0 = time.perf_counter()
 
+    @contextmanager
     def stage(self, name):
-        timer = self
-
-        class _Ctx:
-            def __enter__(self):
-                self.s = time.perf_counter()
-
-            def __exit__(self, *exc):
-                timer.t[name] += time.perf_counter() - self.s
-        return _Ctx()
+        start = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.t[name] += time.perf_counter() - start
 
     def done(self):
         self.t["total"] = time.perf_counter() - self.t0
@@ -190,6 +197,34 @@ def run(model, *, mode=0, levels: Levels | None = None, method="basket", tol=Non
                     continue_on_failure, progress, schur_backend, clock, eliminate_open)
 
 
+def preload(model, assembled, pairing, *, method="basket", opts=None, schur_backend="auto",
+            clock=None):
+    """Condense the assembled bodies and solve the bolt preload with frictional contact.
+
+    Returns ``(reduced, problem, result)``. Raises :class:`AnalysisError` if the solve
+    fails or leaves no pair in contact (tied modes of a disconnected assembly would be
+    meaningless).
+    """
+    clock = _Timer() if clock is None else clock
+    i1 = model.body_index(model.interface.body1)
+    i2 = model.body_index(model.interface.body2)
+    with clock.stage("condensation"):
+        reduced = reduce_two_bodies(assembled[i1], assembled[i2], pairing,
+                                    backend=schur_backend)
+        problem = ContactProblem(reduced.K, model.mu, dim=model.dim)
+    with clock.stage("contact"):
+        pre, _ = _solve(problem, reduced, 0.0, None, method, opts or {}, "preload")
+    if not pre.success:
+        raise AnalysisError(f"the preload contact solve failed: {pre.message} "
+                            f"(residual {pre.residual:.2e})", partial=pre)
+    if np.all(pre.status == 2):
+        raise AnalysisError("the preload leaves no interface pair in contact: the bodies "
+                            "separate, and tied modes of a disconnected assembly would be "
+                            "meaningless. Check the sign and location of the bolt pressure.",
+                            partial=pre)
+    return reduced, problem, pre
+
+
 def _run(model, pairing, mode, levels, method, opts, direct_loop, n_modes,
          continue_on_failure, progress, schur_backend, clock, eliminate_open):
 
@@ -206,22 +241,9 @@ def _run(model, pairing, mode, levels, method, opts, direct_loop, n_modes,
                                      f"'preload' (the default) or remove the pressure")
                 if not np.all(np.isfinite(F)):
                     raise InputError(f"load {name!r} of body {a.body.name!r} is not finite")
-    with clock.stage("condensation"):
-        reduced = reduce_two_bodies(assembled[i1], assembled[i2], pairing,
-                                    backend=schur_backend)
-        problem = ContactProblem(reduced.K, model.mu, dim=model.dim)
-
-    with clock.stage("contact"):
-        pre, _ = _solve(problem, reduced, 0.0, None, method, opts, "preload")
-    if not pre.success:
-        raise AnalysisError(f"the preload contact solve failed: {pre.message} "
-                            f"(residual {pre.residual:.2e})", partial=pre)
+    reduced, problem, pre = preload(model, assembled, pairing, method=method, opts=opts,
+                                    schur_backend=schur_backend, clock=clock)
     closed = pre.status != 2
-    if not closed.any():
-        raise AnalysisError("the preload leaves no interface pair in contact: the bodies "
-                            "separate, and tied modes of a disconnected assembly would be "
-                            "meaningless. Check the sign and location of the bolt pressure.",
-                            partial=pre)
 
     with clock.stage("modal"):
         nm = max(6, mode + 1) if n_modes is None else n_modes
@@ -267,24 +289,24 @@ def _run(model, pairing, mode, levels, method, opts, direct_loop, n_modes,
                       for d, a in zip(ramp["d"], al)]) - q0
         tip = np.array([reduced.evaluate("tip", d, _load_factors(reduced, a))
                         for d, a in zip(ramp["d"], al)]) - t0
-        ms = masing(al, q) if n_ok else None
+        ms = masing(al, q)
         status = np.array(ramp["status"], dtype=int).reshape(n_ok, pairing.n_pairs)
         counts = np.array([_counts(s) for s in status]).reshape(n_ok, 3)
         gross = [k for k in range(n_ok) if counts[k, 0] == 0 and counts[k, 1] > 0]
 
+        shape = (n_ok, pairing.n_pairs, model.dim)
+        states = LevelStates(np.array(ramp["d"]).reshape(shape),
+                             np.array(ramp["lam"]).reshape(shape), status,
+                             np.array(ramp["residual"], dtype=float),
+                             np.array(ramp["nit"], dtype=int))
+
     loop = None
     if direct_loop and n_ok:
         with clock.stage("contact"):
-            loop = _direct_loop(solver, al, ramp["states"][-1], q0, t0,
+            loop = _direct_loop(solver, al, states.state(n_ok - 1), q0, t0,
                                 float(ms.dissipation[-1]))
 
     timings = clock.done()
-    empty = np.zeros(0)
-    shape = (n_ok, pairing.n_pairs, model.dim)
-    states = LevelStates(np.array(ramp["d"]).reshape(shape), np.array(ramp["lam"]).reshape(shape),
-                         status, np.array(ramp["residual"], dtype=float),
-                         np.array(ramp["nit"], dtype=int),
-                         contact_states=tuple(ramp["states"]))
     return QSMAResult(
         success=ramp["success"], message=ramp["message"],
         model_info=dict(name=model.name, n_nodes=model.n_nodes, n_dofs=model.n_dofs,
@@ -292,9 +314,8 @@ def _run(model, pairing, mode, levels, method, opts, direct_loop, n_modes,
                         n_closed_after_preload=int(closed.sum())),
         mode_index=mode, omega0=omega0, phi_tip=phi_tip,
         alpha=al, tip_lin=al * phi_tip / omega0 ** 2, q=q, tip=tip,
-        f_hz=ms.f_hz if n_ok else empty, zeta=ms.zeta if n_ok else empty,
-        dissipation=ms.dissipation if n_ok else empty,
-        tip_velocity=(ms.omega * np.abs(tip)) if n_ok else empty,
+        f_hz=ms.f_hz, zeta=ms.zeta, dissipation=ms.dissipation,
+        tip_velocity=ms.omega * np.abs(tip),
         n_stuck=counts[:, 0], n_slip=counts[:, 1], n_open=counts[:, 2],
         states=states, preload=pre, modes=modes, reduced=reduced, pairing=pairing,
         model=model, solver=dict(method=method, tol=opts.get("tol", DEFAULT_TOL),
@@ -303,10 +324,6 @@ def _run(model, pairing, mode, levels, method, opts, direct_loop, n_modes,
                                  open_pairs_eliminated=bool(eliminate_open)),
         timings_s=timings, direct_loop=loop,
         gross_slip_level=gross[0] if gross else None)
-
-
-# keep the iteration counts reachable under the levels-table name
-QSMAResult.iterations = property(lambda self: self.states.iterations)
 
 
 def _solve(problem, reduced, alpha, state, method, opts, where, zone=None):
@@ -339,7 +356,7 @@ class _Solver:
 
 
 def _ramp(solver, alpha, pre, keep_going, progress):
-    out = {k: [] for k in ("d", "lam", "status", "residual", "nit", "states", "fallback")}
+    out = {k: [] for k in ("d", "lam", "status", "residual", "nit", "fallback")}
     state, success, message = pre.state, True, "all levels converged"
     for k, a in enumerate(alpha):
         res = solver(a, state, f"load level {k} (alpha={a:.4g})")
@@ -352,7 +369,7 @@ def _ramp(solver, alpha, pre, keep_going, progress):
         if "fell back to" in res.message:
             out["fallback"].append(k)
         for name, v in (("d", res.d), ("lam", res.lam), ("status", res.status),
-                        ("residual", res.residual), ("nit", res.nit), ("states", res.state)):
+                        ("residual", res.residual), ("nit", res.nit)):
             out[name].append(v)
         state = res.state
         if progress is not None:

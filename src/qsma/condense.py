@@ -22,6 +22,7 @@ import time
 
 import numpy as np
 import scipy.linalg as sla
+import scipy.sparse as sp
 
 from .errors import InputError
 from .linalg import schur_complement
@@ -34,7 +35,7 @@ class CondensedBody:
     Attributes
     ----------
     C, E : positions of interface / other DOFs in the body's DOF numbering
-    R : (nC_global -> local) rotation, ``u_local = R.T @ u_C``
+    R : sparse block-diagonal rotation, ``u_C = R @ u_local``, ``u_local = R.T @ u_C``
     Kc : condensed stiffness in local frames
     solve_EE : factorised ``K_EE^-1`` (callable on vectors or matrices)
     K_EC : sparse coupling block
@@ -48,7 +49,6 @@ class CondensedBody:
     Kc: np.ndarray
     solve_EE: object
     K_EC: object
-    K_CC: object
     timings: dict = None
 
     def condensed_load(self, F: np.ndarray) -> np.ndarray:
@@ -74,14 +74,10 @@ class CondensedBody:
         return h, e
 
 
-def pair_rotation(frames: np.ndarray) -> np.ndarray:
-    """Block-diagonal ``R`` (global pair-major -> local) with ``u_C = R u_local``:
-    column block i holds the local axes of pair i."""
-    n, dim, _ = frames.shape
-    R = np.zeros((n * dim, n * dim))
-    for i in range(n):
-        R[i * dim:(i + 1) * dim, i * dim:(i + 1) * dim] = frames[i].T
-    return R
+def pair_rotation(frames: np.ndarray) -> sp.csr_matrix:
+    """Sparse block-diagonal ``R`` with ``u_C = R u_local`` (pair-major): block i is
+    ``frames[i].T``, its columns the local axes of pair i."""
+    return sp.block_diag(np.swapaxes(frames, 1, 2), format="csr")
 
 
 def rigid_body_modes(points: np.ndarray) -> np.ndarray:
@@ -142,12 +138,11 @@ def condense_body(assembled, nodes, frames, backend="auto") -> CondensedBody:
     t0 = time.perf_counter()
     E = free[solve.E]
     K_EC = K[E][:, C].tocsc()
-    K_CC = K[C][:, C].toarray()
     R = pair_rotation(frames)
-    Kc = R.T @ Kc_glob @ R
+    Kc = np.asarray(R.T @ (R.T @ Kc_glob).T)          # R^T Kc R, Kc_glob symmetric
     Kc = 0.5 * (Kc + Kc.T)
     timings = dict(solve.timings, rotation=time.perf_counter() - t0, backend=solve.backend)
-    return CondensedBody(body.name, body.n_dofs, C, E, R, Kc, solve, K_EC, K_CC, timings)
+    return CondensedBody(body.name, body.n_dofs, C, E, R, Kc, solve, K_EC, timings)
 
 
 @dataclass(frozen=True, eq=False)

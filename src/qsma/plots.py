@@ -1,14 +1,12 @@
 """Figures of a QSMA run (matplotlib, Agg backend; imported only when plotting)."""
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from .masing import masing_loop
-from .results import TMP_PREFIX, replace_atomically
+from .results import atomic_path
 
 
 def _figure(nrows=1, ncols=1, figsize=None, **kw):
@@ -21,17 +19,9 @@ def _figure(nrows=1, ncols=1, figsize=None, **kw):
 
 
 def _save(fig, path):
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f"{TMP_PREFIX}{path.stem}.", suffix=".png",
-                               dir=path.parent)
-    os.close(fd)
-    try:
+    with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=120, bbox_inches="tight", format="png")
-        replace_atomically(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return path
+    return Path(path)
 
 
 def plot_backbone(res, path):

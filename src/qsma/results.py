@@ -6,6 +6,7 @@ import io
 import json
 import os
 import tempfile
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -31,21 +32,29 @@ def replace_atomically(tmp, path):
     os.replace(tmp, path)
 
 
-def atomic_write(path, data, mode="w"):
-    """Write ``data`` (str or bytes) to ``path`` through a temporary file in the same
-    folder and ``os.replace``: readers see either the old file or the complete new one."""
+@contextmanager
+def atomic_path(path):
+    """A temporary path beside ``path`` (same suffix, hidden prefix) to write to; on
+    success it is renamed to ``path``, on any failure or interruption it is removed.
+    Readers see either the old file or the complete new one."""
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f"{TMP_PREFIX}{path.name}.", dir=path.parent)
+    fd, tmp = tempfile.mkstemp(prefix=f"{TMP_PREFIX}{path.stem}.", suffix=path.suffix,
+                               dir=path.parent)
+    os.close(fd)
     try:
-        with os.fdopen(fd, mode) as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
+        yield tmp
         replace_atomically(tmp, path)
-    except BaseException:
+    finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
-        raise
+
+
+def atomic_write(path, data, mode="w"):
+    """Write ``data`` (str or bytes) to ``path`` atomically (:func:`atomic_path`)."""
+    with atomic_path(path) as tmp, open(tmp, mode) as f:
+        f.write(data)
+        f.flush()
+        os.fsync(f.fileno())
 
 
 def prepare_output_dir(out) -> Path:
@@ -165,17 +174,8 @@ def write_vtu(res, path, levels=None):
             point_data[f"{name}_level{k:02d}"] = v
     blocks = [(b.mesh.cell_type, c) for b, c in zip(model.bodies, cells)]  # one per body
     mesh = meshio.Mesh(pts, blocks, point_data=point_data)
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f"{TMP_PREFIX}{path.stem}.", suffix=".vtu",
-                               dir=path.parent)
-    os.close(fd)
-    try:
-        meshio.write(tmp, mesh, binary=True)
-        replace_atomically(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    with atomic_path(path) as tmp:
+        meshio.write(tmp, mesh, file_format="vtu", binary=True)
 
 
 def _stack_fields(res, k):

@@ -5,6 +5,7 @@ import pytest
 
 from qsma.contact import ContactProblem, ContactState, solve
 from qsma.contact.zone import ContactZone, solve_in_zone, zone_from_state
+from qsma.errors import ContactConvergenceWarning
 
 
 def _problem(n=24, seed=3):
@@ -43,3 +44,18 @@ def test_zone_without_open_pairs_is_the_problem():
     p = _problem(6)
     z = ContactZone.build(p, np.ones(6, bool))
     assert z.sub is p and z.n_eliminated == 0
+
+
+def test_zone_that_cannot_settle_is_a_failure():
+    """With no rebuild allowed, a closing eliminated pair must not pass as an answer."""
+    p = _problem()
+    n = p.n_pairs
+    lam_w = np.zeros((n, 2))
+    lam_w[:, 1] = np.where(np.arange(n) < n // 2, 1.0, -1.0)
+    pre = solve(p, lam_w)
+    zone = zone_from_state(p, pre.state)
+    lw = lam_w.copy()
+    lw[:, 1] += 2.0                                   # closes the lifted pairs
+    with pytest.warns(ContactConvergenceWarning):
+        res, _ = solve_in_zone(zone, lw, pre.state, max_growth=1)
+    assert not res.success and "not settled" in res.message and res.residual > 1e-10

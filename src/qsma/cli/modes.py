@@ -45,13 +45,6 @@ def execute(args) -> int:
 
 
 def _closed_after_preload(model, assembled, pairing):
-    from ..condense import reduce_two_bodies
-    from ..contact import ContactProblem, solve
-    from ..errors import AnalysisError
-    i1 = model.body_index(model.interface.body1)
-    i2 = model.body_index(model.interface.body2)
-    rm = reduce_two_bodies(assembled[i1], assembled[i2], pairing)
-    res = solve(ContactProblem(rm.K, model.mu, dim=model.dim), rm.welded_contact_force([1.0]))
-    if not res.success:
-        raise AnalysisError(f"preload contact solve failed: {res.message}")
-    return res.status != 2
+    from ..analysis import preload
+    _, _, pre = preload(model, assembled, pairing)
+    return pre.status != 2

@@ -100,18 +100,20 @@ def solve_in_zone(zone: ContactZone, lam_w, state: ContactState, *, method="bask
     full = zone.full
     lam_w = np.asarray(lam_w, dtype=float)
     nit = 0
-    for _ in range(max_growth):
+    for attempt in range(max_growth):
         sub = solve(zone.sub, zone.welded(lam_w), zone.restrict(state), method=method,
                     tol=tol, maxiter=maxiter)
         nit += sub.nit
         d = zone.expand(sub.d, lam_w)
         closing = (~zone.keep) & (d[:, -1] + full.gap0 < 0)
-        if not closing.any():
+        if not closing.any() or attempt == max_growth - 1:
             break
         zone = ContactZone.build(full, zone.keep | closing)
     lam = np.zeros_like(d)
     lam[zone.keep] = sub.lam
     msg = sub.message + (f" (zone of {int(zone.keep.sum())} pairs, "
                          f"{zone.n_eliminated} open pairs eliminated)")
-    out = Iterate(d, lam, nit, bool(sub.success), msg)
+    if closing.any():         # max_growth rebuilds and still an eliminated pair closing
+        msg += f"; {int(closing.sum())} eliminated pair(s) still closing, zone not settled"
+    out = Iterate(d, lam, nit, bool(sub.success and not closing.any()), msg)
     return _result(full, lam_w, state, out, method, tol), zone

@@ -7,6 +7,7 @@ Plane strain with unit out-of-plane depth in 2D.
 from __future__ import annotations
 
 from dataclasses import dataclass
+import functools
 
 import numpy as np
 import scipy.sparse as sp
@@ -39,7 +40,10 @@ def skfem_mesh(mesh: Mesh):
         raise InputError(f"invalid {mesh.cell_type} mesh: {exc}") from exc
 
 
+@functools.lru_cache(maxsize=4)
 def _basis(mesh: Mesh):
+    """scikit-fem mesh and vector basis of ``mesh`` (cached: assembly and the stress
+    recovery of every result level share them; meshes are immutable)."""
     _, elem, intorder = _SKFEM[mesh.cell_type]
     m = skfem_mesh(mesh)
     basis = skfem.Basis(m, skfem.ElementVector(elem()), intorder=intorder)
@@ -80,7 +84,6 @@ class AssembledBody:
     loads: dict
     fixed: np.ndarray
     free: np.ndarray
-    basis: object
 
     @property
     def n_dofs(self):
@@ -96,7 +99,7 @@ def assemble_body(body: Body) -> AssembledBody:
     loads = {name: body_load(body, name, mesh=m) for name in body.load_names()}
     fixed = body.clamped_dofs()
     free = np.setdiff1d(np.arange(body.n_dofs), fixed)
-    return AssembledBody(body, K, M, loads, fixed, free, basis)
+    return AssembledBody(body, K, M, loads, fixed, free)
 
 
 def _facet_indices(m, facets: np.ndarray, what: str) -> np.ndarray:

@@ -146,16 +146,14 @@ def make_pairing(model) -> Pairing:
     nodes1, nodes2 = pair_nodes(b1.mesh, itf.set1, b2.mesh, itf.set2, itf.tol,
                                 names=(b1.name, b2.name))
     _check_boundary(b1.mesh, facets1, b1.name, itf.set1)
-    weighted = facet_normals(b1.mesh, facets1)
+    weighted = facet_normals(b1.mesh, facets1)          # outward normal x facet area
     nvf = facets1.shape[1]
-    acc = np.zeros((b1.mesh.n_nodes, b1.dim))
-    np.add.at(acc, facets1.ravel(), np.repeat(weighted / nvf, nvf, axis=0))
-    area = np.linalg.norm(acc[nodes1], axis=1)
-    area_true = np.zeros(b1.mesh.n_nodes)
-    np.add.at(area_true, facets1.ravel(),
-              np.repeat(np.linalg.norm(weighted, axis=1) / nvf, nvf))
-    frames = local_frames(acc[nodes1])
-    return Pairing(nodes1, nodes2, b1.mesh.points[nodes1].copy(), frames, area_true[nodes1])
+    normal_sum = np.zeros((b1.mesh.n_nodes, b1.dim))
+    np.add.at(normal_sum, facets1.ravel(), np.repeat(weighted / nvf, nvf, axis=0))
+    area = np.zeros(b1.mesh.n_nodes)
+    np.add.at(area, facets1.ravel(), np.repeat(np.linalg.norm(weighted, axis=1) / nvf, nvf))
+    frames = local_frames(normal_sum[nodes1])
+    return Pairing(nodes1, nodes2, b1.mesh.points[nodes1].copy(), frames, area[nodes1])
 
 
 def _check_boundary(mesh, facets, body, name):
