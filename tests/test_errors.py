@@ -299,3 +299,29 @@ def test_refine_with_config_is_rejected(tmp_path, capsys):
     toml = Path(__file__).resolve().parents[1] / "examples" / "sandwich-2d.toml"
     assert main(["run", str(toml), "--refine", "2", "--out", str(tmp_path)]) == 2
     assert "--refine applies to --example" in capsys.readouterr().err
+
+
+def test_direct_loop_failure_is_not_an_answer(monkeypatch, tmp_path, capsys):
+    """A contact failure inside the direct loop stops it: no area is reported, the
+    backbone is kept, results.json says why, the CLI exits 1."""
+    import qsma.analysis as analysis
+    real = analysis._Solver.__call__
+
+    def failing_in_loop(self, alpha, state, where):
+        if where.startswith("direct loop") and alpha < 0:     # starve the reloading half
+            return analysis._solve(self.problem, self.reduced, alpha, state, "nodal_gs",
+                                   {"maxiter": 1}, where, None)[0]
+        return real(self, alpha, state, where)
+    monkeypatch.setattr(analysis._Solver, "__call__", failing_in_loop)
+    levels = Levels.log("tip", 1e-5, 1e-3, 6)
+    with pytest.warns(ContactConvergenceWarning, match="direct loop"):
+        res = qsma.run(sandwich_2d(1), levels=levels, direct_loop=True)
+    dl = res.direct_loop
+    assert res.success and res.n_levels == 6
+    assert not dl.success and dl.dissipation is None and "stopped at alpha" in dl.message
+    assert np.all(dl.alpha >= 0) and len(dl.q) == len(dl.alpha)
+    code = main(["run", "--example", "sandwich-2d", "--out", str(tmp_path), "--quiet",
+                 "--no-vtu", "--direct-loop", "--levels", "tip:log:1e-5:1e-3:6"])
+    assert code == 1 and "direct loop stopped" in capsys.readouterr().err
+    data = json.loads((tmp_path / "results.json").read_text())
+    assert data["direct_loop"]["dissipation"] is None and not data["direct_loop"]["success"]

@@ -52,9 +52,10 @@ class DirectLoop:
     alpha: np.ndarray
     q: np.ndarray
     tip: np.ndarray
-    dissipation: float
+    dissipation: float | None      # None when the loop could not be closed
     dissipation_masing: float
     success: bool
+    message: str = ""
 
 
 @dataclass(frozen=True, eq=False)
@@ -380,18 +381,23 @@ def _ramp(solver, alpha, pre, keep_going, progress):
 
 def _direct_loop(solver, alpha, top_state, q0, t0, d_masing):
     """Unload from +alpha_max to -alpha_max, reload to +alpha_max; the steps mirror the
-    Masing construction (unloading by twice each backbone level)."""
+    Masing construction (unloading by twice each backbone level). Stops at the first
+    step whose contact solve fails: the points before it are kept, no area is given."""
     amax = alpha[-1]
     steps = np.concatenate([[0.0], 2 * alpha])
     path = np.concatenate([amax - steps, -amax + steps[1:]])
-    state, qs, ts, ok = top_state, [], [], True
+    reduced = solver.reduced
+    state, qs, ts = top_state, [], []
     for a in path:
         res = solver(a, state, f"direct loop (alpha={a:.4g})")
-        ok &= bool(res.success)
+        if not res.success:
+            n = len(qs)
+            return DirectLoop(path[:n], np.array(qs), np.array(ts), None, d_masing, False,
+                              f"direct loop stopped at alpha={a:.6g} (step {n} of "
+                              f"{len(path)}): {res.message}; residual {res.residual:.2e}")
         state = res.state
-        reduced = solver.reduced
         af = _load_factors(reduced, a)
         qs.append(reduced.evaluate("q", res.d, af) - q0)
         ts.append(reduced.evaluate("tip", res.d, af) - t0)
     qs, ts = np.array(qs), np.array(ts)
-    return DirectLoop(path, qs, ts, loop_area(qs, path), d_masing, ok)
+    return DirectLoop(path, qs, ts, loop_area(qs, path), d_masing, True, "loop closed")

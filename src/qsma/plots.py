@@ -44,9 +44,10 @@ def plot_loops(res, path):
         ax.plot(q, f, lw=1.2, label=f"Masing, level {k}")
     if res.direct_loop is not None:
         dl = res.direct_loop
-        ax.plot(dl.q, dl.alpha, "k.", ms=3,
-                label=f"direct loop (D = {dl.dissipation:.3g} vs Masing "
-                      f"{dl.dissipation_masing:.3g})")
+        label = (f"direct loop (D = {dl.dissipation:.3g} vs Masing "
+                 f"{dl.dissipation_masing:.3g})" if dl.success
+                 else "direct loop (not closed: a contact solve failed)")
+        ax.plot(dl.q, dl.alpha, "k.", ms=3, label=label)
     ax.set_xlabel("modal amplitude q")
     ax.set_ylabel(r"modal force $\alpha$")
     ax.set_title("Hysteresis loops")

@@ -119,7 +119,7 @@ def results_dict(res) -> dict:
         out["direct_loop"] = {"alpha": dl.alpha, "q": dl.q, "tip": dl.tip,
                               "dissipation": dl.dissipation,
                               "dissipation_masing": dl.dissipation_masing,
-                              "success": dl.success}
+                              "success": dl.success, "message": dl.message}
     return _clean(out)
 
 

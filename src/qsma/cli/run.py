@@ -53,6 +53,13 @@ def execute(args) -> int:
     paths = write_all(res, out, plots=not args.no_plots, vtu=not args.no_vtu)
     if not args.quiet:
         _summary(res, paths, args.verbose)
+    dl = res.direct_loop
+    if dl is not None and not dl.success:
+        if not options.get("continue_on_failure"):
+            print(f"qsma: analysis failed: {dl.message}; the backbone is complete in {out}",
+                  file=sys.stderr)
+            return 1
+        print(f"qsma: warning: {dl.message}", file=sys.stderr)
     if not res.success:
         if options.get("continue_on_failure"):
             print(f"qsma: warning: {res.message} (continued as asked: the levels whose "
@@ -106,8 +113,8 @@ def _summary(res, paths, verbose):
     if res.n_levels:
         print(f"last level: f = {res.f_hz[-1]:.3f} Hz, zeta = {res.zeta[-1]:.4e}, "
               f"tip = {res.tip[-1]:.3e} m")
-    if res.direct_loop is not None:
-        dl = res.direct_loop
+    dl = res.direct_loop
+    if dl is not None and dl.success:
         print(f"direct loop dissipation {dl.dissipation:.4e} vs Masing "
               f"{dl.dissipation_masing:.4e}")
     t = res.timings_s
