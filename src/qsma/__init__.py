@@ -2,16 +2,33 @@
 solved on a model statically condensed to the contact interface.
 
 Pipeline: :mod:`qsma.model` -> :mod:`qsma.fe` -> :mod:`qsma.condense` ->
-:mod:`qsma.contact` -> :mod:`qsma.analysis` -> :mod:`qsma.results`.
+:mod:`qsma.contact` -> :mod:`qsma.analysis` (ramps) -> :mod:`qsma.hysteresis` ->
+:mod:`qsma.results`.
 """
+from .version import __version__
+from .levels import Levels
+from .options import RunOptions
 
-__version__ = "0.1.0"
 
-
-def run(model, **options):
+def run(model, options=None, **overrides):
     """Quasi-static modal analysis of ``model``; see :func:`qsma.analysis.run`."""
     from .analysis import run as _run
-    return _run(model, **options)
+    return _run(model, options, **overrides)
 
 
-__all__ = ["run", "__version__"]
+def __getattr__(name):
+    """Lazy access to the heavier public names (they import scikit-fem, meshio)."""
+    if name == "QSMAResult":
+        from .analysis import QSMAResult
+        return QSMAResult
+    if name in ("Model", "read_mesh"):
+        from . import model
+        return getattr(model, name)
+    if name == "write_all":
+        from .results import write_all
+        return write_all
+    raise AttributeError(f"module 'qsma' has no attribute {name!r}")
+
+
+__all__ = ["run", "RunOptions", "Levels", "QSMAResult", "Model", "read_mesh", "write_all",
+           "__version__"]

@@ -1,32 +1,50 @@
-"""Quasi-static modal analysis: preload, tied modes, modal load ramp, Masing.
+"""Quasi-static modal analysis: preload, tied modes, modal load ramps, hysteresis.
 
-The pipeline (``shared/spec/method.md`` section 1)::
+The pipeline as the code runs it (docs/theory.md)::
 
     model -> assembly -> condensation -> preload contact -> tied modes
-          -> modal load pattern M phi (condensed) -> ramp of contact solves -> Masing
+          -> modal load pattern M phi (condensed) -> ramps of contact solves for +alpha
+             and -alpha (levels refined where the integration needs it)
+          -> per level: Masing's rules where they are verified, else the stabilised
+             loop -> checks of what the physics guarantees -> QSMAResult
 """
 from __future__ import annotations
 
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import time
 import warnings
 
 import numpy as np
 
-from . import __version__
 from ._threads import blas_threads as threads_limited, threads_for
 from .condense import reduce_two_bodies
-from .contact import DEFAULT_TOL, ContactProblem, ContactState, METHODS, solve as contact_solve
+from .contact import DEFAULT_TOL, ContactProblem, ContactState, OPEN, SLIPPING, STUCK
+from .contact import solve as contact_solve
 from .contact.zone import solve_in_zone, zone_from_state
 from .errors import AnalysisError, ContactConvergenceWarning, InputError
 from .fe import assemble_body
-from .levels import Levels, spec_levels
-from .masing import loop_area, masing
+from .hysteresis import compute_loop, masing_checks, masing_estimate
+from .masing import loop_area
+from .levels import spec_levels
 from .modal import linear_modes, probe_vector
 from .model import make_pairing
+from .options import RunOptions
+from .version import __version__
 
-STAGES = ("model", "assembly", "modal", "condensation", "contact", "postprocess", "total")
+STAGES = ("model", "assembly", "modal", "condensation", "contact", "hysteresis",
+          "postprocess", "total")
+#: Rounds of backbone level refinement (each inserts midpoints where needed).
+LEVEL_REFINE_ROUNDS = 3
+#: A damping ratio below this in magnitude is zero to the precision of the contact
+#: solves (tol 1e-10 on forces; the stuck sandwich-2d levels give |zeta| ~ 1e-12).
+ZETA_ZERO = 1e-8
+#: Relative deviation of the secant frequency from f0 accepted while the interface has
+#: not moved from its preload state (stuck sandwich-2d levels: 2.5e-10).
+STUCK_FREQUENCY_RTOL = 1e-6
+#: Flags that make a level a failure (the others are information).
+FAILURE_FLAGS = ("negative_dissipation", "not_finite", "loop_failed", "loop_not_stabilised",
+                 "masing_on_hardening", "stuck_not_linear", "q_not_increasing")
 
 
 @dataclass(frozen=True, eq=False)
@@ -46,8 +64,8 @@ class LevelStates:
 
 @dataclass(frozen=True, eq=False)
 class DirectLoop:
-    """A hysteresis loop computed directly: unloading from +alpha_max to -alpha_max and
-    reloading to +alpha_max with the history-dependent solver."""
+    """The first loop at the largest amplitude, on increments mirroring the backbone
+    (``direct_loop=True``): unloading from +alpha_max to -alpha_max and reloading."""
 
     alpha: np.ndarray
     q: np.ndarray
@@ -60,8 +78,14 @@ class DirectLoop:
 
 @dataclass(frozen=True, eq=False)
 class QSMAResult:
-    """Everything a QSMA run produced. Arrays under "levels" have one entry per solved
-    level; ``success`` is False when a level failed (``message`` says which)."""
+    """Everything a QSMA run produced.
+
+    Arrays under "levels" (:data:`LEVEL_FIELDS`) have one entry per solved level of the
+    user's grid. ``f_hz``, ``zeta``, ``dissipation`` are those of the method named in
+    ``dissipation_method`` at each level; the Masing and loop values are kept beside
+    them (NaN where not computed). ``success`` is False when a level failed to converge
+    or holds a value the physics forbids (``flags``; ``message`` says which).
+    """
 
     success: bool
     message: str
@@ -73,19 +97,37 @@ class QSMAResult:
     tip_lin: np.ndarray
     q: np.ndarray
     tip: np.ndarray
+    q_neg: np.ndarray
+    asymmetry: np.ndarray
     f_hz: np.ndarray
     zeta: np.ndarray
     dissipation: np.ndarray
+    dissipation_error: np.ndarray
+    dissipation_method: np.ndarray
+    method_reason: np.ndarray
+    f_hz_masing: np.ndarray
+    zeta_masing: np.ndarray
+    dissipation_masing: np.ndarray
+    f_hz_loop: np.ndarray
+    zeta_loop: np.ndarray
+    dissipation_loop: np.ndarray
+    dissipation_first_cycle: np.ndarray
+    loop_cycles: np.ndarray
+    shakedown: np.ndarray
     tip_velocity: np.ndarray
     n_stuck: np.ndarray
     n_slip: np.ndarray
     n_open: np.ndarray
+    flags: tuple
     states: LevelStates
+    loops: dict
+    backbone_alpha: np.ndarray
     preload: object
     modes: object
     reduced: object
     pairing: object
     model: object
+    options: RunOptions
     solver: dict
     timings_s: dict
     direct_loop: DirectLoop | None = None
@@ -104,23 +146,35 @@ class QSMAResult:
     def iterations(self):
         return self.states.iterations
 
+    @property
+    def residual(self):
+        return self.states.residual
+
+    @property
+    def failed_levels(self) -> list:
+        """Levels holding a failure flag (:data:`FAILURE_FLAGS`)."""
+        return [k for k, f in enumerate(self.flags) if set(f) & set(FAILURE_FLAGS)]
+
     def fields(self, k):
         """Full displacement vectors per body at level ``k`` (``k=None``: the preload),
         measured from the undeformed configuration."""
         if k is None:
-            return self.reduced.recover(self.preload.d, self._a(0.0))
-        return self.reduced.recover(self.states.d[k], self._a(self.alpha[k]))
-
-    def _a(self, alpha):
-        return _load_factors(self.reduced, alpha)
+            return self.reduced.recover(self.preload.d, _load_factors(self.reduced, 0.0))
+        return self.reduced.recover(self.states.d[k], _load_factors(self.reduced,
+                                                                     self.alpha[k]))
 
     def levels_table(self) -> dict:
         """Per-level arrays by name (the ``levels`` block of results.json)."""
         return {k: getattr(self, k) for k in LEVEL_FIELDS}
 
 
-LEVEL_FIELDS = ("alpha", "tip_lin", "q", "tip", "f_hz", "zeta", "dissipation",
-                "tip_velocity", "n_stuck", "n_slip", "n_open", "iterations")
+#: The per-level quantities, in the order of results.csv (docs/results.md has units).
+LEVEL_FIELDS = ("alpha", "tip_lin", "q", "tip", "q_neg", "asymmetry", "f_hz", "zeta",
+                "dissipation", "dissipation_error", "dissipation_method", "f_hz_masing",
+                "zeta_masing", "dissipation_masing", "f_hz_loop", "zeta_loop",
+                "dissipation_loop", "dissipation_first_cycle", "loop_cycles", "shakedown",
+                "tip_velocity", "n_stuck", "n_slip", "n_open", "iterations", "residual",
+                "method_reason", "flags")
 
 
 def _load_factors(reduced, alpha):
@@ -132,7 +186,7 @@ def _load_factors(reduced, alpha):
 
 
 def _counts(status):
-    return [int(np.sum(status == s)) for s in (0, 1, 2)]
+    return [int(np.sum(status == s)) for s in (STUCK, SLIPPING, OPEN)]
 
 
 class _Timer:
@@ -155,47 +209,46 @@ class _Timer:
         return dict(self.t)
 
 
-def run(model, *, mode=0, levels: Levels | None = None, method="basket", tol=None,
-        maxiter=None, direct_loop=False, n_modes=None, continue_on_failure=False,
-        progress=None, schur_backend="auto", blas_threads="auto",
-        eliminate_open=True) -> QSMAResult:
+def run(model, options: RunOptions | None = None, *, progress=None, **overrides) -> QSMAResult:
     """Quasi-static modal analysis of ``model``.
 
     Parameters
     ----------
     model : :class:`qsma.model.Model` with two bodies, one interface and a tip probe
-    mode : index of the mode (0 = lowest) of the tied structure to load
-    levels : :class:`qsma.levels.Levels` (default: the 51 levels of sandwich-2d)
-    method, tol, maxiter : contact solver options (``qsma.contact.solve``)
-    direct_loop : also compute the hysteresis loop at the largest level directly
-    continue_on_failure : keep ramping after a level whose contact solve failed
-    progress : callable ``progress(k, n)`` called after each level
-    schur_backend : static condensation backend (:data:`qsma.linalg.SCHUR_BACKENDS`)
-    blas_threads : BLAS thread limit; ``"auto"``: one thread for interface problems of
-        up to :data:`qsma._threads.SMALL_PROBLEM` unknowns, ``None``: no limit
-    eliminate_open : solve the ramp on the pairs closed after the preload, the open ones
-        eliminated exactly (:mod:`qsma.contact.zone`; a pair that would close joins)
+    options : :class:`qsma.options.RunOptions`, optional
+        Every option of the run (defaults: :class:`RunOptions` ``()``).
+    progress : callable, optional
+        ``progress(k, n)`` after each level of the user's grid.
+    **overrides
+        Fields of :class:`RunOptions` to change, e.g. ``mode=1, dissipation="loop"``.
 
     Returns
     -------
     QSMAResult
+
+    Examples
+    --------
+    >>> import qsma
+    >>> from qsma.examples import sandwich_2d
+    >>> res = qsma.run(sandwich_2d(1), levels=qsma.Levels.log("tip", 1e-6, 1e-3, 11))
+    >>> res.success, round(res.f0_hz, 1)
+    (True, 212.5)
     """
-    if method not in METHODS:
-        raise InputError(f"unknown contact method {method!r}; valid: {sorted(METHODS)}")
+    try:
+        opts = replace(options or RunOptions(), **overrides)
+    except TypeError as exc:
+        raise InputError(f"qsma.run: {exc}; valid options: "
+                         f"{sorted(RunOptions.__dataclass_fields__)}") from None
     if len(model.bodies) != 2:
         raise InputError(f"QSMA needs exactly two bodies joined by the interface, "
                          f"got {len(model.bodies)}")
-    if not isinstance(mode, (int, np.integer)) or mode < 0:
-        raise InputError(f"mode index must be an integer >= 0, got {mode!r}")
-    levels = spec_levels() if levels is None else levels
-    opts = {k: v for k, v in (("tol", tol), ("maxiter", maxiter)) if v is not None}
     clock = _Timer()
     with clock.stage("model"):
         pairing = make_pairing(model)
-    limit = threads_for(pairing.n_pairs * model.dim) if blas_threads == "auto" else blas_threads
+    limit = threads_for(pairing.n_pairs * model.dim) if opts.blas_threads == "auto" \
+        else opts.blas_threads
     with threads_limited(limit):
-        return _run(model, pairing, mode, levels, method, opts, direct_loop, n_modes,
-                    continue_on_failure, progress, schur_backend, clock, eliminate_open)
+        return _run(model, pairing, opts, progress, clock)
 
 
 def preload(model, assembled, pairing, *, method="basket", opts=None, schur_backend="auto",
@@ -218,7 +271,7 @@ def preload(model, assembled, pairing, *, method="basket", opts=None, schur_back
     if not pre.success:
         raise AnalysisError(f"the preload contact solve failed: {pre.message} "
                             f"(residual {pre.residual:.2e})", partial=pre)
-    if np.all(pre.status == 2):
+    if np.all(pre.status == OPEN):
         raise AnalysisError("the preload leaves no interface pair in contact: the bodies "
                             "separate, and tied modes of a disconnected assembly would be "
                             "meaningless. Check the sign and location of the bolt pressure.",
@@ -226,11 +279,7 @@ def preload(model, assembled, pairing, *, method="basket", opts=None, schur_back
     return reduced, problem, pre
 
 
-def _run(model, pairing, mode, levels, method, opts, direct_loop, n_modes,
-         continue_on_failure, progress, schur_backend, clock, eliminate_open):
-
-    i1 = model.body_index(model.interface.body1)
-    i2 = model.body_index(model.interface.body2)
+def _assemble(model, clock):
     with clock.stage("assembly"):
         assembled = [assemble_body(b) for b in model.bodies]
         for a in assembled:
@@ -242,12 +291,14 @@ def _run(model, pairing, mode, levels, method, opts, direct_loop, n_modes,
                                      f"'preload' (the default) or remove the pressure")
                 if not np.all(np.isfinite(F)):
                     raise InputError(f"load {name!r} of body {a.body.name!r} is not finite")
-    reduced, problem, pre = preload(model, assembled, pairing, method=method, opts=opts,
-                                    schur_backend=schur_backend, clock=clock)
-    closed = pre.status != 2
+    return assembled
 
+
+def _mode(model, assembled, pairing, closed, opts, clock):
+    """The loaded mode: ``(modes, phi, phi_tip, omega0, ltip)``, tip deflection positive."""
+    mode = opts.mode
     with clock.stage("modal"):
-        nm = max(6, mode + 1) if n_modes is None else n_modes
+        nm = max(6, mode + 1) if opts.n_modes is None else opts.n_modes
         modes = linear_modes(model, assembled, pairing, tied=closed, n_modes=nm)
         if mode >= len(modes.omega):
             raise InputError(f"mode index {mode} is beyond the {len(modes.omega)} computed "
@@ -264,7 +315,18 @@ def _run(model, pairing, mode, levels, method, opts, direct_loop, n_modes,
                              f"along the probe direction (|phi_tip| = {abs(phi_tip):.2e}, "
                              f"RMS of the mode at the tip nodes {rms:.2e}); choose a mode "
                              f"that moves the tip: the load levels are scaled by it")
-        omega0 = float(modes.omega[mode])
+    return modes, phi, phi_tip, float(modes.omega[mode]), ltip
+
+
+def _run(model, pairing, opts, progress, clock):
+    i1 = model.body_index(model.interface.body1)
+    i2 = model.body_index(model.interface.body2)
+    sopts = opts.solver_options
+    assembled = _assemble(model, clock)
+    reduced, problem, pre = preload(model, assembled, pairing, method=opts.method, opts=sopts,
+                                    schur_backend=opts.schur_backend, clock=clock)
+    closed = pre.status != OPEN
+    modes, phi, phi_tip, omega0, ltip = _mode(model, assembled, pairing, closed, opts, clock)
 
     with clock.stage("condensation"):
         off = model.dof_offsets()
@@ -274,57 +336,103 @@ def _run(model, pairing, mode, levels, method, opts, direct_loop, n_modes,
             "q": (Mphi[i1], Mphi[i2]),
             "tip": (part(ltip, i1), part(ltip, i2)),
         })
-
+    response = _Response(reduced, pre)
+    levels = spec_levels() if opts.levels is None else opts.levels
     alpha = levels.alpha(omega0, phi_tip)
+    k_ref = omega0 ** 2
+
     with clock.stage("contact"):
-        solver = _Solver(problem, reduced, method, opts,
-                         zone_from_state(problem, pre.state) if eliminate_open else None)
-        ramp = _ramp(solver, alpha, pre, continue_on_failure, progress)
-    n_ok = len(ramp["d"])
+        solver = _Solver(problem, reduced, opts.method, sopts,
+                         zone_from_state(problem, pre.state) if opts.eliminate_open else None)
+        grid, user, pos = _refined_backbone(solver, alpha, pre, opts, progress, response, k_ref)
+        n_ok = len(user)
+        neg = _ramp(solver, -grid[:pos.n], pre, True, None, "negative load level",
+                    response=response)
+
+    with clock.stage("hysteresis"):
+        hyst = _hysteresis(solver, response, grid[:pos.n], user, pos, neg, pre, opts, k_ref)
 
     with clock.stage("postprocess"):
-        q0 = reduced.evaluate("q", pre.d, _load_factors(reduced, 0.0))
-        t0 = reduced.evaluate("tip", pre.d, _load_factors(reduced, 0.0))
         al = alpha[:n_ok]
-        q = np.array([reduced.evaluate("q", d, _load_factors(reduced, a))
-                      for d, a in zip(ramp["d"], al)]) - q0
-        tip = np.array([reduced.evaluate("tip", d, _load_factors(reduced, a))
-                        for d, a in zip(ramp["d"], al)]) - t0
-        ms = masing(al, q)
-        status = np.array(ramp["status"], dtype=int).reshape(n_ok, pairing.n_pairs)
+        q = pos.q[user]
+        tip = pos.tip[user]
+        q_neg = np.full(n_ok, np.nan)
+        nn = min(neg.n, pos.n)
+        good_neg = np.zeros(pos.n, bool)
+        good_neg[:nn] = neg.ok[:nn]
+        has_neg = good_neg[user]
+        q_neg[has_neg] = neg.q[user[has_neg]]
+        status = pos.status[user]
         counts = np.array([_counts(s) for s in status]).reshape(n_ok, 3)
         gross = [k for k in range(n_ok) if counts[k, 0] == 0 and counts[k, 1] > 0]
-
         shape = (n_ok, pairing.n_pairs, model.dim)
-        states = LevelStates(np.array(ramp["d"]).reshape(shape),
-                             np.array(ramp["lam"]).reshape(shape), status,
-                             np.array(ramp["residual"], dtype=float),
-                             np.array(ramp["nit"], dtype=int))
+        states = LevelStates(pos.d[user].reshape(shape), pos.lam[user].reshape(shape), status,
+                             pos.residual[user], pos.nit[user])
+        omega = np.where(hyst["use_loop"], 2 * np.pi * hyst["f_hz_loop"],
+                         2 * np.pi * hyst["f_hz_masing"])
+        flags = _flags(al, q, tip, hyst, counts, status, pre, omega0, opts, pos, user)
+        success, message = _outcome(pos, flags, n_ok, len(alpha), opts)
 
     loop = None
-    if direct_loop and n_ok:
-        with clock.stage("contact"):
-            loop = _direct_loop(solver, al, states.state(n_ok - 1), q0, t0,
-                                float(ms.dissipation[-1]))
+    if opts.direct_loop and n_ok:
+        with clock.stage("hysteresis"):
+            loop = _direct_loop(solver, response, grid[:pos.n], user[-1], pos,
+                                float(hyst["dissipation_masing"][-1]))
 
     timings = clock.done()
     return QSMAResult(
-        success=ramp["success"], message=ramp["message"],
+        success=success, message=message,
         model_info=dict(name=model.name, n_nodes=model.n_nodes, n_dofs=model.n_dofs,
                         n_pairs=pairing.n_pairs, mu=model.mu, dim=model.dim,
                         n_closed_after_preload=int(closed.sum())),
-        mode_index=mode, omega0=omega0, phi_tip=phi_tip,
+        mode_index=opts.mode, omega0=omega0, phi_tip=phi_tip,
         alpha=al, tip_lin=al * phi_tip / omega0 ** 2, q=q, tip=tip,
-        f_hz=ms.f_hz, zeta=ms.zeta, dissipation=ms.dissipation,
-        tip_velocity=ms.omega * np.abs(tip),
-        n_stuck=counts[:, 0], n_slip=counts[:, 1], n_open=counts[:, 2],
-        states=states, preload=pre, modes=modes, reduced=reduced, pairing=pairing,
-        model=model, solver=dict(method=method, tol=opts.get("tol", DEFAULT_TOL),
-                                 maxiter=opts.get("maxiter"),
-                                 fallback_levels=ramp["fallback"],
-                                 open_pairs_eliminated=bool(eliminate_open)),
+        q_neg=q_neg, asymmetry=(q + q_neg) / q,
+        f_hz=np.where(hyst["use_loop"], hyst["f_hz_loop"], hyst["f_hz_masing"]),
+        zeta=np.where(hyst["use_loop"], hyst["zeta_loop"], hyst["zeta_masing"]),
+        dissipation=np.where(hyst["use_loop"], hyst["dissipation_loop"],
+                             hyst["dissipation_masing"]),
+        dissipation_error=np.where(hyst["use_loop"], hyst["loop_error"],
+                                   hyst["masing_error"]),
+        dissipation_method=np.where(hyst["use_loop"], "loop", "masing").astype(object),
+        method_reason=hyst["reason"],
+        f_hz_masing=hyst["f_hz_masing"], zeta_masing=hyst["zeta_masing"],
+        dissipation_masing=hyst["dissipation_masing"], f_hz_loop=hyst["f_hz_loop"],
+        zeta_loop=hyst["zeta_loop"], dissipation_loop=hyst["dissipation_loop"],
+        dissipation_first_cycle=hyst["first"], loop_cycles=hyst["cycles"],
+        shakedown=hyst["shakedown"], tip_velocity=omega * np.abs(tip),
+        n_stuck=counts[:, 0], n_slip=counts[:, 1], n_open=counts[:, 2], flags=flags,
+        states=states, loops=hyst["loops"], backbone_alpha=grid[:pos.n],
+        preload=pre, modes=modes, reduced=reduced, pairing=pairing, model=model,
+        options=opts,
+        solver=dict(method=opts.method, tol=opts.tol or DEFAULT_TOL, maxiter=opts.maxiter,
+                    fallback_levels=[int(np.searchsorted(user, g)) for g in pos.fallback
+                                     if g in set(user.tolist())],
+                    open_pairs_eliminated=bool(opts.eliminate_open),
+                    dissipation=opts.dissipation, dissipation_rtol=opts.dissipation_rtol,
+                    backbone_points=int(pos.n), loop_solves=int(hyst["n_solves"]),
+                    negative_ramp_levels=int(neg.n)),
         timings_s=timings, direct_loop=loop,
         gross_slip_level=gross[0] if gross else None)
+
+
+class _Response:
+    """Modal amplitude and tip deflection of interface displacements ``d`` at modal force
+    ``alpha``, measured from the preload state. Computed from the increments
+    ``d - d_preload`` and ``alpha`` (never as the difference of two totals), so a level
+    whose interface has not moved gets exactly the linear answer."""
+
+    def __init__(self, reduced, pre):
+        self.d0 = pre.d.ravel()
+        self.j = reduced.patterns.index("modal")
+        self.cq, self.aq = reduced.functionals["q"][0], reduced.functionals["q"][1][self.j]
+        self.ct, self.at = reduced.functionals["tip"][0], reduced.functionals["tip"][1][self.j]
+
+    def q(self, d, alpha):
+        return float(self.cq @ (np.asarray(d).ravel() - self.d0) + self.aq * alpha)
+
+    def tip(self, d, alpha):
+        return float(self.ct @ (np.asarray(d).ravel() - self.d0) + self.at * alpha)
 
 
 def _solve(problem, reduced, alpha, state, method, opts, where, zone=None):
@@ -356,38 +464,289 @@ class _Solver:
         return res
 
 
-def _ramp(solver, alpha, pre, keep_going, progress):
-    out = {k: [] for k in ("d", "lam", "status", "residual", "nit", "fallback")}
-    state, success, message = pre.state, True, "all levels converged"
-    for k, a in enumerate(alpha):
-        res = solver(a, state, f"load level {k} (alpha={a:.4g})")
+@dataclass
+class _RampOut:
+    """A ramp's solutions, one row per point of its grid that was solved."""
+
+    d: np.ndarray
+    lam: np.ndarray
+    status: np.ndarray
+    residual: np.ndarray
+    nit: np.ndarray
+    ok: np.ndarray
+    q: np.ndarray
+    tip: np.ndarray
+    fallback: list
+    success: bool
+    message: str
+    failed_at: int | None
+
+    @property
+    def n(self):
+        return len(self.q)
+
+    def state(self, k):
+        return ContactState(self.d[k], self.lam[k], self.status[k])
+
+
+def _ramp(solver, alpha, start, keep_going, progress, where="load level", response=None,
+          prefix=None):
+    """Monotonic ramp through ``alpha`` from ``start``; ``prefix`` (a :class:`_RampOut`
+    and its length) reuses levels already solved on the same path."""
+    rows = {k: [] for k in ("d", "lam", "status", "residual", "nit", "ok", "q", "tip")}
+    fallback, success, message, failed = [], True, "all levels converged", None
+    state, first = start, 0
+    if prefix is not None:
+        old, first = prefix
+        for name in rows:
+            rows[name] = list(getattr(old, name)[:first])
+        fallback = [k for k in old.fallback if k < first]
+        if first:
+            state = old.state(first - 1)
+    for k in range(first, len(alpha)):
+        a = alpha[k]
+        res = solver(a, state, f"{where} {k} (alpha={a:.4g})")
         if not res.success:
             success = False
-            message = (f"contact solve failed at load level {k} (alpha={a:.6g}): "
+            failed = k if failed is None else failed
+            message = (f"contact solve failed at {where} {k} (alpha={a:.6g}): "
                        f"{res.message}; residual {res.residual:.2e}")
             if not keep_going:
                 break
         if "fell back to" in res.message:
-            out["fallback"].append(k)
+            fallback.append(k)
         for name, v in (("d", res.d), ("lam", res.lam), ("status", res.status),
-                        ("residual", res.residual), ("nit", res.nit)):
-            out[name].append(v)
+                        ("residual", res.residual), ("nit", res.nit), ("ok", res.success)):
+            rows[name].append(v)
+        rows["q"].append(response.q(res.d, a) if response else np.nan)
+        rows["tip"].append(response.tip(res.d, a) if response else np.nan)
         state = res.state
         if progress is not None:
             progress(k + 1, len(alpha))
-    out["success"], out["message"] = success, message
+    n = len(rows["q"])
+    arr = {k: np.array(v) for k, v in rows.items()}
+    shape = (n,) + start.d.shape
+    return _RampOut(arr["d"].reshape(shape), arr["lam"].reshape(shape),
+                    arr["status"].reshape(n, -1).astype(int),
+                    arr["residual"].astype(float), arr["nit"].astype(int),
+                    arr["ok"].astype(bool), arr["q"].astype(float),
+                    arr["tip"].astype(float), fallback, success, message, failed)
+
+
+def _refined_backbone(solver, alpha, pre, opts, progress, response, k_ref):
+    """The +alpha ramp on the user's levels, then on a grid refined where the Masing
+    integral needs it (pair states change in an interval, or the error estimate exceeds
+    ``dissipation_rtol``). Returns ``(grid, user_index, ramp)``: ``grid[user_index]``
+    are the user's levels that were solved."""
+    grid = np.asarray(alpha, float)
+    tick = (lambda k, n: progress(min(k, len(alpha)), len(alpha))) if progress else None
+    out = _ramp(solver, grid, pre.state, opts.continue_on_failure, tick, response=response)
+    rounds = LEVEL_REFINE_ROUNDS if opts.refine_levels and out.success else 0
+    for _ in range(rounds):
+        new = _insert_levels(grid, out, k_ref, opts.dissipation_rtol)
+        if new is None:
+            break
+        first = int(np.flatnonzero(new[:len(grid)] != grid)[0]) if not np.array_equal(
+            new[:len(grid)], grid) else len(grid)
+        trial = _ramp(solver, new, pre.state, False, None, response=response,
+                      prefix=(out, first))
+        if not trial.success:          # keep the converged coarser grid
+            break
+        grid, out = new, trial
+    user = np.flatnonzero(np.isin(grid, np.asarray(alpha, float)))
+    user = user[user < out.n]
+    if not opts.continue_on_failure and not out.success:
+        user = user[user < out.failed_at] if out.failed_at is not None else user
+    return grid, user, out
+
+
+def _insert_levels(grid, out, k_ref, rtol):
+    """The grid with midpoints inserted where the backbone needs them, or None."""
+    n = out.n
+    est = masing_estimate(grid[:n], out.q, k_ref)
+    atol = ZETA_ZERO * 2 * np.pi * grid[:n] * np.abs(out.q)
+    need = est.error > rtol * np.abs(est.dissipation) + atol
+    changed = np.concatenate([[False], np.any(out.status[1:] != out.status[:-1], axis=1)])
+    # the interval ending at point k is (k-1, k]; the estimate at k covers (k-2, k]
+    pick = need | changed
+    pick[:-1] |= need[1:]
+    if not pick.any():
+        return None
+    lo = np.concatenate([[0.0], grid[:n - 1]])
+    mids = 0.5 * (lo + grid[:n])[pick & (np.arange(n) > 0)]
+    if mids.size == 0:
+        return None
+    return np.union1d(grid, mids)
+
+
+def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref):
+    """Masing estimates, checks and loops at the user's levels (see module docstring)."""
+    n_ok, n = len(user), pos.n
+    est = masing_estimate(grid, pos.q, k_ref)
+    nn = min(n, neg.n)
+    q_neg = np.full(n, np.nan)
+    q_neg[:nn] = neg.q[:nn]
+    P_pre, open_pre = pre.lam[:, -1], pre.status == OPEN
+    P_neg = np.full((n, len(P_pre)), np.nan)
+    P_neg[:nn] = neg.lam[:nn, :, -1]
+    neg_status = np.broadcast_to(pre.status, (n, len(P_pre))).copy()
+    neg_status[:nn] = neg.status[:nn]
+    open_neg = neg_status == OPEN
+    atol = ZETA_ZERO * 2 * np.pi * grid * np.abs(pos.q)
+    checks = masing_checks(grid, pos.q, np.where(np.isnan(q_neg), -pos.q, q_neg),
+                           pos.lam[:, :, -1], np.where(np.isnan(P_neg), P_pre, P_neg), P_pre,
+                           pos.status == OPEN, open_neg, open_pre, k_ref,
+                           opts.dissipation_rtol, atol,
+                           linear=_untouched(pos.status, pre) & _untouched(neg_status, pre))
+    valid = checks.valid.copy()
+    valid[nn:] = False                 # no negative backbone there: nothing verified
+    linear = _untouched(pos.status, pre) & _untouched(neg_status, pre)
+    reason = np.where(valid, np.where(linear, "linear: no pair has left its preload state",
+                                      "Masing's assumptions verified"),
+                      checks.reason).astype(object)
+    reason[~valid & (checks.reason == "")] = "negative ramp failed: symmetry not verified"
+    if opts.dissipation == "masing":
+        use_loop = np.zeros(n, bool)
+        reason = np.array([r if v else f"forced by dissipation='masing' although {r}"
+                           for r, v in zip(reason, valid)], dtype=object)
+    elif opts.dissipation == "loop":
+        use_loop = np.ones(n, bool)
+        reason = np.full(n, "forced by dissipation='loop'", dtype=object)
+    else:
+        use_loop = ~valid
+    nan = np.full(n_ok, np.nan)
+    out = dict(f_hz_masing=est.omega[user] / (2 * np.pi), zeta_masing=est.zeta[user],
+               dissipation_masing=est.dissipation[user], masing_error=est.error[user],
+               f_hz_loop=nan.copy(), zeta_loop=nan.copy(), dissipation_loop=nan.copy(),
+               loop_error=nan.copy(), first=nan.copy(), cycles=np.zeros(n_ok, int),
+               shakedown=np.zeros(n_ok, bool), use_loop=use_loop[user],
+               reason=reason[user], loops={}, n_solves=0,
+               pressure_change=checks.pressure_change[user])
+    linear_end = _linear_end(pos, pre)
+    for i, g in enumerate(user):
+        if not out["use_loop"][i]:
+            continue
+        A = grid[g]
+        u = _loop_fractions(grid, g, linear_end, opts.loop_steps)
+        step = lambda a, s, A=A: solver(a, s, f"loop at A={A:.4g} (alpha={a:.4g})")
+        lp = compute_loop(step, response.q, A, pos.state(g), u, k_ref=k_ref,
+                          max_cycles=opts.max_cycles, rtol=opts.dissipation_rtol,
+                          atol=ZETA_ZERO * 2 * np.pi * A * abs(pos.q[g]))
+        out["loops"][i] = lp
+        out["n_solves"] += lp.n_solves
+        out["cycles"][i] = lp.n_cycles
+        if lp.success:
+            out["f_hz_loop"][i] = lp.omega / (2 * np.pi)
+            out["zeta_loop"][i] = lp.zeta
+            out["dissipation_loop"][i] = lp.dissipation
+            out["loop_error"][i] = lp.error
+            out["first"][i] = lp.first_dissipation
+            out["shakedown"][i] = lp.shakedown
     return out
 
 
-def _direct_loop(solver, alpha, top_state, q0, t0, d_masing):
-    """Unload from +alpha_max to -alpha_max, reload to +alpha_max; the steps mirror the
-    Masing construction (unloading by twice each backbone level). Stops at the first
-    step whose contact solve fails: the points before it are kept, no area is given."""
-    amax = alpha[-1]
-    steps = np.concatenate([[0.0], 2 * alpha])
+def _untouched(status, pre):
+    """Per ramp point: no pair has left its preload state (status) up to it; a slipping
+    pair in the preload counts as moved."""
+    same = np.all(status == pre.status[None, :], axis=1) & \
+        np.all(status != SLIPPING, axis=1)
+    return np.cumprod(same).astype(bool)
+
+
+def _linear_end(pos, pre):
+    """Index of the last ramp point before any pair left its preload state (the
+    backbone is the tied linear response up to it), or -1."""
+    same = np.all(pos.status == pre.status[None, :], axis=1) & \
+        np.all(pos.status != SLIPPING, axis=1)
+    moved = np.flatnonzero(~same)
+    return (moved[0] if moved.size else pos.n) - 1
+
+
+def _loop_fractions(grid, g, linear_end, steps):
+    """Branch increments of the loop at grid point ``g`` as fractions of ``2A``: the
+    backbone points below it (Masing's construction unloads by twice each), from the
+    end of the linear range, thinned to at most ``steps``."""
+    start = max(min(linear_end, g - 1), 0)
+    u = grid[start:g + 1] / grid[g]
+    if len(u) > steps:
+        keep = np.unique(np.round(np.linspace(0, len(u) - 1, steps)).astype(int))
+        u = u[keep]
+    return u
+
+
+def _flags(alpha, q, tip, hyst, counts, status, pre, omega0, opts, pos, user):
+    """Per level, what the physics forbids (failures) and what it allows but a reader
+    should know (information); see :data:`FAILURE_FLAGS`."""
+    n = len(alpha)
+    use_loop = hyst["use_loop"]
+    f = np.where(use_loop, hyst["f_hz_loop"], hyst["f_hz_masing"])
+    zeta = np.where(use_loop, hyst["zeta_loop"], hyst["zeta_masing"])
+    err = np.where(use_loop, hyst["loop_error"], hyst["masing_error"])
+    D = np.where(use_loop, hyst["dissipation_loop"], hyst["dissipation_masing"])
+    f0 = omega0 / (2 * np.pi)
+    untouched = np.array([np.array_equal(status[k], pre.status) for k in range(n)])
+    untouched &= np.cumsum(~untouched) == 0
+    out = []
+    for k in range(n):
+        fl = []
+        if not (np.isfinite(f[k]) and np.isfinite(zeta[k])):
+            fl.append("loop_failed" if use_loop[k] else "not_finite")
+            lp = hyst["loops"].get(k)
+            if lp is not None and not lp.stabilised and lp.success is False and \
+                    "not stabilised" in lp.message:
+                fl[-1] = "loop_not_stabilised"
+        elif D[k] < -(abs(err[k]) + ZETA_ZERO * 2 * np.pi * alpha[k] * abs(q[k])):
+            fl.append("negative_dissipation")
+        if hyst["zeta_masing"][k] < -ZETA_ZERO and use_loop[k]:
+            fl.append("masing_negative")
+        hard = f[k] > f0 * (1 + STUCK_FREQUENCY_RTOL) or (
+            k > 0 and q[k] * alpha[k - 1] < q[k - 1] * alpha[k] * (1 - 1e-9))
+        if hard:
+            fl.append("hardening" if use_loop[k] else "masing_on_hardening")
+        if untouched[k] and (abs(f[k] / f0 - 1) > STUCK_FREQUENCY_RTOL
+                             or abs(zeta[k]) > ZETA_ZERO):
+            fl.append("stuck_not_linear")
+        if k > 0 and not q[k] > q[k - 1]:
+            fl.append("q_not_increasing")
+        if k > 0 and not tip[k] > tip[k - 1]:
+            fl.append("tip_not_increasing")
+        if np.isfinite(err[k]) and np.isfinite(D[k]) and \
+                err[k] > opts.dissipation_rtol * abs(D[k]) + \
+                ZETA_ZERO * 2 * np.pi * alpha[k] * abs(q[k]):
+            fl.append("integration_error_above_rtol")
+        if hyst["shakedown"][k]:
+            fl.append("shakedown")
+        out.append(tuple(fl))
+    return tuple(out)
+
+
+def _outcome(pos, flags, n_ok, n_asked, opts):
+    """``(success, message)`` of the run from the ramp and the level flags."""
+    bad = [k for k, f in enumerate(flags) if set(f) & set(FAILURE_FLAGS)]
+    parts = []
+    if not pos.success:
+        parts.append(pos.message)
+    if bad:
+        names = sorted({x for k in bad for x in flags[k] if x in FAILURE_FLAGS})
+        parts.append(f"{len(bad)} level(s) hold values the physics forbids "
+                     f"({', '.join(names)}): levels {bad[:12]}"
+                     f"{' ...' if len(bad) > 12 else ''}; see 'flags' in the results"
+                     + ("; dissipation='loop' computes the true loops"
+                        if opts.dissipation == "masing" else ""))
+    if not parts:
+        return True, "all levels converged"
+    return False, "; ".join(parts)
+
+
+def _direct_loop(solver, response, grid, top, pos, d_masing):
+    """The first cycle at the largest level: unload from +alpha_max to -alpha_max and
+    reload, by twice each backbone point below it (Masing's construction), so that its
+    area equals Masing's wherever Masing is exact. Stops at the first step whose contact
+    solve fails: the points before it are kept, no area is given."""
+    amax = grid[top]
+    steps = np.concatenate([[0.0], 2 * grid[:top + 1]])
     path = np.concatenate([amax - steps, -amax + steps[1:]])
-    reduced = solver.reduced
-    state, qs, ts = top_state, [], []
+    state, qs, ts = pos.state(top), [], []
     for a in path:
         res = solver(a, state, f"direct loop (alpha={a:.4g})")
         if not res.success:
@@ -396,8 +755,7 @@ def _direct_loop(solver, alpha, top_state, q0, t0, d_masing):
                               f"direct loop stopped at alpha={a:.6g} (step {n} of "
                               f"{len(path)}): {res.message}; residual {res.residual:.2e}")
         state = res.state
-        af = _load_factors(reduced, a)
-        qs.append(reduced.evaluate("q", res.d, af) - q0)
-        ts.append(reduced.evaluate("tip", res.d, af) - t0)
+        qs.append(response.q(res.d, a))
+        ts.append(response.tip(res.d, a))
     qs, ts = np.array(qs), np.array(ts)
     return DirectLoop(path, qs, ts, loop_area(qs, path), d_masing, True, "loop closed")

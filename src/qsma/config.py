@@ -13,6 +13,7 @@ except ModuleNotFoundError:  # Python 3.10
 
 from .errors import InputError
 from .levels import Levels, spec_levels
+from .options import RunOptions
 from .model import Body, Clamp, Interface, Material, Model, Pressure, Probe
 
 _NUM = (int, float)
@@ -28,9 +29,6 @@ SCHEMA = {
     "interface": {"body1": (str, True), "set1": (str, True), "body2": (str, True),
                   "set2": (str, True), "mu": (_NUM, True), "tol": (_NUM, False)},
     "tip": {"sets": (list, True), "direction": (list, True)},
-    "analysis": {"mode": (int, False), "method": (str, False), "tol": (_NUM, False),
-                 "maxiter": (int, False), "direct_loop": (bool, False),
-                 "n_modes": (int, False), "continue_on_failure": (bool, False)},
     "levels": {"kind": (str, True), "spacing": (str, True), "start": (_NUM, False),
                "stop": (_NUM, False), "n": (int, False), "values": (list, False)},
 }
@@ -38,10 +36,11 @@ SCHEMA = {
 
 @dataclass(frozen=True)
 class RunConfig:
-    """A model and the keyword options of :func:`qsma.run`."""
+    """A model and the options of :func:`qsma.run` (the ``[analysis]`` table is
+    :class:`qsma.options.RunOptions`, its keys are that class's fields)."""
 
     model: Model
-    options: dict
+    options: RunOptions
 
 
 def _check(table, section, where):
@@ -110,8 +109,8 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
                             itf.get("tol")),
         tip=Probe(tuple(tuple(s) for s in sets), tuple(tip["direction"])),
         mu=itf["mu"], name=data.get("name", "model"))
-    options = dict(_check(data.get("analysis", {}), "analysis", f"{where}: analysis"))
-    options["levels"] = parse_levels(data.get("levels"), f"{where}: levels")
+    options = RunOptions.from_table(data.get("analysis", {}), f"{where}: analysis",
+                                    levels=parse_levels(data.get("levels"), f"{where}: levels"))
     return RunConfig(model, options)
 
 

@@ -37,37 +37,63 @@ def plot_backbone(res, path):
 
 
 def plot_loops(res, path):
+    """Hysteresis loops at three amplitudes: the computed stabilised loops where they
+    exist, Masing's construction elsewhere (and the direct loop if asked for)."""
     fig, ax = _figure(figsize=(6, 4.5))
     n = res.n_levels
     for k in sorted({n // 2, (3 * n) // 4, n - 1}):
-        q, f = masing_loop(res.alpha, res.q, k)
-        ax.plot(q, f, lw=1.2, label=f"Masing, level {k}")
+        lp = res.loops.get(k)
+        if lp is not None and lp.success:
+            ax.plot(lp.q, lp.alpha, lw=1.2, label=f"computed loop, level {k}")
+        else:
+            q, f = masing_loop(res.alpha, res.q, k)
+            ax.plot(q, f, lw=1.2, label=f"Masing, level {k}")
     if res.direct_loop is not None:
         dl = res.direct_loop
         label = (f"direct loop (D = {dl.dissipation:.3g} vs Masing "
                  f"{dl.dissipation_masing:.3g})" if dl.success
                  else "direct loop (not closed: a contact solve failed)")
         ax.plot(dl.q, dl.alpha, "k.", ms=3, label=label)
-    ax.set_xlabel("modal amplitude q")
-    ax.set_ylabel(r"modal force $\alpha$")
+    ax.set_xlabel("modal amplitude q [kg$^{1/2}$ m]")
+    ax.set_ylabel(r"modal force $\alpha$ [N/kg$^{1/2}$]")
+    ax.ticklabel_format(style="sci", scilimits=(-3, 3))
     ax.set_title("Hysteresis loops")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
     return _save(fig, path)
 
 
+#: Damping ratios below this are drawn on the linear part of the symmetric-log axis, so
+#: zero, round-off and negative values stay visible (none is dropped from the figure).
+ZETA_LINEAR = 1e-6
+
+
 def plot_damping_frequency(res, path):
+    """Secant frequency and damping ratio versus peak tip velocity: the values used
+    (filled), Masing's and the loops' where they differ, hardening levels marked."""
     fig, (a1, a2) = _figure(2, 1, figsize=(6, 6.5), sharex=True)
-    v = res.tip_velocity
-    a1.semilogx(v, res.f_hz, "o-", ms=3)
+    v = np.abs(res.tip_velocity)
+    loop = res.dissipation_method == "loop"
+    hard = np.array(["hardening" in f or "masing_on_hardening" in f for f in res.flags])
+    a1.semilogx(v, res.f_hz, "o-", ms=3, label="used")
+    a2.plot(v, res.zeta, "o-", ms=3, label="used")
+    if loop.any():
+        a1.semilogx(v, res.f_hz_masing, "x--", ms=3, lw=0.8, label="Masing")
+        a2.plot(v, res.zeta_masing, "x--", ms=3, lw=0.8, label="Masing")
+        a2.plot(v[loop], res.zeta_loop[loop], "s", ms=4, mfc="none", label="computed loop")
+    if hard.any():
+        a1.plot(v[hard], res.f_hz[hard], "^", color="tab:red", ms=6, label="hardening")
+        a2.plot(v[hard], res.zeta[hard], "^", color="tab:red", ms=6, label="hardening")
+    a1.axhline(res.f0_hz, color="gray", lw=0.8, ls=":", label="f0 (tied)")
     a1.set_ylabel("secant frequency [Hz]")
-    a1.grid(True, which="both", alpha=0.3)
-    slipped = np.cumsum(res.n_slip) > 0       # before any slip zeta is zero (round-off)
-    a2.loglog(v[slipped], res.zeta[slipped], "o-", ms=3)
-    a2.set_ylabel(r"damping ratio $\zeta$")
+    a2.set_yscale("symlog", linthresh=ZETA_LINEAR)
+    a2.axhline(0.0, color="gray", lw=0.8)
+    a2.set_ylabel(r"damping ratio $\zeta$ [-]")
     a2.set_xlabel("peak tip velocity [m/s]")
-    a2.grid(True, which="both", alpha=0.3)
-    a1.set_title("Amplitude-dependent frequency and damping (Masing)")
+    for a in (a1, a2):
+        a.grid(True, which="both", alpha=0.3)
+        a.legend(fontsize=7)
+    a1.set_title("Amplitude-dependent frequency and damping")
     return _save(fig, path)
 
 

@@ -91,15 +91,33 @@ def _clean(x, where="results"):
     return x
 
 
+#: Per-level quantities that are NaN where they were not computed (a loop at a level
+#: that used Masing, the -alpha ramp beyond a failure): written as null / empty.
+OPTIONAL_FIELDS = ("q_neg", "asymmetry", "f_hz_loop", "zeta_loop", "dissipation_loop",
+                   "dissipation_first_cycle", "dissipation_error")
+
+
+def _level_columns(res) -> dict:
+    """Per-level values by name, JSON-ready: optional NaN -> None, flags as lists."""
+    table = {}
+    for name, values in res.levels_table().items():
+        if name == "flags":
+            table[name] = [list(f) for f in values]
+        elif name in OPTIONAL_FIELDS:
+            table[name] = [None if not np.isfinite(v) else float(v) for v in values]
+        else:
+            table[name] = np.asarray(values).tolist()
+    return table
+
+
 def results_dict(res) -> dict:
-    """The content of results.json."""
-    levels = {k: np.asarray(v) for k, v in res.levels_table().items()}
-    levels["residual"] = res.states.residual
+    """The content of results.json (every field: docs/results.md)."""
     out = {
         "schema_version": SCHEMA_VERSION,
         "qsma_version": res.version,
         "success": bool(res.success),
         "message": res.message,
+        "failed_levels": res.failed_levels,
         "model": {k: res.model_info[k] for k in ("name", "n_nodes", "n_dofs", "n_pairs",
                                                   "mu", "dim", "n_closed_after_preload")},
         "mode": {"index": res.mode_index, "f0_hz": res.f0_hz, "omega0": res.omega0,
@@ -109,10 +127,11 @@ def results_dict(res) -> dict:
                     "n_stuck": int(np.sum(res.preload.status == 0)),
                     "n_slip": int(np.sum(res.preload.status == 1)),
                     "n_open": int(np.sum(res.preload.status == 2))},
-        "levels": levels,
+        "levels": _level_columns(res),
         "gross_slip_level": res.gross_slip_level,
         "timings_s": res.timings_s,
         "solver": res.solver,
+        "options": res.options.as_dict(),
     }
     if res.direct_loop is not None:
         dl = res.direct_loop
@@ -127,20 +146,32 @@ def write_json(res, path):
     atomic_write(path, json.dumps(results_dict(res), indent=1) + "\n")
 
 
-CSV_COLUMNS = ("level", "alpha", "tip_lin", "q", "tip", "f_hz", "zeta", "dissipation",
-               "tip_velocity", "n_stuck", "n_slip", "n_open", "iterations", "residual")
+#: Columns of results.csv: the level index, then :data:`qsma.analysis.LEVEL_FIELDS`.
+def csv_columns():
+    from .analysis import LEVEL_FIELDS
+    return ("level",) + LEVEL_FIELDS
+
+
+def _csv_cell(v):
+    if v is None:
+        return ""
+    if isinstance(v, list):
+        return ";".join(v)
+    if isinstance(v, bool):
+        return int(v)
+    if isinstance(v, float):
+        return f"{v:.10g}"
+    return v
 
 
 def write_csv(res, path):
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(CSV_COLUMNS)
-    table = res.levels_table()
-    _clean({c: table[c] for c in CSV_COLUMNS[1:-1]}, "levels")   # refuse NaN / Inf
+    columns = csv_columns()
+    w.writerow(columns)
+    table = _clean(_level_columns(res), "levels")          # refuses NaN / Inf
     for k in range(res.n_levels):
-        row = [k] + [table[c][k] for c in CSV_COLUMNS[1:-1]] + [res.states.residual[k]]
-        w.writerow([f"{v:.10g}" if isinstance(v, (float, np.floating)) else int(v)
-                    for v in row])
+        w.writerow([k] + [_csv_cell(table[c][k]) for c in columns[1:]])
     atomic_write(path, buf.getvalue())
 
 

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from ..errors import InputError
+from ..options import RunOptions
 
 
 def add_model_arguments(p):
@@ -13,7 +14,7 @@ def add_model_arguments(p):
 
 
 def load_model(args):
-    """``(model, options)`` from ``--example`` or a configuration file."""
+    """``(model, RunOptions)`` from ``--example`` or a configuration file."""
     from ..examples import EXAMPLES
     if (args.config is None) == (args.example is None):
         raise InputError("give either a configuration file or --example NAME "
@@ -23,7 +24,7 @@ def load_model(args):
             raise InputError(f"unknown example {args.example!r}; valid: {sorted(EXAMPLES)}")
         refine = 1 if args.refine is None else args.refine
         model = EXAMPLES[args.example](refine=refine, mu=args.mu)
-        return model, {}
+        return model, RunOptions()
     if args.refine is not None:
         raise InputError("--refine applies to --example models only; refine the mesh files "
                          "of a configuration instead")
@@ -33,4 +34,4 @@ def load_model(args):
     if args.mu is not None:
         from dataclasses import replace
         model = replace(model, mu=args.mu)
-    return model, dict(cfg.options)
+    return model, cfg.options

@@ -3,10 +3,15 @@ from __future__ import annotations
 
 import sys
 
+import numpy as np
+
 from ..errors import InputError
 from .common import add_model_arguments, load_model
 
 HELP = "quasi-static modal analysis: backbone, frequency and damping versus amplitude"
+#: RunOptions fields that have a command-line flag of the same name.
+CLI_OPTIONS = ("mode", "method", "tol", "maxiter", "dissipation", "direct_loop",
+               "continue_on_failure")
 
 
 def add_arguments(p):
@@ -20,6 +25,10 @@ def add_arguments(p):
                         "KIND is tip (linear tied tip deflection [m]) or alpha (modal "
                         "force), e.g. tip:log:1e-6:1e-3:51 (the default)")
     p.add_argument("--maxiter", type=int, help="contact solver iteration cap")
+    p.add_argument("--dissipation", choices=["auto", "masing", "loop"],
+                   help="dissipation per cycle: Masing's rules where verified and the "
+                        "stabilised loop elsewhere (auto, the default), or one of them at "
+                        "every level")
     p.add_argument("--direct-loop", action="store_true", default=None,
                    help="also compute the hysteresis loop directly (check of Masing)")
     p.add_argument("--continue", dest="continue_on_failure", action="store_true",
@@ -33,35 +42,31 @@ def add_arguments(p):
 
 def execute(args) -> int:
     from ..analysis import run
-    from ..contact import METHODS
     from ..results import prepare_output_dir, write_all
 
     out = prepare_output_dir(args.out)           # fail before computing anything
     model, options = load_model(args)
-    for key in ("mode", "method", "tol", "maxiter", "direct_loop", "continue_on_failure"):
-        if getattr(args, key) is not None:
-            options[key] = getattr(args, key)
-    if args.levels is not None:
-        options["levels"] = parse_levels_spec(args.levels)
-    if "method" in options and options["method"] not in METHODS:
-        raise InputError(f"unknown contact method {options['method']!r}; "
-                         f"valid: {sorted(METHODS)}")
+    options = options.replace(**{key: getattr(args, key) for key in CLI_OPTIONS},
+                              levels=None if args.levels is None
+                              else parse_levels_spec(args.levels))
     progress = None if args.quiet or not sys.stderr.isatty() else _bar
-    res = run(model, progress=progress, **options)
+    res = run(model, options, progress=progress)
     if progress:
         print(file=sys.stderr)
     paths = write_all(res, out, plots=not args.no_plots, vtu=not args.no_vtu)
     if not args.quiet:
         _summary(res, paths, args.verbose)
     dl = res.direct_loop
+    if not args.quiet:
+        _warn_flags(res)
     if dl is not None and not dl.success:
-        if not options.get("continue_on_failure"):
+        if not options.continue_on_failure:
             print(f"qsma: analysis failed: {dl.message}; the backbone is complete in {out}",
                   file=sys.stderr)
             return 1
         print(f"qsma: warning: {dl.message}", file=sys.stderr)
     if not res.success:
-        if options.get("continue_on_failure"):
+        if options.continue_on_failure:
             print(f"qsma: warning: {res.message} (continued as asked: the levels whose "
                   f"residual is above tol are flagged by 'residual' in {out})",
                   file=sys.stderr)
@@ -91,6 +96,24 @@ def parse_levels_spec(spec: str):
     return parse_levels(table, where="--levels")
 
 
+def _warn_flags(res):
+    """Name the levels whose values the physics forbids, and the hardening ones."""
+    from ..analysis import FAILURE_FLAGS
+    by_flag = {}
+    for k, flags in enumerate(res.flags):
+        for f in flags:
+            by_flag.setdefault(f, []).append(k)
+    for f, ks in sorted(by_flag.items()):
+        if f in FAILURE_FLAGS:
+            print(f"qsma: warning: {f} at level(s) {ks[:12]}{' ...' if len(ks) > 12 else ''}",
+                  file=sys.stderr)
+    if "hardening" in by_flag:
+        ks = by_flag["hardening"]
+        print(f"qsma: note: the joint stiffens (contact closing) at level(s) {ks[:12]}"
+              f"{' ...' if len(ks) > 12 else ''}: damping from computed loops",
+              file=sys.stderr)
+
+
 def _bar(k, n, width=40):
     done = int(width * k / n)
     print(f"\r  load levels [{'#' * done}{'.' * (width - done)}] {k}/{n}", end="",
@@ -103,6 +126,9 @@ def _summary(res, paths, verbose):
           f"mu = {info['mu']}")
     print(f"mode {res.mode_index}: f0 = {res.f0_hz:.3f} Hz; {res.n_levels} load levels, "
           f"solver {res.solver['method']}")
+    n_loop = int(np.sum(res.dissipation_method == "loop"))
+    print(f"dissipation: {res.n_levels - n_loop} level(s) by Masing's rules, {n_loop} by "
+          f"computed loops ({res.options.dissipation})")
     if verbose:
         print(f"{'k':>3} {'alpha':>11} {'tip [m]':>10} {'f [Hz]':>9} {'zeta':>10} "
               f"{'stuck':>5} {'slip':>5} {'open':>5} {'it':>4}")

@@ -1,0 +1,180 @@
+"""The options of a QSMA run: one frozen, validated object.
+
+:class:`RunOptions` is the single source of every option of :func:`qsma.run`: the
+TOML ``[analysis]`` table (:meth:`RunOptions.from_table`), the command-line
+overrides (:func:`dataclasses.replace`) and the ``solver`` block of results.json
+(:meth:`RunOptions.as_dict`) are all derived from its fields.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, fields, replace
+import math
+import typing
+
+import numpy as np
+
+from .errors import InputError
+from .levels import Levels
+
+#: How the dissipation per cycle is obtained at each level (docs/theory.md section 7).
+DISSIPATION_METHODS = ("auto", "masing", "loop")
+#: Largest loop cycles per amplitude before a level is declared not stabilised.
+MAX_CYCLES_LIMIT = 100
+#: Largest ``loop_steps``: beyond it a loop costs more solves than a 10^4-level ramp.
+MAX_LOOP_STEPS = 10000
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """Every option of a QSMA run, validated on creation.
+
+    Parameters
+    ----------
+    mode : int
+        Index (0 = lowest elastic mode) of the tied structure's mode to load.
+    levels : Levels or None
+        Load levels; ``None`` takes the 51 levels of the sandwich benchmark
+        (linear tied tip deflection 1 um to 1 mm, log spaced).
+    method : str
+        Contact solver, a key of :data:`qsma.contact.METHODS`.
+    tol, maxiter : float or None, int or None
+        Contact solver tolerance and iteration cap (``None``: the solver's defaults).
+    dissipation : {"auto", "masing", "loop"}
+        ``"masing"``: Masing's rules on the backbone at every level; ``"loop"``: the
+        stabilised quasi-static loop computed at every level; ``"auto"``: Masing where
+        its assumptions are verified at that level, the loop elsewhere.
+    dissipation_rtol : float
+        Target of the estimated integration error of each dissipation, relative to it:
+        levels and loop increments are inserted until the estimate is below it.
+    max_cycles : int
+        Loop cycles per amplitude before a level is declared not stabilised.
+    refine_levels : bool
+        Insert backbone levels where the estimate of the Masing integral exceeds
+        ``dissipation_rtol`` or the pair states change (the output grid stays ``levels``).
+    direct_loop : bool
+        Also report the first loop at the largest amplitude beside Masing (kept for
+        compatibility; ``dissipation="loop"`` supersedes it).
+    n_modes : int or None
+        Modes computed (default ``max(6, mode + 1)``).
+    continue_on_failure : bool
+        Keep ramping after a level whose contact solve failed.
+    schur_backend : str
+        Static condensation backend (:data:`qsma.linalg.SCHUR_BACKENDS` or ``"auto"``).
+    blas_threads : "auto", int or None
+        BLAS thread limit; ``"auto"``: one thread for small interface problems.
+    loop_steps : int
+        Largest number of increments per loop branch before refinement (the branch
+        mirrors the backbone levels below the amplitude, thinned to this count).
+    eliminate_open : bool
+        Solve the ramp on the pairs closed after the preload, the open ones eliminated
+        exactly (a pair that would close joins the zone).
+    """
+
+    mode: int = 0
+    levels: Levels | None = None
+    method: str = "basket"
+    tol: float | None = None
+    maxiter: int | None = None
+    dissipation: str = "auto"
+    dissipation_rtol: float = 5e-3
+    max_cycles: int = 8
+    loop_steps: int = 16
+    refine_levels: bool = True
+    direct_loop: bool = False
+    n_modes: int | None = None
+    continue_on_failure: bool = False
+    schur_backend: str = "auto"
+    blas_threads: typing.Any = "auto"
+    eliminate_open: bool = True
+
+    def __post_init__(self):
+        from .contact import METHODS
+        _integer("mode", self.mode, minimum=0)
+        if self.levels is not None and not isinstance(self.levels, Levels):
+            raise InputError(f"levels must be a qsma.levels.Levels, got {type(self.levels).__name__}")
+        if self.method not in METHODS:
+            raise InputError(f"unknown contact method {self.method!r}; valid: {sorted(METHODS)}")
+        if self.tol is not None:
+            _positive("tol", self.tol)
+            if self.tol >= 1e-2:
+                raise InputError(f"tol = {self.tol:g} is not a convergence tolerance (it is "
+                                 f"relative to the contact forces): use a value below 1e-2, "
+                                 f"e.g. 1e-10")
+        if self.maxiter is not None:
+            _integer("maxiter", self.maxiter, minimum=1)
+        if self.dissipation not in DISSIPATION_METHODS:
+            raise InputError(f"dissipation must be one of {DISSIPATION_METHODS}, "
+                             f"got {self.dissipation!r}")
+        _positive("dissipation_rtol", self.dissipation_rtol)
+        if self.dissipation_rtol >= 1:
+            raise InputError(f"dissipation_rtol must be below 1 (a relative error), got "
+                             f"{self.dissipation_rtol:g}")
+        _integer("max_cycles", self.max_cycles, minimum=1, maximum=MAX_CYCLES_LIMIT)
+        _integer("loop_steps", self.loop_steps, minimum=2, maximum=MAX_LOOP_STEPS)
+        if self.n_modes is not None:
+            _integer("n_modes", self.n_modes, minimum=1)
+        for name in ("refine_levels", "direct_loop", "continue_on_failure", "eliminate_open"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise InputError(f"{name} must be true or false, got {getattr(self, name)!r}")
+        if not isinstance(self.schur_backend, str):
+            raise InputError(f"schur_backend must be a name, got {self.schur_backend!r}")
+        bt = self.blas_threads
+        if not (bt is None or bt == "auto"):
+            _integer("blas_threads", bt, minimum=1)
+
+    @property
+    def solver_options(self) -> dict:
+        """Keyword options of :func:`qsma.contact.solve` (only those set)."""
+        return {k: v for k, v in (("tol", self.tol), ("maxiter", self.maxiter))
+                if v is not None}
+
+    def as_dict(self) -> dict:
+        """JSON-ready options (the ``options`` of results.json); levels as kind and count."""
+        out = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "levels"}
+        return out
+
+    @classmethod
+    def table_keys(cls) -> dict:
+        """Keys allowed in the TOML ``[analysis]`` table and their Python types."""
+        hints = typing.get_type_hints(cls)
+        return {f.name: hints[f.name] for f in fields(cls) if f.name != "levels"}
+
+    @classmethod
+    def from_table(cls, table: dict, where: str = "analysis", **extra) -> "RunOptions":
+        """Options from a TOML ``[analysis]`` table; unknown keys are named with the
+        allowed ones, values are validated by the constructor."""
+        if not isinstance(table, dict):
+            raise InputError(f"{where}: expected a table, got {type(table).__name__}")
+        allowed = cls.table_keys()
+        for key in table:
+            if key not in allowed:
+                raise InputError(f"{where}: unknown key {key!r}; allowed keys: "
+                                 f"{sorted(allowed)}")
+        try:
+            return cls(**table, **extra)
+        except InputError as exc:
+            raise InputError(f"{where}: {exc}") from exc
+        except TypeError as exc:
+            raise InputError(f"{where}: {exc}") from exc
+
+    def replace(self, **changes) -> "RunOptions":
+        """A new validated object with ``changes`` (``None`` values are ignored)."""
+        return replace(self, **{k: v for k, v in changes.items() if v is not None})
+
+
+def _integer(name, value, minimum=None, maximum=None):
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise InputError(f"{name} must be an integer, got {value!r}")
+    if minimum is not None and value < minimum:
+        raise InputError(f"{name} must be >= {minimum}, got {value}")
+    if maximum is not None and value > maximum:
+        raise InputError(f"{name} must be <= {maximum}, got {value}")
+
+
+def _positive(name, value):
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not math.isfinite(value) or value <= 0:
+        raise InputError(f"{name} must be a positive finite number, got {value!r}")
+
+
+__all__ = ["RunOptions", "DISSIPATION_METHODS"]
