@@ -163,7 +163,8 @@ def compute_loop(step, modal, amplitude, start, fractions, *, k_ref, max_cycles=
     u = np.union1d(u[u > 0], [1.0])
     n_solves = 0
     for round_ in range(refine_rounds + 1):
-        loop, changed = _cycles(step, modal, amplitude, start, u, k_ref, max_cycles)
+        loop, changed = _cycles(step, modal, amplitude, start, u, k_ref, max_cycles, rtol,
+                                atol)
         n_solves += loop.n_solves
         good = loop.error <= rtol * abs(loop.dissipation) + atol
         if not loop.success or good or round_ == refine_rounds:
@@ -185,10 +186,12 @@ def _refined(u, changed):
     return np.union1d(u, 0.5 * (lo + u)[pick])
 
 
-def _cycles(step, modal, A, start, u, k_ref, max_cycles):
-    """Cycles from ``start`` until one ends in the state it started from, or two
-    successive cycles agree; ``(Loop, changed)`` with ``changed[i]`` whether a pair
-    changed state in branch interval ``i`` of the last cycle."""
+def _cycles(step, modal, A, start, u, k_ref, max_cycles, rtol, atol):
+    """Cycles from ``start`` until one ends in the state it started from (it repeats
+    exactly), or two successive cycles agree: dissipation within ``rtol |D| + atol`` and
+    the shape of ``q`` (about its mean) within ``rtol`` of its range. ``(Loop,
+    changed)`` with ``changed[i]`` whether a pair changed state in branch interval
+    ``i`` of the last cycle."""
     path = cycle_path(A, u)
     state0, first, previous, n_solves = start, None, None, 0
     for cycle in range(1, max_cycles + 1):
@@ -209,13 +212,14 @@ def _cycles(step, modal, A, start, u, k_ref, max_cycles):
         D = cycle_area(path, qs, k_ref)
         first = D if first is None else first
         repeats = _same(state, state0, span) or (
-            previous is not None and np.abs(qs - previous).max()
-            <= STATE_RTOL * max(np.ptp(qs), np.finfo(float).tiny))
+            previous is not None and abs(D - previous[1]) <= rtol * abs(D) + atol
+            and np.abs((qs - qs.mean()) - (previous[0] - previous[0].mean())).max()
+            <= rtol * max(np.ptp(qs), np.finfo(float).tiny))
         if repeats:
             return Loop(A, path, qs, D, first, cycle_area_error(path, qs, k_ref), qs[0],
                         qs[len(u)], cycle, True, n_solves, True,
                         f"stabilised after {cycle} cycle(s)"), _changed(status, len(u))
-        previous, state0 = qs, state
+        previous, state0 = (qs, D), state
     return Loop(A, path, qs, D, first, cycle_area_error(path, qs, k_ref), qs[0], qs[len(u)],
                 max_cycles, False, n_solves, False,
                 f"loop at A = {A:.6g} not stabilised after {max_cycles} cycles (the state "

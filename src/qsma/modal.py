@@ -144,4 +144,7 @@ def probe_vector(model) -> np.ndarray:
         for c in range(dim):
             l[off[k] + dim * nodes + c] += direction[c]
         n += len(nodes)
+    if n == 0:
+        raise InputError(f"the tip probe sets {list(model.tip.sets)} hold no node: name "
+                         f"sets with at least one node")
     return l / n

@@ -1,0 +1,174 @@
+"""Computed hysteresis loops against closed forms where Masing's rules fail.
+
+The lumped system: a unit mass (mass-normalised mode phi = 1, so the modal force is
+alpha and q = x) held to ground by a linear spring k0, a Jenkins element (spring k in
+series with a frictional slider of strength F_s = mu P0) and a unilateral spring k_u
+that touches a stop after a gap g (contact closing under load: the joint stiffens).
+Condensed onto the slider s and the contact node c of the unilateral spring, the mass
+x is the interior DOF:
+
+    K = [[k0+k+ku, -k, -ku], [-k, k, 0], [-ku, 0, ku]] on (x, s, c),  F = (alpha, 0, 0)
+    Kc = K_CC - K_CE K_EE^-1 K_EC,  Fc = (k, ku) alpha / kt,  kt = k0 + k + ku
+    x = (alpha + k s + ku c) / kt
+
+Closed forms of the stabilised cycle between -A and +A (the slider slips at both ends):
+at +A, k0 x_max + F_s + ku max(x_max - g, 0) = A; at -A, k0 x_min - F_s = -A; the
+unilateral spring stores and returns energy, the slider dissipates
+D = 2 F_s (x_max - x_min - 2 F_s / k), and the peak-to-peak secant stiffness is
+2 A / (x_max - x_min).
+"""
+import numpy as np
+import pytest
+
+from qsma.contact import ContactProblem, solve
+from qsma.hysteresis import (compute_loop, cycle_area, masing_checks, masing_estimate)
+
+k0, k, ku, g, kn, mu, P0 = 1.0e6, 3.0e6, 4.0e6, 2.0e-4, 1.0e9, 0.5, 400.0
+Fs = mu * P0
+kt = k0 + k + ku
+
+
+def _problem(pre_shear=0.0):
+    """ContactProblem of the lumped system and its welded force per alpha.
+
+    Pair 0: slider (t = s, n = a stiff decoupled normal carrying P0). Pair 1: the stop
+    (t = a decoupled dummy, n = -c: opening w = g - c). ``pre_shear``: a constant shear
+    on the slider (what a preload can leave)."""
+    Kc = np.array([[k - k * k / kt, -k * ku / kt], [-k * ku / kt, ku - ku * ku / kt]])
+    K = np.zeros((4, 4))
+    K[0, 0], K[0, 3], K[3, 0], K[3, 3] = Kc[0, 0], -Kc[0, 1], -Kc[1, 0], Kc[1, 1]
+    K[1, 1], K[2, 2] = kn, kn
+    problem = ContactProblem(K, [mu, 0.0], gap0=[0.0, g])
+
+    def lam_w(alpha):
+        return np.array([[-k * alpha / kt + pre_shear, P0], [0.0, ku * alpha / kt]])
+    return problem, lam_w
+
+
+def _modal(d, alpha):
+    return (alpha + k * d[0, 0] - ku * d[1, 1]) / kt
+
+
+def _stepper(problem, lam_w):
+    def step(alpha, state):
+        res = solve(problem, lam_w(alpha), state)
+        assert res.success, res.message
+        return res
+    return step
+
+
+def _ramp(problem, lam_w, alphas):
+    state, q, out = None, [], []
+    for a in alphas:
+        res = solve(problem, lam_w(a), state)
+        assert res.success
+        state = res.state
+        q.append(_modal(res.d, a))
+        out.append(res)
+    return np.array(q), out
+
+
+def _x_max(A):
+    x = (A - Fs) / k0
+    return x if x <= g else (A - Fs + ku * g) / (k0 + ku)
+
+
+def _exact(A):
+    x_max, x_min = _x_max(A), (-A + Fs) / k0
+    return 2 * Fs * (x_max - x_min - 2 * Fs / k), 2 * A / (x_max - x_min), x_max, x_min
+
+
+def _kinks(A):
+    """Fractions u of 2A at which the cycle's branches change slope (exact events)."""
+    x_max, x_min = _exact(A)[2:]
+    alpha_of = lambda x, fJ: k0 * x + fJ + ku * max(x - g, 0.0)
+    down = [alpha_of(x_max - 2 * Fs / k, -Fs)]
+    up = [alpha_of(x_min + 2 * Fs / k, Fs)]
+    if x_max > g:
+        down.append(alpha_of(g, Fs - k * (x_max - g)))
+        xg = g
+        fJ = -Fs + k * (xg - x_min)
+        up.append(alpha_of(xg, min(fJ, Fs)))
+    u = [(A - a) / (2 * A) for a in down] + [(a + A) / (2 * A) for a in up]
+    return np.array(u)
+
+
+@pytest.mark.parametrize("A", [900.0, 1600.0])
+def test_loop_matches_closed_form_where_masing_fails(A):
+    """With the kinks among the increments the trapezoidal rule is exact: D and the
+    secant stiffness to 1e-8 (A = 900: stop not reached; 1600: the stop closes)."""
+    problem, lam_w = _problem()
+    step = _stepper(problem, lam_w)
+    q, res = _ramp(problem, lam_w, [A])
+    u = np.union1d(np.linspace(0, 1, 9)[1:], _kinks(A))
+    loop = compute_loop(step, _modal, A, res[-1].state, u, k_ref=kt, refine_rounds=0)
+    D, k_sec, x_max, x_min = _exact(A)
+    assert loop.success and loop.stabilised and loop.n_cycles == 1
+    assert loop.dissipation == pytest.approx(D, rel=1e-8)
+    assert loop.omega ** 2 == pytest.approx(k_sec, rel=1e-8)
+    assert loop.q_top == pytest.approx(x_max, rel=1e-10)
+    assert loop.q_bottom == pytest.approx(x_min, rel=1e-10)
+    assert loop.zeta == pytest.approx(D / (np.pi * A * (x_max - x_min)), rel=1e-8)
+
+
+def test_masing_is_wrong_and_the_checks_say_so():
+    """On the stiffening branch Masing's construction from the +alpha backbone is far
+    from the true loop; the checks reject Masing once the stop closes."""
+    problem, lam_w = _problem()
+    alphas = np.linspace(100.0, 1600.0, 61)
+    q_pos, res_pos = _ramp(problem, lam_w, alphas)
+    q_neg, res_neg = _ramp(problem, lam_w, -alphas)
+    est = masing_estimate(alphas, q_pos, kt)
+    D_true = _exact(1600.0)[0]
+    assert abs(est.dissipation[-1] / D_true - 1) > 0.2
+    P = lambda rs: np.array([r.lam[:, -1] for r in rs])
+    opened = lambda rs: np.array([r.status == 2 for r in rs])
+    pre = solve(problem, lam_w(0.0))
+    checks = masing_checks(alphas, q_pos, q_neg, P(res_pos), P(res_neg), pre.lam[:, -1],
+                           opened(res_pos), opened(res_neg), pre.status == 2, kt, 5e-3, 0.0)
+    closes = np.flatnonzero(opened(res_pos)[:, 1] == 0)[0]
+    assert not checks.valid[closes:].any()
+    assert "contact set changed" in checks.reason[closes]
+
+
+def test_refinement_converges_to_the_closed_form():
+    """Generic increments: each refinement round halves the increments where pair
+    states change; the loop energy converges to the closed form within the estimate."""
+    A = 1600.0
+    problem, lam_w = _problem()
+    step = _stepper(problem, lam_w)
+    _, res = _ramp(problem, lam_w, [A])
+    D = _exact(A)[0]
+    errors = []
+    for rounds in (0, 1, 2, 3):
+        loop = compute_loop(step, _modal, A, res[-1].state, np.linspace(0, 1, 6)[1:],
+                            k_ref=kt, rtol=1e-12, refine_rounds=rounds)
+        errors.append(abs(loop.dissipation - D))
+        assert abs(loop.dissipation - D) <= 4 * loop.error + 1e-12 * abs(D)
+    assert errors[-1] < 0.1 * errors[0] and errors[-1] < 2e-3 * D
+
+
+def test_shakedown_first_cycle_dissipates_then_elastic():
+    """A slider left near its friction limit by the preload (pre-shear 0.999 F_s): the
+    first unloading slips it once, every later cycle is elastic, because the slider
+    force swings by 2 A k / (k0 + k) = 1.2 F_s < 2 F_s (stop open: the unilateral
+    spring is slack). The stabilised dissipation is zero, the first is not."""
+    problem, lam_w = _problem(pre_shear=Fs * 0.999)
+    step = _stepper(problem, lam_w)
+    A = 0.6 * Fs * (k0 + k) / k
+    _, res = _ramp(problem, lam_w, [A])
+    loop = compute_loop(step, _modal, A, res[-1].state, np.linspace(0, 1, 17)[1:], k_ref=kt)
+    assert loop.success and loop.stabilised and loop.n_cycles == 2
+    assert loop.first_dissipation > 1e-3 * A * loop.q_amplitude
+    assert abs(loop.dissipation) <= 1e-9 * A * loop.q_amplitude
+    assert loop.shakedown
+
+
+def test_cycle_area_is_exact_for_a_parallelogram():
+    """The trapezoidal loop area of a Jenkins parallelogram with its corners as points."""
+    Fs_, k_, xa = 2.0, 10.0, 1.0
+    x = np.array([xa, xa - 2 * Fs_ / k_, -xa, -xa + 2 * Fs_ / k_, xa])
+    f = np.array([Fs_, -Fs_, -Fs_, Fs_, Fs_])
+    alpha = f + 0.0 * x            # force = Jenkins force (k0 = 0)
+    assert cycle_area(alpha, x, k_ref=1.0) == pytest.approx(4 * Fs_ * (xa - Fs_ / k_),
+                                                            rel=1e-14)
