@@ -67,11 +67,13 @@ def test_every_level_satisfies_the_public_residual(result):
     problem = ContactProblem(r.reduced.K, r.model_info["mu"])
     prev = r.preload.state
     a = lambda al: np.array([1.0, al])
-    for k in range(r.n_levels):
-        lam_w = r.reduced.welded_contact_force(a(r.alpha[k]))
-        res_k = residual(problem, lam_w, r.states.d[k], r.states.lam[k], prev)
+    b = r.backbone_states                        # user levels and inserted ones
+    for g, al in enumerate(r.backbone_alpha):
+        lam_w = r.reduced.welded_contact_force(a(al))
+        res_k = residual(problem, lam_w, b.d[g], b.lam[g], prev)
         assert res_k <= r.solver["tol"]          # the full-problem residual, as accepted
-        prev = r.states.state(k)
+        prev = b.state(g)
+    assert np.array_equal(r.backbone_alpha[r.backbone_index], r.alpha)
 
 
 def test_full_field_satisfies_full_equilibrium(result):

@@ -43,7 +43,8 @@ def test_results_json_schema(run_dir):
             "n_stuck", "n_slip", "n_open", "iterations"]
     assert all(len(levels[k]) == 51 for k in keys)
     assert set(data["timings_s"]) == {"model", "assembly", "modal", "condensation",
-                                      "contact", "postprocess", "total"}
+                                      "contact", "hysteresis", "postprocess", "total"}
+    assert len(levels["flags"]) == 51 and set(levels["dissipation_method"]) == {"masing"}
     assert set(data["solver"]) >= {"method", "tol"}
     assert data["qsma_version"]
     assert data["direct_loop"]["dissipation"] > 0

@@ -81,7 +81,10 @@ class QSMAResult:
     """Everything a QSMA run produced.
 
     Arrays under "levels" (:data:`LEVEL_FIELDS`) have one entry per solved level of the
-    user's grid. ``f_hz``, ``zeta``, ``dissipation`` are those of the method named in
+    user's grid. The +alpha ramp was solved through ``backbone_alpha`` (the user's
+    levels plus those inserted for the integrals; ``backbone_index`` maps each user
+    level to it); ``backbone_states`` holds every point, the history of each level is
+    the point before it there. ``f_hz``, ``zeta``, ``dissipation`` are those of the method named in
     ``dissipation_method`` at each level; the Masing and loop values are kept beside
     them (NaN where not computed). ``success`` is False when a level failed to converge
     or holds a value the physics forbids (``flags``; ``message`` says which).
@@ -122,6 +125,8 @@ class QSMAResult:
     states: LevelStates
     loops: dict
     backbone_alpha: np.ndarray
+    backbone_states: LevelStates
+    backbone_index: np.ndarray
     preload: object
     modes: object
     reduced: object
@@ -403,6 +408,8 @@ def _run(model, pairing, opts, progress, clock):
         shakedown=hyst["shakedown"], tip_velocity=omega * np.abs(tip),
         n_stuck=counts[:, 0], n_slip=counts[:, 1], n_open=counts[:, 2], flags=flags,
         states=states, loops=hyst["loops"], backbone_alpha=grid[:pos.n],
+        backbone_states=LevelStates(pos.d, pos.lam, pos.status, pos.residual, pos.nit),
+        backbone_index=user,
         preload=pre, modes=modes, reduced=reduced, pairing=pairing, model=model,
         options=opts,
         solver=dict(method=opts.method, tol=opts.tol or DEFAULT_TOL, maxiter=opts.maxiter,
@@ -527,7 +534,7 @@ def _ramp(solver, alpha, start, keep_going, progress, where="load level", respon
     arr = {k: np.array(v) for k, v in rows.items()}
     shape = (n,) + start.d.shape
     return _RampOut(arr["d"].reshape(shape), arr["lam"].reshape(shape),
-                    arr["status"].reshape(n, -1).astype(int),
+                    arr["status"].reshape(n, len(start.status)).astype(int),
                     arr["residual"].astype(float), arr["nit"].astype(int),
                     arr["ok"].astype(bool), arr["q"].astype(float),
                     arr["tip"].astype(float), fallback, success, message, failed)
@@ -684,7 +691,7 @@ def _flags(alpha, q, tip, hyst, counts, status, pre, omega0, opts, pos, user):
     err = np.where(use_loop, hyst["loop_error"], hyst["masing_error"])
     D = np.where(use_loop, hyst["dissipation_loop"], hyst["dissipation_masing"])
     f0 = omega0 / (2 * np.pi)
-    untouched = np.array([np.array_equal(status[k], pre.status) for k in range(n)])
+    untouched = np.array([np.array_equal(status[k], pre.status) for k in range(n)], dtype=bool)
     untouched &= np.cumsum(~untouched) == 0
     out = []
     for k in range(n):

@@ -161,16 +161,18 @@ def compute_loop(step, modal, amplitude, start, fractions, *, k_ref, max_cycles=
     """
     u = np.unique(np.clip(np.asarray(fractions, dtype=float), 0.0, 1.0))
     u = np.union1d(u[u > 0], [1.0])
-    n_solves = 0
+    n_solves, state, first = 0, start, None
     for round_ in range(refine_rounds + 1):
-        loop, changed = _cycles(step, modal, amplitude, start, u, k_ref, max_cycles, rtol,
-                                atol)
+        loop, changed, state = _cycles(step, modal, amplitude, state, u, k_ref, max_cycles,
+                                       rtol, atol)
         n_solves += loop.n_solves
+        first = loop if first is None else first
         good = loop.error <= rtol * abs(loop.dissipation) + atol
         if not loop.success or good or round_ == refine_rounds:
             break
-        u = _refined(u, changed)
-    return _with(loop, n_solves=n_solves)
+        u = _refined(u, changed)       # later rounds start from the stabilised state
+    return _with(loop, n_solves=n_solves, first_dissipation=first.first_dissipation,
+                 n_cycles=first.n_cycles if loop.success else loop.n_cycles)
 
 
 def _with(loop, **changes):
@@ -190,8 +192,8 @@ def _cycles(step, modal, A, start, u, k_ref, max_cycles, rtol, atol):
     """Cycles from ``start`` until one ends in the state it started from (it repeats
     exactly), or two successive cycles agree: dissipation within ``rtol |D| + atol`` and
     the shape of ``q`` (about its mean) within ``rtol`` of its range. ``(Loop,
-    changed)`` with ``changed[i]`` whether a pair changed state in branch interval
-    ``i`` of the last cycle."""
+    changed, start_state)`` with ``changed[i]`` whether a pair changed state in branch
+    interval ``i`` of the last cycle and the state the last cycle started from."""
     path = cycle_path(A, u)
     state0, first, previous, n_solves = start, None, None, 0
     for cycle in range(1, max_cycles + 1):
@@ -203,7 +205,7 @@ def _cycles(step, modal, A, start, u, k_ref, max_cycles, rtol, atol):
                 return _failed(A, path[:k], qs, first, cycle, n_solves,
                                f"loop at A = {A:.6g}, cycle {cycle}: contact solve failed at "
                                f"alpha = {a:.6g}: {res.message} (residual "
-                               f"{res.residual:.2e})"), None
+                               f"{res.residual:.2e})"), None, state0
             state = res.state
             qs.append(modal(res.d, a))
             status.append(res.status)
@@ -218,13 +220,13 @@ def _cycles(step, modal, A, start, u, k_ref, max_cycles, rtol, atol):
         if repeats:
             return Loop(A, path, qs, D, first, cycle_area_error(path, qs, k_ref), qs[0],
                         qs[len(u)], cycle, True, n_solves, True,
-                        f"stabilised after {cycle} cycle(s)"), _changed(status, len(u))
+                        f"stabilised after {cycle} cycle(s)"), _changed(status, len(u)), state0
         previous, state0 = (qs, D), state
     return Loop(A, path, qs, D, first, cycle_area_error(path, qs, k_ref), qs[0], qs[len(u)],
                 max_cycles, False, n_solves, False,
                 f"loop at A = {A:.6g} not stabilised after {max_cycles} cycles (the state "
                 f"at +A still changes: ratcheting or slow shakedown); raise max_cycles"), \
-        _changed(status, len(u))
+        _changed(status, len(u)), state0
 
 
 def _same(a, b, span):

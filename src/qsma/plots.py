@@ -38,24 +38,26 @@ def plot_backbone(res, path):
 
 def plot_loops(res, path):
     """Hysteresis loops at three amplitudes: the computed stabilised loops where they
-    exist, Masing's construction elsewhere (and the direct loop if asked for)."""
+    exist, Masing's construction elsewhere (and the direct loop if asked for). The
+    tied linear force w0^2 q is subtracted so that thin loops are visible."""
     fig, ax = _figure(figsize=(6, 4.5))
     n = res.n_levels
+    k0 = res.omega0 ** 2
     for k in sorted({n // 2, (3 * n) // 4, n - 1}):
         lp = res.loops.get(k)
         if lp is not None and lp.success:
-            ax.plot(lp.q, lp.alpha, lw=1.2, label=f"computed loop, level {k}")
+            ax.plot(lp.q, lp.alpha - k0 * lp.q, lw=1.2, label=f"computed loop, level {k}")
         else:
             q, f = masing_loop(res.alpha, res.q, k)
-            ax.plot(q, f, lw=1.2, label=f"Masing, level {k}")
+            ax.plot(q, f - k0 * q, lw=1.2, label=f"Masing, level {k}")
     if res.direct_loop is not None:
         dl = res.direct_loop
         label = (f"direct loop (D = {dl.dissipation:.3g} vs Masing "
                  f"{dl.dissipation_masing:.3g})" if dl.success
                  else "direct loop (not closed: a contact solve failed)")
-        ax.plot(dl.q, dl.alpha, "k.", ms=3, label=label)
+        ax.plot(dl.q, dl.alpha - k0 * dl.q, "k.", ms=3, label=label)
     ax.set_xlabel("modal amplitude q [kg$^{1/2}$ m]")
-    ax.set_ylabel(r"modal force $\alpha$ [N/kg$^{1/2}$]")
+    ax.set_ylabel(r"$\alpha - \omega_0^2 q$ [N/kg$^{1/2}$]")
     ax.ticklabel_format(style="sci", scilimits=(-3, 3))
     ax.set_title("Hysteresis loops")
     ax.grid(True, alpha=0.3)
