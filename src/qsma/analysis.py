@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
+import logging
 import time
 import warnings
 
@@ -24,13 +25,15 @@ from .contact import solve as contact_solve
 from .contact.zone import solve_in_zone, zone_from_state
 from .errors import AnalysisError, ContactConvergenceWarning, InputError
 from .fe import assemble_body
-from .hysteresis import compute_loop, masing_checks, masing_estimate
+from .hysteresis import SECANT_RTOL, compute_loop, masing_checks, masing_estimate
 from .masing import loop_area
 from .levels import spec_levels
 from .modal import linear_modes, probe_vector
 from .model import make_pairing
 from .options import RunOptions
 from .version import __version__
+
+log = logging.getLogger("qsma")
 
 STAGES = ("model", "assembly", "modal", "condensation", "contact", "hysteresis",
           "postprocess", "total")
@@ -522,6 +525,7 @@ def _ramp(solver, alpha, start, keep_going, progress, where="load level", respon
                 break
         if "fell back to" in res.message:
             fallback.append(k)
+            log.info("%s %d: solver fell back: %s", where, k, res.message)
         for name, v in (("d", res.d), ("lam", res.lam), ("status", res.status),
                         ("residual", res.residual), ("nit", res.nit), ("ok", res.success)):
             rows[name].append(v)
@@ -560,6 +564,7 @@ def _refined_backbone(solver, alpha, pre, opts, progress, response, k_ref):
         if not trial.success:          # keep the converged coarser grid
             break
         grid, out = new, trial
+        log.info("backbone refined to %d points", len(grid))
     user = np.flatnonzero(np.isin(grid, np.asarray(alpha, float)))
     user = user[user < out.n]
     if not opts.continue_on_failure and not out.success:
@@ -641,6 +646,8 @@ def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref):
                           atol=ZETA_ZERO * 2 * np.pi * A * abs(pos.q[g]))
         out["loops"][i] = lp
         out["n_solves"] += lp.n_solves
+        log.info("level %d: loop at A=%.4g, %s, %d solves, D=%.4g +- %.1g", i, A, lp.message,
+                 lp.n_solves, lp.dissipation, lp.error)
         out["cycles"][i] = lp.n_cycles
         if lp.success:
             out["f_hz_loop"][i] = lp.omega / (2 * np.pi)
@@ -707,7 +714,7 @@ def _flags(alpha, q, tip, hyst, counts, status, pre, omega0, opts, pos, user):
         if hyst["zeta_masing"][k] < -ZETA_ZERO and use_loop[k]:
             fl.append("masing_negative")
         hard = f[k] > f0 * (1 + STUCK_FREQUENCY_RTOL) or (
-            k > 0 and q[k] * alpha[k - 1] < q[k - 1] * alpha[k] * (1 - 1e-9))
+            k > 0 and q[k] * alpha[k - 1] * (1 + SECANT_RTOL) < q[k - 1] * alpha[k])
         if hard:
             fl.append("hardening" if use_loop[k] else "masing_on_hardening")
         if untouched[k] and (abs(f[k] / f0 - 1) > STUCK_FREQUENCY_RTOL
@@ -739,7 +746,11 @@ def _outcome(pos, flags, n_ok, n_asked, opts):
                      f"({', '.join(names)}): levels {bad[:12]}"
                      f"{' ...' if len(bad) > 12 else ''}; see 'flags' in the results"
                      + ("; dissipation='loop' computes the true loops"
-                        if opts.dissipation == "masing" else ""))
+                        if opts.dissipation == "masing" else "")
+                     + ("; stuck_not_linear: the modal response of these levels is below "
+                        "the numerical resolution of the preload state (about 1e-9 of the "
+                        "preload displacements): raise the smallest load level, or check "
+                        "the units of the bolt load" if "stuck_not_linear" in names else ""))
     if not parts:
         return True, "all levels converged"
     return False, "; ".join(parts)

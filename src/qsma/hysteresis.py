@@ -314,6 +314,11 @@ class MasingChecks:
 #: frictional sliders of fixed strength (no normal-tangential coupling). Measured on
 #: sandwich-2d refine 1: 5.4e-10 (round-off), on the dissimilar-beam variant 0.28.
 PRESSURE_RTOL = 1e-6
+#: Relative rise of the secant stiffness alpha/q that counts as stiffening: twice the
+#: 1e-6 to which a stuck level's secant frequency equals f0 (the modal response of the
+#: smallest resolvable levels carries ~1e-8 relative noise, measured on sandwich-2d at
+#: a tip deflection of 1 nm).
+SECANT_RTOL = 2e-6
 
 
 def masing_checks(alpha, q_pos, q_neg, P_pos, P_neg, P_pre, open_pos, open_neg, open_pre,
@@ -348,7 +353,7 @@ def masing_checks(alpha, q_pos, q_neg, P_pos, P_neg, P_pre, open_pos, open_neg, 
     mismatch = np.abs(d_pos - d_neg) / np.maximum(np.abs(d_pos), np.finfo(float).tiny)
     mirror_bad = np.abs(d_pos - d_neg) > rtol * np.abs(d_pos) + atol
     secant = alpha / np.asarray(q_pos, float)
-    rising = np.concatenate([[False], secant[1:] > secant[:-1] * (1 + 1e-9)])
+    rising = np.concatenate([[False], secant[1:] > secant[:-1] * (1 + SECANT_RTOL)])
     linear = np.zeros(n, bool) if linear is None else np.asarray(linear, bool)
     reasons = []
     valid = np.ones(n, bool)

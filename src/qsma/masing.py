@@ -34,7 +34,9 @@ def masing(alpha, q) -> MasingResult:
     """Masing dissipation, secant frequency and damping ratio at each backbone point.
 
     The integral is the trapezoidal rule from (0, 0) through every point up to the
-    current one (``shared/spec/sandwich-2d.md``, section "Analysis", step 5).
+    current one (the benchmark's definition, docs/theory.md section 7; the analysis
+    itself uses :func:`qsma.hysteresis.masing_estimate`, the same rule written on the
+    deviation from the tied line, with an error estimate).
     """
     alpha = np.asarray(alpha, dtype=float)
     q = np.asarray(q, dtype=float)
