@@ -288,8 +288,9 @@ def masing_estimate(alpha, q, k_ref) -> MasingEstimate:
         coarse[p] = coarse[p - 2] + 0.5 * (g[p] + g[p - 2]) * (qa[p] - qa[p - 2])
     D = 8.0 * fine[1:] - 4.0 * g[1:] * q
     error = 8.0 * np.abs(fine[1:] - coarse[1:]) / 3.0
-    omega = np.sqrt(alpha / q)
-    zeta = D / (2 * np.pi * alpha * q)
+    with np.errstate(invalid="ignore", divide="ignore"):   # q <= 0: NaN, flagged later
+        omega = np.sqrt(alpha / q)
+        zeta = D / (2 * np.pi * alpha * q)
     return MasingEstimate(D, omega, zeta, error)
 
 

@@ -90,6 +90,9 @@ def plot_damping_frequency(res, path):
     a1.set_ylabel("secant frequency [Hz]")
     a2.set_yscale("symlog", linthresh=ZETA_LINEAR)
     a2.axhline(0.0, color="gray", lw=0.8)
+    shown = np.concatenate([res.zeta, res.zeta_masing if loop.any() else []])
+    lowest = np.nanmin(shown) if np.isfinite(shown).any() else 0.0
+    a2.set_ylim(bottom=min(-ZETA_LINEAR, 3 * lowest))
     a2.set_ylabel(r"damping ratio $\zeta$ [-]")
     a2.set_xlabel("peak tip velocity [m/s]")
     for a in (a1, a2):
