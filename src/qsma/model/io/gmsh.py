@@ -1,0 +1,466 @@
+"""Gmsh ``.msh`` files: our own reader of versions 4.1 (ASCII, binary) and 4.0 (ASCII),
+version 2.2 through meshio with checks of our own, and writers of 4.1 and 2.2 ASCII.
+
+Why our own reader for version 4 (``docs/mesh-io.md``): meshio 5.3.5 keeps only the
+first physical tag of an entity unless it is named, merges equal names of different
+dimensions, fails on 4.1 files where some entities have no physical group, and reads
+Gmsh's version "4" files as 4.1. Do not replace it by ``meshio.read``.
+"""
+from __future__ import annotations
+
+import contextlib
+import io
+import re
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from ...errors import MeshFileError
+from ..mesh import CELL_TYPES, Mesh
+from .common import (_MAX_ID, _Boundary, _boundary_of_sets, _cell_type_of, _check_names,
+                     _FileMesh, _IdLookup, _line_of, _number, _read_bytes, _to_mesh)
+
+#: Gmsh element type number -> (meshio name, nodes per element, topological dimension)
+_GMSH_TYPES = {
+    1: ("line", 2, 1), 2: ("triangle", 3, 2), 3: ("quad", 4, 2), 4: ("tetra", 4, 3),
+    5: ("hexahedron", 8, 3), 6: ("wedge", 6, 3), 7: ("pyramid", 5, 3), 8: ("line3", 3, 1),
+    9: ("triangle6", 6, 2), 10: ("quad9", 9, 2), 11: ("tetra10", 10, 3),
+    12: ("hexahedron27", 27, 3), 13: ("wedge18", 18, 3), 14: ("pyramid14", 14, 3),
+    15: ("vertex", 1, 0), 16: ("quad8", 8, 2), 17: ("hexahedron20", 20, 3),
+    18: ("wedge15", 15, 3), 19: ("pyramid13", 13, 3),
+}
+_GMSH_TYPE_NUMBER = {name: number for number, (name, _, _) in _GMSH_TYPES.items()}
+
+#: Gmsh file versions write_mesh can produce
+GMSH_VERSIONS = ("4.1", "2.2")
+
+# ----- Gmsh ---------------------------------------------------------------------------
+
+def _read_gmsh(path: Path, cell_type: str | None) -> Mesh:
+    raw = _read_bytes(path)
+    src = str(path)
+    version, is_ascii, size_t = _gmsh_header(raw, src)
+    if version in ("4", "4.0") and not is_ascii:
+        raise MeshFileError(f"{src}: binary Gmsh 4.0 files are not supported; save the mesh "
+                            f"as version 4.1 (Gmsh: Mesh.MshFileVersion = 4.1)")
+    if version in ("4", "4.0", "4.1"):    # Gmsh writes format 4.0 as version "4"
+        fm, dims = _Gmsh4(raw, src, is_ascii, size_t, version == "4.1").file_mesh()
+    elif version in ("2", "2.0", "2.1", "2.2"):
+        fm, dims = _gmsh_with_meshio(path, raw, src, version, is_ascii)
+    else:
+        raise MeshFileError(f"{src}: Gmsh format version {version} is not supported; save "
+                            f"the mesh as version 4.1 or 2.2 (Gmsh: Mesh.MshFileVersion)")
+    vtype = _cell_type_of(src, fm.blocks, cell_type)
+    dim = CELL_TYPES[vtype][0]
+    kinds = {dim: "cell", dim - 1: "facet"}
+    for name, gdim in dims.items():
+        if name not in fm.element_sets:
+            fm.empty_sets[name] = kinds.get(gdim, "node")
+    return _to_mesh(fm, vtype)
+
+
+def _gmsh_header(raw: bytes, src: str):
+    m = re.match(rb"\s*(?:\$Comments.*?\$EndComments\s*)*\$MeshFormat[ \t]*\r?\n"
+                 rb"[ \t]*(\S+)[ \t]+(\S+)[ \t]+(\S+)[ \t]*\r?\n", raw, re.S)
+    if m is None:
+        raise MeshFileError(f"{src}: not a Gmsh mesh file (no $MeshFormat header at the "
+                            f"start); check that the file is a .msh file saved by Gmsh")
+    try:
+        version, file_type, size_t = m.group(1).decode(), int(m.group(2)), int(m.group(3))
+    except ValueError:
+        raise MeshFileError(f"{src}, line 2: malformed $MeshFormat line "
+                            f"{m.group(0).splitlines()[-1]!r}; expected "
+                            f"'version file-type data-size'") from None
+    if file_type not in (0, 1) or size_t not in (4, 8):
+        raise MeshFileError(f"{src}, line 2: unexpected file type {file_type} or data size "
+                            f"{size_t} in $MeshFormat; expected 0 or 1, and 4 or 8")
+    if file_type == 1 and raw[m.end():m.end() + 4] != np.array(1, np.int32).tobytes():
+        raise MeshFileError(f"{src}: binary Gmsh file of another byte order or damaged "
+                            f"header; save it as ASCII (Gmsh: Mesh.Binary = 0)")
+    return version, file_type == 0, size_t
+
+
+def _gmsh_physical_names(text: bytes, src: str, first_line: int) -> dict:
+    """``(dim, tag) -> name`` from the body of a $PhysicalNames section."""
+    lines = text.decode("utf-8", errors="replace").splitlines()
+    names = {}
+    for number, line in enumerate(lines[1:], start=first_line + 1):
+        if not line.strip():
+            continue
+        m = re.fullmatch(r'\s*(\d+)\s+(-?\d+)\s+"(.*)"\s*', line)
+        if m is None:
+            raise MeshFileError(f"{src}, line {number}: malformed physical name {line!r}; "
+                                f"expected 'dimension tag \"name\"'")
+        names[(int(m.group(1)), int(m.group(2)))] = m.group(3)
+    return names
+
+
+def _gmsh_sections(raw: bytes, src: str, is_ascii: bool, parsers: dict):
+    """Walk the ``$Name ... $EndName`` sections, calling ``parsers[name](body, start)``.
+
+    For ASCII files ``body`` is the section text; for binary ones the parser gets the
+    whole file and returns the offset where its data ends.
+    """
+    pos = raw.find(b"$EndMeshFormat") + len(b"$EndMeshFormat")
+    while True:
+        while pos < len(raw) and raw[pos:pos + 1].isspace():
+            pos += 1
+        if pos >= len(raw):
+            return
+        eol = raw.find(b"\n", pos)
+        eol = len(raw) if eol < 0 else eol
+        header = raw[pos:eol].strip()
+        if not header.startswith(b"$"):
+            raise MeshFileError(f"{src}, line {_line_of(raw, pos)}: expected a section "
+                                f"header such as $Nodes, found {header[:40]!r}; the file is "
+                                f"damaged or not a Gmsh file")
+        name = header[1:].decode("ascii", errors="replace")
+        start = eol + 1
+        parse = parsers.get(name)
+        if parse is not None and not (is_ascii or name == "PhysicalNames"):
+            start = parse(raw, start)
+        end = raw.find(b"$End" + name.encode(), start)
+        if end < 0:
+            raise MeshFileError(f"{src}, line {_line_of(raw, pos)}: section ${name} is not "
+                                f"closed by $End{name}: the file is truncated or damaged; "
+                                f"save it again from Gmsh")
+        if parse is not None and (is_ascii or name == "PhysicalNames"):
+            parse(raw[start:end], start)
+        pos = end + len(name) + 4
+
+
+class _Stream:
+    """Values of a Gmsh section, read in order: ASCII tokens or binary words."""
+
+    def __init__(self, gmsh, data: bytes, start: int, section: str):
+        self.src, self.raw, self.ascii = gmsh.src, gmsh.raw, gmsh.is_ascii
+        self.size_t = np.dtype(f"u{gmsh.size_t}")
+        self.section, self.start = section, start
+        if self.ascii:
+            lines = data.decode("ascii", errors="replace").splitlines()
+            self.tokens = " ".join(lines).split()
+            counts = [len(line.split()) for line in lines]
+            self.token_line = np.repeat(np.arange(len(lines)), counts)
+            self.line0 = _line_of(self.raw, start)
+        self.pos = 0 if self.ascii else start
+
+    def where(self) -> str:
+        """File and line (ASCII) or byte offset (binary) of the next value."""
+        if not self.ascii:
+            return f"{self.src}, byte {self.pos}"
+        k = min(self.pos, len(self.tokens) - 1)
+        return f"{self.src}, line {self.line0 + (int(self.token_line[k]) if k >= 0 else 0)}"
+
+    def _take(self, n: int, dtype) -> np.ndarray:
+        n = int(n)
+        if n < 0:
+            raise MeshFileError(f"{self.where()}: negative count in ${self.section}; the "
+                                f"file is damaged")
+        if n == 0:
+            return np.zeros(0, dtype=float if dtype == "d" else np.int64)
+        if self.ascii:
+            if n > len(self.tokens) - self.pos:
+                raise self.truncated()
+            chunk = self.tokens[self.pos:self.pos + n]
+            try:
+                values = np.array(chunk, dtype=float if dtype == "d" else np.int64)
+            except (ValueError, OverflowError):
+                raise MeshFileError(f"{self.where()}: unexpected value in ${self.section} "
+                                    f"(expected {'numbers' if dtype == 'd' else 'integers'}); "
+                                    f"the file is damaged") from None
+            self.pos += n
+            return values
+        dt = {"i": np.dtype("i4"), "d": np.dtype("f8"), "z": self.size_t}[dtype]
+        if n * dt.itemsize > len(self.raw) - self.pos:
+            raise self.truncated()
+        values = np.frombuffer(self.raw, dtype=dt, count=n, offset=self.pos)
+        self.pos += n * dt.itemsize
+        return values.astype(float if dtype == "d" else np.int64)
+
+    def ints(self, n):
+        return self._take(n, "i")
+
+    def sizes(self, n):
+        return self._take(n, "z")
+
+    def doubles(self, n):
+        return self._take(n, "d")
+
+    def truncated(self) -> MeshFileError:
+        return MeshFileError(f"{self.where()}: section ${self.section} ends before all its "
+                             f"data was read: the file is truncated or damaged; save it again "
+                             f"from Gmsh")
+
+
+class _Gmsh4:
+    """Reader of Gmsh 4.1 (ASCII and binary) and 4.0 (ASCII) files that keeps every
+    physical group.
+
+    meshio 5.3.5 keeps only the first physical tag of an entity unless it is named,
+    merges names of different dimensions, fails on 4.1 files where some entities have no
+    physical group, and reads Gmsh's version "4" (format 4.0) as 4.1; hence this reader.
+    """
+
+    def __init__(self, raw: bytes, src: str, is_ascii: bool, size_t: int, v41: bool):
+        self.raw, self.src, self.is_ascii, self.size_t = raw, src, is_ascii, size_t
+        self.v41 = v41
+        self.names, self.entity_groups = {}, {}
+        self.node_tags, self.node_xyz, self.blocks = [], [], []
+        self.saw_nodes = self.saw_elements = False
+
+    def file_mesh(self):
+        _gmsh_sections(self.raw, self.src, self.is_ascii, {
+            "PhysicalNames": lambda body, start: self.names.update(
+                _gmsh_physical_names(body, self.src, _line_of(self.raw, start))),
+            "Entities": self._entities, "Nodes": self._nodes, "Elements": self._elements})
+        if not self.saw_nodes or not self.saw_elements:
+            raise MeshFileError(f"{self.src}: no ${'Nodes' if not self.saw_nodes else 'Elements'}"
+                                f" section: the file is truncated or holds no mesh; mesh the "
+                                f"geometry in Gmsh before saving")
+        tags = np.concatenate(self.node_tags) if self.node_tags else np.zeros(0, np.int64)
+        points = np.concatenate(self.node_xyz) if self.node_xyz else np.zeros((0, 3))
+        lookup = _IdLookup(tags)
+        if lookup.duplicate is not None:
+            raise MeshFileError(f"{self.src}: node tag {tags[lookup.duplicate]} is defined "
+                                f"twice in $Nodes; the file is damaged")
+        tags, points = tags[lookup.order], points[lookup.order]     # nodes in tag order
+        lookup = _IdLookup(tags)
+        blocks, element_sets = [], {}
+        first = 0
+        for dim, entity, etype, conn_tags, where in self.blocks:
+            conn = lookup(conn_tags)
+            if (conn < 0).any():
+                bad = conn_tags[conn < 0][0]
+                raise MeshFileError(f"{where}: an element refers to node tag {bad}, which is "
+                                    f"not in $Nodes; the file is damaged")
+            blocks.append((etype, _GMSH_TYPES[_GMSH_TYPE_NUMBER[etype]][2], conn, True))
+            for group in self.entity_groups.get((dim, entity), ()):
+                name = self.names.get((dim, group), str(group))
+                element_sets.setdefault(name, []).append(first + np.arange(len(conn)))
+            first += len(conn)
+        fm = _FileMesh(self.src, points, tags, blocks, element_sets=element_sets)
+        return fm, {name: dim for (dim, _), name in self.names.items()}
+
+    def _stream(self, data, start, section):
+        return _Stream(self, data, start, section)
+
+    def _entities(self, data, start):
+        s = self._stream(data, start, "Entities")
+        counts = s.sizes(4)
+        for dim in range(4):
+            for _ in range(int(counts[dim])):
+                tag = int(s.ints(1)[0])
+                s.doubles(3 if dim == 0 and self.v41 else 6)
+                groups = s.ints(int(s.sizes(1)[0]))
+                if dim > 0:
+                    s.ints(int(s.sizes(1)[0]))   # bounding entities
+                self.entity_groups[(dim, tag)] = tuple(int(g) for g in groups)
+        return s.pos
+
+    def _nodes(self, data, start):
+        s = self._stream(data, start, "Nodes")
+        n_blocks = int(s.sizes(4 if self.v41 else 2)[0])
+        for _ in range(n_blocks):
+            where = s.where()
+            first, second, parametric = (int(v) for v in s.ints(3))
+            dim = first if self.v41 else second         # 4.0: entity tag, then dimension
+            if not 0 <= dim <= 3 or parametric not in (0, 1):
+                raise MeshFileError(f"{where}: node block of dimension {dim} with parametric "
+                                    f"flag {parametric}; the file is damaged")
+            n = int(s.sizes(1)[0])
+            width = 3 + (dim if parametric else 0)
+            if self.v41:                                # tags, then coordinates
+                self.node_tags.append(s.sizes(n))
+                self.node_xyz.append(s.doubles(n * width).reshape(n, width)[:, :3])
+            else:                                       # tag x y z per node (ASCII)
+                table = s.doubles(n * (1 + width)).reshape(n, 1 + width)
+                if not np.all(np.abs(table[:, 0]) < _MAX_ID) or np.any(table[:, 0] % 1):
+                    raise MeshFileError(f"{where}: node tags that are not integers; the "
+                                        f"file is damaged")
+                self.node_tags.append(table[:, 0].astype(np.int64))
+                self.node_xyz.append(table[:, 1:4])
+        self.saw_nodes = True
+        return s.pos
+
+    def _elements(self, data, start):
+        s = self._stream(data, start, "Elements")
+        n_blocks = int(s.sizes(4 if self.v41 else 2)[0])
+        for _ in range(n_blocks):
+            where = s.where()
+            first, second, number = (int(v) for v in s.ints(3))
+            dim, entity = (first, second) if self.v41 else (second, first)
+            if number not in _GMSH_TYPES:
+                raise MeshFileError(f"{where}: unknown Gmsh element type number {number}; "
+                                    f"qsma reads linear meshes (Gmsh types 1-5 and 15)")
+            etype, nv, _ = _GMSH_TYPES[number]
+            n = int(s.sizes(1)[0])
+            rows = (s.sizes if self.v41 else s.ints)(n * (1 + nv)).reshape(n, 1 + nv)
+            self.blocks.append((dim, entity, etype, rows[:, 1:], where))
+        self.saw_elements = True
+        return s.pos
+
+
+def _gmsh_with_meshio(path: Path, raw: bytes, src: str, version: str, is_ascii: bool):
+    """Gmsh 2.x files through meshio, with names and checks of our own."""
+    import meshio
+
+    names = {}
+
+    def read_names(body, start):
+        names.update(_gmsh_physical_names(body, src, _line_of(raw, start)))
+
+    _gmsh_sections(raw, src, is_ascii, {"PhysicalNames": read_names})
+    notes = io.StringIO()
+    try:
+        # meshio prints its warnings to stderr (rich); keep them to report them here
+        with contextlib.redirect_stderr(notes), warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            m = meshio.gmsh.read(path)
+    except Exception as exc:  # meshio raises ReadError, ValueError, KeyError, IndexError...
+        raise MeshFileError(f"{src}: cannot be read as a Gmsh {version} file "
+                            f"({type(exc).__name__}: {exc}); check that the file is complete "
+                            f"and saved by Gmsh") from exc
+    problems = [str(w.message) for w in caught
+                if not issubclass(w.category, (DeprecationWarning, FutureWarning))
+                or "could not be read" in str(w.message)]
+    problems += [p.strip() for p in notes.getvalue().split("\n")     # partition tags: fine
+                 if p.strip() and "tag data that couldn't be processed" not in p]
+    if problems:
+        raise MeshFileError(f"{src}: the Gmsh reader reported: {'; '.join(problems)}; the "
+                            f"file is damaged or uses features qsma does not read")
+    n = len(m.points)
+    physical = m.cell_data.get("gmsh:physical")
+    blocks, element_sets = [], {}
+    first = 0
+    for k, block in enumerate(m.cells):
+        conn = np.asarray(block.data, dtype=np.int64).reshape(len(block.data), -1)
+        if conn.size and (conn.min() < 0 or conn.max() >= n):
+            raise MeshFileError(f"{src}: {block.type} elements refer to nodes missing from "
+                                f"$Nodes; the file is damaged")
+        blocks.append((block.type, block.dim, conn, True))
+        tags = None if physical is None else np.asarray(physical[k])
+        if tags is not None and len(tags) != len(conn):
+            raise MeshFileError(f"{src}: some elements have no physical tag; save the mesh "
+                                f"with physical and elementary tags for every element")
+        for tag in np.unique(tags) if tags is not None else ():
+            if tag > 0:
+                name = names.get((block.dim, int(tag)), str(int(tag)))
+                element_sets.setdefault(name, []).append(first + np.flatnonzero(tags == tag))
+        first += len(conn)
+    labels = np.arange(1, n + 1)
+    fm = _FileMesh(src, np.asarray(m.points, dtype=float), labels, blocks,
+                   element_sets=element_sets)
+    return fm, {name: dim for (dim, _), name in names.items()}
+
+
+def _gmsh_blocks(mesh: Mesh):
+    """Physical groups ``(dim, tag, name)`` and element blocks ``(dim, entity, Gmsh type,
+    rows, groups)``: one entity per run of cells with the same groups, one per distinct
+    combination of facet sets, one point entity per node of a node set."""
+    _check_names(mesh, '"\n\r', "Gmsh")
+    d = mesh.dim
+    groups = []
+
+    def group(dim, name):
+        groups.append((dim, len(groups) + 1, name))
+        return len(groups)
+
+    cell_groups = [[] for _ in range(len(mesh.cells))]
+    for name, idx in mesh.cell_sets.items():
+        tag = group(d, name)
+        for i in idx.tolist():
+            cell_groups[i].append(tag)
+    boundary = _Boundary(mesh)
+    facet_groups = {}
+    for name, idx in _boundary_of_sets(mesh, boundary).items():
+        tag = group(d - 1, name)
+        for i in idx.tolist():
+            facet_groups.setdefault(i, []).append(tag)
+    node_groups = {}
+    for name, idx in mesh.node_sets.items():
+        tag = group(0, name)
+        for i in idx.tolist():
+            node_groups.setdefault(i, []).append(tag)
+    runs = []                                   # [groups, first cell, end]
+    for i, g in enumerate(map(tuple, cell_groups)):
+        if runs and runs[-1][0] == g:
+            runs[-1][2] = i + 1
+        else:
+            runs.append([g, i, i + 1])
+    blocks = [(d, k, _GMSH_TYPE_NUMBER[mesh.cell_type], mesh.cells[a:b], g)
+              for k, (g, a, b) in enumerate(runs, start=1)]
+    by_groups = {}
+    for i, g in facet_groups.items():
+        by_groups.setdefault(tuple(g), []).append(i)
+    blocks += [(d - 1, k, _GMSH_TYPE_NUMBER[mesh.facet_type], boundary.rows[members], g)
+               for k, (g, members) in enumerate(by_groups.items(), start=1)]
+    blocks += [(0, k, 15, np.array([[node]]), tuple(g))
+               for k, (node, g) in enumerate(sorted(node_groups.items()), start=1)]
+    return groups, blocks
+
+
+def _physical_names(groups) -> list:
+    return (["$PhysicalNames", str(len(groups))]
+            + [f'{dim} {tag} "{name}"' for dim, tag, name in groups] + ["$EndPhysicalNames"])
+
+
+def _xyz(mesh: Mesh) -> np.ndarray:
+    return np.column_stack([mesh.points, np.zeros((mesh.n_nodes, 3 - mesh.dim))])
+
+
+def _rows_text(first_label: int, rows: np.ndarray) -> list:
+    labels = np.arange(first_label, first_label + len(rows))
+    return [" ".join(map(str, r)) for r in np.column_stack([labels, rows + 1]).tolist()]
+
+
+def _format_gmsh(mesh: Mesh, version: str) -> str:
+    return (_format_gmsh41 if version == "4.1" else _format_gmsh22)(mesh)
+
+
+def _format_gmsh41(mesh: Mesh) -> str:
+    """Gmsh 4.1 ASCII; the entities carry the physical groups (see ``_gmsh_blocks``)."""
+    groups, blocks = _gmsh_blocks(mesh)
+    xyz, n = _xyz(mesh), mesh.n_nodes
+    entities = [[] for _ in range(4)]
+    for dim, entity, _, rows, g in blocks:
+        p = xyz[rows.ravel()]
+        where = p[0] if dim == 0 else np.concatenate([p.min(axis=0), p.max(axis=0)])
+        bounded_by = "" if dim == 0 else " 0"
+        entities[dim].append(f"{entity} {' '.join(map(_number, where))} "
+                             f"{' '.join(map(str, [len(g), *g]))}{bounded_by}")
+    n_elements = sum(len(rows) for *_, rows, _ in blocks)
+    out = ["$MeshFormat", "4.1 0 8", "$EndMeshFormat", *_physical_names(groups),
+           "$Entities", " ".join(str(len(e)) for e in entities), *sum(entities, []),
+           "$EndEntities", "$Nodes", f"1 {n} 1 {n}", f"{mesh.dim} 1 0 {n}"]
+    out += [str(i) for i in range(1, n + 1)]
+    out += [" ".join(map(_number, p)) for p in xyz.tolist()]
+    out += ["$EndNodes", "$Elements", f"{len(blocks)} {n_elements} 1 {n_elements}"]
+    label = 1
+    for dim, entity, number, rows, _ in blocks:
+        out.append(f"{dim} {entity} {number} {len(rows)}")
+        out += _rows_text(label, rows)
+        label += len(rows)
+    out.append("$EndElements")
+    return "\n".join(out) + "\n"
+
+
+def _format_gmsh22(mesh: Mesh) -> str:
+    """Gmsh 2.2 ASCII: an element is written once per physical group it belongs to (as
+    Gmsh does), elements without a group once with physical tag 0; the elementary tags
+    are the entities of ``_gmsh_blocks``. The first copies come first, in cell order."""
+    groups, blocks = _gmsh_blocks(mesh)
+    first = [(number, g[0] if g else 0, entity, rows) for _, entity, number, rows, g in blocks]
+    again = [(number, tag, entity, rows) for _, entity, number, rows, g in blocks
+             for tag in g[1:]]
+    out = ["$MeshFormat", "2.2 0 8", "$EndMeshFormat", *_physical_names(groups),
+           "$Nodes", str(mesh.n_nodes)]
+    out += [f"{i} {' '.join(map(_number, p))}" for i, p in enumerate(_xyz(mesh).tolist(), 1)]
+    out += ["$EndNodes", "$Elements", str(sum(len(rows) for *_, rows in first + again))]
+    label = 1
+    for number, tag, entity, rows in first + again:
+        out += [f"{label + k} {number} 2 {tag} {entity} {' '.join(map(str, r))}"
+                for k, r in enumerate((rows + 1).tolist())]
+        label += len(rows)
+    out.append("$EndElements")
+    return "\n".join(out) + "\n"
