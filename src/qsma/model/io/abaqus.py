@@ -15,11 +15,12 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import InputError, MeshFileError
-from ..mesh import CELL_FACETS, Mesh
-from .common import (_MAX_ID, _N_NODES, _TOPO_DIM, _Boundary, _boundary_of_sets,
+from ..mesh import CELL_FACETS, Mesh, facet_index
+from .common import (_MAX_ID, _N_NODES, _TOPO_DIM, _boundary_of_sets,
                      _cell_type_of, _check_names, _Elements, _FileMesh, _IdLookup,
                      _line_of, _number, _read_bytes, _to_mesh)
 
+#: Abaqus face numbering: face ``S<k>`` of an element is ``ABAQUS_FACES[type][k - 1]``
 #: (0-based local nodes), from the Abaqus element library ("face 1: 1-2-3-4,
 #: face 2: 5-8-7-6, face 3: 1-5-6-2, ..." for C3D8; "1-2-3, 1-4-2, 2-4-3, 3-4-1" for C3D4;
 #: edges 1-2, 2-3, 3-4, 4-1 for CPE4). Linear Abaqus and meshio node orders coincide.
@@ -601,7 +602,7 @@ def _format_abaqus(mesh: Mesh, _version=None) -> str:
         if len(set(upper)) < len(upper):
             raise InputError(f"{kind} set names {sorted(sets)} differ only in case; Abaqus "
                              f"names are case-insensitive: rename them")
-    boundary = _Boundary(mesh)
+    boundary = facet_index(mesh)
     on_boundary = _boundary_of_sets(mesh, boundary)
     etype = _ABAQUS_WRITE_TYPE[mesh.cell_type]
     # local facet of CELL_FACETS -> Abaqus face number

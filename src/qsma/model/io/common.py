@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import InputError, MeshFileError
-from ..mesh import CELL_FACETS, CELL_TYPES, Mesh
+from ..mesh import CELL_FACETS, CELL_TYPES, FacetIndex, Mesh, facet_index, unique_rows
 
 _SET_ELEMENT_DIM = {"vertex": 0, "line": 1, "triangle": 2, "quad": 2}
 #: topological dimension and nodes of the linear types
@@ -122,41 +122,6 @@ def _cell_type_of(source: str, blocks: list, requested: str | None) -> str:
     return vtype
 
 
-class _Boundary:
-    """Boundary facets of a mesh (as :func:`boundary_facets`) with their owner cells."""
-
-    def __init__(self, mesh: Mesh):
-        local = CELL_FACETS[mesh.cell_type]
-        n = len(mesh.cells)
-        every = np.concatenate([mesh.cells[:, list(f)] for f in local])
-        _, inverse, counts = _unique_rows(np.sort(every, axis=1))
-        at = np.flatnonzero(counts[inverse] == 1)
-        self.rows = every[at]
-        self.cell = at % n
-        self.local_face = at // n
-        self._index = {k: i for i, k in enumerate(map(tuple, np.sort(self.rows, axis=1).tolist()))}
-
-    def find(self, rows: np.ndarray) -> np.ndarray:
-        """Boundary facet index of each facet row (any node order), -1 where none."""
-        keys = map(tuple, np.sort(np.asarray(rows, dtype=np.int64), axis=1).tolist())
-        return np.array([self._index.get(k, -1) for k in keys], dtype=np.int64)
-
-
-def _unique_rows(rows: np.ndarray):
-    """``(first, inverse, counts)`` of the distinct rows, like ``np.unique(axis=0)`` with
-    ``return_index``, ``return_inverse`` and ``return_counts`` (but faster)."""
-    rows = np.asarray(rows).reshape(len(rows), -1)
-    order = np.lexsort(rows.T[::-1])
-    ordered = rows[order]
-    new = np.ones(len(rows), dtype=bool)
-    new[1:] = np.any(ordered[1:] != ordered[:-1], axis=1)
-    starts = np.flatnonzero(new)
-    inverse = np.empty(len(rows), dtype=np.int64)
-    inverse[order] = np.cumsum(new) - 1
-    first = np.minimum.reduceat(order, starts) if len(rows) else order
-    return first, inverse, np.diff(np.append(starts, len(rows)))
-
-
 def _first_appearance(values: np.ndarray) -> np.ndarray:
     _, first = np.unique(values, return_index=True)
     return values[np.sort(first)]
@@ -183,7 +148,7 @@ def _to_mesh(fm: _FileMesh, vtype: str) -> Mesh:
     rows = np.concatenate([fm.blocks[b][2] for b in volume])
     where = np.concatenate([np.arange(*elements.offsets[b:b + 2]) for b in volume])
     # one cell per set of nodes: Gmsh 2.2 repeats an element once per physical group
-    first, inverse, _ = _unique_rows(np.sort(rows, axis=1))
+    first, inverse, _ = unique_rows(np.sort(rows, axis=1))
     rank = np.empty(len(first), dtype=np.int64)
     rank[np.argsort(first)] = np.arange(len(first))
     cells = rows[np.sort(first)]
@@ -194,7 +159,7 @@ def _to_mesh(fm: _FileMesh, vtype: str) -> Mesh:
         bare = Mesh(points, cells, vtype)
     except InputError as exc:
         raise MeshFileError(f"{src}: {exc}") from exc
-    boundary = _Boundary(bare)
+    boundary = facet_index(bare)
 
     cell_sets: dict = {}
     node_sets = {k: list(v) for k, v in fm.node_sets.items()}
@@ -243,7 +208,7 @@ def _joined(parts: list, empty_shape: tuple) -> np.ndarray:
     return np.concatenate(parts) if parts else np.zeros(empty_shape, dtype=np.int64)
 
 
-def _match_facets(src, name, rows, boundary: _Boundary, labels, mesh: Mesh) -> np.ndarray:
+def _match_facets(src, name, rows, boundary: FacetIndex, labels, mesh: Mesh) -> np.ndarray:
     """The boundary facets (outward orientation) of the facet rows of set ``name``."""
     if len(rows) == 0:
         return np.zeros((0, len(CELL_FACETS[mesh.cell_type][0])), dtype=np.int64)
@@ -309,7 +274,7 @@ def _check_names(mesh: Mesh, forbidden: str, fmt: str):
                                  f"{' or '.join(repr(c) for c in forbidden)}")
 
 
-def _boundary_of_sets(mesh: Mesh, boundary: _Boundary) -> dict:
+def _boundary_of_sets(mesh: Mesh, boundary: FacetIndex) -> dict:
     """name -> boundary facet indices of each facet set (InputError if not on the boundary)."""
     found = {}
     for name, rows in mesh.facet_sets.items():

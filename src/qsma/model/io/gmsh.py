@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import MeshFileError
-from ..mesh import CELL_TYPES, Mesh
-from .common import (_MAX_ID, _Boundary, _boundary_of_sets, _cell_type_of, _check_names,
+from ..mesh import CELL_TYPES, Mesh, facet_index
+from .common import (_MAX_ID, _boundary_of_sets, _cell_type_of, _check_names,
                      _FileMesh, _IdLookup, _line_of, _number, _read_bytes, _to_mesh)
 
 #: Gmsh element type number -> (meshio name, nodes per element, topological dimension)
@@ -371,7 +371,7 @@ def _gmsh_blocks(mesh: Mesh):
         tag = group(d, name)
         for i in idx.tolist():
             cell_groups[i].append(tag)
-    boundary = _Boundary(mesh)
+    boundary = facet_index(mesh)
     facet_groups = {}
     for name, idx in _boundary_of_sets(mesh, boundary).items():
         tag = group(d - 1, name)
