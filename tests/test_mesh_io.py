@@ -765,3 +765,35 @@ def test_facet_index_finds_boundary_facets_in_any_node_order(make):
     assert len(internal) == len(every) - len(index.rows)          # all the others
     assert len(internal) > 0 and (index.find(internal) == -1).all()
     assert index.find(np.zeros((0, local.shape[1]), dtype=int)).shape == (0,)
+
+
+# --- element formulation named by the file (issue 13, reader side) ------------------
+
+@pytest.mark.parametrize("etype", ["CPE4", "CPS4", "cax4", "CPE4I", "cpe4r", "CPS4R"])
+def test_inp_element_type_is_recorded(tmp_path, etype):
+    m = read_mesh(write_text(tmp_path, "q.inp", QUAD_GRID.replace("TYPE=CPE4", f"TYPE={etype}")))
+    assert m.element == etype.upper()
+    assert m.with_sets(node_sets={"n": [0]}).element == etype.upper()
+    again = read_mesh(write_mesh(tmp_path / "again.inp", m))      # written as read
+    assert again.element == etype.upper()
+
+
+def test_gmsh_and_generated_meshes_name_no_element(tmp_path):
+    assert read_mesh(DATA / "gmsh_rect_v41.msh").element is None
+    assert hex_mesh().element is None
+    assert read_mesh(write_mesh(tmp_path / "h.inp", hex_mesh())).element == "C3D8"
+
+
+def test_inp_two_element_types_for_one_cell_type_are_refused(tmp_path):
+    text = QUAD_GRID.replace("2, 2, 3, 6, 5", "*ELEMENT, TYPE=CPE4R, ELSET=ALL\n2, 2, 3, 6, 5")
+    message = inp_error(tmp_path, text)
+    assert "CPE4R" in message and "CPE4" in message and "line 11:" in message
+
+
+def test_write_refuses_an_element_of_another_cell_type(tmp_path):
+    m = hex_mesh()
+    wrong = Mesh(m.points, m.cells, m.cell_type, element="CPE4")
+    with pytest.raises(InputError, match="not an Abaqus continuum element type of hexahedron"):
+        write_mesh(tmp_path / "w.inp", wrong)
+    with pytest.raises(InputError, match="element must be"):
+        Mesh(m.points, m.cells, m.cell_type, element="")

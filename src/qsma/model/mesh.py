@@ -31,6 +31,8 @@ class Mesh:
     node_sets : name -> sorted unique node indices
     facet_sets : name -> (n_facets, nodes_per_facet) node indices of boundary facets
     cell_sets : name -> cell indices
+    element : str or None
+        element name given by the source file (e.g. Abaqus 'CPS4', 'C3D8I'); None when the file names no formulation (Gmsh)
     """
 
     points: np.ndarray
@@ -39,6 +41,7 @@ class Mesh:
     node_sets: dict = field(default_factory=dict)
     facet_sets: dict = field(default_factory=dict)
     cell_sets: dict = field(default_factory=dict)
+    element: str | None = None
 
     def __post_init__(self):
         if self.cell_type not in CELL_TYPES:
@@ -50,6 +53,10 @@ class Mesh:
         if points.ndim != 2 or points.shape[1] != dim:
             raise InputError(f"points of a {self.cell_type} mesh must have shape "
                              f"(n, {dim}), got {points.shape}")
+        if self.element is not None and (not isinstance(self.element, str)
+                                         or not self.element.strip()):
+            raise InputError(f"element must be a non-empty name such as 'C3D8I' or None, "
+                             f"got {self.element!r}")
         if not np.all(np.isfinite(points)):
             raise InputError("mesh points contain NaN or Inf")
         if cells.ndim != 2 or cells.shape[1] != nv:
@@ -110,11 +117,11 @@ class Mesh:
         return facets[np.all(inside[facets], axis=1)]
 
     def with_sets(self, node_sets=None, facet_sets=None, cell_sets=None) -> "Mesh":
-        """A new mesh with sets added (existing names are replaced)."""
+        """A new mesh with sets added (existing names are replaced); same ``element``."""
         return Mesh(self.points, self.cells, self.cell_type,
                     {**self.node_sets, **(node_sets or {})},
                     {**self.facet_sets, **(facet_sets or {})},
-                    {**self.cell_sets, **(cell_sets or {})})
+                    {**self.cell_sets, **(cell_sets or {})}, self.element)
 
 
 def _index_array(values, bound, what, unique=False):

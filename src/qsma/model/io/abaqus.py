@@ -44,7 +44,7 @@ ABAQUS_ELEMENT_TYPES = {
     "S3": "triangle", "M3D3": "triangle", "R3D3": "triangle", "SFM3D3": "triangle",
     "T2D2": "line", "T3D2": "line", "B21": "line", "B31": "line", "R2D2": "line",
 }
-#: element type written to .inp files (plane strain in 2D)
+#: element type written to .inp files when the mesh names none (plane strain in 2D)
 _ABAQUS_WRITE_TYPE = {"quad": "CPE4", "triangle": "CPE3", "hexahedron": "C3D8", "tetra": "C3D4"}
 
 #: most ids one GENERATE row may produce
@@ -262,7 +262,7 @@ class _InpReader:
         elements = self._element_lookup()
         index = _Elements(blocks)
         elsets = {k: self._element_indices(s, elements) for k, s in self.sets["ELSET"].items()}
-        fm = _FileMesh(self.source, xyz, node_ids, blocks)
+        fm = _FileMesh(self.source, xyz, node_ids, blocks, element=self._element(vtype))
         for s in self.sets["NSET"].values():
             if not s.internal:
                 fm.node_sets[s.name] = [self._node_indices(s, nodes, elsets, index)]
@@ -277,6 +277,20 @@ class _InpReader:
         for name, rows in self.surfaces.values():
             self._surface(fm, name, rows, vtype, elements, elsets, index)
         return fm, vtype
+
+    def _element(self, vtype: str) -> str:
+        """The one Abaqus element type (upper case) of the cells."""
+        names = {}
+        for b in self.blocks:
+            if b.cell_type == vtype and _is_continuum(b.abaqus_type) and len(b.ids):
+                names.setdefault(b.abaqus_type.upper(), b.where[0])
+        if len(names) > 1:
+            (first, _), (second, where) = list(names.items())[:2]
+            raise _inp_error(where, f"the {vtype} cells are of several element types "
+                             f"({', '.join(names)}): {second} here, {first} before",
+                             "use one element type for all cells (a mesh carries one "
+                             "formulation)")
+        return next(iter(names))
 
     def _nodes(self):
         if not sum(len(ids) for ids in self.node_ids):
@@ -592,6 +606,20 @@ def _id_lines(ids: np.ndarray) -> list:
     return [", ".join(map(str, ids[k:k + 16])) for k in range(0, len(ids), 16)]
 
 
+def _abaqus_write_type(mesh: Mesh) -> str:
+    """The element type written: ``mesh.element`` when it is an Abaqus continuum type of
+    the mesh's cell type, else the plane-strain / full-integration default."""
+    if mesh.element is None:
+        return _ABAQUS_WRITE_TYPE[mesh.cell_type]
+    name = mesh.element.upper()
+    if not (_is_continuum(name) and _abaqus_cell_type(name) == mesh.cell_type):
+        raise InputError(f"mesh.element = {mesh.element!r} is not an Abaqus continuum "
+                         f"element type of {mesh.cell_type} cells; set element=None (writes "
+                         f"{_ABAQUS_WRITE_TYPE[mesh.cell_type]}) or a matching type such as "
+                         f"{_ABAQUS_WRITE_TYPE[mesh.cell_type]}R")
+    return name
+
+
 def _format_abaqus(mesh: Mesh, _version=None) -> str:
     """Abaqus/CalculiX input: *NODE, *ELEMENT, *NSET, *ELSET and one *SURFACE per facet
     set, whose faces are listed through internal element sets ``_<set>_S<k>``."""
@@ -604,7 +632,7 @@ def _format_abaqus(mesh: Mesh, _version=None) -> str:
                              f"names are case-insensitive: rename them")
     boundary = facet_index(mesh)
     on_boundary = _boundary_of_sets(mesh, boundary)
-    etype = _ABAQUS_WRITE_TYPE[mesh.cell_type]
+    etype = _abaqus_write_type(mesh)
     # local facet of CELL_FACETS -> Abaqus face number
     face_number = [1 + [sorted(f) for f in ABAQUS_FACES[mesh.cell_type]].index(sorted(local))
                    for local in CELL_FACETS[mesh.cell_type]]

@@ -69,6 +69,7 @@ class _FileMesh:
     facet_rows: dict = field(default_factory=dict)     # name -> [(k, nf) node indices]
     free_faces: dict = field(default_factory=dict)     # name -> [global element indices]
     empty_sets: dict = field(default_factory=dict)     # name -> "cell" | "facet" | "node"
+    element: str | None = None                         # formulation named by the file
 
 
 class _Elements:
@@ -199,7 +200,7 @@ def _to_mesh(fm: _FileMesh, vtype: str) -> Mesh:
         sets, value = empty[kind]
         sets.setdefault(name, value)
     try:
-        return Mesh(points, cells, vtype, node_sets, facet_sets, cell_sets)
+        return Mesh(points, cells, vtype, node_sets, facet_sets, cell_sets, fm.element)
     except InputError as exc:
         raise MeshFileError(f"{src}: {exc}") from exc
 
