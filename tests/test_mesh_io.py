@@ -72,7 +72,11 @@ def hex_mesh() -> Mesh:
 
 def tetra_mesh() -> Mesh:
     sk = MeshTet.init_tensor(np.linspace(0, 1, 3), np.linspace(0, 2, 3), np.linspace(0, 1, 2))
-    m = Mesh(sk.p.T, sk.t.T, "tetra")
+    cells = sk.t.T.copy()
+    x = sk.p.T[cells]
+    inverted = np.linalg.det(x[:, 1:] - x[:, :1]) < 0        # scikit-fem mixes orientations
+    cells[inverted] = cells[inverted][:, [0, 2, 1, 3]]
+    m = Mesh(sk.p.T, cells, "tetra")
     return m.with_sets(node_sets={"top": np.flatnonzero(m.points[:, 2] > 0.5)},
                        facet_sets={"y0": m.boundary_facets_where(lambda p: p[:, 1] < 1e-9),
                                    "y2": m.boundary_facets_where(lambda p: p[:, 1] > 2 - 1e-9)},

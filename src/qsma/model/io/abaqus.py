@@ -262,7 +262,8 @@ class _InpReader:
         elements = self._element_lookup()
         index = _Elements(blocks)
         elsets = {k: self._element_indices(s, elements) for k, s in self.sets["ELSET"].items()}
-        fm = _FileMesh(self.source, xyz, node_ids, blocks, element=self._element(vtype))
+        fm = _FileMesh(self.source, xyz, node_ids, blocks, element=self._element(vtype),
+                       element_ids=[b.ids for b in self.blocks])
         for s in self.sets["NSET"].values():
             if not s.internal:
                 fm.node_sets[s.name] = [self._node_indices(s, nodes, elsets, index)]

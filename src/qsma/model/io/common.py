@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import InputError, MeshFileError
+from ..validate import validate_mesh
 from ..mesh import CELL_FACETS, CELL_TYPES, FacetIndex, Mesh, facet_index, unique_rows
 
 _SET_ELEMENT_DIM = {"vertex": 0, "line": 1, "triangle": 2, "quad": 2}
@@ -70,6 +71,7 @@ class _FileMesh:
     free_faces: dict = field(default_factory=dict)     # name -> [global element indices]
     empty_sets: dict = field(default_factory=dict)     # name -> "cell" | "facet" | "node"
     element: str | None = None                         # formulation named by the file
+    element_ids: list | None = None    # file ids of the rows of each block (None: unknown)
 
 
 class _Elements:
@@ -200,9 +202,15 @@ def _to_mesh(fm: _FileMesh, vtype: str) -> Mesh:
         sets, value = empty[kind]
         sets.setdefault(name, value)
     try:
-        return Mesh(points, cells, vtype, node_sets, facet_sets, cell_sets, fm.element)
+        mesh = Mesh(points, cells, vtype, node_sets, facet_sets, cell_sets, fm.element)
     except InputError as exc:
         raise MeshFileError(f"{src}: {exc}") from exc
+    if fm.element_ids is not None:
+        cell_ids = np.concatenate([fm.element_ids[b] for b in volume])[np.sort(first)]
+    else:       # the file's element numbers are not known: count the cells from 1
+        cell_ids = np.arange(1, len(cells) + 1)
+    validate_mesh(mesh, source=src, node_ids=fm.labels, cell_ids=cell_ids)
+    return mesh
 
 
 def _joined(parts: list, empty_shape: tuple) -> np.ndarray:

@@ -226,20 +226,22 @@ class _Gmsh4:
                                 f"twice in $Nodes; the file is damaged")
         tags, points = tags[lookup.order], points[lookup.order]     # nodes in tag order
         lookup = _IdLookup(tags)
-        blocks, element_sets = [], {}
+        blocks, element_sets, element_ids = [], {}, []
         first = 0
-        for dim, entity, etype, conn_tags, where in self.blocks:
+        for dim, entity, etype, conn_tags, where, ids in self.blocks:
             conn = lookup(conn_tags)
             if (conn < 0).any():
                 bad = conn_tags[conn < 0][0]
                 raise MeshFileError(f"{where}: an element refers to node tag {bad}, which is "
                                     f"not in $Nodes; the file is damaged")
             blocks.append((etype, _GMSH_TYPES[_GMSH_TYPE_NUMBER[etype]][2], conn, True))
+            element_ids.append(ids)
             for group in self.entity_groups.get((dim, entity), ()):
                 name = self.names.get((dim, group), str(group))
                 element_sets.setdefault(name, []).append(first + np.arange(len(conn)))
             first += len(conn)
-        fm = _FileMesh(self.src, points, tags, blocks, element_sets=element_sets)
+        fm = _FileMesh(self.src, points, tags, blocks, element_sets=element_sets,
+                       element_ids=element_ids)
         return fm, {name: dim for (dim, _), name in self.names.items()}
 
     def _stream(self, data, start, section):
@@ -296,7 +298,7 @@ class _Gmsh4:
             etype, nv, _ = _GMSH_TYPES[number]
             n = int(s.sizes(1)[0])
             rows = (s.sizes if self.v41 else s.ints)(n * (1 + nv)).reshape(n, 1 + nv)
-            self.blocks.append((dim, entity, etype, rows[:, 1:], where))
+            self.blocks.append((dim, entity, etype, rows[:, 1:], where, rows[:, 0]))
         self.saw_elements = True
         return s.pos
 
