@@ -400,6 +400,10 @@ def _inp_node(r: _InpReader, card: _Card):
         raise _inp_error(card.where, "INPUT= on *NODE is not supported",
                          "put the data lines in the file or use *INCLUDE, INPUT=")
     rows = list(_rows(card))
+    long = next((row for row in rows if len(row[1]) > 4), None)
+    if long is not None:
+        raise _inp_error(long[0], f"node row {long[2]!r} has {len(long[1])} fields",
+                         "give 'node id, x, y[, z]' (at most 3 coordinates) on each line")
     try:      # fast path: plain numbers in every row
         ids = np.array([tokens[0] for _, tokens, _ in rows], dtype=np.int64)
         xyz = np.array([(tokens + ["0", "0", "0"])[1:4] for _, tokens, _ in rows],

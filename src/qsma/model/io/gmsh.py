@@ -84,15 +84,30 @@ def _gmsh_header(raw: bytes, src: str):
 def _gmsh_physical_names(text: bytes, src: str, first_line: int) -> dict:
     """``(dim, tag) -> name`` from the body of a $PhysicalNames section."""
     lines = text.decode("utf-8", errors="replace").splitlines()
-    names = {}
-    for number, line in enumerate(lines[1:], start=first_line + 1):
+    names, count = {}, None
+    for number, line in enumerate(lines, start=first_line):
+        if line.strip():
+            if not line.strip().isdigit():
+                raise MeshFileError(f"{src}, line {number}: expected the number of physical "
+                                    f"names, found {line.strip()[:40]!r}; the file is damaged")
+            count, lines = int(line), lines[number - first_line + 1:]
+            first_line = number
+            break
+    for number, line in enumerate(lines, start=first_line + 1):
         if not line.strip():
             continue
         m = re.fullmatch(r'\s*(\d+)\s+(-?\d+)\s+"(.*)"\s*', line)
         if m is None:
             raise MeshFileError(f"{src}, line {number}: malformed physical name {line!r}; "
                                 f"expected 'dimension tag \"name\"'")
+        if (int(m.group(1)), int(m.group(2))) in names:
+            raise MeshFileError(f"{src}, line {number}: physical group {m.group(1)} "
+                                f"{m.group(2)} is named twice; give each group one name")
         names[(int(m.group(1)), int(m.group(2)))] = m.group(3)
+    if count is not None and count != len(names):
+        raise MeshFileError(f"{src}, line {first_line}: $PhysicalNames declares {count} names "
+                            f"but holds {len(names)}; the file is damaged: save it again "
+                            f"from Gmsh")
     return names
 
 
@@ -125,6 +140,12 @@ def _gmsh_sections(raw: bytes, src: str, is_ascii: bool, parsers: dict):
             raise MeshFileError(f"{src}, line {_line_of(raw, pos)}: section ${name} is not "
                                 f"closed by $End{name}: the file is truncated or damaged; "
                                 f"save it again from Gmsh")
+        if parse is not None and not (is_ascii or name == "PhysicalNames") \
+                and raw[start:end].strip():
+            raise MeshFileError(f"{src}, byte {start}: section ${name} holds "
+                                f"{end - start} bytes after the data its counts declare; the "
+                                f"file is damaged (data added or a count changed): save it "
+                                f"again from Gmsh")
         if parse is not None and (is_ascii or name == "PhysicalNames"):
             parse(raw[start:end], start)
         pos = end + len(name) + 4
@@ -186,6 +207,16 @@ class _Stream:
 
     def doubles(self, n):
         return self._take(n, "d")
+
+    def finish(self) -> int:
+        """Check that every value of the section was read; the position after them."""
+        if self.ascii and self.pos != len(self.tokens):
+            extra = len(self.tokens) - self.pos
+            raise MeshFileError(f"{self.where()}: section ${self.section} holds {extra} "
+                                f"value(s) more than its counts declare; the file is damaged "
+                                f"(a line duplicated or added, or a count changed): save it "
+                                f"again from Gmsh")
+        return self.pos
 
     def truncated(self) -> MeshFileError:
         return MeshFileError(f"{self.where()}: section ${self.section} ends before all its "
@@ -258,11 +289,13 @@ class _Gmsh4:
                 if dim > 0:
                     s.ints(int(s.sizes(1)[0]))   # bounding entities
                 self.entity_groups[(dim, tag)] = tuple(int(g) for g in groups)
-        return s.pos
+        return s.finish()
 
     def _nodes(self, data, start):
         s = self._stream(data, start, "Nodes")
-        n_blocks = int(s.sizes(4 if self.v41 else 2)[0])
+        header_at = s.where()
+        header = s.sizes(4 if self.v41 else 2)
+        n_blocks = int(header[0])
         for _ in range(n_blocks):
             where = s.where()
             first, second, parametric = (int(v) for v in s.ints(3))
@@ -282,12 +315,29 @@ class _Gmsh4:
                                         f"file is damaged")
                 self.node_tags.append(table[:, 0].astype(np.int64))
                 self.node_xyz.append(table[:, 1:4])
+        tags = np.concatenate(self.node_tags) if self.node_tags else np.zeros(0, np.int64)
+        self._check_totals(header_at, "node", header, tags)
         self.saw_nodes = True
-        return s.pos
+        return s.finish()
+
+    def _check_totals(self, where, what, header, tags):
+        """The header's count (and in 4.1 the smallest and largest tag) against the
+        blocks."""
+        if int(header[1]) != len(tags):
+            raise MeshFileError(f"{where}: the header declares {int(header[1])} {what}s but "
+                                f"its blocks hold {len(tags)}; the file is damaged: save it "
+                                f"again from Gmsh")
+        if self.v41 and len(tags) and (tags.min() < header[2] or tags.max() > header[3]):
+            raise MeshFileError(f"{where}: {what} tags run from {tags.min()} to {tags.max()}, "
+                                f"outside the declared range {int(header[2])}.."
+                                f"{int(header[3])}; the file is damaged: save it again "
+                                f"from Gmsh")
 
     def _elements(self, data, start):
         s = self._stream(data, start, "Elements")
-        n_blocks = int(s.sizes(4 if self.v41 else 2)[0])
+        header_at = s.where()
+        header = s.sizes(4 if self.v41 else 2)
+        n_blocks = int(header[0])
         for _ in range(n_blocks):
             where = s.where()
             first, second, number = (int(v) for v in s.ints(3))
@@ -299,8 +349,42 @@ class _Gmsh4:
             n = int(s.sizes(1)[0])
             rows = (s.sizes if self.v41 else s.ints)(n * (1 + nv)).reshape(n, 1 + nv)
             self.blocks.append((dim, entity, etype, rows[:, 1:], where, rows[:, 0]))
+        self._check_totals(header_at, "element", header,
+                           np.concatenate([b[5] for b in self.blocks] + [np.zeros(0, int)]))
         self.saw_elements = True
-        return s.pos
+        return s.finish()
+
+
+def _gmsh22_element_width(tokens: list) -> int:
+    """Values on a Gmsh 2.2 element line: tag, type, number of tags, tags, nodes."""
+    try:
+        etype, n_tags = int(tokens[1]), int(tokens[2])
+    except (ValueError, IndexError):
+        return -1
+    return 3 + n_tags + _GMSH_TYPES[etype][1] if etype in _GMSH_TYPES else len(tokens)
+
+
+def _gmsh22_rows(body: bytes, first_line: int, src: str, section: str, width) -> int:
+    """Check a Gmsh 2.2 ASCII $Nodes or $Elements body: a count, then that many lines of
+    ``width(tokens)`` values each; return the count."""
+    lines = [(k, line.split()) for k, line in enumerate(
+        body.decode("ascii", errors="replace").splitlines(), start=first_line)]
+    lines = [(k, t) for k, t in lines if t]
+    if not lines or len(lines[0][1]) != 1 or not lines[0][1][0].isdigit():
+        at = lines[0][0] if lines else first_line
+        raise MeshFileError(f"{src}, line {at}: ${section} does not start with its count; "
+                            f"the file is damaged: save it again from Gmsh")
+    count = int(lines[0][1][0])
+    if len(lines) - 1 != count:
+        raise MeshFileError(f"{src}, line {lines[0][0]}: ${section} declares {count} lines "
+                            f"but holds {len(lines) - 1}; the file is damaged (a line "
+                            f"duplicated, added or deleted): save it again from Gmsh")
+    for k, tokens in lines[1:]:
+        if len(tokens) != width(tokens):
+            raise MeshFileError(f"{src}, line {k}: {len(tokens)} values on a ${section} "
+                                f"line, expected {width(tokens)}; the file is damaged: save "
+                                f"it again from Gmsh")
+    return count
 
 
 def _gmsh_with_meshio(path: Path, raw: bytes, src: str, version: str, is_ascii: bool):
@@ -312,7 +396,19 @@ def _gmsh_with_meshio(path: Path, raw: bytes, src: str, version: str, is_ascii: 
     def read_names(body, start):
         names.update(_gmsh_physical_names(body, src, _line_of(raw, start)))
 
-    _gmsh_sections(raw, src, is_ascii, {"PhysicalNames": read_names})
+    declared = {}
+
+    def count_rows(section, row_width):
+        def parse(body, start):
+            declared[section] = _gmsh22_rows(body, _line_of(raw, start), src, section,
+                                             row_width)
+        return parse
+
+    parsers = {"PhysicalNames": read_names}
+    if is_ascii:        # meshio reads by the declared counts and ignores what is left over
+        parsers.update(Nodes=count_rows("Nodes", lambda t: 4),
+                       Elements=count_rows("Elements", _gmsh22_element_width))
+    _gmsh_sections(raw, src, is_ascii, parsers)
     notes = io.StringIO()
     try:
         # meshio prints its warnings to stderr (rich); keep them to report them here
@@ -332,6 +428,12 @@ def _gmsh_with_meshio(path: Path, raw: bytes, src: str, version: str, is_ascii: 
         raise MeshFileError(f"{src}: the Gmsh reader reported: {'; '.join(problems)}; the "
                             f"file is damaged or uses features qsma does not read")
     n = len(m.points)
+    if not is_ascii:
+        header = re.search(rb"\$Nodes[ \t]*\r?\n[ \t]*(\d+)", raw)
+        if header is None or int(header.group(1)) != n:
+            raise MeshFileError(f"{src}: $Nodes declares "
+                                f"{header.group(1).decode() if header else 'no'} nodes, "
+                                f"{n} were read; the file is damaged: save it again from Gmsh")
     physical = m.cell_data.get("gmsh:physical")
     blocks, element_sets = [], {}
     first = 0
