@@ -1,0 +1,286 @@
+"""Damaged meshes are refused (issue 18): inverted, degenerate and self-intersecting
+cells, duplicate and unused nodes, and random mutations of real mesh files."""
+import re
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from qsma.errors import InputError, MeshFileError
+from qsma.model.generate import structured_mesh
+from qsma.model.io import read_mesh
+from qsma.model.mesh import Mesh
+from qsma.model.validate import (DEGENERATE_SCALED_JACOBIAN, UnusedNodesWarning,
+                                 scaled_jacobians, validate_mesh)
+
+DATA = Path(__file__).parent / "data"
+EXAMPLES = Path(__file__).parent.parent / "examples"
+
+
+def unit_square_quads():
+    return structured_mesh(np.linspace(0, 2, 3), np.linspace(0, 1, 2))
+
+
+# --- cells ----------------------------------------------------------------------------
+
+def corner_measures(mesh: Mesh) -> np.ndarray:
+    """Signed area (2D) or volume (3D) spanned at each corner by its two (three) edges
+    in counter-clockwise order: all positive for a valid linear cell. Independent of
+    qsma.model.validate (no shape functions)."""
+    x = mesh.points[mesh.cells]
+    if mesh.cell_type in ("triangle", "quad"):
+        n = x.shape[1]
+        nxt, prv = x[:, np.roll(np.arange(n), -1)] - x, x[:, np.roll(np.arange(n), 1)] - x
+        return nxt[..., 0] * prv[..., 1] - nxt[..., 1] * prv[..., 0]
+    if mesh.cell_type == "tetra":
+        return np.linalg.det(x[:, 1:] - x[:, :1])[:, None]
+    # hexahedron: at each corner its three neighbours along x, y, z of the reference cube
+    neighbours = [(1, 3, 4), (2, 0, 5), (3, 1, 6), (0, 2, 7),
+                  (7, 5, 0), (4, 6, 1), (5, 7, 2), (6, 4, 3)]
+    return np.stack([np.linalg.det(np.stack([x[:, a] - x[:, c] for a in nb], axis=2))
+                     for c, nb in enumerate(neighbours)], axis=1)
+
+
+def test_scaled_jacobian_is_one_on_rectangles_of_any_aspect_ratio():
+    m = structured_mesh(np.array([0.0, 1e-6, 1.0]), np.array([0.0, 1e3]))
+    np.testing.assert_allclose(scaled_jacobians(m), 1.0, rtol=1e-12)
+    h = structured_mesh(np.linspace(0, 1, 2), np.linspace(0, 1e-4, 2), np.linspace(0, 7, 2))
+    np.testing.assert_allclose(scaled_jacobians(h), 1.0, rtol=1e-12)
+
+
+@pytest.mark.parametrize("order,word", [
+    ([0, 1, 3, 2], "self-intersecting"),        # bow-tie
+    ([0, 3, 2, 1], "inverted"),                 # clockwise
+])
+def test_bad_quad_is_named_by_its_id(order, word):
+    m = unit_square_quads()
+    cells = m.cells.copy()
+    cells[1] = cells[1][order]
+    with pytest.raises(InputError, match=rf"quad element 2 \(nodes .*\) is {word}"):
+        validate_mesh(Mesh(m.points, cells, "quad"))
+
+
+def test_degenerate_quad_with_a_collapsed_edge():
+    m = unit_square_quads()
+    points = m.points.copy()
+    points[m.cells[0, 3]] = points[m.cells[0, 2]] + [0.0, 1e-12]      # corners 2, 3 meet
+    bad = Mesh(points, m.cells, "quad")
+    assert scaled_jacobians(bad)[0].min() <= DEGENERATE_SCALED_JACOBIAN
+    with pytest.raises(InputError, match="quad element 1 .* is degenerate"):
+        validate_mesh(bad)
+    with pytest.raises(InputError, match="element 11"):
+        validate_mesh(bad, cell_ids=[11, 12])
+
+
+def test_a_valid_but_badly_shaped_quad_passes():
+    """q = sin(0.6 degrees) ~ 0.01 > DEGENERATE_SCALED_JACOBIAN."""
+    points = np.array([[0, 0], [1, 0], [1 + 100, 1], [100, 1.0]])
+    m = Mesh(points, [[0, 1, 2, 3]], "quad")
+    assert 0.005 < scaled_jacobians(m).min() < 0.02
+    validate_mesh(m)
+
+
+def test_inverted_tetra_and_hexahedron():
+    h = structured_mesh(np.linspace(0, 1, 3), np.linspace(0, 1, 2), np.linspace(0, 1, 2))
+    cells = h.cells.copy()
+    cells[0] = cells[0][[4, 5, 6, 7, 0, 1, 2, 3]]                     # upside down
+    with pytest.raises(InputError, match="hexahedron element 1 .* inverted"):
+        validate_mesh(Mesh(h.points, cells, "hexahedron"))
+    tet = Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]], [[0, 2, 1, 3]], "tetra")
+    with pytest.raises(InputError, match="tetra element 1 .* inverted"):
+        validate_mesh(tet)
+
+
+def test_a_hexahedron_folded_at_one_corner_is_caught_at_that_corner():
+    """A node pushed through the opposite face: the Jacobian is negative at that corner
+    only, positive at the Gauss points nearest the others."""
+    h = structured_mesh(np.linspace(0, 1, 2), np.linspace(0, 1, 2), np.linspace(0, 1, 2))
+    points = h.points.copy()
+    points[h.cells[0, 6]] = [0.3, 0.3, 0.3]     # corner (1, 1, 1) moved inside past centre
+    bad = Mesh(points, h.cells, "hexahedron")
+    q = scaled_jacobians(bad)
+    assert q[0, 6] < 0 and q[0].max() > 0
+    with pytest.raises(InputError, match="self-intersecting"):
+        validate_mesh(bad)
+
+
+# --- nodes ----------------------------------------------------------------------------
+
+def test_duplicate_node_not_joined_is_refused_and_one_joined_is_a_degenerate_cell():
+    m = unit_square_quads()                     # nodes 0..5, cells [0,1,4,3], [1,2,5,4]
+    points = np.vstack([m.points, m.points[1] + [0, 1e-13]])        # node 7 on node 2
+    cells = m.cells.copy()
+    cells[1, 0] = 6                              # second cell uses the copy: a crack
+    with pytest.raises(InputError, match="nodes 2 and 7 are at the same point"):
+        validate_mesh(Mesh(points, cells, "quad"))
+    with pytest.raises(MeshFileError, match=r"^f.msh: nodes 20 and 70"):
+        validate_mesh(Mesh(points, cells, "quad"), source="f.msh",
+                      node_ids=[10, 20, 30, 40, 50, 60, 70])
+
+
+def test_unused_nodes_warn_and_are_kept():
+    m = unit_square_quads()
+    points = np.vstack([m.points, [[5.0, 5.0]]])
+    with pytest.warns(UnusedNodesWarning, match="1 node\\(s\\) are used by no cell, e.g. "
+                                                "node\\(s\\) 7"):
+        validate_mesh(Mesh(points, m.cells, "quad"))
+
+
+def test_valid_meshes_pass_without_warning():
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for path in [DATA / "gmsh_box_v41.msh", DATA / "gmsh_rect.inp",
+                     EXAMPLES / "sandwich-2d-top.msh", EXAMPLES / "sandwich-2d-bottom.inp"]:
+            m = read_mesh(path)
+            assert (corner_measures(m) > 0).all()
+            validate_mesh(m)
+
+
+def test_read_names_file_and_element_id(tmp_path):
+    text = (DATA / "gmsh_rect.inp").read_text()
+    rows = re.findall(r"^(\d+), (\d+), (\d+), (\d+)$", text.split("type=CPS3")[1], re.M)
+    eid, a, b, c = rows[3]
+    bad = text.replace(f"\n{eid}, {a}, {b}, {c}\n", f"\n{eid}, {a}, {c}, {b}\n")
+    path = tmp_path / "flipped.inp"
+    path.write_text(bad)
+    with pytest.raises(MeshFileError, match=rf"flipped.inp: triangle element {eid} "
+                                            rf"\(nodes {a}, {c}, {b}\) is inverted"):
+        read_mesh(path)
+
+
+# --- the issue's cases: one line duplicated or two swapped ----------------------------
+
+def test_duplicated_coordinate_line_in_gmsh_file_is_refused(tmp_path):
+    lines = (EXAMPLES / "sandwich-2d-top.msh").read_text().splitlines()
+    k = next(j for j in range(lines.index("$Nodes"), len(lines))
+             if len(lines[j].split()) == 3 and "." in lines[j])
+    path = tmp_path / "dup.msh"
+    path.write_text("\n".join(lines[:k + 1] + lines[k:]) + "\n")
+    with pytest.raises(MeshFileError, match=r"dup.msh, line \d+: section \$Nodes holds 3 "
+                                            r"value\(s\) more than its counts declare"):
+        read_mesh(path)
+
+
+@pytest.mark.parametrize("name", ["gmsh_rect_v22.msh", "gmsh_rect_v40.msh"])
+def test_duplicated_line_in_older_gmsh_versions(tmp_path, name):
+    lines = (DATA / name).read_text().splitlines()
+    k = lines.index("$Nodes") + 3
+    path = tmp_path / name
+    path.write_text("\n".join(lines[:k + 1] + lines[k:]) + "\n")
+    with pytest.raises(MeshFileError, match=name):
+        read_mesh(path)
+
+
+def test_binary_section_with_bytes_left_over(tmp_path):
+    raw = (DATA / "gmsh_rect_v41_binary.msh").read_bytes()
+    path = tmp_path / "b.msh"
+    path.write_bytes(raw.replace(b"$EndNodes", b"\x01\x02\x03\x04$EndNodes", 1))
+    with pytest.raises(MeshFileError, match=r"b.msh, byte \d+: section \$Nodes holds 5 bytes"):
+        read_mesh(path)
+
+
+def test_inp_node_row_with_extra_fields(tmp_path):
+    text = (DATA / "gmsh_rect.inp").read_text()
+    row = re.search(r"^1, .*$", text, re.M).group(0)
+    path = tmp_path / "n.inp"
+    path.write_text(text.replace(row, row + ", 7.5", 1))
+    with pytest.raises(MeshFileError, match=r"n.inp, line \d+: node row .* has 5 fields"):
+        read_mesh(path)
+
+
+# --- random mutations -----------------------------------------------------------------
+
+MUTATED = [DATA / "gmsh_rect_v41.msh", DATA / "gmsh_rect_v40.msh", DATA / "gmsh_rect_v22.msh",
+           DATA / "gmsh_rect.inp", DATA / "gmsh_box_v41.msh"]
+
+
+def is_number(token: str) -> bool:
+    try:
+        float(token)
+    except ValueError:
+        return False
+    return True
+
+
+def mutate(lines: list, rng) -> list:
+    """One random damage: a line duplicated, deleted, swapped with another, a number
+    perturbed, or two node ids swapped in an element row."""
+    lines = list(lines)
+    k = int(rng.integers(len(lines)))
+    kind = rng.integers(5)
+    if kind == 0:
+        lines.insert(k, lines[k])
+    elif kind == 1:
+        del lines[k]
+    elif kind == 2:
+        j = int(np.clip(k + rng.integers(-6, 7), 0, len(lines) - 1))
+        lines[k], lines[j] = lines[j], lines[k]
+    else:
+        sep = "," if "," in lines[k] else " "
+        tokens = lines[k].split(sep)
+        numeric = [i for i, t in enumerate(tokens) if is_number(t)]
+        if not numeric:
+            return mutate(lines, rng)
+        if kind == 3:
+            i = numeric[int(rng.integers(len(numeric)))]
+            value = float(tokens[i])
+            tokens[i] = repr(float(value + rng.choice([-1, 1]) * rng.choice([1, 0.3, 1e-9])))
+            if re.fullmatch(r"\s*-?\d+\s*", lines[k].split(sep)[i]):
+                tokens[i] = str(int(round(float(tokens[i]))))
+        else:
+            if len(numeric) < 3:
+                return mutate(lines, rng)
+            a, b = rng.choice(numeric[1:], size=2, replace=False)
+            tokens[a], tokens[b] = tokens[b], tokens[a]
+        lines[k] = sep.join(tokens)
+    return lines
+
+
+def declared_nodes(text: str, suffix: str):
+    """The node count the file itself declares (None: the .inp format declares none)."""
+    if suffix == ".inp":
+        return None
+    header = text.split("$Nodes", 1)[1].split()
+    return int(header[1]) if header[0] != "0" and len(header) > 1 and \
+        re.search(r"^\$MeshFormat\s+4", text, re.M) else int(header[0])
+
+
+def check_mutants(path: Path, count: int, seed: int, tmp_path: Path):
+    original = read_mesh(path)
+    lines = path.read_text().splitlines()
+    rng = np.random.default_rng(seed)
+    accepted = 0
+    for n in range(count):
+        text = "\n".join(mutate(lines, rng)) + "\n"
+        target = tmp_path / f"m{n}{path.suffix}"
+        target.write_text(text)
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", UnusedNodesWarning)
+                mesh = read_mesh(target)
+        except (MeshFileError, InputError):
+            continue
+        accepted += 1
+        assert (corner_measures(mesh) > 0).all(), f"mutant {n} of {path.name} accepted"
+        declared = declared_nodes(text, path.suffix)
+        assert declared is None or mesh.n_nodes == declared, f"mutant {n} of {path.name}"
+        if path.suffix == ".msh":
+            assert len(mesh.cells) == len(original.cells), f"mutant {n} of {path.name}"
+    return accepted
+
+
+@pytest.mark.parametrize("path", MUTATED, ids=lambda p: p.name)
+def test_mutated_files_are_refused_or_valid(path, tmp_path):
+    """40 mutants per file (seeded); each refused with MeshFileError/InputError or, if
+    accepted, a mesh whose every cell has positive corner areas/volumes and the node and
+    cell counts the file declares."""
+    check_mutants(path, 40, seed=18, tmp_path=tmp_path)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", MUTATED + [EXAMPLES / "sandwich-2d-top.msh",
+                                            EXAMPLES / "sandwich-2d-bottom.inp"],
+                         ids=lambda p: p.name)
+def test_many_mutated_files_are_refused_or_valid(path, tmp_path):
+    check_mutants(path, 400, seed=1800, tmp_path=tmp_path)
