@@ -32,7 +32,7 @@ from scipy.spatial import cKDTree
 from ..errors import InputError, MeshFileError
 from .mesh import Mesh
 
-__all__ = ["validate_mesh", "scaled_jacobians", "UnusedNodesWarning",
+__all__ = ["validate_mesh", "scaled_jacobians", "UnusedNodesWarning", "HIGHER_NODES",
            "DEGENERATE_SCALED_JACOBIAN", "COINCIDENT_NODES"]
 
 #: A cell whose scaled Jacobian is at most this at a corner, node or Gauss point is
@@ -71,10 +71,11 @@ _HEX_EDGES = [(0, 1), (1, 2), (2, 3), (3, 0), (4, 5), (5, 6), (6, 7), (7, 4),
 #: VTK face-centre order of the 27-node hexahedron: x-, x+, y-, y+, z-, z+, then the centre
 _HEX_FACES = [(0, 3, 7, 4), (1, 2, 6, 5), (0, 1, 5, 4), (3, 2, 6, 7), (0, 1, 2, 3),
               (4, 5, 6, 7), tuple(range(8))]
-#: cell type -> (linear type of its corners, corner groups whose mean is each further node)
+#: cell type -> (linear type of its corners, corner groups whose mean is each further node),
+#: in meshio/VTK node order (the readers derive their permutations from it)
 #: (VTK: "vtkQuadraticTriangle", "vtkQuadraticQuad", "vtkBiQuadraticQuad",
 #: "vtkQuadraticTetra", "vtkQuadraticHexahedron", "vtkTriQuadraticHexahedron")
-_NODES = {
+HIGHER_NODES = _NODES = {
     "triangle": ("triangle", []), "quad": ("quad", []), "tetra": ("tetra", []),
     "hexahedron": ("hexahedron", []),
     "triangle6": ("triangle", [(0, 1), (1, 2), (2, 0)]),

@@ -15,7 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import InputError, MeshFileError
-from ..mesh import CELL_FACETS, Mesh, facet_index
+from ..mesh import CELL_FACETS, CELL_TYPES, Mesh, facet_index
+from ..validate import HIGHER_NODES
 from .common import (_MAX_ID, _N_NODES, _TOPO_DIM, _boundary_of_sets,
                      _cell_type_of, _check_names, _Elements, _FileMesh, _IdLookup,
                      _line_of, _number, _read_bytes, _to_mesh)
@@ -43,9 +44,36 @@ ABAQUS_ELEMENT_TYPES = {
     "S4": "quad", "M3D4": "quad", "R3D4": "quad", "SFM3D4": "quad",
     "S3": "triangle", "M3D3": "triangle", "R3D3": "triangle", "SFM3D3": "triangle",
     "T2D2": "line", "T3D2": "line", "B21": "line", "B31": "line", "R2D2": "line",
+    # quadratic: Abaqus lists corners, then mid-edge nodes in meshio/VTK order
+    # (C3D20: 9-12 bottom edges 1-2..4-1, 13-16 top edges, 17-20 edges 1-5..4-8;
+    # C3D10: 5-10 on edges 1-2, 2-3, 3-1, 1-4, 2-4, 3-4), so no reordering
+    "C3D20": "hexahedron20", "C3D10": "tetra10", "C3D10M": "tetra10",
+    "CPE8": "quad8", "CPS8": "quad8", "CAX8": "quad8",
+    "CPE6": "triangle6", "CPS6": "triangle6", "CAX6": "triangle6",
+    "S8": "quad8", "M3D8": "quad8", "SFM3D8": "quad8", "M3D9": "quad9",
+    "S6": "triangle6", "M3D6": "triangle6", "SFM3D6": "triangle6",
+    "T2D3": "line3", "T3D3": "line3", "B22": "line3", "B32": "line3",
+}
+#: element types refused with a reason of their own
+_ABAQUS_REFUSED = {
+    "C3D27": "its optional face and centre nodes (21-27) have no node order qsma has "
+             "checked; use C3D20",
 }
 #: element type written to .inp files when the mesh names none (plane strain in 2D)
-_ABAQUS_WRITE_TYPE = {"quad": "CPE4", "triangle": "CPE3", "hexahedron": "C3D8", "tetra": "C3D4"}
+_ABAQUS_WRITE_TYPE = {"quad": "CPE4", "triangle": "CPE3", "hexahedron": "C3D8", "tetra": "C3D4",
+                      "quad8": "CPE8", "triangle6": "CPE6", "hexahedron20": "C3D20",
+                      "tetra10": "C3D10"}
+
+
+def _abaqus_faces(cell_type: str) -> list:
+    """Local nodes of face ``S<k>`` (entry k - 1): the corners of ``ABAQUS_FACES`` of the
+    linear type, then the cell's further nodes that lie on that face (``HIGHER_NODES``)."""
+    if cell_type in ABAQUS_FACES:
+        return ABAQUS_FACES[cell_type]
+    linear, groups = HIGHER_NODES[cell_type]
+    nc = CELL_TYPES[linear][1]
+    return [tuple(face) + tuple(nc + i for i, g in enumerate(groups) if set(g) <= set(face))
+            for face in ABAQUS_FACES[linear]]
 
 #: most ids one GENERATE row may produce
 _MAX_GENERATED = 10**8
@@ -356,7 +384,7 @@ class _InpReader:
 
     def _surface(self, fm, name, rows, vtype, elements, elsets, index: _Elements):
         """Facets of an element-based surface: ``(element or set, face)`` rows."""
-        faces = ABAQUS_FACES[vtype]
+        faces = _abaqus_faces(vtype)
         if not rows:
             fm.empty_sets.setdefault(name, "facet")
         for reference, face, where in rows:
@@ -445,6 +473,14 @@ def _inp_element(r: _InpReader, card: _Card):
     if not isinstance(etype, str) or not etype:
         raise _inp_error(card.where, "*ELEMENT without TYPE=", "give the element type")
     cell_type = _abaqus_cell_type(etype)
+    base = etype.upper().rstrip("RIHT")
+    if base in _ABAQUS_REFUSED:
+        raise _inp_error(card.where, f"{etype} elements are not supported",
+                         _ABAQUS_REFUSED[base])
+    if cell_type is not None and _is_continuum(etype) and cell_type not in CELL_TYPES:
+        raise _inp_error(card.where, f"{etype} ({cell_type}) elements are not supported "
+                         f"yet", f"qsma reads cells of {', '.join(sorted(CELL_TYPES))}: "
+                         f"convert the mesh to linear elements (e.g. C3D8, CPE4)")
     if cell_type is None:
         raise _inp_error(card.where, f"unknown or unsupported element type {etype!r}",
                          f"qsma reads the linear types {', '.join(ABAQUS_ELEMENT_TYPES)} "
@@ -639,7 +675,7 @@ def _format_abaqus(mesh: Mesh, _version=None) -> str:
     on_boundary = _boundary_of_sets(mesh, boundary)
     etype = _abaqus_write_type(mesh)
     # local facet of CELL_FACETS -> Abaqus face number
-    face_number = [1 + [sorted(f) for f in ABAQUS_FACES[mesh.cell_type]].index(sorted(local))
+    face_number = [1 + [sorted(f) for f in _abaqus_faces(mesh.cell_type)].index(sorted(local))
                    for local in CELL_FACETS[mesh.cell_type]]
     out = ["*HEADING", f"qsma mesh: {mesh.n_nodes} nodes, {len(mesh.cells)} {etype} elements",
            "** written by qsma.model.io.write_mesh; facet sets are *SURFACE definitions over",

@@ -21,10 +21,14 @@ from ...errors import InputError, MeshFileError
 from ..validate import validate_mesh
 from ..mesh import CELL_FACETS, CELL_TYPES, FacetIndex, Mesh, facet_index, unique_rows
 
-_SET_ELEMENT_DIM = {"vertex": 0, "line": 1, "triangle": 2, "quad": 2}
+_SET_ELEMENT_DIM = {"vertex": 0, "line": 1, "triangle": 2, "quad": 2,
+                    "line3": 1, "triangle6": 2, "quad8": 2, "quad9": 2}
 #: topological dimension and nodes of the linear types
-_TOPO_DIM = {**_SET_ELEMENT_DIM, "tetra": 3, "hexahedron": 3}
-_N_NODES = {"vertex": 1, "line": 2, "triangle": 3, "quad": 4, "tetra": 4, "hexahedron": 8}
+_TOPO_DIM = {**_SET_ELEMENT_DIM, "tetra": 3, "hexahedron": 3, "tetra10": 3,
+             "hexahedron20": 3, "hexahedron27": 3}
+_N_NODES = {"vertex": 1, "line": 2, "triangle": 3, "quad": 4, "tetra": 4, "hexahedron": 8,
+            "line3": 3, "triangle6": 6, "quad8": 8, "quad9": 9, "tetra10": 10,
+            "hexahedron20": 20, "hexahedron27": 27}
 
 _MAX_ID = 2**62
 
@@ -113,8 +117,9 @@ def _cell_type_of(source: str, blocks: list, requested: str | None) -> str:
                             f"type (e.g. all {top[0]})")
     vtype = top[0]
     if vtype not in CELL_TYPES:
-        raise MeshFileError(f"{source}: {vtype} cells are not supported; qsma reads linear "
-                            f"meshes of one of {', '.join(sorted(CELL_TYPES))}")
+        raise MeshFileError(f"{source}: {vtype} cells are not supported (yet): qsma reads "
+                            f"meshes of one of {', '.join(sorted(CELL_TYPES))}; convert the "
+                            f"mesh to one of them (e.g. Gmsh: Mesh.ElementOrder = 1)")
     other = sorted(t for t in types if t != vtype and t not in _SET_ELEMENT_DIM)
     if other:
         raise MeshFileError(f"{source}: {', '.join(other)} elements are not supported beside "

@@ -18,6 +18,7 @@ import numpy as np
 
 from ...errors import MeshFileError
 from ..mesh import CELL_TYPES, Mesh, facet_index
+from ..validate import HIGHER_NODES
 from .common import (_MAX_ID, _boundary_of_sets, _cell_type_of, _check_names,
                      _FileMesh, _IdLookup, _line_of, _number, _read_bytes, _to_mesh)
 
@@ -31,6 +32,28 @@ _GMSH_TYPES = {
     18: ("wedge15", 15, 3), 19: ("pyramid13", 13, 3),
 }
 _GMSH_TYPE_NUMBER = {name: number for number, (name, _, _) in _GMSH_TYPES.items()}
+#: Gmsh order of the nodes after the corners, as the corners each is the mean of (Gmsh
+#: reference manual, "Node ordering"); the other quadratic types (line3, triangle6,
+#: quad8, quad9) list their nodes as meshio/VTK does
+_GMSH_HIGHER_NODES = {
+    "tetra10": [(0, 1), (1, 2), (2, 0), (3, 0), (3, 2), (3, 1)],
+    "hexahedron20": [(0, 1), (0, 3), (0, 4), (1, 2), (1, 5), (2, 3), (2, 6), (3, 7),
+                     (4, 5), (4, 7), (5, 6), (6, 7)],
+}
+_GMSH_HIGHER_NODES["hexahedron27"] = _GMSH_HIGHER_NODES["hexahedron20"] + [
+    (0, 3, 2, 1), (0, 1, 5, 4), (0, 4, 7, 3), (1, 2, 6, 5), (2, 3, 7, 6), (4, 5, 6, 7),
+    tuple(range(8))]
+
+
+def _gmsh_to_meshio(cell_type: str):
+    """Column order taking Gmsh rows of ``cell_type`` to meshio order (None: the same),
+    derived by matching the corner groups of each node in both orders."""
+    if cell_type not in _GMSH_HIGHER_NODES:
+        return None
+    linear, groups = HIGHER_NODES[cell_type]
+    nc = CELL_TYPES[linear][1]
+    gmsh = [frozenset(g) for g in _GMSH_HIGHER_NODES[cell_type]]
+    return np.array(list(range(nc)) + [nc + gmsh.index(frozenset(g)) for g in groups])
 
 #: Gmsh file versions write_mesh can produce
 GMSH_VERSIONS = ("4.1", "2.2")
@@ -265,6 +288,8 @@ class _Gmsh4:
                 bad = conn_tags[conn < 0][0]
                 raise MeshFileError(f"{where}: an element refers to node tag {bad}, which is "
                                     f"not in $Nodes; the file is damaged")
+            order = _gmsh_to_meshio(etype)
+            conn = conn if order is None else conn[:, order]
             blocks.append((etype, _GMSH_TYPES[_GMSH_TYPE_NUMBER[etype]][2], conn, True))
             element_ids.append(ids)
             for group in self.entity_groups.get((dim, entity), ()):
@@ -492,7 +517,9 @@ def _gmsh_blocks(mesh: Mesh):
             runs[-1][2] = i + 1
         else:
             runs.append([g, i, i + 1])
-    blocks = [(d, k, _GMSH_TYPE_NUMBER[mesh.cell_type], mesh.cells[a:b], g)
+    order = _gmsh_to_meshio(mesh.cell_type)
+    cells = mesh.cells if order is None else mesh.cells[:, np.argsort(order)]
+    blocks = [(d, k, _GMSH_TYPE_NUMBER[mesh.cell_type], cells[a:b], g)
               for k, (g, a, b) in enumerate(runs, start=1)]
     by_groups = {}
     for i, g in facet_groups.items():
