@@ -801,3 +801,69 @@ def test_write_refuses_an_element_of_another_cell_type(tmp_path):
         write_mesh(tmp_path / "w.inp", wrong)
     with pytest.raises(InputError, match="element must be"):
         Mesh(m.points, m.cells, m.cell_type, element="")
+
+
+# --- quadratic cells (read when CELL_TYPES has them) ---------------------------------
+
+#: meshio/VTK order of the nodes after the corners, as the corners each is the middle of
+#: (VTK classes vtkQuadraticQuad, vtkQuadraticTetra, vtkQuadraticHexahedron,
+#: vtkTriQuadraticHexahedron); written out here independently of qsma.model.validate
+_VTK_HEX_EDGES = [(0, 1), (1, 2), (2, 3), (3, 0), (4, 5), (5, 6), (6, 7), (7, 4),
+                  (0, 4), (1, 5), (2, 6), (3, 7)]
+VTK_HIGHER = {
+    "quad8": (4, [(0, 1), (1, 2), (2, 3), (3, 0)]),
+    "tetra10": (4, [(0, 1), (1, 2), (2, 0), (0, 3), (1, 3), (2, 3)]),
+    "hexahedron20": (8, _VTK_HEX_EDGES),
+    "hexahedron27": (8, _VTK_HEX_EDGES + [(0, 3, 7, 4), (1, 2, 6, 5), (0, 1, 5, 4),
+                                          (3, 2, 6, 7), (0, 1, 2, 3), (4, 5, 6, 7),
+                                          tuple(range(8))]),
+}
+QUADRATIC = [("quadratic_box_tet10.msh", "tetra10", None),
+             ("quadratic_box_tet10.inp", "tetra10", "C3D10"),
+             ("quadratic_box_hex20.msh", "hexahedron20", None),
+             ("quadratic_box_hex20.inp", "hexahedron20", "C3D20"),
+             ("quadratic_box_hex27.msh", "hexahedron27", None),
+             ("quadratic_rect_quad8.msh", "quad8", None)]
+
+
+@pytest.mark.parametrize("name,cell_type,element", QUADRATIC)
+def test_quadratic_files_read_in_meshio_node_order(name, cell_type, element, tmp_path):
+    """Straight-edged Gmsh meshes (tests/data/make_quadratic_fixtures.py): in meshio order
+    every further node is the mean of its corners; Gmsh's own Abaqus export gives the
+    same cells; round trips keep cells and facet sets."""
+    from qsma.model.mesh import CELL_TYPES
+    from qsma.model.validate import scaled_jacobians
+    if cell_type not in CELL_TYPES:
+        pytest.skip("quadratic cell types not yet in CELL_TYPES")
+    m = read_mesh(DATA / name)
+    assert (m.cell_type, m.element) == (cell_type, element)
+    nc, groups = VTK_HIGHER[cell_type]
+    x = m.points[m.cells]
+    for k, corners in enumerate(groups):
+        np.testing.assert_allclose(x[:, nc + k], x[:, list(corners)].mean(axis=1), atol=1e-12)
+    assert (scaled_jacobians(m) > 0.2).all()
+    bottom = m.facet_sets["bottom"]
+    assert len(bottom) and np.allclose(m.points[bottom][..., -1], 0.0)
+    if name.endswith(".inp"):
+        twin = read_mesh(DATA / name.replace(".inp", ".msh"))
+        np.testing.assert_array_equal(m.cells, twin.cells)
+    versions = ["4.1", "2.2"] + (["inp"] if cell_type != "hexahedron27" else [])
+    for version in versions:
+        path = tmp_path / ("w.inp" if version == "inp" else "w.msh")
+        again = read_mesh(write_mesh(path, m, gmsh_version="4.1" if version == "inp"
+                                     else version))
+        assert_same_mesh(again, m)
+
+
+@pytest.mark.parametrize("name,cell_type,element", QUADRATIC)
+def test_quadratic_files_are_refused_until_supported(name, cell_type, element):
+    from qsma.model.mesh import CELL_TYPES
+    if cell_type in CELL_TYPES:
+        pytest.skip(f"{cell_type} is in CELL_TYPES: read by the test above")
+    with pytest.raises(MeshFileError, match=rf"{name}.*not supported.*convert the mesh"):
+        read_mesh(DATA / name)
+
+
+def test_abaqus_c3d27_is_refused_with_its_reason(tmp_path):
+    text = QUAD_GRID.replace("TYPE=CPE4", "TYPE=C3D27")
+    assert "use C3D20" in inp_error(tmp_path, text)

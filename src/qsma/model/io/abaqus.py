@@ -477,7 +477,7 @@ def _inp_element(r: _InpReader, card: _Card):
     if base in _ABAQUS_REFUSED:
         raise _inp_error(card.where, f"{etype} elements are not supported",
                          _ABAQUS_REFUSED[base])
-    if cell_type is not None and _is_continuum(etype) and cell_type not in CELL_TYPES:
+    if cell_type is not None and etype.upper().startswith("C3D") and cell_type not in CELL_TYPES:
         raise _inp_error(card.where, f"{etype} ({cell_type}) elements are not supported "
                          f"yet", f"qsma reads cells of {', '.join(sorted(CELL_TYPES))}: "
                          f"convert the mesh to linear elements (e.g. C3D8, CPE4)")
