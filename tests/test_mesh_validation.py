@@ -11,8 +11,7 @@ from qsma.errors import InputError, MeshFileError
 from qsma.model.generate import structured_mesh
 from qsma.model.io import read_mesh
 from qsma.model.mesh import Mesh
-from qsma.model.validate import (DEGENERATE_SCALED_JACOBIAN, UnusedNodesWarning,
-                                 scaled_jacobians, validate_mesh)
+from qsma.model.validate import DEGENERATE_SCALED_JACOBIAN, scaled_jacobians, validate_mesh
 
 DATA = Path(__file__).parent / "data"
 EXAMPLES = Path(__file__).parent.parent / "examples"
@@ -119,12 +118,17 @@ def test_duplicate_node_not_joined_is_refused_and_one_joined_is_a_degenerate_cel
                       node_ids=[10, 20, 30, 40, 50, 60, 70])
 
 
-def test_unused_nodes_warn_and_are_kept():
+def test_unused_nodes_are_refused(tmp_path):
     m = unit_square_quads()
     points = np.vstack([m.points, [[5.0, 5.0]]])
-    with pytest.warns(UnusedNodesWarning, match="1 node\\(s\\) are used by no cell, e.g. "
-                                                "node\\(s\\) 7"):
+    with pytest.raises(InputError, match=r"1 node\(s\) are used by no element, e.g. "
+                                         r"node\(s\) 7; .* delete these nodes"):
         validate_mesh(Mesh(points, m.cells, "quad"))
+    text = (DATA / "gmsh_rect.inp").read_text().replace("*ELEMENT", "999, 7.0, 7.0\n*ELEMENT", 1)
+    path = tmp_path / "free.inp"
+    path.write_text(text)
+    with pytest.raises(MeshFileError, match=r"free.inp: 1 node\(s\) .* node\(s\) 999;"):
+        read_mesh(path)
 
 
 def test_valid_meshes_pass_without_warning():
@@ -256,9 +260,7 @@ def check_mutants(path: Path, count: int, seed: int, tmp_path: Path):
         target = tmp_path / f"m{n}{path.suffix}"
         target.write_text(text)
         try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", UnusedNodesWarning)
-                mesh = read_mesh(target)
+            mesh = read_mesh(target)
         except (MeshFileError, InputError):
             continue
         accepted += 1
@@ -284,3 +286,15 @@ def test_mutated_files_are_refused_or_valid(path, tmp_path):
                          ids=lambda p: p.name)
 def test_many_mutated_files_are_refused_or_valid(path, tmp_path):
     check_mutants(path, 400, seed=1800, tmp_path=tmp_path)
+
+
+def test_gmsh22_node_tag_defined_twice(tmp_path):
+    lines = (DATA / "gmsh_rect_v22.msh").read_text().splitlines()
+    i = lines.index("$Nodes")
+    tag = lines[i + 2].split()[0]
+    damaged = lines[:i + 1] + [str(int(lines[i + 1]) + 1), f"{tag} 9 9 0"] + lines[i + 2:]
+    path = tmp_path / "twice.msh"
+    path.write_text("\n".join(damaged) + "\n")
+    with pytest.raises(MeshFileError, match=rf"twice.msh, line {i + 4}: node tag {tag} is "
+                                            rf"defined twice \(first on line {i + 3}\)"):
+        read_mesh(path)

@@ -22,7 +22,6 @@ when its sign changes, *degenerate* otherwise.
 from __future__ import annotations
 
 import itertools
-import warnings
 from functools import lru_cache
 
 import numpy as np
@@ -32,7 +31,7 @@ from scipy.spatial import cKDTree
 from ..errors import InputError, MeshFileError
 from .mesh import Mesh
 
-__all__ = ["validate_mesh", "scaled_jacobians", "UnusedNodesWarning", "HIGHER_NODES",
+__all__ = ["validate_mesh", "scaled_jacobians", "HIGHER_NODES",
            "DEGENERATE_SCALED_JACOBIAN", "COINCIDENT_NODES"]
 
 #: A cell whose scaled Jacobian is at most this at a corner, node or Gauss point is
@@ -48,10 +47,6 @@ DEGENERATE_SCALED_JACOBIAN = 1e-6
 #: about 1e-12 of the model size apart, while nodes meant to be distinct are an element
 #: size apart (1e-4 of the model size already means 10,000 elements across).
 COINCIDENT_NODES = 1e-8
-
-
-class UnusedNodesWarning(UserWarning):
-    """A mesh holds nodes that no cell uses (they carry no stiffness and no mass)."""
 
 
 # --------------------------------------------------------------------------------------
@@ -176,7 +171,7 @@ def scaled_jacobians(mesh: Mesh) -> np.ndarray | None:
 
 def validate_mesh(mesh: Mesh, *, source: str | None = None, node_ids=None,
                   cell_ids=None) -> None:
-    """Refuse a mesh with bad cells or nodes defined twice; warn of unused nodes.
+    """Refuse a mesh with bad cells, nodes defined twice or nodes no cell uses.
 
     Parameters
     ----------
@@ -190,15 +185,19 @@ def validate_mesh(mesh: Mesh, *, source: str | None = None, node_ids=None,
     Raises
     ------
     InputError (MeshFileError when ``source`` is given)
-        A cell inverted, self-intersecting or degenerate (see the module docstring), or
+        A cell inverted, self-intersecting or degenerate (see the module docstring);
         two nodes at one point (closer than :data:`COINCIDENT_NODES` times the mesh
-        size) that no cell joins. The message names the ids and the fix.
+        size) that no cell joins; a node that no cell uses. The message names the ids
+        and the fix.
 
-    Warns
+    Notes
     -----
-    UnusedNodesWarning
-        Nodes that no cell uses. They are kept (node sets may name them, and ids map
-        to indices as documented), but carry no stiffness or mass.
+    Nodes no cell uses are refused rather than warned about: every node of a mesh gets
+    degrees of freedom in the assembly, and one without a cell has neither stiffness nor
+    mass, so the stiffness matrix is singular (with one such node added to
+    ``examples/sandwich-2d-bottom.inp``, ``qsma run`` stopped with an internal error in
+    the assembly). Dropping them silently would renumber the nodes and could empty a
+    node set that names them.
     """
     where = f"{source}: " if source else ""
     error = MeshFileError if source else InputError
@@ -210,10 +209,10 @@ def validate_mesh(mesh: Mesh, *, source: str | None = None, node_ids=None,
     used[mesh.cells.ravel()] = True
     if not used.all():
         unused = node_ids[~used]
-        warnings.warn(f"{where}{unused.size} node(s) are used by no cell, e.g. node(s) "
-                      f"{', '.join(map(str, unused[:5]))}; they carry no stiffness or mass: "
-                      f"remove them from the mesh unless they are meant to be free",
-                      UnusedNodesWarning, stacklevel=2)
+        raise error(f"{where}{unused.size} node(s) are used by no element, e.g. node(s) "
+                    f"{', '.join(map(str, unused[:5]))}; such a node has no stiffness and no "
+                    f"mass (a singular model): delete these nodes from the mesh (reference "
+                    f"points and construction nodes belong in another file)")
 
 
 def _check_cells(mesh, where, error, cell_ids, node_ids):

@@ -404,11 +404,16 @@ def _gmsh22_rows(body: bytes, first_line: int, src: str, section: str, width) ->
         raise MeshFileError(f"{src}, line {lines[0][0]}: ${section} declares {count} lines "
                             f"but holds {len(lines) - 1}; the file is damaged (a line "
                             f"duplicated, added or deleted): save it again from Gmsh")
+    seen = {}
     for k, tokens in lines[1:]:
         if len(tokens) != width(tokens):
             raise MeshFileError(f"{src}, line {k}: {len(tokens)} values on a ${section} "
                                 f"line, expected {width(tokens)}; the file is damaged: save "
                                 f"it again from Gmsh")
+        if section == "Nodes" and seen.setdefault(tokens[0], k) != k:
+            raise MeshFileError(f"{src}, line {k}: node tag {tokens[0]} is defined twice "
+                                f"(first on line {seen[tokens[0]]}); the file is damaged: "
+                                f"give every node a distinct tag")
     return count
 
 
