@@ -288,6 +288,75 @@ def test_many_mutated_files_are_refused_or_valid(path, tmp_path):
     check_mutants(path, 400, seed=1800, tmp_path=tmp_path)
 
 
+BINARY = [DATA / "gmsh_rect_v41_binary.msh", DATA / "gmsh_rect_v22_binary.msh"]
+
+
+def check_binary_mutants(path: Path, count: int, seed: int, tmp_path: Path):
+    """Bytes of the data overwritten, doubled or deleted (after the header)."""
+    original = read_mesh(path)
+    raw = path.read_bytes()
+    start = raw.index(b"$EndMeshFormat")
+    rng = np.random.default_rng(seed)
+    for n in range(count):
+        k = int(rng.integers(start, len(raw) - 8))
+        width = int(rng.choice([1, 4, 8]))
+        kind = rng.integers(3)
+        if kind == 0:
+            data = raw[:k] + bytes(rng.integers(0, 256, width, dtype=np.uint8)) + raw[k + width:]
+        elif kind == 1:
+            data = raw[:k] + raw[k:k + width] + raw[k:]
+        else:
+            data = raw[:k] + raw[k + width:]
+        target = tmp_path / f"b{n}.msh"
+        target.write_bytes(data)
+        try:
+            mesh = read_mesh(target)
+        except (MeshFileError, InputError):
+            continue
+        assert (corner_measures(mesh) > 0).all(), f"mutant {n} of {path.name}"
+        assert len(mesh.cells) == len(original.cells), f"mutant {n} of {path.name}"
+
+
+@pytest.mark.parametrize("path", BINARY, ids=lambda p: p.name)
+def test_mutated_binary_files_are_refused_or_valid(path, tmp_path):
+    check_binary_mutants(path, 40, seed=18, tmp_path=tmp_path)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", BINARY, ids=lambda p: p.name)
+def test_many_mutated_binary_files_are_refused_or_valid(path, tmp_path):
+    check_binary_mutants(path, 400, seed=1800, tmp_path=tmp_path)
+
+
+def test_gmsh41_element_tag_defined_twice(tmp_path):
+    lines = (DATA / "gmsh_rect_v41.msh").read_text().splitlines()
+    block = next(k for k in range(lines.index("$Elements") + 2, len(lines))
+                 if lines[k].split()[:1] == ["2"])                # the triangles' block
+    tag = lines[block + 1].split()[0]
+    lines[block + 2] = " ".join([tag] + lines[block + 2].split()[1:])
+    path = tmp_path / "tags.msh"
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(MeshFileError, match=rf"tags.msh: element tag {tag} is defined twice"):
+        read_mesh(path)
+
+
+def test_inp_surface_row_with_extra_fields(tmp_path):
+    text = """*NODE
+1, 0, 0
+2, 1, 0
+3, 1, 1
+4, 0, 1
+*ELEMENT, TYPE=CPE4
+1, 1, 2, 3, 4
+*SURFACE, NAME=s
+1, S1, S2
+"""
+    path = tmp_path / "s.inp"
+    path.write_text(text)
+    with pytest.raises(MeshFileError, match=r"s.inp, line 9: cannot read the surface row"):
+        read_mesh(path)
+
+
 def test_gmsh22_node_tag_defined_twice(tmp_path):
     lines = (DATA / "gmsh_rect_v22.msh").read_text().splitlines()
     i = lines.index("$Nodes")

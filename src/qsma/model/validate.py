@@ -155,15 +155,35 @@ def scaled_jacobians(mesh: Mesh) -> np.ndarray | None:
     if ref is None:
         return None
     _, grads = ref
-    x = mesh.points[mesh.cells]                                    # (e, n, d)
-    jac = np.einsum("ena,pnk->epak", x, grads)                     # (e, p, d, d)
-    det = np.linalg.det(jac)
-    norms = np.linalg.norm(jac, axis=2)                            # column norms (e, p, d)
     nc = len(_CORNERS[_NODES[mesh.cell_type][0]])
-    corners = x[:, :nc]
-    size = np.linalg.norm(corners.max(axis=1) - corners.min(axis=1), axis=1)   # (e,)
-    floor = np.maximum(1e-300, 1e-12 * size)[:, None, None]
-    return det / np.prod(np.maximum(norms, floor), axis=2)
+    out = np.empty((len(mesh.cells), grads.shape[0]))
+    for start in range(0, len(mesh.cells), _CHUNK):
+        x = mesh.points[mesh.cells[start:start + _CHUNK]]              # (e, n, d)
+        with np.errstate(over="ignore", invalid="ignore"):
+            # q is invariant to translation and scaling: each cell is moved to its first
+            # node and scaled by its largest coordinate extent (no overflow, any units)
+            corners = x[:, :nc]
+            size = np.max(corners.max(axis=1) - corners.min(axis=1), axis=1)
+            x = (x - x[:, :1]) / np.where(size > 0, size, 1.0)[:, None, None]
+        jac = np.tensordot(x, grads, axes=([1], [1]))                  # (e, d, p, k) by BLAS
+        jac = np.moveaxis(jac, 2, 1)                                   # (e, p, d, k)
+        norms = np.sqrt((jac * jac).sum(axis=2))                       # column norms
+        q = _det(jac) / np.prod(np.maximum(norms, 1e-12), axis=2)      # cells of size ~1
+        out[start:start + _CHUNK] = np.where(np.isfinite(q), q, 0.0)
+    return out
+
+
+#: cells per block in scaled_jacobians (bounds the memory: 16 points x 9 doubles each)
+_CHUNK = 20000
+
+
+def _det(a: np.ndarray) -> np.ndarray:
+    """Determinants of stacked 2 x 2 or 3 x 3 matrices (cofactor expansion)."""
+    if a.shape[-1] == 2:
+        return a[..., 0, 0] * a[..., 1, 1] - a[..., 0, 1] * a[..., 1, 0]
+    return (a[..., 0, 0] * (a[..., 1, 1] * a[..., 2, 2] - a[..., 1, 2] * a[..., 2, 1])
+            - a[..., 0, 1] * (a[..., 1, 0] * a[..., 2, 2] - a[..., 1, 2] * a[..., 2, 0])
+            + a[..., 0, 2] * (a[..., 1, 0] * a[..., 2, 1] - a[..., 1, 1] * a[..., 2, 0]))
 
 
 # --------------------------------------------------------------------------------------
@@ -248,12 +268,12 @@ def _check_coincident(mesh, where, error, node_ids):
     points = mesh.points
     if mesh.n_nodes < 2:
         return
-    diagonal = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
     nc = len(_CORNERS[_NODES[mesh.cell_type][0]]) if mesh.cell_type in _NODES else 2
-    corners = points[mesh.cells[:, :nc]]                                # (e, nc, d)
-    a, b = np.triu_indices(nc, 1)
-    spans = np.linalg.norm(corners[:, a] - corners[:, b], axis=2).ravel()
-    shortest = spans[spans > 0].min(initial=diagonal)                  # of two cell corners
+    with np.errstate(over="ignore", invalid="ignore"):     # absurd coordinates: inf, fine
+        diagonal = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
+        spans = np.linalg.norm(points[mesh.cells[:, 1:nc]] - points[mesh.cells[:, :1]],
+                               axis=2).ravel()                    # corner 0 to the others
+    shortest = spans[spans > 0].min(initial=diagonal)
     tol = min(COINCIDENT_NODES * diagonal, 0.01 * shortest)
     pairs = cKDTree(points).query_pairs(tol, output_type="ndarray")
     if not len(pairs):

@@ -584,7 +584,7 @@ def _inp_surface(r: _InpReader, card: _Card):
         return    # analytical and cutting surfaces are not sets of the mesh
     _, rows = r.surfaces.setdefault(name.upper(), (name, []))
     for where, tokens, text in _rows(card):
-        if not tokens[0]:
+        if not tokens[0] or len(tokens) > 2:
             raise _inp_error(where, f"cannot read the surface row {text!r}",
                              "expected 'element set or element id, face (S1, S2, ...)'")
         rows.append((tokens[0], tokens[1] if len(tokens) > 1 and tokens[1] else None, where))

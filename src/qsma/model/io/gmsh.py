@@ -280,6 +280,12 @@ class _Gmsh4:
                                 f"twice in $Nodes; the file is damaged")
         tags, points = tags[lookup.order], points[lookup.order]     # nodes in tag order
         lookup = _IdLookup(tags)
+        every_element = np.concatenate([b[5] for b in self.blocks] + [np.zeros(0, np.int64)])
+        twice = _IdLookup(every_element).duplicate
+        if twice is not None:
+            raise MeshFileError(f"{self.src}: element tag {every_element[twice]} is defined "
+                                f"twice in $Elements; the file is damaged: give every "
+                                f"element a distinct tag")
         blocks, element_sets, element_ids = [], {}, []
         first = 0
         for dim, entity, etype, conn_tags, where, ids in self.blocks:
