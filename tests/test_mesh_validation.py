@@ -166,13 +166,16 @@ def test_duplicated_coordinate_line_in_gmsh_file_is_refused(tmp_path):
         read_mesh(path)
 
 
-@pytest.mark.parametrize("name", ["gmsh_rect_v22.msh", "gmsh_rect_v40.msh"])
-def test_duplicated_line_in_older_gmsh_versions(tmp_path, name):
+@pytest.mark.parametrize("name,words", [
+    ("gmsh_rect_v22.msh", r"\$Nodes declares 71 lines but holds 72"),
+    ("gmsh_rect_v40.msh", r"the header declares 71 nodes but its blocks hold 28"),
+])
+def test_duplicated_line_in_older_gmsh_versions(tmp_path, name, words):
     lines = (DATA / name).read_text().splitlines()
     k = lines.index("$Nodes") + 3
     path = tmp_path / name
     path.write_text("\n".join(lines[:k + 1] + lines[k:]) + "\n")
-    with pytest.raises(MeshFileError, match=name):
+    with pytest.raises(MeshFileError, match=rf"{name}, line \d+: {words}"):
         read_mesh(path)
 
 
@@ -367,3 +370,39 @@ def test_gmsh22_node_tag_defined_twice(tmp_path):
     with pytest.raises(MeshFileError, match=rf"twice.msh, line {i + 4}: node tag {tag} is "
                                             rf"defined twice \(first on line {i + 3}\)"):
         read_mesh(path)
+
+
+def damaged(tmp_path, name, old, new, out="damaged.msh"):
+    text = (DATA / name).read_text()
+    assert old in text
+    path = tmp_path / out
+    path.write_text(text.replace(old, new, 1))
+    return path
+
+
+@pytest.mark.parametrize("old,new,words", [
+    ("$Nodes\n9 71 1 71\n", "$Nodes\n9 72 1 72\n", r"line \d+: the header declares 72 nodes "
+                                                   r"but its blocks hold 71"),
+    ("$Nodes\n9 71 1 71\n", "$Nodes\n9 71 2 71\n", r"node tags run from 1 to 71, outside the "
+                                                   r"declared range 2..71"),
+    ("$Elements\n4 127 1 127\n", "$Elements\n4 126 1 127\n",
+     "the header declares 126 elements but its blocks hold 127"),
+    ('$PhysicalNames\n4\n', '$PhysicalNames\n5\n', "line 5: \\$PhysicalNames declares 5 names "
+                                                   "but holds 4"),
+    ('0 5 "origin"\n1 3 "left"', '0 5 "origin"\n0 5 "left"', 'line 7: physical group 0 5 is '
+                                                              'named twice'),
+])
+def test_gmsh41_counts_and_names(tmp_path, old, new, words):
+    with pytest.raises(MeshFileError, match=rf"damaged.msh.*{words}"):
+        read_mesh(damaged(tmp_path, "gmsh_rect_v41.msh", old, new))
+
+
+@pytest.mark.parametrize("old,new,words", [
+    ("$Elements\n141\n", "$Elements\n140\n", r"line \d+: \$Elements declares 140 lines but "
+                                             r"holds 141"),
+    ("\n2 1 2 4 1 1 5\n", "\n2 1 2 4 1 1 5 6\n", r"line \d+: 8 values on a \$Elements line, "
+                                                 r"expected 7"),
+])
+def test_gmsh22_counts(tmp_path, old, new, words):
+    with pytest.raises(MeshFileError, match=rf"damaged.msh, {words}"):
+        read_mesh(damaged(tmp_path, "gmsh_rect_v22.msh", old, new))
