@@ -406,3 +406,20 @@ def test_gmsh41_counts_and_names(tmp_path, old, new, words):
 def test_gmsh22_counts(tmp_path, old, new, words):
     with pytest.raises(MeshFileError, match=rf"damaged.msh, {words}"):
         read_mesh(damaged(tmp_path, "gmsh_rect_v22.msh", old, new))
+
+
+@pytest.mark.parametrize("axes", [[[0, 1, 1, 2], [0, 1]], [[0, 1], [1, 0]],
+                                  [[0, 1], [0, 1], [0, np.nan]], [[0], [0, 1]]])
+def test_structured_mesh_refuses_axes_that_do_not_increase(axes):
+    with pytest.raises(InputError, match="strictly increasing"):
+        structured_mesh(*[np.array(a, dtype=float) for a in axes])
+
+
+def test_generated_meshes_pass_validation():
+    """structured_mesh checks its axes instead of calling validate_mesh; the two agree."""
+    rng = np.random.default_rng(16)
+    for dims in (2, 3, 2, 3):
+        axes = [np.cumsum(rng.uniform(1e-3, 1.0, int(rng.integers(2, 6)))) for _ in range(dims)]
+        m = structured_mesh(*axes)
+        validate_mesh(m)
+        assert (corner_measures(m) > 0).all()
