@@ -179,11 +179,26 @@ def test_duplicated_line_in_older_gmsh_versions(tmp_path, name, words):
         read_mesh(path)
 
 
-def test_binary_section_with_bytes_left_over(tmp_path):
-    raw = (DATA / "gmsh_rect_v41_binary.msh").read_bytes()
+@pytest.mark.parametrize("name", ["gmsh_rect_v41_binary.msh", "gmsh_rect_v22_binary.msh"])
+@pytest.mark.parametrize("section", ["Nodes", "Elements"])
+def test_binary_section_with_bytes_left_over(tmp_path, name, section):
+    raw = (DATA / name).read_bytes()
     path = tmp_path / "b.msh"
-    path.write_bytes(raw.replace(b"$EndNodes", b"\x01\x02\x03\x04$EndNodes", 1))
-    with pytest.raises(MeshFileError, match=r"b.msh, byte \d+: section \$Nodes holds 5 bytes"):
+    end = f"$End{section}".encode()
+    path.write_bytes(raw.replace(end, b"\x01\x02\x03\x04" + end, 1))
+    with pytest.raises(MeshFileError, match=rf"b.msh, byte \d+: section \${section} holds "
+                                            rf"5 bytes after the data its counts declare"):
+        read_mesh(path)
+
+
+def test_binary_gmsh22_element_group_that_does_not_fit(tmp_path):
+    raw = (DATA / "gmsh_rect_v22_binary.msh").read_bytes()
+    start = raw.index(b"\n", raw.index(b"$Elements\n") + 10) + 1     # first group header
+    header = np.frombuffer(raw, np.int32, 3, start).copy()
+    header[1] += 1000                                                 # more than declared
+    path = tmp_path / "g.msh"
+    path.write_bytes(raw[:start] + header.tobytes() + raw[start + 12:])
+    with pytest.raises(MeshFileError, match=rf"g.msh, byte {start}: element group header"):
         read_mesh(path)
 
 

@@ -386,6 +386,36 @@ class _Gmsh4:
         return s.finish()
 
 
+def _gmsh22_binary_end(raw: bytes, start: int, src: str, section: str) -> int:
+    """Offset just past the data of a binary Gmsh 2.2 $Nodes or $Elements section: a
+    count line, then per node ``int tag, 3 doubles``, or element groups ``int type,
+    number, number of tags`` each followed by ``number x (1 + tags + nodes)`` ints."""
+    eol = raw.find(b"\n", start)
+    line = raw[start:eol if eol >= 0 else len(raw)].strip()
+    if not line.isdigit():
+        raise MeshFileError(f"{src}, byte {start}: ${section} does not start with its "
+                            f"count; the file is damaged: save it again from Gmsh")
+    count, pos = int(line), eol + 1
+    if section == "Nodes":
+        pos += count * (4 + 3 * 8)
+    seen = 0
+    while section == "Elements" and seen < count:
+        if pos + 12 > len(raw):
+            break
+        etype, follow, n_tags = (int(v) for v in np.frombuffer(raw, np.int32, 3, pos))
+        if etype not in _GMSH_TYPES or follow <= 0 or n_tags < 0 or seen + follow > count:
+            raise MeshFileError(f"{src}, byte {pos}: element group header ({etype}, "
+                                f"{follow}, {n_tags}) does not fit the {count} elements of "
+                                f"$Elements; the file is damaged: save it again from Gmsh")
+        pos += 12 + follow * (1 + n_tags + _GMSH_TYPES[etype][1]) * 4
+        seen += follow
+    if pos > len(raw) or (section == "Elements" and seen < count):
+        raise MeshFileError(f"{src}, byte {start}: section ${section} ends before its "
+                            f"{count} entries: the file is truncated or damaged; save it "
+                            f"again from Gmsh")
+    return pos
+
+
 def _gmsh22_element_width(tokens: list) -> int:
     """Values on a Gmsh 2.2 element line: tag, type, number of tags, tags, nodes."""
     try:
@@ -441,9 +471,14 @@ def _gmsh_with_meshio(path: Path, raw: bytes, src: str, version: str, is_ascii: 
         return parse
 
     parsers = {"PhysicalNames": read_names}
-    if is_ascii:        # meshio reads by the declared counts and ignores what is left over
+    # meshio reads by the declared counts and ignores what is left over: count ourselves
+    if is_ascii:
         parsers.update(Nodes=count_rows("Nodes", lambda t: 4),
                        Elements=count_rows("Elements", _gmsh22_element_width))
+    else:
+        parsers.update(Nodes=lambda raw_, start: _gmsh22_binary_end(raw_, start, src, "Nodes"),
+                       Elements=lambda raw_, start: _gmsh22_binary_end(raw_, start, src,
+                                                                       "Elements"))
     _gmsh_sections(raw, src, is_ascii, parsers)
     notes = io.StringIO()
     try:
@@ -464,12 +499,6 @@ def _gmsh_with_meshio(path: Path, raw: bytes, src: str, version: str, is_ascii: 
         raise MeshFileError(f"{src}: the Gmsh reader reported: {'; '.join(problems)}; the "
                             f"file is damaged or uses features qsma does not read")
     n = len(m.points)
-    if not is_ascii:
-        header = re.search(rb"\$Nodes[ \t]*\r?\n[ \t]*(\d+)", raw)
-        if header is None or int(header.group(1)) != n:
-            raise MeshFileError(f"{src}: $Nodes declares "
-                                f"{header.group(1).decode() if header else 'no'} nodes, "
-                                f"{n} were read; the file is damaged: save it again from Gmsh")
     physical = m.cell_data.get("gmsh:physical")
     blocks, element_sets = [], {}
     first = 0
