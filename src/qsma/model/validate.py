@@ -36,16 +36,18 @@ __all__ = ["validate_mesh", "scaled_jacobians", "HIGHER_NODES",
 
 #: A cell whose scaled Jacobian is at most this at a corner, node or Gauss point is
 #: refused. q = sin of the angle between the cell's edge directions there (2D), so 1e-6
-#: means an angle of 1e-6 rad: no mesher makes one, and the element stiffness of such a
-#: cell has a condition number beyond 1e12 (it grows like 1/q^2). Valid but badly shaped
-#: cells (q = 0.01, an angle of 0.6 degrees) still pass.
+#: means an angle of 1e-6 rad: no mesher makes one, and the metric J^T J of such a cell
+#: has a condition number of about 4 / q^2 = 4e12, beyond what double precision solves
+#: to a useful accuracy. Valid but badly shaped cells (q = 0.01, an angle of 0.6
+#: degrees) still pass.
 DEGENERATE_SCALED_JACOBIAN = 1e-6
 
 #: Two nodes coincide when they are closer than this times the diagonal of the mesh's
-#: bounding box (and than 1 % of the shortest cell edge). Gmsh writes 16 significant
-#: digits and Abaqus/CAE about 12, so round-off leaves nodes meant to be one node at most
-#: about 1e-12 of the model size apart, while nodes meant to be distinct are an element
-#: size apart (1e-4 of the model size already means 10,000 elements across).
+#: bounding box (and than 1 % of the shortest distance from a cell's first corner to its
+#: other corners). Gmsh writes 16 significant digits and the .inp files we have seen 10
+#: to 14 (tests/data/gmsh_rect.inp: 14), so round-off leaves nodes meant to be one node
+#: at most about 1e-10 of the model size apart, while nodes meant to be distinct are an
+#: element size apart (1e-4 of the model size already means 10,000 elements across).
 COINCIDENT_NODES = 1e-8
 
 
