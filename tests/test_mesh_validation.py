@@ -438,3 +438,11 @@ def test_generated_meshes_pass_validation():
         m = structured_mesh(*axes)
         validate_mesh(m)
         assert (corner_measures(m) > 0).all()
+
+
+def test_a_mirrored_mesh_gets_one_message(tmp_path):
+    m = read_mesh(DATA / "gmsh_rect_v41.msh")
+    mirrored = Mesh(m.points * [1, -1], m.cells, m.cell_type)
+    with pytest.raises(InputError, match=r"every one of the \d+ triangle elements is inverted"
+                                         r".*gmsh.model.mesh.reverse\(\)"):
+        validate_mesh(mirrored)

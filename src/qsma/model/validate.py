@@ -248,6 +248,12 @@ def _check_cells(mesh, where, error, cell_ids, node_ids):
     e = bad[0]
     row = q[e]
     nodes = ", ".join(map(str, node_ids[mesh.cells[e]]))
+    if len(q) > 1 and (q < 0).all():
+        raise error(f"{where}every one of the {len(q)} {mesh.cell_type} elements is inverted "
+                    f"(negative Jacobian): the mesh is mirrored, e.g. a Gmsh surface whose "
+                    f"normal points along -z; reverse the element orientation before saving "
+                    f"(Gmsh: gmsh.model.mesh.reverse(), or reverse the surface) or list every "
+                    f"element's nodes in the other order")
     if (row < 0).all():
         what = ("is inverted (negative Jacobian everywhere: its nodes are in clockwise order "
                 "or the wrong way round)")
