@@ -447,3 +447,14 @@ def test_a_mirrored_mesh_gets_one_message(tmp_path):
     with pytest.raises(InputError, match=r"every one of the \d+ triangle elements is inverted"
                                          r".*gmsh.model.mesh.reverse\(\)"):
         validate_mesh(mirrored)
+
+
+def test_binary_gmsh22_node_tag_defined_twice(tmp_path):
+    raw = (DATA / "gmsh_rect_v22_binary.msh").read_bytes()
+    start = raw.index(b"\n", raw.index(b"$Nodes\n") + 7) + 1           # first node record
+    second = start + 28
+    path = tmp_path / "t.msh"
+    path.write_bytes(raw[:second] + raw[start:start + 4] + raw[second + 4:])
+    with pytest.raises(MeshFileError, match=rf"t.msh, byte {second}: node tag 1 is defined "
+                                            rf"twice"):
+        read_mesh(path)

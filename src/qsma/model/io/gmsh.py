@@ -398,6 +398,14 @@ def _gmsh22_binary_end(raw: bytes, start: int, src: str, section: str) -> int:
     count, pos = int(line), eol + 1
     if section == "Nodes":
         pos += count * (4 + 3 * 8)
+        if pos <= len(raw):
+            tags = np.frombuffer(raw, np.dtype([("tag", np.int32), ("xyz", np.float64, 3)]),
+                                 count, eol + 1)["tag"]
+            twice = _IdLookup(tags.astype(np.int64)).duplicate
+            if twice is not None:
+                raise MeshFileError(f"{src}, byte {eol + 1 + 28 * twice}: node tag "
+                                    f"{tags[twice]} is defined twice; the file is damaged: "
+                                    f"give every node a distinct tag")
     seen = 0
     while section == "Elements" and seen < count:
         if pos + 12 > len(raw):
