@@ -15,8 +15,13 @@ Mesh            Gmsh (physical groups)                    Abaqus / CalculiX
 
 Facets read from a file are matched to the boundary facets of the volume mesh
 and returned in the orientation of :func:`~qsma.model.mesh.boundary_facets`
-(outward), whatever their node order in the file. ``docs/mesh-io.md`` lists
-the conventions, the face numbering and the known limits.
+(outward), whatever their node order in the file. Every mesh read is checked by
+:func:`~qsma.model.validate.validate_mesh` (cells, duplicate and unused nodes), after
+the reader has checked that each section holds exactly what its counts declare.
+``docs/mesh-io.md`` lists the conventions, the face numbering and the known limits.
+
+One module per format: :mod:`.gmsh`, :mod:`.abaqus`; :mod:`.common` turns what a
+reader found into a :class:`~qsma.model.mesh.Mesh`.
 """
 from __future__ import annotations
 
@@ -57,13 +62,18 @@ def read_mesh(path, *, cell_type: str | None = None) -> Mesh:
         to 0-based indices; cells of one type in file order; the sets (see the module
         docstring). 2D meshes (triangles, quads) must lie in the plane z = 0 and come
         back with 2D points.
+        ``element`` is the element type the file names (Abaqus, upper case), else
+        None.
 
     Raises
     ------
     MeshFileError
-        The file is missing, unreadable, truncated or malformed, holds mixed or
-        unsupported cell types, or a set that cannot be resolved. The message
-        names the file, the line where known, and what to fix.
+        The file is missing, unreadable, truncated or malformed (a section holding
+        more or less than its counts declare, an id defined twice), holds mixed or
+        unsupported cell types, a set that cannot be resolved, or a damaged mesh
+        (an inverted, self-intersecting or degenerate element, two unjoined nodes at
+        one point, a node no element uses). The message names the file, the line or
+        the element or node id where known, and what to fix.
     """
     path = Path(path)
     if cell_type is not None and cell_type not in CELL_TYPES:
