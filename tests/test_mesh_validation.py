@@ -11,7 +11,8 @@ from qsma.errors import InputError, MeshFileError
 from qsma.model.generate import structured_mesh
 from qsma.model.io import read_mesh
 from qsma.model.mesh import Mesh
-from qsma.model.validate import DEGENERATE_SCALED_JACOBIAN, scaled_jacobians, validate_mesh
+from qsma.model.validate import (DEGENERATE_SCALED_JACOBIAN, MeshQualityWarning,
+                                 scaled_jacobians, validate_mesh)
 
 DATA = Path(__file__).parent / "data"
 EXAMPLES = Path(__file__).parent.parent / "examples"
@@ -72,12 +73,29 @@ def test_degenerate_quad_with_a_collapsed_edge():
         validate_mesh(bad, cell_ids=[11, 12])
 
 
-def test_a_valid_but_badly_shaped_quad_passes():
-    """q = sin(0.6 degrees) ~ 0.01 > DEGENERATE_SCALED_JACOBIAN."""
-    points = np.array([[0, 0], [1, 0], [1 + 100, 1], [100, 1.0]])
-    m = Mesh(points, [[0, 1, 2, 3]], "quad")
-    assert 0.005 < scaled_jacobians(m).min() < 0.02
-    validate_mesh(m)
+def test_a_valid_but_badly_shaped_quad_passes_with_a_warning():
+    """q = sin(0.57 degrees) ~ 0.01 > DEGENERATE_SCALED_JACOBIAN: accepted, warned below
+    POOR_SCALED_JACOBIAN = 0.01, silent above."""
+    for shear, warned in ((100.0, True), (50.0, False)):
+        points = np.array([[0, 0], [1, 0], [1 + shear, 1], [shear, 1.0]])
+        m = Mesh(points, [[0, 1, 2, 3]], "quad")
+        assert 0.005 < scaled_jacobians(m).min() < 0.03
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            validate_mesh(m)
+        assert [w.category for w in caught] == ([MeshQualityWarning] if warned else [])
+
+
+def test_a_node_moved_off_the_surface_is_warned_about(tmp_path):
+    """The mutation that moves a node of the sandwich top 0.3 m up keeps every cell
+    valid (a spike); it is read, with a warning naming the element."""
+    text = (EXAMPLES / "sandwich-2d-top.msh").read_text()
+    assert "\n0.1905 0.0127 0.0\n" in text
+    path = tmp_path / "spike.msh"
+    path.write_text(text.replace("\n0.1905 0.0127 0.0\n", "\n0.1905 0.3127 0.0\n", 1))
+    with pytest.warns(MeshQualityWarning, match=r"spike.msh: 2 quad element\(s\) are very "
+                                                r"badly shaped .* the worst element \d+"):
+        read_mesh(path)
 
 
 def test_inverted_tetra_and_hexahedron():
@@ -276,7 +294,9 @@ def assert_refused_or_valid(target: Path, original: Mesh, n_nodes=None):
     every cell has positive corner measures, with ``n_nodes`` nodes (when the file
     declares a count) and, for Gmsh files, the cells of the original."""
     try:
-        mesh = read_mesh(target)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", MeshQualityWarning)
+            mesh = read_mesh(target)
     except (MeshFileError, InputError):
         return
     assert (corner_measures(mesh) > 0).all(), f"{target.name} accepted with a bad cell"
