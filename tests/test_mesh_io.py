@@ -622,7 +622,7 @@ def inp_error(tmp_path, text, name="bad.inp") -> str:
 
 @pytest.mark.parametrize("text,line,words", [
     (QUAD_GRID.replace("2, 2, 3, 6, 5", "2, 2, 3, 6"), 10, "3 node ids"),
-    (QUAD_GRID.replace("TYPE=CPE4", "TYPE=C3D20R"), 8, "C3D20R"),
+    (QUAD_GRID.replace("TYPE=CPE4", "TYPE=C3D15"), 8, "C3D15"),        # wedges: never read
     (TWO_QUADS.replace(" first, 50", " first, 55"), 21, "node 55"),
     (TWO_QUADS.replace(" 20, 60, 20", " 60, 20"), 17, "GENERATE"),
     (TWO_QUADS.replace("Second\n 200,", "Second\n 201,"), 19, "element 201"),
