@@ -867,3 +867,12 @@ def test_quadratic_files_are_refused_until_supported(name, cell_type, element):
 def test_abaqus_c3d27_is_refused_with_its_reason(tmp_path):
     text = QUAD_GRID.replace("TYPE=CPE4", "TYPE=C3D27")
     assert "use C3D20" in inp_error(tmp_path, text)
+
+
+def test_hexahedron27_cannot_be_written_to_inp(tmp_path):
+    from qsma.model.mesh import CELL_TYPES
+    if "hexahedron27" not in CELL_TYPES:
+        pytest.skip("quadratic cell types not yet in CELL_TYPES")
+    m = read_mesh(DATA / "quadratic_box_hex27.msh")
+    with pytest.raises(InputError, match="hexahedron27 cells cannot be written to an .inp"):
+        write_mesh(tmp_path / "h.inp", m)

@@ -650,6 +650,10 @@ def _id_lines(ids: np.ndarray) -> list:
 def _abaqus_write_type(mesh: Mesh) -> str:
     """The element type written: ``mesh.element`` when it is an Abaqus continuum type of
     the mesh's cell type, else the plane-strain / full-integration default."""
+    if mesh.cell_type not in _ABAQUS_WRITE_TYPE:
+        raise InputError(f"{mesh.cell_type} cells cannot be written to an .inp file (Abaqus "
+                         f"and CalculiX have no such continuum element we have checked); "
+                         f"write a .msh file instead")
     if mesh.element is None:
         return _ABAQUS_WRITE_TYPE[mesh.cell_type]
     name = mesh.element.upper()
