@@ -72,7 +72,11 @@ def hex_mesh() -> Mesh:
 
 def tetra_mesh() -> Mesh:
     sk = MeshTet.init_tensor(np.linspace(0, 1, 3), np.linspace(0, 2, 3), np.linspace(0, 1, 2))
-    m = Mesh(sk.p.T, sk.t.T, "tetra")
+    cells = sk.t.T.copy()
+    x = sk.p.T[cells]
+    inverted = np.linalg.det(x[:, 1:] - x[:, :1]) < 0        # scikit-fem mixes orientations
+    cells[inverted] = cells[inverted][:, [0, 2, 1, 3]]
+    m = Mesh(sk.p.T, cells, "tetra")
     return m.with_sets(node_sets={"top": np.flatnonzero(m.points[:, 2] > 0.5)},
                        facet_sets={"y0": m.boundary_facets_where(lambda p: p[:, 1] < 1e-9),
                                    "y2": m.boundary_facets_where(lambda p: p[:, 1] > 2 - 1e-9)},
@@ -618,7 +622,7 @@ def inp_error(tmp_path, text, name="bad.inp") -> str:
 
 @pytest.mark.parametrize("text,line,words", [
     (QUAD_GRID.replace("2, 2, 3, 6, 5", "2, 2, 3, 6"), 10, "3 node ids"),
-    (QUAD_GRID.replace("TYPE=CPE4", "TYPE=C3D20R"), 8, "C3D20R"),
+    (QUAD_GRID.replace("TYPE=CPE4", "TYPE=C3D15"), 8, "C3D15"),        # wedges: never read
     (TWO_QUADS.replace(" first, 50", " first, 55"), 21, "node 55"),
     (TWO_QUADS.replace(" 20, 60, 20", " 60, 20"), 17, "GENERATE"),
     (TWO_QUADS.replace("Second\n 200,", "Second\n 201,"), 19, "element 201"),
@@ -740,3 +744,135 @@ def test_damaged_files_raise_only_mesh_file_errors(tmp_path, which, data):
         read_mesh(path)
     except MeshFileError as exc:
         assert name in str(exc)
+
+
+@pytest.mark.parametrize("make", [hex_mesh, tetra_mesh, triangle_mesh,
+                                  lambda: structured_mesh(np.linspace(0, 1, 4),
+                                                          np.linspace(0, 2, 3))])
+def test_facet_index_finds_boundary_facets_in_any_node_order(make):
+    """One facet index per mesh: rows = boundary_facets, owner cell and local face agree
+    with CELL_FACETS, find() ignores node order and answers -1 for internal facets."""
+    from qsma.model.mesh import CELL_FACETS, facet_index
+    m = make()
+    index = facet_index(m)
+    assert facet_index(m) is index                                # built once
+    np.testing.assert_array_equal(index.rows, boundary_facets(m))
+    local = np.array(CELL_FACETS[m.cell_type])
+    np.testing.assert_array_equal(index.rows, m.cells[index.cell[:, None],
+                                                      local[index.local_face]])
+    rng = np.random.default_rng(0)
+    shuffled = rng.permuted(index.rows, axis=1)
+    order = rng.permutation(len(index.rows))
+    np.testing.assert_array_equal(index.find(shuffled[order]), order)
+    every = np.concatenate([m.cells[:, list(f)] for f in CELL_FACETS[m.cell_type]])
+    internal = every[index.find(every) < 0]
+    assert len(internal) == len(every) - len(index.rows)          # all the others
+    assert len(internal) > 0 and (index.find(internal) == -1).all()
+    assert index.find(np.zeros((0, local.shape[1]), dtype=int)).shape == (0,)
+
+
+# --- element formulation named by the file (issue 13, reader side) ------------------
+
+@pytest.mark.parametrize("etype", ["CPE4", "CPS4", "cax4", "CPE4I", "cpe4r", "CPS4R"])
+def test_inp_element_type_is_recorded(tmp_path, etype):
+    m = read_mesh(write_text(tmp_path, "q.inp", QUAD_GRID.replace("TYPE=CPE4", f"TYPE={etype}")))
+    assert m.element == etype.upper()
+    assert m.with_sets(node_sets={"n": [0]}).element == etype.upper()
+    again = read_mesh(write_mesh(tmp_path / "again.inp", m))      # written as read
+    assert again.element == etype.upper()
+
+
+def test_gmsh_and_generated_meshes_name_no_element(tmp_path):
+    assert read_mesh(DATA / "gmsh_rect_v41.msh").element is None
+    assert hex_mesh().element is None
+    assert read_mesh(write_mesh(tmp_path / "h.inp", hex_mesh())).element == "C3D8"
+
+
+def test_inp_two_element_types_for_one_cell_type_are_refused(tmp_path):
+    text = QUAD_GRID.replace("2, 2, 3, 6, 5", "*ELEMENT, TYPE=CPE4R, ELSET=ALL\n2, 2, 3, 6, 5")
+    message = inp_error(tmp_path, text)
+    assert "CPE4R" in message and "CPE4" in message and "line 11:" in message
+
+
+def test_write_refuses_an_element_of_another_cell_type(tmp_path):
+    m = hex_mesh()
+    wrong = Mesh(m.points, m.cells, m.cell_type, element="CPE4")
+    with pytest.raises(InputError, match="not an Abaqus continuum element type of hexahedron"):
+        write_mesh(tmp_path / "w.inp", wrong)
+    with pytest.raises(InputError, match="element must be"):
+        Mesh(m.points, m.cells, m.cell_type, element="")
+
+
+# --- quadratic cells (read when CELL_TYPES has them) ---------------------------------
+
+#: meshio/VTK order of the nodes after the corners, as the corners each is the middle of
+#: (VTK classes vtkQuadraticQuad, vtkQuadraticTetra, vtkQuadraticHexahedron,
+#: vtkTriQuadraticHexahedron); written out here independently of qsma.model.validate
+_VTK_HEX_EDGES = [(0, 1), (1, 2), (2, 3), (3, 0), (4, 5), (5, 6), (6, 7), (7, 4),
+                  (0, 4), (1, 5), (2, 6), (3, 7)]
+VTK_HIGHER = {
+    "quad8": (4, [(0, 1), (1, 2), (2, 3), (3, 0)]),
+    "tetra10": (4, [(0, 1), (1, 2), (2, 0), (0, 3), (1, 3), (2, 3)]),
+    "hexahedron20": (8, _VTK_HEX_EDGES),
+    "hexahedron27": (8, _VTK_HEX_EDGES + [(0, 3, 7, 4), (1, 2, 6, 5), (0, 1, 5, 4),
+                                          (3, 2, 6, 7), (0, 1, 2, 3), (4, 5, 6, 7),
+                                          tuple(range(8))]),
+}
+QUADRATIC = [("quadratic_box_tet10.msh", "tetra10", None),
+             ("quadratic_box_tet10.inp", "tetra10", "C3D10"),
+             ("quadratic_box_hex20.msh", "hexahedron20", None),
+             ("quadratic_box_hex20.inp", "hexahedron20", "C3D20"),
+             ("quadratic_box_hex27.msh", "hexahedron27", None),
+             ("quadratic_rect_quad8.msh", "quad8", None)]
+
+
+@pytest.mark.parametrize("name,cell_type,element", QUADRATIC)
+def test_quadratic_files_read_in_meshio_node_order(name, cell_type, element, tmp_path):
+    """Straight-edged Gmsh meshes (tests/data/make_quadratic_fixtures.py): in meshio order
+    every further node is the mean of its corners; Gmsh's own Abaqus export gives the
+    same cells; round trips keep cells and facet sets."""
+    from qsma.model.mesh import CELL_TYPES
+    from qsma.model.validate import scaled_jacobians
+    if cell_type not in CELL_TYPES:
+        pytest.skip("quadratic cell types not yet in CELL_TYPES")
+    m = read_mesh(DATA / name)
+    assert (m.cell_type, m.element) == (cell_type, element)
+    nc, groups = VTK_HIGHER[cell_type]
+    x = m.points[m.cells]
+    for k, corners in enumerate(groups):
+        np.testing.assert_allclose(x[:, nc + k], x[:, list(corners)].mean(axis=1), atol=1e-12)
+    assert (scaled_jacobians(m) > 0.2).all()
+    bottom = m.facet_sets["bottom"]
+    assert len(bottom) and np.allclose(m.points[bottom][..., -1], 0.0)
+    if name.endswith(".inp"):
+        twin = read_mesh(DATA / name.replace(".inp", ".msh"))
+        np.testing.assert_array_equal(m.cells, twin.cells)
+    versions = ["4.1", "2.2"] + (["inp"] if cell_type != "hexahedron27" else [])
+    for version in versions:
+        path = tmp_path / ("w.inp" if version == "inp" else "w.msh")
+        again = read_mesh(write_mesh(path, m, gmsh_version="4.1" if version == "inp"
+                                     else version))
+        assert_same_mesh(again, m)
+
+
+@pytest.mark.parametrize("name,cell_type,element", QUADRATIC)
+def test_quadratic_files_are_refused_until_supported(name, cell_type, element):
+    from qsma.model.mesh import CELL_TYPES
+    if cell_type in CELL_TYPES:
+        pytest.skip(f"{cell_type} is in CELL_TYPES: read by the test above")
+    with pytest.raises(MeshFileError, match=rf"{name}.*not supported.*convert the mesh"):
+        read_mesh(DATA / name)
+
+
+def test_abaqus_c3d27_is_refused_with_its_reason(tmp_path):
+    text = QUAD_GRID.replace("TYPE=CPE4", "TYPE=C3D27")
+    assert "use C3D20" in inp_error(tmp_path, text)
+
+
+def test_hexahedron27_cannot_be_written_to_inp(tmp_path):
+    from qsma.model.mesh import CELL_TYPES
+    if "hexahedron27" not in CELL_TYPES:
+        pytest.skip("quadratic cell types not yet in CELL_TYPES")
+    m = read_mesh(DATA / "quadratic_box_hex27.msh")
+    with pytest.raises(InputError, match="hexahedron27 cells cannot be written to an .inp"):
+        write_mesh(tmp_path / "h.inp", m)

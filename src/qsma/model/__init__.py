@@ -8,5 +8,7 @@ __all__ = ["Mesh", "boundary_facets", "CELL_TYPES", "Material", "Clamp", "Pressu
            "local_frames"]
 
 from .io import read_mesh, write_mesh  # noqa: E402
+from .mesh import FacetIndex, facet_index  # noqa: E402
+from .validate import validate_mesh  # noqa: E402
 
-__all__ += ["read_mesh", "write_mesh"]
+__all__ += ["read_mesh", "write_mesh", "FacetIndex", "facet_index", "validate_mesh"]

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import InputError
 from .mesh import Mesh
 
 
@@ -17,7 +18,16 @@ def structured_mesh(*axes) -> Mesh:
 
     Node ``(i, j[, k])`` has index ``i + nx * (j + ny * k)``; cells are counter-clockwise
     (positive Jacobian) in meshio order.
+
+    The axes must increase strictly: then every cell is a box with positive Jacobian,
+    which is all :func:`~qsma.model.validate.validate_mesh` would check (at no cost here).
     """
+    for k, a in enumerate(axes):
+        a = np.asarray(a, dtype=float)
+        if a.ndim != 1 or len(a) < 2 or not np.all(np.diff(a) > 0):
+            raise InputError(f"axis {k} of a structured mesh must be at least 2 strictly "
+                             f"increasing coordinates, got {a.tolist()}; sort it and remove "
+                             f"repeated values")
     shape = [len(a) for a in axes]
     grids = np.meshgrid(*axes, indexing="ij")
     points = np.stack([g.ravel(order="F") for g in grids], axis=1)

@@ -1,6 +1,7 @@
 """Meshes with named node, facet and cell sets (dimension generic)."""
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -30,6 +31,8 @@ class Mesh:
     node_sets : name -> sorted unique node indices
     facet_sets : name -> (n_facets, nodes_per_facet) node indices of boundary facets
     cell_sets : name -> cell indices
+    element : str or None
+        element name given by the source file (e.g. Abaqus 'CPS4', 'C3D8I'); None when the file names no formulation (Gmsh)
     """
 
     points: np.ndarray
@@ -38,6 +41,7 @@ class Mesh:
     node_sets: dict = field(default_factory=dict)
     facet_sets: dict = field(default_factory=dict)
     cell_sets: dict = field(default_factory=dict)
+    element: str | None = None
 
     def __post_init__(self):
         if self.cell_type not in CELL_TYPES:
@@ -49,6 +53,10 @@ class Mesh:
         if points.ndim != 2 or points.shape[1] != dim:
             raise InputError(f"points of a {self.cell_type} mesh must have shape "
                              f"(n, {dim}), got {points.shape}")
+        if self.element is not None and (not isinstance(self.element, str)
+                                         or not self.element.strip()):
+            raise InputError(f"element must be a non-empty name such as 'C3D8I' or None, "
+                             f"got {self.element!r}")
         if not np.all(np.isfinite(points)):
             raise InputError("mesh points contain NaN or Inf")
         if cells.ndim != 2 or cells.shape[1] != nv:
@@ -109,11 +117,11 @@ class Mesh:
         return facets[np.all(inside[facets], axis=1)]
 
     def with_sets(self, node_sets=None, facet_sets=None, cell_sets=None) -> "Mesh":
-        """A new mesh with sets added (existing names are replaced)."""
+        """A new mesh with sets added (existing names are replaced); same ``element``."""
         return Mesh(self.points, self.cells, self.cell_type,
                     {**self.node_sets, **(node_sets or {})},
                     {**self.facet_sets, **(facet_sets or {})},
-                    {**self.cell_sets, **(cell_sets or {})})
+                    {**self.cell_sets, **(cell_sets or {})}, self.element)
 
 
 def _index_array(values, bound, what, unique=False):
@@ -134,9 +142,104 @@ CELL_FACETS = {
 
 
 def boundary_facets(mesh: Mesh) -> np.ndarray:
-    """All boundary facets (facets that belong to exactly one cell)."""
+    """All boundary facets (facets that belong to exactly one cell), outward oriented.
+
+    A copy of ``facet_index(mesh).rows``: the local facets of ``CELL_FACETS`` of every
+    cell, local facet by local facet, kept where no other cell has the same nodes.
+    """
+    return facet_index(mesh).rows.copy()
+
+
+@dataclass(frozen=True, eq=False)
+class FacetIndex:
+    """The boundary facets of a mesh, their owner cells, and a lookup by node set.
+
+    Built once per mesh by :func:`facet_index` (cached); use it wherever a facet given
+    by its nodes (in any order) must be found among the boundary facets.
+
+    Attributes
+    ----------
+    rows : (n_boundary, nodes_per_facet) int array, read-only
+        Node indices of each boundary facet in the outward orientation of
+        ``CELL_FACETS`` (the rows of :func:`boundary_facets`, same order).
+    cell : (n_boundary,) int array, read-only
+        The one cell each boundary facet belongs to.
+    local_face : (n_boundary,) int array, read-only
+        Position of the facet in ``CELL_FACETS[mesh.cell_type]`` of its cell.
+    """
+
+    rows: np.ndarray
+    cell: np.ndarray
+    local_face: np.ndarray
+
+    def find(self, rows) -> np.ndarray:
+        """Row index in :attr:`rows` of each facet given by its nodes, -1 where none.
+
+        Parameters
+        ----------
+        rows : (k, nodes_per_facet) int array-like
+            Facets as node indices, in any node order or orientation.
+
+        Returns
+        -------
+        (k,) int64 array
+            ``i`` with ``sorted(rows[j]) == sorted(self.rows[i])``, or -1 when no boundary
+            facet has these nodes (an internal facet, or no facet of the mesh at all).
+        """
+        nf = self.rows.shape[1]
+        query = np.sort(np.asarray(rows, dtype=np.int64).reshape(-1, nf), axis=1)
+        _, inverse, _ = unique_rows(np.concatenate([np.sort(self.rows, axis=1), query]))
+        nb = len(self.rows)
+        boundary_of_group = np.full(inverse.max(initial=-1) + 1, -1, dtype=np.int64)
+        boundary_of_group[inverse[:nb]] = np.arange(nb)
+        return boundary_of_group[inverse[nb:]]
+
+
+#: mesh -> its FacetIndex; entries go with their mesh
+_FACET_INDEX_CACHE = weakref.WeakKeyDictionary()
+
+
+def facet_index(mesh: Mesh) -> FacetIndex:
+    """The :class:`FacetIndex` of ``mesh``, built on first use and cached per mesh.
+
+    A facet is a boundary facet when exactly one cell has a local facet (``CELL_FACETS``)
+    with the same set of nodes. Meshes are immutable (frozen, read-only arrays), so the
+    index stays valid for the life of the mesh.
+    """
+    found = _FACET_INDEX_CACHE.get(mesh)
+    if found is None:
+        found = _build_facet_index(mesh)
+        _FACET_INDEX_CACHE[mesh] = found
+    return found
+
+
+def _build_facet_index(mesh: Mesh) -> FacetIndex:
     local = CELL_FACETS[mesh.cell_type]
-    allf = np.concatenate([mesh.cells[:, list(f)] for f in local])
-    key = np.sort(allf, axis=1)
-    _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    return allf[counts[inv.ravel()] == 1]
+    n = len(mesh.cells)
+    every = np.concatenate([mesh.cells[:, list(f)] for f in local])
+    _, inverse, counts = unique_rows(np.sort(every, axis=1))
+    at = np.flatnonzero(counts[inverse] == 1)
+    arrays = every[at], at % n if n else at, at // n if n else at
+    for a in arrays:
+        a.flags.writeable = False
+    return FacetIndex(*arrays)
+
+
+def unique_rows(rows: np.ndarray):
+    """Distinct rows of an integer array: ``(first, inverse, counts)``.
+
+    Like ``np.unique(rows, axis=0, return_index=True, return_inverse=True,
+    return_counts=True)`` but by one lexicographic sort (faster): ``first[g]`` is the
+    first row of group ``g`` (groups in lexicographic order), ``inverse[i]`` the group
+    of row ``i``, ``counts[g]`` its size.
+    """
+    rows = np.asarray(rows).reshape(len(rows), -1)
+    order = np.lexsort(rows.T[::-1])
+    ordered = rows[order]
+    new = np.ones(len(rows), dtype=bool)
+    new[1:] = np.any(ordered[1:] != ordered[:-1], axis=1)
+    starts = np.flatnonzero(new)
+    inverse = np.empty(len(rows), dtype=np.int64)
+    inverse[order] = np.cumsum(new) - 1
+    first = np.minimum.reduceat(order, starts) if len(rows) else order
+    return first, inverse, np.diff(np.append(starts, len(rows)))
