@@ -16,7 +16,7 @@ import qsma
 from qsma.examples import lap_2d
 from qsma.levels import Levels
 
-SETTINGS = ((5e-3, 16), (1e-3, 32), (2e-4, 64))
+SETTINGS = ((5e-3, 16), (5e-3, 32), (1e-3, 64))
 
 
 def main(argv=None):
@@ -32,7 +32,8 @@ def main(argv=None):
         runs = [qsma.run(lap_2d(refine), levels=levels, dissipation="loop",
                          dissipation_rtol=r, loop_steps=s) for r, s in SETTINGS]
         for k, tip in enumerate(args.tips):
-            cells = [f"{r.zeta[k]:.4e} +- {r.dissipation_error[k] / r.dissipation[k] * r.zeta[k]:.1e}"
+            cells = [f"{r.zeta[k]:.4e} +- "
+                     f"{r.dissipation_error[k] / (2 * np.pi * r.alpha[k] * r.q[k]):.1e}"
                      if r.success else "failed" for r in runs]
             print(f"| {refine} | {tip:.2e} | {runs[-1].f_hz[k]:.2f} | " + " | ".join(cells)
                   + f" | {runs[-1].zeta_masing[k]:.4e} |", flush=True)

@@ -676,15 +676,23 @@ def _linear_end(pos, pre):
     return (moved[0] if moved.size else pos.n) - 1
 
 
+#: Fewest increments per loop branch: a loop at one of the first backbone points has
+#: few points below it to mirror, and a branch of one increment has no area.
+MIN_LOOP_STEPS = 8
+
+
 def _loop_fractions(grid, g, linear_end, steps):
     """Branch increments of the loop at grid point ``g`` as fractions of ``2A``: the
     backbone points below it (Masing's construction unloads by twice each), from the
-    end of the linear range, thinned to at most ``steps``."""
+    end of the linear range, thinned to at most ``steps``, with at least
+    :data:`MIN_LOOP_STEPS` (uniform ones added where the backbone has fewer)."""
     start = max(min(linear_end, g - 1), 0)
     u = grid[start:g + 1] / grid[g]
     if len(u) > steps:
         keep = np.unique(np.round(np.linspace(0, len(u) - 1, steps)).astype(int))
         u = u[keep]
+    if len(u) < MIN_LOOP_STEPS:
+        u = np.union1d(u, np.linspace(0.0, 1.0, MIN_LOOP_STEPS + 1)[1:])
     return u
 
 
