@@ -1,0 +1,155 @@
+"""Non-matching interfaces: the dual mortar coupling against exact answers.
+
+Every mesh here is built on its own grid (``structured_mesh``), so the two sides of
+an interface have nodes at different places unless a test says otherwise.
+"""
+import dataclasses
+
+import numpy as np
+import pytest
+import scipy.sparse.linalg as spla
+
+import qsma
+from qsma.condense import reduce_two_bodies
+from qsma.contact import ContactProblem, solve as contact_solve
+from qsma.errors import InputError
+from qsma.examples import sandwich_2d
+from qsma.fe import assemble_body
+from qsma.modal import stacked, tie_transform
+from qsma.model import Body, Clamp, Interface, Material, Mesh, Model, Pressure, make_pairing
+from qsma.model.generate import structured_mesh
+
+STEEL = Material(200e9, 0.3, 7800.0)
+W, H = 0.04, 0.01          # block width and height [m] (any size: the answers are exact)
+
+
+def _axes(n, *extent):
+    return [np.linspace(0.0, e, k + 1) for e, k in zip(extent, n)]
+
+
+def _block(y0, n, dim, held):
+    """A block ``[0, W] x [y0, y0 + H] (x [0, W])`` with ``n`` elements per direction.
+    ``held``: "bottom" clamps u_y on its lower face and u_x (u_z) on edges of that face
+    (no interface node), "top" the same on its upper face, "" nothing."""
+    ax = _axes(n, *([W, H, W] if dim == 3 else [W, H]))
+    ax[1] = ax[1] + y0
+    m = structured_mesh(*ax)
+    x = m.points
+    e = 1e-9 * W
+    lo, hi = np.abs(x[:, 1] - y0) < e, np.abs(x[:, 1] - y0 - H) < e
+    face = lo if held == "bottom" else hi
+    sets = {"yface": np.flatnonzero(face), "xline": np.flatnonzero(face & (x[:, 0] < e))}
+    clamps = [Clamp("yface", (1,)), Clamp("xline", (0,))] if held else []
+    if dim == 3 and held:
+        sets["zline"] = np.flatnonzero(face & (x[:, 2] < e))
+        clamps.append(Clamp("zline", (2,)))
+    facets = {"lower": m.boundary_facets_where(lambda p: np.abs(p[:, 1] - y0) < e),
+              "upper": m.boundary_facets_where(lambda p: np.abs(p[:, 1] - y0 - H) < e)}
+    return m.with_sets(node_sets=sets, facet_sets=facets), clamps
+
+
+def _stack(n_bottom, n_top, dim, slave=None, top_held=False, p=0.0):
+    """Two stacked blocks, interface y = H, pressure ``p`` on the top face."""
+    mb, cb = _block(0.0, n_bottom, dim, "bottom")
+    mt, ct = _block(H, n_top, dim, "top" if top_held else "")
+    bottom = Body("bottom", mb, STEEL, clamps=cb)
+    top = Body("top", mt, STEEL, clamps=ct,
+               pressures=(Pressure("upper", p),) if p else ())
+    return Model((bottom, top), Interface("bottom", "upper", "top", "lower",
+                                          coupling="mortar", slave=slave))
+
+
+RATIOS_2D = [((8, 4), (5, 3)), ((3, 2), (7, 2)), ((10, 3), (10, 5)), ((13, 2), (4, 3))]
+RATIOS_3D = [((4, 2, 4), (3, 2, 5)), ((2, 1, 3), (5, 2, 4))]
+CASES = [(nb, nt, 2, s) for nb, nt in RATIOS_2D for s in ("bottom", "top")] + \
+        [(nb, nt, 3, s) for nb, nt in RATIOS_3D for s in ("bottom", "top")]
+
+
+@pytest.mark.parametrize("n_bottom, n_top, dim, slave", CASES)
+def test_projection_reproduces_linear_fields_and_partitions_unity(n_bottom, n_top, dim, slave):
+    m = _stack(n_bottom, n_top, dim, slave)
+    p = make_pairing(m)
+    assert p.coupling == "mortar" and p.slave == (1 if slave == "bottom" else 2)
+    N = p.projection
+    slave_mesh = m.bodies[p.slave - 1].mesh
+    master_mesh = m.bodies[2 - p.slave].mesh
+    np.testing.assert_allclose(N.sum(axis=1).A1, 1.0, rtol=0, atol=1e-13)
+    xm = master_mesh.points[p.master_nodes]
+    xs = slave_mesh.points[p.contact_nodes]
+    np.testing.assert_allclose(N @ xm, xs, rtol=0, atol=1e-14 * W)
+    # tributary areas add up to the interface area
+    assert p.area.sum() == pytest.approx(W ** (dim - 1), rel=1e-13)
+    assert np.abs(p.gap).max() < 1e-14 * W
+
+
+@pytest.mark.parametrize("n_bottom, n_top, dim, slave", CASES)
+def test_patch_test_pressure_passes_a_welded_nonmatching_interface(n_bottom, n_top, dim,
+                                                                   slave):
+    """Pressure on top, bottom held: with the interface tied by the mortar multipoint
+    constraint the stress is uniform, so every slave node carries p x its area and every
+    master node the consistent nodal force of p, to round-off."""
+    pressure = 3e6
+    m = _stack(n_bottom, n_top, dim, slave, p=pressure)
+    pr = make_pairing(m)
+    A = [assemble_body(b) for b in m.bodies]
+    T = tie_transform(m, A, pr, np.ones(pr.n_pairs, bool))
+    K = (T.T @ stacked([a.K for a in A]) @ T).tocsc()
+    F = np.concatenate([a.loads.get("preload", np.zeros(a.n_dofs)) for a in A])
+    x = T @ spla.spsolve(K, T.T @ F)
+    off = m.dof_offsets()
+    forces = []
+    for k, a in enumerate(A):                       # force the other body exerts, per node
+        load = a.loads.get("preload", np.zeros(a.n_dofs))
+        forces.append((a.K @ x[off[k]:off[k + 1]] - load).reshape(-1, dim))
+    s, mst = pr.slave - 1, 2 - pr.slave
+    on_slave = forces[s][pr.contact_nodes]
+    sign = -1.0 if s == 0 else 1.0                  # bottom is pushed down, top up
+    traction = on_slave[:, 1] / pr.area
+    np.testing.assert_allclose(traction, sign * pressure, rtol=1e-9)
+    assert np.abs(np.delete(on_slave, 1, axis=1)).max() < 1e-9 * pressure * pr.area.max()
+    # master side: the consistent nodal force of the same pressure on its own facets
+    mb = m.bodies[mst]
+    facets = mb.mesh.facets("upper" if mst == 0 else "lower")
+    consistent = np.zeros(mb.mesh.n_nodes)
+    from qsma.model.interface import facet_normals
+    a_f = np.linalg.norm(facet_normals(mb.mesh, facets), axis=1)
+    np.add.at(consistent, facets.ravel(), np.repeat(a_f / facets.shape[1], facets.shape[1]))
+    on_master = forces[mst][pr.master_nodes, 1]
+    np.testing.assert_allclose(on_master, -sign * pressure * consistent[pr.master_nodes],
+                               rtol=1e-9, atol=1e-9 * pressure * a_f.max())
+
+
+@pytest.mark.parametrize("n_bottom, n_top, dim, slave", CASES[::3])
+def test_contact_patch_test_interference_gives_uniform_pressure(n_bottom, n_top, dim, slave):
+    """Both blocks held on their outer faces and pressed together by a uniform initial
+    interference delta, through the condensed mortar problem and the contact solver:
+    uniform pressure E_u delta / (2 H), E_u = E / (1 - nu^2) in plane strain (uniaxial
+    stress, free lateral faces), E in 3D; no shear (equal lateral strains)."""
+    m = _stack(n_bottom, n_top, dim, slave, top_held=True)
+    pr = make_pairing(m)
+    A = [assemble_body(b) for b in m.bodies]
+    rm = reduce_two_bodies(A[0], A[1], pr)
+    delta = 1e-6
+    prob = ContactProblem(rm.K, 0.3, gap0=np.full(pr.n_pairs, -delta), dim=dim)
+    res = contact_solve(prob, rm.welded_contact_force([1.0]))
+    assert res.success
+    E_u = STEEL.E / (1 - STEEL.nu ** 2) if dim == 2 else STEEL.E
+    traction = res.lam / pr.area[:, None]
+    np.testing.assert_allclose(traction[:, -1], E_u * delta / (2 * H), rtol=1e-8)
+    assert np.abs(traction[:, :-1]).max() < 1e-8 * E_u * delta / H
+
+
+def test_conforming_mortar_gives_the_node_to_node_answer():
+    """sandwich-2d with the projection forced on a conforming interface: f0, q and zeta
+    of the node-to-node run to 1e-8 (the projection is the identity to round-off)."""
+    m = sandwich_2d(1)
+    mm = dataclasses.replace(m, interface=dataclasses.replace(m.interface, coupling="mortar"))
+    pn, pm = make_pairing(m), make_pairing(mm)
+    assert pn.coupling == "node" and pm.coupling == "mortar"
+    assert np.abs(pm.projection.toarray() - np.eye(pn.n_pairs)).max() < 1e-12
+    a, b = qsma.run(m), qsma.run(mm)
+    assert a.success and b.success
+    assert b.f0_hz == pytest.approx(a.f0_hz, rel=1e-8)
+    np.testing.assert_allclose(b.q, a.q, rtol=1e-8, atol=1e-8 * np.abs(a.q).max())
+    np.testing.assert_allclose(b.zeta, a.zeta, rtol=1e-8, atol=1e-10)
+    assert (b.n_slip == a.n_slip).all() and (b.n_open == a.n_open).all()
