@@ -138,24 +138,25 @@ def _shape(kind, r):
                             (1 - a) * (1 + b)], axis=1)
 
 
-def _inverse_map(poly, q):
-    """Local coordinates of the points ``q`` (n, 2) in the planar facet ``poly`` (k, 2):
-    barycentric for triangles, Newton on the bilinear map for quads."""
-    if len(poly) == 3:
-        A = np.column_stack([poly[1] - poly[0], poly[2] - poly[0]])
-        return np.linalg.solve(A, (q - poly[0]).T).T
+def _inverse_map(polys, q):
+    """Local coordinates of the points ``q`` (n, 2), point i in the planar facet
+    ``polys[i]`` (n, k, 2): barycentric for triangles, Newton on the bilinear map for
+    quads (exact in one step for parallelograms)."""
+    if polys.shape[1] == 3:
+        A = np.stack([polys[:, 1] - polys[:, 0], polys[:, 2] - polys[:, 0]], axis=2)
+        return np.linalg.solve(A, (q - polys[:, 0])[:, :, None])[:, :, 0]
     r = np.zeros((len(q), 2))
+    scale = np.abs(polys).max()
     for _ in range(30):
-        N = _shape(4, r)
         a, b = r[:, 0], r[:, 1]
         dNa = 0.25 * np.stack([-(1 - b), 1 - b, 1 + b, -(1 + b)], axis=1)
         dNb = 0.25 * np.stack([-(1 - a), -(1 + a), 1 + a, 1 - a], axis=1)
-        J = np.stack([dNa @ poly, dNb @ poly], axis=2)          # (n, 2, 2): dx/d(a, b)
-        res = q - N @ poly
-        step = np.linalg.solve(J, res[:, :, None])[:, :, 0]
-        r += step
-        if np.abs(step).max() < 1e-14:
+        J = np.stack([np.einsum("nk,nkd->nd", dNa, polys),
+                      np.einsum("nk,nkd->nd", dNb, polys)], axis=2)     # dx/d(a, b)
+        res = q - np.einsum("nk,nkd->nd", _shape(4, r), polys)
+        if np.abs(res).max() <= 1e-15 * scale:
             break
+        r += np.linalg.solve(J, res[:, :, None])[:, :, 0]
     return r
 
 
@@ -206,14 +207,15 @@ def _along_normal(x, y0, y1, n0, n1):
     c0, c1 = cr(a, n0), cr(a, c) - cr(b, n0)
     c2 = np.broadcast_to(-cr(b, c), c0.shape)
     guess = (a @ b) / (b @ b)
-    eta = np.empty(len(x))
-    for i in range(len(x)):
-        if abs(c2[i]) < 1e-14 * (abs(c1[i]) + abs(c0[i])):
-            eta[i] = -c0[i] / c1[i]
-            continue
-        roots = np.roots([c2[i], c1[i], c0[i]])
-        roots = roots[np.abs(roots.imag) < 1e-12].real
-        eta[i] = roots[np.argmin(np.abs(roots - guess[i]))] if len(roots) else guess[i]
+    linear = np.abs(c2) < 1e-14 * (np.abs(c1) + np.abs(c0))
+    disc = np.sqrt(np.maximum(c1 ** 2 - 4 * c2 * c0, 0.0))
+    q = -0.5 * (c1 + np.copysign(disc, c1))               # stable roots q / c2, c0 / q
+    with np.errstate(divide="ignore", invalid="ignore"):
+        roots = np.stack([np.where(linear, -c0 / c1, q / c2),
+                          np.where(q != 0, c0 / q, np.inf)], axis=1)
+    roots = np.where(np.isfinite(roots), roots, np.inf)
+    eta = roots[np.arange(len(x)), np.argmin(np.abs(roots - guess[:, None]), axis=1)]
+    eta = np.where(np.isfinite(eta), eta, guess)
     return np.clip(eta, 0.0, 1.0)
 
 
@@ -247,8 +249,9 @@ def _clip(subject, clipper):
 
 
 def _ccw(poly):
-    area = 0.5 * np.sum(poly[:, 0] * np.roll(poly[:, 1], -1) - np.roll(poly[:, 0], -1) * poly[:, 1])
-    return area
+    """Signed area of a polygon (k, 2), positive when counter-clockwise (shoelace)."""
+    x, y = poly[:, 0], poly[:, 1]
+    return 0.5 * float(x[:-1] @ y[1:] - x[1:] @ y[:-1] + x[-1] * y[0] - x[0] * y[-1])
 
 
 def _triangle_rule():
@@ -278,11 +281,14 @@ def _pieces_3d(xs, sf, ns, xm, mf, nm, same_way):
         else:
             face_order = face
         reach = hs[e] + hm.max() + GAP_FRACTION * hs[e]
+        lo, hi = spoly.min(axis=0), spoly.max(axis=0)
         for f in tree.query_ball_point(c, reach):
             if n @ nm[f] >= 0:
                 same_way.add(e)
                 continue
             mpoly = (xm[mf[f]] - c) @ B.T
+            if (mpoly.max(axis=0) <= lo).any() or (mpoly.min(axis=0) >= hi).any():
+                continue                                   # bounding boxes apart
             morder = mf[f]
             if _ccw(mpoly) < 0:
                 mpoly, morder = mpoly[::-1], morder[::-1]
@@ -298,9 +304,19 @@ def _pieces_3d(xs, sf, ns, xm, mf, nm, same_way):
                 q.append(tri[0] + rule @ np.stack([tri[1] - tri[0], tri[2] - tri[0]]))
                 w.append(rw * area2)
             q, w = np.concatenate(q), np.concatenate(w)
-            out.append((e, f, _inverse_map(spoly, q), _inverse_map(mpoly, q), w,
-                        face_order, morder))
-    return out
+            out.append([e, f, (spoly, q), (mpoly, q), w, face_order, morder])
+    for side in (2, 3):                       # local coordinates, batched over pieces
+        for k in (3, 4):
+            sel = [p for p in out if len(p[side][0]) == k]
+            if not sel:
+                continue
+            polys = np.concatenate([np.broadcast_to(p[side][0], (len(p[side][1]), k, 2))
+                                    for p in sel])
+            r = _inverse_map(polys, np.concatenate([p[side][1] for p in sel]))
+            ends = np.cumsum([len(p[side][1]) for p in sel])[:-1]
+            for p, rr in zip(sel, np.split(r, ends)):
+                p[side] = rr
+    return [tuple(p) for p in out]
 
 
 # ---------------------------------------------------------------- assembly
