@@ -46,9 +46,9 @@ from ..errors import InputError
 #: interface (products of two bilinear functions on affine pieces) have degree <= 4.
 GAUSS_POINTS = 4
 
-#: A slave node counts as covered when the master covers all but this fraction of the
-#: integral of its shape function: six orders above double round-off of the clipped
-#: areas, and far below any intended overhang (an overhang of one element is 0.5).
+#: A slave node counts as covered when the master covers every slave facet around it
+#: to all but this fraction of the facet's area: six orders above double round-off of
+#: the clipped areas, far below any intended overhang (half an element is 0.5).
 COVERAGE_TOL = 1e-6
 
 #: Largest gap or overlap between the two surfaces, as a fraction of the local slave
@@ -329,40 +329,47 @@ def _assemble(xs, sf, ns, xm, mf, pieces, names, same_way):
         by_facet.setdefault(piece[0], []).append(piece)
     snodes = np.unique(sf)
     mnodes_all = np.unique(mf)
-    full = np.zeros(len(xs))                       # int N_i over the whole slave surface
-    nv = sf.shape[1]
-    np.add.at(full, sf.ravel(), np.repeat(np.linalg.norm(ns, axis=1) / nv, nv))
-    D = np.zeros(len(xs))
-    G = np.zeros(len(xs))
-    rows, cols, vals = [], [], []
+    # covered fraction of each slave facet (the clipped pieces' area over the facet's,
+    # exact for planar polygons), and of each node: the least of its facets
+    covered = np.zeros(len(sf))
+    for piece in pieces:
+        covered[piece[0]] += piece[4].sum()
+    covered /= np.linalg.norm(ns, axis=1)
+    node_cover = np.full(len(xs), np.inf)
+    np.minimum.at(node_cover, sf.ravel(), np.repeat(covered, sf.shape[1]))
     hs = _facet_size(xs, sf)
-    worst = (0.0, None)
+    facets = []                        # per slave facet: nodes, pieces, N_s, N_m, weights
+    D = np.zeros(len(xs))
     for e, plist in by_facet.items():
         sfn = plist[0][5] if dim == 3 else sf[e]
         Ns = [_shape(len(sfn), p[2]) for p in plist]
         Nm = [_shape(len(p[6]) if dim == 3 else 2, p[3]) for p in plist]
         W = [p[4] for p in plist]
         Me = sum((N * w[:, None]).T @ N for N, w in zip(Ns, W))
-        De = Me.sum(axis=1)
-        A = De[:, None] * np.linalg.inv(Me)            # psi = A N  (biorthogonal)
-        D[sfn] += De
+        D[sfn] += Me.sum(axis=1)                 # D_e = diag(int N_i) = row sums of M_e
+        facets.append((e, sfn, plist, Ns, Nm, W, Me))
+    _check_coverage(xs, snodes, node_cover, names, np.unique(sf[sorted(same_way)]))
+    weighted_gap = np.zeros(len(xs))
+    rows, cols, vals = [], [], []
+    worst = (0.0, None)
+    for e, sfn, plist, Ns, Nm, W, Me in facets:
+        # dual basis psi = A N with A = D_e M_e^-1 (M_e symmetric: A^T = M_e^-1 D_e)
+        A = np.linalg.solve(Me, np.diag(Me.sum(axis=1))).T
+        normal = ns[e] / np.linalg.norm(ns[e])
         for p, N, Nmk, w in zip(plist, Ns, Nm, W):
             mnodes = p[6] if dim == 3 else mf[p[1]]
             psi = N @ A.T
             xg_s = N @ xs[sfn]
-            xg_m = Nmk @ xm[mnodes]
-            gap = (xg_m - xg_s) @ (ns[e] / np.linalg.norm(ns[e]))
+            gap = (Nmk @ xm[mnodes] - xg_s) @ normal
             k = int(np.argmax(np.abs(gap)))
             if abs(gap[k]) / hs[e] > worst[0]:
-                worst = (abs(gap[k]) / hs[e], (e, gap[k], xg_s[k]))
-            np.add.at(G, sfn, psi.T @ (w * gap))
-            blk = (psi * w[:, None]).T @ Nmk
+                worst = (abs(gap[k]) / hs[e], (gap[k], xg_s[k]))
+            np.add.at(weighted_gap, sfn, psi.T @ (w * gap))
             rows.append(np.repeat(sfn, len(mnodes)))
             cols.append(np.tile(mnodes, len(sfn)))
-            vals.append(blk.ravel())
-    _check_coverage(xs, snodes, D, full, names, np.unique(sf[sorted(same_way)]))
+            vals.append(((psi * w[:, None]).T @ Nmk).ravel())
     if worst[0] > GAP_FRACTION:
-        e, g, x = worst[1]
+        g, x = worst[1]
         what = "apart" if g > 0 else "overlap (interpenetrate)"
         raise InputError(
             f"interface body {sbody!r} set {sset!r} / body {mbody!r} set {mset!r}: the two "
@@ -380,12 +387,13 @@ def _assemble(xs, sf, ns, xm, mf, pieces, names, same_way):
     P = sp.diags(1.0 / D[order]) @ M[:, mnodes]
     P.eliminate_zeros()
     nrm = _nodal_normals(len(xs), sf, ns)[order]
-    return MortarOperator(order, mnodes, P.tocsr(), D[order], nrm, G[order] / D[order])
+    return MortarOperator(order, mnodes, P.tocsr(), D[order], nrm,
+                          weighted_gap[order] / D[order])
 
 
-def _check_coverage(xs, snodes, D, full, names, same_way_nodes):
+def _check_coverage(xs, snodes, node_cover, names, same_way_nodes):
     sbody, sset, mbody, mset = names
-    frac = D[snodes] / full[snodes]
+    frac = node_cover[snodes]
     bad = snodes[frac < 1.0 - COVERAGE_TOL]
     if len(bad) == 0:
         return
@@ -398,8 +406,8 @@ def _check_coverage(xs, snodes, D, full, names, same_way_nodes):
             f"or mis-assigned surface). Fix: name the facet set on the face of each body "
             f"that touches the other body (outward normals opposed).")
     nowhere = snodes[frac <= COVERAGE_TOL]
-    lines = [f"  node {k} at {np.round(xs[k], 12).tolist()}: {100 * D[k] / full[k]:.1f} % "
-             f"covered" for k in bad[:8]]
+    lines = [f"  node {k} at {np.round(xs[k], 12).tolist()}: an adjacent facet is "
+             f"{100 * node_cover[k]:.1f} % covered" for k in bad[:8]]
     more = f"\n  ... and {len(bad) - 8} more" if len(bad) > 8 else ""
     head = ("projects nowhere onto" if len(nowhere) == len(snodes)
             else f"is not covered by")
