@@ -119,7 +119,6 @@ def test_patch_test_pressure_passes_a_welded_nonmatching_interface(n_bottom, n_t
                                rtol=1e-9, atol=1e-9 * pressure * a_f.max())
 
 
-@pytest.mark.parametrize("n_bottom, n_top, dim, slave", CASES[::3])
 def _distorted(model, k, amp):
     """Body ``k`` with its nodes moved in the x-z plane (faces stay planar): the facets
     of the interface become general (non-parallelogram) quadrilaterals."""
@@ -161,6 +160,7 @@ def test_patch_test_with_distorted_quadrilaterals(slave):
     np.testing.assert_allclose(np.abs(f[:, 1]) / pr.area, pressure, rtol=1e-7)
 
 
+@pytest.mark.parametrize("n_bottom, n_top, dim, slave", CASES[::3])
 def test_contact_patch_test_interference_gives_uniform_pressure(n_bottom, n_top, dim, slave):
     """Both blocks held on their outer faces and pressed together by a uniform initial
     interference delta, through the condensed mortar problem and the contact solver:
