@@ -119,6 +119,53 @@ def test_patch_test_pressure_passes_a_welded_nonmatching_interface(n_bottom, n_t
                                rtol=1e-9, atol=1e-9 * pressure * a_f.max())
 
 
+# Kuhn's split of a hexahedron (meshio node order) into 6 tetrahedra along its 0-6
+# diagonal: neighbouring hexahedra get matching triangles on their shared faces
+HEX_TO_TETS = [(0, 1, 2, 6), (0, 2, 3, 6), (0, 3, 7, 6), (0, 7, 4, 6), (0, 4, 5, 6),
+               (0, 5, 1, 6)]
+
+
+def _as_tetra(model, k):
+    """Body ``k`` split into tetrahedra (triangular interface facets), sets rebuilt."""
+    b = model.bodies[k]
+    tets = np.concatenate([b.mesh.cells[:, list(t)] for t in HEX_TO_TETS])
+    q = b.mesh.points[tets]
+    vol = np.einsum("ij,ij->i", np.cross(q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]),
+                    q[:, 3] - q[:, 0])
+    tets[vol < 0] = tets[vol < 0][:, [0, 2, 1, 3]]
+    mesh = Mesh(b.mesh.points, tets, "tetra", b.mesh.node_sets)
+    y = b.mesh.points[:, 1]
+    e = 1e-9 * W
+    mesh = mesh.with_sets(facet_sets={
+        "lower": mesh.boundary_facets_where(lambda p: np.abs(p[:, 1] - y.min()) < e),
+        "upper": mesh.boundary_facets_where(lambda p: np.abs(p[:, 1] - y.max()) < e)})
+    bodies = list(model.bodies)
+    bodies[k] = dataclasses.replace(b, mesh=mesh)
+    return dataclasses.replace(model, bodies=tuple(bodies))
+
+
+@pytest.mark.parametrize("slave", ["bottom", "top"])
+def test_patch_test_triangles_against_quadrilaterals(slave):
+    """Tetrahedra (triangular facets) on top of hexahedra (quadrilateral facets), meshed
+    on different grids: affine triangles make every integrand polynomial, so the welded
+    pressure passes to round-off."""
+    pressure = 3e6
+    m = _as_tetra(_stack((4, 2, 4), (3, 2, 5), 3, slave, p=pressure), 1)
+    pr = make_pairing(m)
+    assert m.bodies[1].mesh.facets("lower").shape[1] == 3
+    np.testing.assert_allclose(pr.projection.sum(axis=1).A1, 1.0, rtol=0, atol=1e-13)
+    A = [assemble_body(b) for b in m.bodies]
+    T = tie_transform(m, A, pr, np.ones(pr.n_pairs, bool))
+    K = (T.T @ stacked([a.K for a in A]) @ T).tocsc()
+    F = np.concatenate([a.loads.get("preload", np.zeros(a.n_dofs)) for a in A])
+    x = T @ spla.spsolve(K, T.T @ F)
+    k = pr.slave - 1
+    off = m.dof_offsets()
+    load = A[k].loads.get("preload", np.zeros(A[k].n_dofs))
+    f = (A[k].K @ x[off[k]:off[k + 1]] - load).reshape(-1, 3)[pr.contact_nodes]
+    np.testing.assert_allclose(np.abs(f[:, 1]) / pr.area, pressure, rtol=1e-9)
+
+
 def _distorted(model, k, amp):
     """Body ``k`` with its nodes moved in the x-z plane (faces stay planar): the facets
     of the interface become general (non-parallelogram) quadrilaterals."""
