@@ -410,7 +410,7 @@ def _check_coverage(xs, snodes, node_cover, names, same_way_nodes):
              f"{100 * node_cover[k]:.1f} % covered" for k in bad[:8]]
     more = f"\n  ... and {len(bad) - 8} more" if len(bad) > 8 else ""
     head = ("projects nowhere onto" if len(nowhere) == len(snodes)
-            else f"is not covered by")
+            else "is not covered by")
     raise InputError(
         f"interface body {sbody!r} set {sset!r} (slave) {head} body {mbody!r} set "
         f"{mset!r} (master): {len(bad)} of {len(snodes)} slave node(s) lie (partly) "
