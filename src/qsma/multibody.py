@@ -14,7 +14,7 @@ docs/theory.md). With ``Kc`` the block-diagonal condensed stiffness, equilibrium
 ``Kc u = Fc + G^T lam``.
 
 The slave DOFs (every contact point's node, each in exactly one interface) are
-eliminated as in section 7 of docs/theory.md: split ``u`` into slave DOFs ``u_s`` and
+eliminated as in section 8 of docs/theory.md: split ``u`` into slave DOFs ``u_s`` and
 the rest ``u_r``, ``G = [G_s G_r]`` with ``G_s`` square (one contact point per slave
 node), ``Q = G_s^-1``. Then ``u = T_r u_r + T_d d`` with ``T_r = [-Q G_r; I]``,
 ``T_d = [Q; 0]``, and since ``G T_r = 0`` the contact forces drop out of
