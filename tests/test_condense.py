@@ -93,11 +93,44 @@ def _two_hex_beams():
     return Model(tuple(bodies), Interface("bottom", "interface", "top", "interface"))
 
 
-@pytest.mark.parametrize("build", [lambda: sandwich_2d(1), _two_hex_beams],
-                         ids=["sandwich-2d", "hex-beams-3d"])
+def _mortar(model, refine_top=None, slave=None):
+    """``model`` with a mortar interface; ``refine_top`` = (nx, ny[, nz]) remeshes the top
+    body's grid so that its interface nodes do not match the bottom's."""
+    import dataclasses
+    if refine_top is not None:
+        from qsma.model.generate import structured_mesh
+        top = model.bodies[1]
+        old = top.mesh
+        lo, hi = old.points.min(axis=0), old.points.max(axis=0)
+        axes = [np.linspace(a, b, n + 1) for a, b, n in zip(lo, hi, refine_top)]
+        mesh = structured_mesh(*axes)
+        e = 1e-12
+        y0 = lo[1]
+        mesh = mesh.with_sets(
+            node_sets={"clamp": np.flatnonzero(mesh.points[:, 0] < e)},
+            facet_sets={
+                "interface": mesh.boundary_facets_where(
+                    lambda p: (np.abs(p[:, 1] - y0) < e) & (p[:, 0] > 0.05 - e)),
+                "bolt": mesh.boundary_facets_where(
+                    lambda p: (np.abs(p[:, 1] - hi[1]) < e) & (p[:, 0] > 0.07 - e)
+                    & (p[:, 0] < 0.085 + e))})
+        top = dataclasses.replace(top, mesh=mesh)
+        model = dataclasses.replace(model, bodies=(model.bodies[0], top))
+    itf = dataclasses.replace(model.interface, coupling="mortar", slave=slave)
+    return dataclasses.replace(model, interface=itf)
+
+
+@pytest.mark.parametrize("build", [
+    lambda: sandwich_2d(1), _two_hex_beams,
+    lambda: _mortar(sandwich_2d(1)),
+    lambda: _mortar(_two_hex_beams(), (28, 3, 3)),
+    lambda: _mortar(_two_hex_beams(), (28, 3, 3), slave="top"),
+], ids=["sandwich-2d", "hex-beams-3d", "sandwich-2d-mortar", "hex-beams-3d-nonmatching",
+        "hex-beams-3d-nonmatching-slave-2"])
 def test_welded_interface_equals_full_tied_solve(build):
     """d = 0 in the reduced problem is the full two-body model with every pair tied by
-    elimination: displacements and interface forces to 1e-9 relative."""
+    elimination (mortar: slave DOFs = P x master DOFs): displacements and interface
+    forces to 1e-9 relative."""
     m = build()
     A = [assemble_body(b) for b in m.bodies]
     p = make_pairing(m)
@@ -111,10 +144,54 @@ def test_welded_interface_equals_full_tied_solve(build):
     scale = np.abs(x).max()
     assert np.abs(x[:off[1]] - u1).max() < 1e-9 * scale
     assert np.abs(x[off[1]:] - u2).max() < 1e-9 * scale
-    # the force body 2 receives from body 1 through the ties, in the pair frames
-    r2 = A[1].K @ x[off[1]:] - A[1].loads["preload"]
-    lam_full = np.stack([r2[m.dim * p.nodes2 + c] for c in range(m.dim)], axis=1)
+    # the force body 2 receives from body 1 through the ties, in the pair frames (mortar
+    # with body 1 as master: body 2 is the slave and receives lam at its nodes)
+    if p.coupling == "mortar" and p.slave == 1:
+        r1 = A[0].K @ x[:off[1]] - A[0].loads["preload"]
+        r2 = -r1
+        nodes = p.nodes1
+    else:
+        r2 = A[1].K @ x[off[1]:] - A[1].loads.get("preload", np.zeros(A[1].n_dofs))
+        nodes = p.nodes2
+    lam_full = np.stack([r2[m.dim * nodes + c] for c in range(m.dim)], axis=1)
     lam_local = np.einsum("pij,pj->pi", p.frames, lam_full)     # rows: (t, n) / (t1, t2, n)
     lam_w = rm.welded_contact_force([1.0])
     assert np.abs(lam_local - lam_w).max() < 1e-9 * np.abs(lam_w).max()
     assert np.linalg.eigvalsh(rm.K).min() > 0
+
+
+@pytest.mark.parametrize("slave", ["bottom", "top"])
+def test_functionals_and_recovery_exact_with_a_nonmatching_interface(slave):
+    """Mortar coupling, non-matching 3D beams: the modal amplitude evaluated from (d, a)
+    equals phi^T M x of the recovered full fields, and the recovered fields satisfy each
+    body's equilibrium with the contact forces -P^T lam / lam (slave) to round-off."""
+    m = _mortar(_two_hex_beams(), (28, 3, 3), slave=slave)
+    A = [assemble_body(b) for b in m.bodies]
+    p = make_pairing(m)
+    rm = reduce_two_bodies(A[0], A[1], p)
+    md = linear_modes(m, A, p, n_modes=1)
+    off = m.dof_offsets()
+    Mphi = [a.M @ md.shapes[off[k]:off[k + 1], 0] for k, a in enumerate(A)]
+    rm2 = rm.add_pattern("modal", *Mphi).with_functionals({"q": tuple(Mphi)})
+    rng = np.random.default_rng(3)
+    d = rng.normal(size=rm2.K.shape[0]) * 1e-8
+    a = np.array([1.0, 5.0])
+    u = rm2.recover(d, a)
+    assert rm2.evaluate("q", d, a) == pytest.approx(Mphi[0] @ u[0] + Mphi[1] @ u[1],
+                                                    rel=1e-10)
+    lam = (rm2.K @ d + rm2.W @ a).reshape(-1, m.dim)
+    lam_glob = np.einsum("pji,pj->pi", p.frames, lam)            # frames rows: local axes
+    s = p.slave - 1
+    sigma = 1.0 if s == 1 else -1.0
+    for k, a_ in enumerate(A):
+        F = rm2.loads[k] @ a
+        r = (a_.K @ u[k] - F).reshape(-1, m.dim)
+        expect = np.zeros_like(r)
+        if k == s:
+            expect[p.contact_nodes] = sigma * lam_glob
+        else:
+            expect[p.master_nodes] = -sigma * (p.projection.T @ lam_glob)
+        free = np.ones(a_.n_dofs, bool)
+        free[a_.fixed] = False
+        scale = np.abs(lam_glob).max()
+        assert np.abs((r - expect).ravel()[free]).max() < 1e-8 * scale

@@ -149,14 +149,24 @@ def condense_body(assembled, nodes, frames, backend="auto") -> CondensedBody:
 class ReducedModel:
     r"""The two-body problem ``lam = K d + W a`` with everything the load loop needs.
 
+    Node-to-node (``P is None``): ``d = u_2 - u_1`` on the pairs, ``S = Kc_1 + Kc_2``.
+    Projection (mortar, :func:`combine`): slave ``s``, master ``m``,
+    ``d = sigma (u_s - P u_m)`` (sigma = +1 if the slave is body 2, -1 if body 1) and
+    ``S = Kc_m + P^T Kc_s P``.
+
     Attributes
     ----------
-    K : (n, n) relative-displacement stiffness (local frames, pair-major)
+    K : (n, n) relative-displacement stiffness (local frames, contact-point-major)
     W : (n, n_patterns) welded contact force per unit load factor (``lam_w = W a``)
     patterns : names of the load patterns (columns of W, entries of a)
-    bodies : the two :class:`CondensedBody`
+    bodies : the two :class:`CondensedBody` (body order)
     loads : per body, (n_dofs, n_patterns) full load patterns
+    S_cho : Cholesky factor of ``S``, the condensed stiffness of the welded pair
+    Fc : per body, condensed load patterns
     functionals : name -> (c_d, c_a) with value ``c_d @ d + c_a @ a``
+    P : None, or the dense (n, n_master dofs) projection, slave local frames from
+        master global components
+    slave : 0 or 1, index of the slave body in ``bodies`` (0 for node-to-node)
     """
 
     K: np.ndarray
@@ -169,23 +179,40 @@ class ReducedModel:
     dim: int
     functionals: dict
     definitions: dict
+    P: np.ndarray | None = None
+    slave: int = 0
 
     @property
     def n_pairs(self):
         return self.K.shape[0] // self.dim
+
+    @property
+    def sigma(self):
+        """+1 if the slave is body 2 (``d = u_2 - P u_1``), -1 if body 1."""
+        return 1.0 if self.slave == 1 else -1.0
 
     def welded_contact_force(self, a) -> np.ndarray:
         """``lam_w(a)`` as (n_pairs, dim)."""
         return (self.W @ np.asarray(a, dtype=float)).reshape(-1, self.dim)
 
     def interface_displacements(self, d, a):
-        """Interface displacements (local frames) of body 1 and body 2:
-        ``u1 = S^-1 (Fc_1 + Fc_2 - Kc_2 d)``, ``u2 = u1 + d``."""
+        """Interface displacements (local frames) of body 1 and body 2.
+
+        Node-to-node: ``u1 = S^-1 (Fc_1 + Fc_2 - Kc_2 d)``, ``u2 = u1 + d``.
+        Projection: ``u_m = S^-1 (P^T Fc_s + Fc_m - sigma P^T Kc_s d)``,
+        ``u_s = P u_m + sigma d`` (the equilibrium of the pair with ``d`` imposed).
+        """
         d = np.asarray(d, dtype=float).ravel()
         a = np.asarray(a, dtype=float)
-        rhs = (self.Fc[0] + self.Fc[1]) @ a - self.bodies[1].Kc @ d
-        u1 = sla.cho_solve(self.S_cho, rhs)
-        return u1, u1 + d
+        if self.P is None:
+            rhs = (self.Fc[0] + self.Fc[1]) @ a - self.bodies[1].Kc @ d
+            u1 = sla.cho_solve(self.S_cho, rhs)
+            return u1, u1 + d
+        s, m, P = self.slave, 1 - self.slave, self.P
+        rhs = P.T @ (self.Fc[s] @ a - self.sigma * (self.bodies[s].Kc @ d)) + self.Fc[m] @ a
+        um = sla.cho_solve(self.S_cho, rhs)
+        us = P @ um + self.sigma * d
+        return (us, um) if s == 0 else (um, us)
 
     def recover(self, d, a):
         """Full displacement vectors of both bodies from ``d`` and the load factors."""
@@ -204,7 +231,7 @@ class ReducedModel:
         loads = tuple(np.column_stack([L, F]) for L, F in zip(self.loads, (F1, F2)))
         Fc = tuple(np.column_stack([fc, b.condensed_load(F)])
                    for fc, b, F in zip(self.Fc, self.bodies, (F1, F2)))
-        new = replace(self, W=_welded(self.bodies, self.S_cho, Fc),
+        new = replace(self, W=_welded(self.bodies, self.S_cho, Fc, self.P, self.slave),
                       patterns=self.patterns + (name,), loads=loads, Fc=Fc, functionals={})
         return new.with_functionals(self.definitions)
 
@@ -217,39 +244,109 @@ class ReducedModel:
         return replace(self, functionals=funcs, definitions={**self.definitions, **definitions})
 
 
-def _welded(bodies, S_cho, Fc):
-    Kc1, Kc2 = bodies[0].Kc, bodies[1].Kc
-    return Kc2 @ sla.cho_solve(S_cho, Fc[0]) - Kc1 @ sla.cho_solve(S_cho, Fc[1])
+def _welded(bodies, S_cho, Fc, P=None, slave=0):
+    """``W``: node-to-node ``Kc_2 S^-1 Fc_1 - Kc_1 S^-1 Fc_2``; projection
+    ``sigma (Kc_s P S^-1 (P^T Fc_s + Fc_m) - Fc_s)``."""
+    if P is None:
+        Kc1, Kc2 = bodies[0].Kc, bodies[1].Kc
+        return Kc2 @ sla.cho_solve(S_cho, Fc[0]) - Kc1 @ sla.cho_solve(S_cho, Fc[1])
+    s, m = slave, 1 - slave
+    sigma = 1.0 if slave == 1 else -1.0
+    y = sla.cho_solve(S_cho, P.T @ Fc[s] + Fc[m])
+    return sigma * (bodies[s].Kc @ (P @ y) - Fc[s])
 
 
 def _functional(rm, l1, l2):
-    """``l1 @ u_body1 + l2 @ u_body2`` as ``c_d @ d + c_a @ a``."""
+    """``l1 @ u_body1 + l2 @ u_body2`` as ``c_d @ d + c_a @ a``.
+
+    Node-to-node: ``y = S^-1 (h_1 + h_2)``, ``c_d = h_2 - Kc_2 y``. Projection: with
+    ``u_s = P u_m + sigma d``, ``y = S^-1 (P^T h_s + h_m)`` and
+    ``c_d = sigma (h_s - Kc_s P y)``; in both ``c_a = (sum of condensed loads seen by
+    S)^T y + e_1 + e_2``.
+    """
     (h1, e1), (h2, e2) = (b.functional(l, L) for b, l, L in zip(rm.bodies, (l1, l2), rm.loads))
-    y = sla.cho_solve(rm.S_cho, h1 + h2)
-    c_d = h2 - rm.bodies[1].Kc @ y
-    c_a = (rm.Fc[0] + rm.Fc[1]).T @ y + e1 + e2
+    if rm.P is None:
+        y = sla.cho_solve(rm.S_cho, h1 + h2)
+        c_d = h2 - rm.bodies[1].Kc @ y
+        c_a = (rm.Fc[0] + rm.Fc[1]).T @ y + e1 + e2
+        return c_d, c_a
+    s, m, P = rm.slave, 1 - rm.slave, rm.P
+    h = (h1, h2)
+    y = sla.cho_solve(rm.S_cho, P.T @ h[s] + h[m])
+    c_d = rm.sigma * (h[s] - rm.bodies[s].Kc @ (P @ y))
+    c_a = (P.T @ rm.Fc[s] + rm.Fc[m]).T @ y + e1 + e2
     return c_d, c_a
+
+
+def _factor_S(S):
+    try:
+        return sla.cho_factor(S)
+    except np.linalg.LinAlgError as exc:
+        raise InputError("the condensed stiffness of the welded pair (Kc_1 + Kc_2, or "
+                         "Kc_m + P^T Kc_s P) is not positive definite: the two bodies "
+                         "together are not held against rigid-body motion; add clamps"
+                         ) from exc
+
+
+def projection_matrix(pairing, R_slave) -> np.ndarray:
+    """Dense ``P`` over DOFs: ``(P u_m)`` in the slave's local frames from master global
+    components, ``P = R_s^T (N kron I_dim)`` with ``N`` the pairing's projection."""
+    dim = pairing.frames.shape[1]
+    N = sp.kron(pairing.projection, sp.identity(dim), format="csr")
+    return np.asarray((R_slave.T @ N).todense())
+
+
+def combine(slave, master, P, sigma):
+    r"""Relative-displacement stiffness of a slave body coupled to a master body by the
+    projection ``P``, and the factor of the welded pair's stiffness.
+
+    With ``u_s = P u_m + sigma d`` and the contact force ``sigma lam`` on the slave,
+    ``-sigma P^T lam`` on the master, eliminating ``u_m`` from the equilibrium of both::
+
+        S = Kc_m + P^T Kc_s P
+        K = Kc_s - Kc_s P S^-1 P^T Kc_s      (= (Kc_s^-1 + P Kc_m^-1 P^T)^-1, Woodbury)
+
+    Only ``S`` (SPD when the welded pair is held) is factorised; for ``P = I`` this is
+    ``Kc_s S^-1 Kc_m`` of the node-to-node formula (which the node coupling uses as is).
+    """
+    S_cho = _factor_S(master.Kc + P.T @ slave.Kc @ P)
+    KP = slave.Kc @ P
+    K = slave.Kc - KP @ sla.cho_solve(S_cho, KP.T)
+    return 0.5 * (K + K.T), S_cho
 
 
 def reduce_two_bodies(assembled1, assembled2, pairing, patterns=("preload",),
                       backend="auto") -> ReducedModel:
     """Condense both bodies and combine them into the relative-displacement problem.
 
+    Node-to-node pairings use the pair frames on both sides; a mortar pairing condenses
+    the slave on its contact points (local frames) and the master on its own interface
+    nodes (global components), joined by the projection (:func:`combine`).
     ``backend`` chooses the Schur-complement method (:data:`qsma.linalg.SCHUR_BACKENDS`).
     """
-    b1 = condense_body(assembled1, pairing.nodes1, pairing.frames, backend)
-    b2 = condense_body(assembled2, pairing.nodes2, pairing.frames, backend)
+    asm = (assembled1, assembled2)
     loads = tuple(np.column_stack([a.loads.get(p, np.zeros(a.n_dofs)) for p in patterns])
-                  for a in (assembled1, assembled2))
-    Fc = (b1.condensed_load(loads[0]), b2.condensed_load(loads[1]))
-    S = b1.Kc + b2.Kc
-    try:
-        S_cho = sla.cho_factor(S)
-    except np.linalg.LinAlgError as exc:
-        raise InputError("Kc_1 + Kc_2 is not positive definite: the two bodies together "
-                         "are not held against rigid-body motion; add clamps") from exc
-    K = b1.Kc @ sla.cho_solve(S_cho, b2.Kc)
-    K = 0.5 * (K + K.T)
-    W = _welded((b1, b2), S_cho, Fc)
-    return ReducedModel(K, W, tuple(patterns), (b1, b2), loads, S_cho, Fc,
-                        assembled1.body.dim, {}, {})
+                  for a in asm)
+    dim = assembled1.body.dim
+    if pairing.projection is None:
+        b1 = condense_body(assembled1, pairing.nodes1, pairing.frames, backend)
+        b2 = condense_body(assembled2, pairing.nodes2, pairing.frames, backend)
+        Fc = (b1.condensed_load(loads[0]), b2.condensed_load(loads[1]))
+        S_cho = _factor_S(b1.Kc + b2.Kc)
+        K = b1.Kc @ sla.cho_solve(S_cho, b2.Kc)
+        K = 0.5 * (K + K.T)
+        W = _welded((b1, b2), S_cho, Fc)
+        return ReducedModel(K, W, tuple(patterns), (b1, b2), loads, S_cho, Fc, dim, {}, {})
+    s = pairing.slave - 1
+    m = 1 - s
+    nodes = (pairing.nodes1, pairing.nodes2)
+    eye = np.broadcast_to(np.eye(dim), (len(nodes[m]), dim, dim))
+    bs = condense_body(asm[s], nodes[s], pairing.frames, backend)
+    bm = condense_body(asm[m], nodes[m], eye, backend)
+    P = projection_matrix(pairing, bs.R)
+    sigma = 1.0 if s == 1 else -1.0
+    K, S_cho = combine(bs, bm, P, sigma)
+    bodies = (bs, bm) if s == 0 else (bm, bs)
+    Fc = tuple(b.condensed_load(L) for b, L in zip(bodies, loads))
+    W = _welded(bodies, S_cho, Fc, P, s)
+    return ReducedModel(K, W, tuple(patterns), bodies, loads, S_cho, Fc, dim, {}, {}, P, s)

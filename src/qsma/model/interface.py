@@ -1,22 +1,48 @@
-"""Contact interface: node pairs matched by coordinates, local pair frames."""
+"""Contact interface: node pairs matched by coordinates or a mortar projection, and
+the local frames of the contact points."""
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
 from ..errors import InputError
 from .mesh import Mesh, boundary_facets
 
+#: Node-to-node pairing: two nodes are the same point when they are closer than this
+#: fraction of the smallest interface facet edge at either node. It is far above the
+#: round-off of coordinates written with 10 or more significant digits (1e-10 of the
+#: part size, i.e. <= 1e-7 h for parts up to 1000 elements across) and far below any
+#: meshing difference: nodes farther apart are not snapped, they need the mortar coupling.
+NODE_MATCH_FRACTION = 1e-6
+
+#: Couplings of an :class:`Interface`.
+COUPLINGS = ("node", "mortar", "auto")
+
 
 @dataclass(frozen=True)
 class Interface:
-    """A node-to-node contact interface: facet set ``set1`` of ``body1`` against
-    facet set ``set2`` of ``body2``. The pair normal points from body 1 into body 2.
+    """A contact interface: facet set ``set1`` of ``body1`` against facet set ``set2``
+    of ``body2``. The contact normal points from body 1 into body 2.
 
-    ``tol`` is the pairing tolerance (absolute, m); ``None`` takes 1e-6 times the
-    interface's bounding-box diagonal.
+    Parameters
+    ----------
+    coupling : {"node", "mortar", "auto"}
+        ``"node"``: node-to-node pairs, the two meshes must have coincident interface
+        nodes (within :data:`NODE_MATCH_FRACTION` of the local element size).
+        ``"mortar"``: the two sides may be meshed independently; the contact unknowns
+        live at the nodes of the slave side and the master side enters through the dual
+        mortar projection (:mod:`qsma.model.coupling`). ``"auto"``: node-to-node when
+        every node has a coincident partner, otherwise mortar.
+    slave : name of the body whose interface nodes carry the contact unknowns (mortar
+        only). ``None``: the side with more interface nodes (the finer one, as mortar
+        theory recommends), body 1 on a tie; if that side is not covered by the other,
+        the other side.
+    tol : node-to-node match tolerance (absolute, m). It can only tighten the default
+        (:data:`NODE_MATCH_FRACTION` of the local element size); a larger value is
+        refused: mismatched meshes are coupled by ``coupling="mortar"``, never snapped.
     """
 
     body1: str
@@ -24,19 +50,46 @@ class Interface:
     body2: str
     set2: str
     tol: float | None = None
+    coupling: str = "node"
+    slave: str | None = None
+
+    def __post_init__(self):
+        if self.coupling not in COUPLINGS:
+            raise InputError(f"interface coupling must be one of {list(COUPLINGS)}, "
+                             f"got {self.coupling!r}")
+        if self.slave is not None and self.slave not in (self.body1, self.body2):
+            raise InputError(f"interface slave must name one of its bodies "
+                             f"({self.body1!r}, {self.body2!r}), got {self.slave!r}")
+        if self.tol is not None and not (isinstance(self.tol, (int, float))
+                                         and np.isfinite(self.tol) and self.tol > 0):
+            raise InputError(f"interface tol must be a positive number, got {self.tol!r}")
 
 
 @dataclass(frozen=True, eq=False)
 class Pairing:
-    """Matched node pairs of an interface.
+    """The contact points of an interface and how both bodies see them.
+
+    Node-to-node (``projection is None``): contact point i is the pair
+    ``(nodes1[i], nodes2[i])``. Mortar: the contact points are the interface nodes of
+    the slave body (``nodes1`` if ``slave == 1`` else ``nodes2``, in contact-point
+    order); the other body's interface nodes (its condensed DOFs) are the master nodes,
+    and ``projection @ u_master`` interpolates a master nodal field at the contact
+    points (one weight per master node, the same for each component).
 
     Attributes
     ----------
-    nodes1, nodes2 : (n_pairs,) node indices in body 1 and body 2
-    x : (n_pairs, dim) pair coordinates (body 1)
+    nodes1, nodes2 : node indices in body 1 and body 2 (the condensation sets)
+    x : (n_pairs, dim) contact point coordinates
     frames : (n_pairs, dim, dim) rows are the local axes, ``(t, n)`` in 2D and
-        ``(t1, t2, n)`` in 3D, fixed in the undeformed configuration
-    area : (n_pairs,) tributary area (length in 2D, per unit depth) of each pair
+        ``(t1, t2, n)`` in 3D, normal from body 1 into body 2, fixed in the undeformed
+        configuration
+    area : (n_pairs,) tributary area (length in 2D, per unit depth) of each contact
+        point; the contact traction is ``lam / area``
+    coupling : "node" or "mortar"
+    slave : 1 or 2, the body carrying the contact points
+    projection : (n_pairs, n_master) sparse ``P = D^-1 M`` or None
+    gap : (n_pairs,) weighted normal gap of the undeformed mortar surfaces (reported,
+        taken as zero), None for node-to-node
     """
 
     nodes1: np.ndarray
@@ -44,10 +97,24 @@ class Pairing:
     x: np.ndarray
     frames: np.ndarray
     area: np.ndarray
+    coupling: str = "node"
+    slave: int = 1
+    projection: sp.csr_matrix | None = None
+    gap: np.ndarray | None = None
 
     @property
     def n_pairs(self):
-        return len(self.nodes1)
+        return len(self.x)
+
+    @property
+    def contact_nodes(self):
+        """Nodes of the slave body at the contact points."""
+        return self.nodes1 if self.slave == 1 else self.nodes2
+
+    @property
+    def master_nodes(self):
+        """Interface nodes of the master body (node-to-node: the partners)."""
+        return self.nodes2 if self.slave == 1 else self.nodes1
 
     @property
     def normals(self):
@@ -55,37 +122,88 @@ class Pairing:
 
 
 def pair_nodes(mesh1: Mesh, set1: str, mesh2: Mesh, set2: str, tol=None, names=("1", "2")):
-    """Match the nodes of two facet sets by coordinates.
+    """Match the nodes of two facet sets by coordinates (node-to-node coupling).
 
+    Two nodes match when they are closer than :data:`NODE_MATCH_FRACTION` times the
+    smallest facet edge at either node (``tol``, if given, may only be smaller).
     Returns ``(nodes1, nodes2)`` sorted along the interface (lexicographic in the
-    coordinates). Raises :class:`InputError` naming unmatched nodes and their
-    distance to the nearest candidate.
+    coordinates). Raises :class:`InputError` naming unmatched nodes and their distance
+    to the nearest candidate, pointing to the mortar coupling.
     """
+    match = node_match(mesh1, set1, mesh2, set2, tol)
+    if match.error is None:
+        return match.nodes1, match.nodes2
+    raise InputError(match.message(set1, set2, names))
+
+
+@dataclass(frozen=True, eq=False)
+class _Match:
+    nodes1: np.ndarray | None
+    nodes2: np.ndarray | None
+    error: str | None = None
+    detail: tuple = ()
+
+    def message(self, set1, set2, names):
+        if self.error == "tol":
+            tol, bound = self.detail
+            return (f"interface {set1!r} / {set2!r}: the node matching tolerance tol={tol:.3e} "
+                    f"m exceeds {NODE_MATCH_FRACTION:g} x the smallest interface element "
+                    f"({bound:.3e} m): node-to-node contact cannot glue meshes whose nodes "
+                    f"do not coincide. Fix: remove tol, or set coupling = \"mortar\" (or "
+                    f"\"auto\") on the interface to couple non-matching meshes.")
+        if self.error == "duplicate":
+            return (f"interface {set1!r} / {set2!r}: several nodes of body {names[0]} "
+                    f"coincide with the same node of body {names[1]}; duplicate nodes? "
+                    f"Fix: merge the duplicate nodes of body {names[0]}.")
+        bad1, bad2, x1, x2, n1, n2, d12, d21, tol = self.detail
+        lines = [f"  body {names[0]} node {n1[k]} at {x1[k].tolist()}: nearest node of "
+                 f"body {names[1]} set {set2!r} is {d12[k]:.3e} away" for k in bad1[:10]]
+        lines += [f"  body {names[1]} node {n2[k]} at {x2[k].tolist()}: nearest node of "
+                  f"body {names[0]} set {set1!r} is {d21[k]:.3e} away" for k in bad2[:10]]
+        more = len(bad1) + len(bad2) - len(lines)
+        return (f"interface {set1!r} / {set2!r}: {len(bad1) + len(bad2)} node(s) have no "
+                f"partner within {NODE_MATCH_FRACTION:g} x the local element size "
+                f"(node-to-node contact needs coincident nodes; nodes are never snapped):\n"
+                + "\n".join(lines) + (f"\n  ... and {more} more" if more > 0 else "")
+                + "\nFix: if the two sides are meshed independently, set coupling = "
+                  "\"mortar\" (or \"auto\") on the interface; otherwise check that the "
+                  "sets name the touching faces of the two bodies.")
+
+
+def _local_size(mesh, facets, nodes):
+    """Smallest facet edge length at each of ``nodes``."""
+    p = mesh.points[facets]
+    edge = np.linalg.norm(p - np.roll(p, 1, axis=1), axis=2)          # edge k: k-1 -> k
+    h = np.full(mesh.n_nodes, np.inf)
+    np.minimum.at(h, facets.ravel(), edge.ravel())
+    np.minimum.at(h, np.roll(facets, 1, axis=1).ravel(), edge.ravel())
+    return h[nodes]
+
+
+def node_match(mesh1, set1, mesh2, set2, tol=None) -> _Match:
+    """Try the node-to-node match; the outcome as data (``error`` None on success)."""
     n1, n2 = mesh1.nodes(set1), mesh2.nodes(set2)
     x1, x2 = mesh1.points[n1], mesh2.points[n2]
-    if tol is None:
-        span = np.ptp(np.vstack([x1, x2]), axis=0)
-        tol = 1e-6 * max(float(np.linalg.norm(span)), 1e-300)
+    h1 = _local_size(mesh1, mesh1.facets(set1), n1)
+    h2 = _local_size(mesh2, mesh2.facets(set2), n2)
     dist12, j = cKDTree(x2).query(x1)
     dist21, i = cKDTree(x1).query(x2)
-    bad1 = np.flatnonzero(dist12 > tol)
-    bad2 = np.flatnonzero(dist21 > tol)
+    lim1 = NODE_MATCH_FRACTION * np.minimum(h1, h2[j])
+    lim2 = NODE_MATCH_FRACTION * np.minimum(h2, h1[i])
+    if tol is not None:
+        bound = float(min(lim1.min(), lim2.min()))
+        if tol > bound:
+            return _Match(None, None, "tol", (tol, bound / NODE_MATCH_FRACTION))
+        lim1, lim2 = np.minimum(lim1, tol), np.minimum(lim2, tol)
+    bad1 = np.flatnonzero(dist12 > lim1)
+    bad2 = np.flatnonzero(dist21 > lim2)
     if bad1.size or bad2.size:
-        lines = [f"  body {names[0]} node {n1[k]} at {x1[k].tolist()}: nearest node of "
-                 f"body {names[1]} set {set2!r} is {dist12[k]:.3e} away" for k in bad1[:10]]
-        lines += [f"  body {names[1]} node {n2[k]} at {x2[k].tolist()}: nearest node of "
-                  f"body {names[0]} set {set1!r} is {dist21[k]:.3e} away" for k in bad2[:10]]
-        more = len(bad1) + len(bad2) - len(lines)
-        raise InputError(
-            f"interface {set1!r} / {set2!r}: {len(bad1) + len(bad2)} node(s) have no partner "
-            f"within tol={tol:.3e} m (node-to-node contact needs matching meshes):\n"
-            + "\n".join(lines) + (f"\n  ... and {more} more" if more > 0 else "")
-            + "\nFix: mesh both sides with coincident nodes, or raise the pairing tolerance.")
+        return _Match(None, None, "unmatched",
+                      (bad1, bad2, x1, x2, n1, n2, dist12, dist21, tol))
     if len(np.unique(j)) != len(j):
-        raise InputError(f"interface {set1!r} / {set2!r}: several nodes of body {names[0]} "
-                         f"match the same node of body {names[1]}; duplicate nodes?")
+        return _Match(None, None, "duplicate")
     order = np.lexsort(x1.T[::-1])
-    return n1[order], n2[j[order]]
+    return _Match(n1[order], n2[j[order]])
 
 
 def facet_normals(mesh: Mesh, facets: np.ndarray) -> np.ndarray:
@@ -138,14 +256,23 @@ def local_frames(normals: np.ndarray) -> np.ndarray:
 
 
 def make_pairing(model) -> Pairing:
-    """Pair the interface nodes of ``model`` and build the local frames."""
+    """The contact points of ``model``'s interface: node pairs or the mortar coupling
+    (``Interface.coupling``), with their local frames."""
     itf = model.interface
     b1, b2 = model.body(itf.body1), model.body(itf.body2)
     facets1 = b1.mesh.facets(itf.set1)
-    b2.mesh.facets(itf.set2)
-    nodes1, nodes2 = pair_nodes(b1.mesh, itf.set1, b2.mesh, itf.set2, itf.tol,
-                                names=(b1.name, b2.name))
+    facets2 = b2.mesh.facets(itf.set2)
     _check_boundary(b1.mesh, facets1, b1.name, itf.set1)
+    if itf.coupling != "node":
+        _check_boundary(b2.mesh, facets2, b2.name, itf.set2)
+    if itf.coupling == "mortar":
+        return mortar_pairing(model)
+    match = node_match(b1.mesh, itf.set1, b2.mesh, itf.set2, itf.tol)
+    if match.error is not None:
+        if itf.coupling == "auto" and match.error != "tol":
+            return mortar_pairing(model)
+        raise InputError(match.message(itf.set1, itf.set2, (b1.name, b2.name)))
+    nodes1, nodes2 = match.nodes1, match.nodes2
     weighted = facet_normals(b1.mesh, facets1)          # outward normal x facet area
     nvf = facets1.shape[1]
     normal_sum = np.zeros((b1.mesh.n_nodes, b1.dim))
@@ -154,6 +281,40 @@ def make_pairing(model) -> Pairing:
     np.add.at(area, facets1.ravel(), np.repeat(np.linalg.norm(weighted, axis=1) / nvf, nvf))
     frames = local_frames(normal_sum[nodes1])
     return Pairing(nodes1, nodes2, b1.mesh.points[nodes1].copy(), frames, area[nodes1])
+
+
+def mortar_pairing(model) -> Pairing:
+    """The mortar coupling of ``model``'s interface (:mod:`qsma.model.coupling`).
+
+    The slave is ``Interface.slave`` if given, else the side with more interface nodes
+    (body 1 on a tie); if the master does not cover it, the other side is tried.
+    """
+    from .coupling import mortar_operator
+    itf = model.interface
+    sides = [(1, model.body(itf.body1), itf.set1), (2, model.body(itf.body2), itf.set2)]
+    if itf.slave is not None:
+        order = [0, 1] if itf.slave == itf.body1 else [1, 0]
+        candidates = [order]
+    else:
+        n = [len(b.mesh.nodes(s)) for _, b, s in sides]
+        first = [0, 1] if n[0] >= n[1] else [1, 0]
+        candidates = [first, first[::-1]]
+    error = None
+    for s, m in candidates:
+        k, sb, ss = sides[s]
+        _, mb, ms = sides[m]
+        try:
+            op = mortar_operator(sb.mesh, sb.mesh.facets(ss), mb.mesh, mb.mesh.facets(ms),
+                                 names=(sb.name, ss, mb.name, ms))
+        except InputError as exc:
+            error = error or exc
+            continue
+        normals = op.normals if k == 1 else -op.normals        # from body 1 into body 2
+        nodes = (op.slave_nodes, op.master_nodes) if k == 1 else (op.master_nodes,
+                                                                  op.slave_nodes)
+        return Pairing(nodes[0], nodes[1], sb.mesh.points[op.slave_nodes].copy(),
+                       local_frames(normals), op.area, "mortar", k, op.P, op.gap)
+    raise error
 
 
 def _check_boundary(mesh, facets, body, name):
