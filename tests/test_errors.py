@@ -34,16 +34,21 @@ def test_non_matching_interface_names_nodes_and_distance():
     pts[node, 0] += 2e-4
     moved = Mesh(pts, mesh.cells, mesh.cell_type, mesh.node_sets, mesh.facet_sets)
     bad = _replace_body(m, 1, mesh=moved)
+    node_to_node = dataclasses.replace(bad, interface=dataclasses.replace(
+        bad.interface, coupling="node"))
     with pytest.raises(InputError) as exc:
-        qsma.run(bad)
+        qsma.run(node_to_node)
     msg = str(exc.value)
     assert f"node {node}" in msg and "no partner" in msg and "e-04" in msg
+    assert "mortar" in msg                          # the message points to the coupling
+    from qsma.model import make_pairing              # the default couples it instead
+    assert make_pairing(bad).coupling == "mortar"
 
 
 def test_interface_set_on_wrong_body():
     m = sandwich_2d(1)
     bad = dataclasses.replace(m, interface=Interface("bottom", "interface", "top", "bolt"))
-    with pytest.raises(InputError, match="no partner"):
+    with pytest.raises(InputError, match="no partner|not covered|cover|normal"):
         qsma.run(bad)
     with pytest.raises(InputError, match="no facet set named 'nope'"):
         qsma.run(dataclasses.replace(m, interface=Interface("bottom", "nope", "top",

@@ -331,6 +331,7 @@ def test_approximately_matching_nodes_are_refused_not_snapped():
     them properly (and a conforming mesh stays node-to-node)."""
     base = sandwich_2d(1)
     m = _shifted_top(base, _jitter)
+    m = dataclasses.replace(m, interface=dataclasses.replace(m.interface, coupling="node"))
     with pytest.raises(InputError, match=r"no partner(.|\n)*never snapped(.|\n)*mortar"):
         make_pairing(m)
     glued = dataclasses.replace(m.interface, tol=5e-4)

@@ -27,7 +27,8 @@ SCHEMA = {
     "clamps": {"set": (str, True), "components": (list, False)},
     "pressures": {"set": (str, True), "p": (_NUM, True), "load": (str, False)},
     "interface": {"body1": (str, True), "set1": (str, True), "body2": (str, True),
-                  "set2": (str, True), "mu": (_NUM, True), "tol": (_NUM, False)},
+                  "set2": (str, True), "mu": (_NUM, True), "tol": (_NUM, False),
+                  "coupling": (str, False), "slave": (str, False)},
     "tip": {"sets": (list, True), "direction": (list, True)},
     "levels": {"kind": (str, True), "spacing": (str, True), "start": (_NUM, False),
                "stop": (_NUM, False), "n": (int, False), "values": (list, False)},
@@ -106,7 +107,8 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
     model = Model(
         bodies=tuple(bodies),
         interface=Interface(itf["body1"], itf["set1"], itf["body2"], itf["set2"],
-                            itf.get("tol")),
+                            itf.get("tol"), coupling=itf.get("coupling", "auto"),
+                            slave=itf.get("slave")),
         tip=Probe(tuple(tuple(s) for s in sets), tuple(tip["direction"])),
         mu=itf["mu"], name=data.get("name", "model"))
     options = RunOptions.from_table(data.get("analysis", {}), f"{where}: analysis",

@@ -233,7 +233,9 @@ def _interface_point_data(res, k, offsets, n):
            "contact_state": np.full(n, -1.0)}
     i1 = res.model.body_index(res.model.interface.body1)
     i2 = res.model.body_index(res.model.interface.body2)
-    for i, nodes in ((i1, p.nodes1), (i2, p.nodes2)):
+    sides = (((i1, p.nodes1), (i2, p.nodes2)) if p.projection is None
+             else (((i1, i2)[p.slave - 1], p.contact_nodes),))   # mortar: slave nodes
+    for i, nodes in sides:
         idx = offsets[i] + nodes
         out["contact_pressure"][idx] = lam[:, -1] / area
         out["contact_shear"][idx] = np.linalg.norm(lam[:, :-1], axis=1) / area

@@ -35,13 +35,13 @@ def _check_refine(refine):
         raise InputError(f"refine must be a positive integer, got {refine!r}")
 
 
-def _plate_axis(s, refine, bottom):
+def _plate_axis(s, refine, bottom, n_overlap=None):
     """x grid of one plate: the overlap finer than the free length."""
     L, c = s["L"], s["c"]
+    n = (s["n_overlap"] if n_overlap is None else n_overlap) * refine
     if bottom:
-        return graded_axis((0.0, L - c, s["n_outer"] * refine), (L - c, L, s["n_overlap"] * refine))
-    return graded_axis((L - c, L, s["n_overlap"] * refine),
-                       (L, 2 * L - c, s["n_outer"] * refine))
+        return graded_axis((0.0, L - c, s["n_outer"] * refine), (L - c, L, n))
+    return graded_axis((L - c, L, n), (L, 2 * L - c, s["n_outer"] * refine))
 
 
 def _sets(mesh, s, y_if, y_out, x_clamp, patch):
@@ -60,11 +60,14 @@ def _sets(mesh, s, y_if, y_out, x_clamp, patch):
     return mesh.with_sets(node_sets=node_sets, facet_sets=facet_sets)
 
 
-def lap_2d(refine: int = 1, mu: float | None = None) -> Model:
+def lap_2d(refine: int = 1, mu: float | None = None, top_overlap_elements=None) -> Model:
     """The 2D lap joint (plane strain, unit depth): two plates 100 mm x 5 mm overlapping
     by 30 mm, clamped at their far ends, bolt pressure 100 MPa over 10 mm in the middle
     of the overlap. The probe is the mean vertical displacement of the nodes on the
-    bolt axis (mid-span; the grid lines next to it where no grid line lies on it)."""
+    bolt axis (mid-span; the grid lines next to it where no grid line lies on it).
+    ``top_overlap_elements``: elements of the top plate along the overlap (default 30,
+    as the bottom plate): another count meshes the two sides of the interface apart
+    (the mortar coupling joins them)."""
     _check_refine(refine)
     s = LAP_2D
     t, L, c = s["t"], s["L"], s["c"]
@@ -74,7 +77,8 @@ def lap_2d(refine: int = 1, mu: float | None = None) -> Model:
     bodies = []
     for name, bottom in (("bottom", True), ("top", False)):
         y0 = 0.0 if bottom else t
-        mesh = structured_mesh(_plate_axis(s, refine, bottom),
+        mesh = structured_mesh(_plate_axis(s, refine, bottom,
+                                           None if bottom else top_overlap_elements),
                                np.linspace(y0, y0 + t, s["n_thick"] * refine + 1))
         mesh = _sets(mesh, s, y_if=t, y_out=0.0 if bottom else 2 * t,
                      x_clamp=0.0 if bottom else 2 * L - c, patch=patch)

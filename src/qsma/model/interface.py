@@ -50,7 +50,7 @@ class Interface:
     body2: str
     set2: str
     tol: float | None = None
-    coupling: str = "node"
+    coupling: str = "auto"
     slave: str | None = None
 
     def __post_init__(self):
