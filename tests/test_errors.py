@@ -181,8 +181,10 @@ def test_unwritable_output_folder_fails_before_computing(tmp_path, capsys, monke
 
 
 def test_killed_run_leaves_no_partial_results(tmp_path):
-    """SIGKILL at several moments: results.json is either absent or complete and valid;
-    a later run cleans the stale temporary files."""
+    """SIGKILL at several moments of a first run: the folder is absent or holds the
+    complete run (its manifest checks); a later run removes the killed runs' staging
+    folders and leaves nothing hidden beside the result folder."""
+    from qsma.rundir import verify_run_folder
     out = tmp_path / "out"
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     cmd = [sys.executable, "-m", "qsma", "run", "--example", "sandwich-2d", "--out",
@@ -193,33 +195,31 @@ def test_killed_run_leaves_no_partial_results(tmp_path):
         time.sleep(delay)
         proc.send_signal(signal.SIGKILL)
         proc.wait()
-        js = out / "results.json"
-        if js.exists():
-            data = json.loads(js.read_text())           # complete, parseable
+        if out.exists():
+            assert len(verify_run_folder(out)["files"]) >= 2
+            data = json.loads((out / "results.json").read_text())
             assert len(data["levels"]["alpha"]) == 51
-        for p in out.glob("*") if out.exists() else []:
-            assert p.name.startswith(".qsma-tmp-") or p.name in {
-                "results.json", "results.csv", "fields.vtu", "backbone.png", "loops.png",
-                "damping_frequency.png", "interface.png"}
     assert main(["run", "--example", "sandwich-2d", "--out", str(out), "--quiet",
                  "--no-plots", "--no-vtu"]) == 0
-    assert not list(out.glob(".qsma-tmp-*"))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+    assert set(verify_run_folder(out)["files"]) == {"results.json", "results.csv"}
 
 
 def test_sigterm_cleans_up(tmp_path):
-    """SIGTERM during the analysis: exit 130, no temporary file, no results.json."""
+    """SIGTERM during the analysis: exit 130, no staging folder left, no result folder."""
     out = tmp_path / "out"
     proc = subprocess.Popen([sys.executable, "-m", "qsma", "run", "--example", "sandwich-2d",
                              "--refine", "2", "--direct-loop", "--out", str(out), "--quiet"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    lock = tmp_path / ".out.qsma-lock"           # taken once the handler is set
     t0 = time.time()
-    while not out.exists() and time.time() - t0 < 60:   # created once the handler is set
+    while not lock.exists() and time.time() - t0 < 60:
         time.sleep(0.02)
     time.sleep(0.3)                                     # inside the analysis (about 2 s)
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 130 and b"interrupted" in err
-    assert not list(out.glob(".qsma-tmp-*")) and not (out / "results.json").exists()
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_pressure_of_another_load_pattern_is_rejected():
