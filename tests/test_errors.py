@@ -218,7 +218,7 @@ def test_sigterm_cleans_up(tmp_path):
     time.sleep(0.3)                                     # inside the analysis (about 2 s)
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=60)
-    assert proc.returncode == 130 and b"interrupted" in err
+    assert proc.returncode == 130 and b"interrupted" in err, err
     assert list(tmp_path.iterdir()) == []
 
 

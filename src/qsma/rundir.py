@@ -32,8 +32,10 @@ import hashlib
 import json
 import os
 import shutil
+import signal
 import socket
 import tempfile
+import threading
 import time
 import uuid
 from contextlib import contextmanager
@@ -157,18 +159,22 @@ class RunFolder:
     def __enter__(self):
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
-            self._lock()
-        except OSError as exc:
-            raise self._unwritable(exc) from exc
+            with _signals_deferred():       # the lock file is never left half-taken
+                self._lock()
+        except BaseException as exc:
+            self._unlock()
+            if isinstance(exc, OSError):
+                raise self._unwritable(exc) from exc
+            raise
         try:
             self._recover()
             self._check_replaceable()
             os.mkdir(self.staging, 0o700)
-        except OSError as exc:
+        except BaseException as exc:        # also Ctrl-C / SIGTERM: leave nothing behind
+            shutil.rmtree(self.staging, ignore_errors=True)
             self._unlock()
-            raise self._unwritable(exc) from exc
-        except BaseException:
-            self._unlock()
+            if isinstance(exc, OSError):
+                raise self._unwritable(exc) from exc
             raise
         return self
 
@@ -202,25 +208,27 @@ class RunFolder:
             except BaseException:
                 os.close(fd)
                 raise
+            self._lock_fd = fd
             try:
                 same = os.fstat(fd).st_ino == os.stat(self.lock_path).st_ino
             except FileNotFoundError:
                 same = False
             if same:
-                self._lock_fd = fd
                 info = json.dumps({"pid": os.getpid(), "host": socket.gethostname(),
                                    "run_id": self.run_id}).encode()
                 os.ftruncate(fd, 0)
                 os.pwrite(fd, info, 0)
                 return
+            self._lock_fd = None
             os.close(fd)                # lock file replaced under us: take the new one
         raise OSError(errno.EAGAIN, "could not take the lock file")
 
     def _unlock(self):
         if self._lock_fd is None:
             return
-        try:
-            os.unlink(self.lock_path)   # while holding it: see _lock
+        try:                            # unlinked while held, and only if it is ours
+            if os.stat(self.lock_path).st_ino == os.fstat(self._lock_fd).st_ino:
+                os.unlink(self.lock_path)
         except OSError:
             pass
         os.close(self._lock_fd)
@@ -305,10 +313,33 @@ class RunFolder:
             shutil.rmtree(self.staging, ignore_errors=True)     # now the previous run
         else:
             old = _sidecar(self.path, "old", self.run_id)
-            os.rename(self.path, old)
-            os.rename(self.staging, self.path)
+            with _signals_deferred():       # SIGTERM cannot split the two renames
+                os.rename(self.path, old)
+                os.rename(self.staging, self.path)
             shutil.rmtree(old, ignore_errors=True)
         _fsync_dir(self.path.parent)
+
+
+@contextmanager
+def _signals_deferred():
+    """SIGINT and SIGTERM that arrive inside the block are delivered after it, to the
+    handlers in place before (so a handler raising ``KeyboardInterrupt`` finds a
+    consistent state). A signal mask would not do: the kernel hands a blocked signal
+    to another thread (BLAS), and Python runs the handler in the main thread anyway."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught = []
+    held = (signal.SIGINT, signal.SIGTERM)
+    previous = {s: signal.signal(s, lambda signum, frame: caught.append(signum))
+                for s in held}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():   # None: set outside Python, default then
+            signal.signal(s, signal.SIG_DFL if handler is None else handler)
+        for signum in caught:
+            signal.raise_signal(signum)
 
 
 def write_error(exc: OSError, out) -> OutputWriteError:

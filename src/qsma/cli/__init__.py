@@ -61,22 +61,30 @@ def main(argv=None) -> int:
     _Interrupt.signum = None
     previous = {s: signal.signal(s, _terminate) for s in (signal.SIGTERM, signal.SIGINT)}
     try:
-        return _main(argv)
+        code = _main(argv)
     except KeyboardInterrupt:          # a signal during the error report itself
-        return _interrupted()
+        code = _interrupted()
     finally:
         for s, handler in previous.items():
             # the process itself (argv from sys.argv) exits next: a signal while the
             # interpreter shuts down exits 130 too, instead of dying by the signal
             signal.signal(s, _exit_now if argv is None else handler)
+    if argv is None and code == EXIT_INTERRUPTED:
+        # CPython kills itself with SIGINT at exit (status -2, not 130) when the
+        # KeyboardInterrupt went through C code that ran Python code (e.g. an import of
+        # a compiled module), even though we handled it: leave directly instead
+        _exit_now(None, None, message=False)
+    return code
 
 
-def _exit_now(signum, frame):
-    try:
-        sys.stdout.flush()
-    except (OSError, ValueError, RuntimeError):
-        pass
-    os.write(2, b"qsma: interrupted\n")
+def _exit_now(signum, frame, message=True):
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError, RuntimeError):
+            pass
+    if message:
+        os.write(2, b"qsma: interrupted\n")
     os._exit(EXIT_INTERRUPTED)
 
 
