@@ -118,9 +118,12 @@ def _main(argv):
 
 def _print_warnings(seen):
     """Print the warnings of our own classes meant for the user; others are re-emitted."""
+    printed = set()
     for w in seen:
         if issubclass(w.category, NearlyIncompressibleWarning):
-            print(f"qsma: warning: {w.message}", file=sys.stderr)
+            if str(w.message) not in printed:       # e.g. one line for two equal bodies
+                print(f"qsma: warning: {w.message}", file=sys.stderr)
+                printed.add(str(w.message))
         else:
             warnings.showwarning(w.message, w.category, w.filename, w.lineno)
 
