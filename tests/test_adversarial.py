@@ -179,12 +179,16 @@ def test_rerun_replaces_every_file(tmp_path):
 
 # ---- concurrent runs -----------------------------------------------------------------
 
-def test_two_runs_on_one_folder(previous):
-    """Two runs started together on one folder: one is refused with exit 2 and a
-    message naming the other, or (if the first ended before the second looked) both
-    complete; never a mixed folder."""
+@pytest.mark.parametrize("start", ["together", "staggered"])
+def test_two_runs_on_one_folder(previous, start):
+    """Two runs on one folder, started together or the second once the first holds
+    the folder: one is refused with exit 2 and a message naming the other, or (if the
+    first ended before the second looked) both complete; never a mixed folder."""
     out, _ = previous
-    procs = [_cli(out, "--no-plots") for _ in range(2)]
+    procs = [_cli(out, "--no-plots")]
+    if start == "staggered":
+        _wait_for((out.parent / ".out.qsma-lock").exists, procs[0])
+    procs.append(_cli(out, "--no-plots"))
     outcomes = [(p.wait(timeout=300), p.communicate()[1].decode()) for p in procs]
     codes = sorted(c for c, _ in outcomes)
     assert codes in ([0, 0], [0, 2]), outcomes

@@ -29,7 +29,8 @@ def build_parser():
     from .. import __version__
     parser = argparse.ArgumentParser(
         prog="qsma", description="Quasi-static modal analysis of jointed structures.",
-        epilog="exit codes: 0 success, 1 analysis failed, 2 bad input")
+        epilog="exit codes: 0 success, 1 analysis failed or results not written, "
+               "2 bad input or output folder in use, 130 interrupted")
     parser.add_argument("--version", action="version", version=f"qsma {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     for name, module in SUBCOMMANDS.items():
