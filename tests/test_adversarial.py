@@ -118,18 +118,20 @@ def test_kill_at_every_step_of_the_protocol(previous, result, exchange):
     complete run or the new one; where the two-rename fallback was cut between its
     renames, the next run puts the newest complete run back first."""
     out, old_id = previous
-    seen = set()
+    seen, recovered = set(), 0
     for k in range(60):
         killed = _write_killed_at(result, out, k, exchange)
         if not out.exists():
             assert not exchange                         # only between the two renames
             with RunFolder(out):                        # the next run recovers first
                 pass
+            recovered += 1
         seen.add(_run_ids(out) == old_id)
         if not killed:
             break
     assert not killed, "the write never finished: more steps than the loop covers"
     assert seen == {True, False}                        # both outcomes were reached
+    assert recovered == (0 if exchange else 1)          # the gap between the renames
     results.write_all(result, out, plots=False, vtu=False)
     assert _only_the_folder(out)
 
@@ -164,6 +166,18 @@ def _staging_has_files(out):
                    for p in out.parent.iterdir())
     except FileNotFoundError:                           # removed while we looked
         return False
+
+
+@pytest.mark.parametrize("tamper, match", [
+    (lambda out: (out / "results.csv").write_text("level\n"), "differs from the SHA-256"),
+    (lambda out: (out / "backbone.png").write_bytes(b"old"), "differ from those of run"),
+    (lambda out: (out / "results.json").unlink(), "differ from those of run"),
+    (lambda out: (out / "manifest.json").unlink(), "holds no manifest.json")])
+def test_a_mixed_folder_is_detected(previous, tamper, match):
+    out, _ = previous
+    tamper(out)
+    with pytest.raises(InputError, match=match):
+        verify_run_folder(out)
 
 
 def test_rerun_replaces_every_file(tmp_path):
