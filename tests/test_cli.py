@@ -97,3 +97,20 @@ def test_levels_option(tmp_path, capsys):
     assert "spacing must be" in capsys.readouterr().err
     assert main(["run", "--example", "sandwich-2d", "--out", str(out), "--levels", "x"]) == 2
     assert "expected KIND" in capsys.readouterr().err
+
+
+def test_locking_warning_is_printed(tmp_path, capsys):
+    """nu close to 0.5: the run goes on, the CLI prints our warning (once for the two
+    bodies of equal material)."""
+    import shutil
+    from pathlib import Path
+    examples = Path(__file__).resolve().parents[1] / "examples"
+    for name in ("sandwich-2d-bottom.inp", "sandwich-2d-top.msh"):
+        shutil.copy(examples / name, tmp_path / name)
+    text = (examples / "sandwich-2d.toml").read_text().replace("nu = 0.285", "nu = 0.49")
+    (tmp_path / "c.toml").write_text(text)
+    assert main(["modes", str(tmp_path / "c.toml"), "-n", "1", "--json"]) == 0
+    captured = capsys.readouterr()
+    assert captured.err.count("qsma: warning: Poisson's ratio nu = 0.49 is close to 0.5") == 1
+    assert "incompatible-mode element" in captured.err
+    assert json.loads(captured.out)["f_hz"][0] > 0

@@ -186,8 +186,10 @@ def test_unwritable_output_folder_fails_before_computing(tmp_path, capsys, monke
 
 
 def test_killed_run_leaves_no_partial_results(tmp_path):
-    """SIGKILL at several moments: results.json is either absent or complete and valid;
-    a later run cleans the stale temporary files."""
+    """SIGKILL at several moments of a first run: the folder is absent or holds the
+    complete run (its manifest checks); a later run removes the killed runs' staging
+    folders and leaves nothing hidden beside the result folder."""
+    from qsma.rundir import verify_run_folder
     out = tmp_path / "out"
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     cmd = [sys.executable, "-m", "qsma", "run", "--example", "sandwich-2d", "--out",
@@ -198,33 +200,31 @@ def test_killed_run_leaves_no_partial_results(tmp_path):
         time.sleep(delay)
         proc.send_signal(signal.SIGKILL)
         proc.wait()
-        js = out / "results.json"
-        if js.exists():
-            data = json.loads(js.read_text())           # complete, parseable
+        if out.exists():
+            assert len(verify_run_folder(out)["files"]) >= 2
+            data = json.loads((out / "results.json").read_text())
             assert len(data["levels"]["alpha"]) == 51
-        for p in out.glob("*") if out.exists() else []:
-            assert p.name.startswith(".qsma-tmp-") or p.name in {
-                "results.json", "results.csv", "fields.vtu", "backbone.png", "loops.png",
-                "damping_frequency.png", "interface.png"}
     assert main(["run", "--example", "sandwich-2d", "--out", str(out), "--quiet",
                  "--no-plots", "--no-vtu"]) == 0
-    assert not list(out.glob(".qsma-tmp-*"))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+    assert set(verify_run_folder(out)["files"]) == {"results.json", "results.csv"}
 
 
 def test_sigterm_cleans_up(tmp_path):
-    """SIGTERM during the analysis: exit 130, no temporary file, no results.json."""
+    """SIGTERM during the analysis: exit 130, no staging folder left, no result folder."""
     out = tmp_path / "out"
     proc = subprocess.Popen([sys.executable, "-m", "qsma", "run", "--example", "sandwich-2d",
                              "--refine", "2", "--direct-loop", "--out", str(out), "--quiet"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    lock = tmp_path / ".out.qsma-lock"           # taken once the handler is set
     t0 = time.time()
-    while not out.exists() and time.time() - t0 < 60:   # created once the handler is set
+    while not lock.exists() and time.time() - t0 < 60:
         time.sleep(0.02)
     time.sleep(0.3)                                     # inside the analysis (about 2 s)
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=60)
-    assert proc.returncode == 130 and b"interrupted" in err
-    assert not list(out.glob(".qsma-tmp-*")) and not (out / "results.json").exists()
+    assert proc.returncode == 130 and b"interrupted" in err, err
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_pressure_of_another_load_pattern_is_rejected():
@@ -330,3 +330,112 @@ def test_direct_loop_failure_is_not_an_answer(monkeypatch, tmp_path, capsys):
     assert code == 1 and "direct loop stopped" in capsys.readouterr().err
     data = json.loads((tmp_path / "results.json").read_text())
     assert data["direct_loop"]["dissipation"] is None and not data["direct_loop"]["success"]
+
+
+# ---- input limits and relative rigid-body checks ----------------------------------------
+
+def _material_everywhere(model, nu=None, E_top=None):
+    from qsma.model import Material
+    bodies = []
+    for k, b in enumerate(model.bodies):
+        m = b.material
+        bodies.append(dataclasses.replace(b, material=Material(
+            E_top if (E_top is not None and k == 1) else m.E, m.nu if nu is None else nu,
+            m.rho)))
+    return dataclasses.replace(model, bodies=tuple(bodies))
+
+
+def _first_modes(model, tied="all", n_modes=3):
+    from qsma.fe import assemble_body
+    from qsma.modal import linear_modes
+    from qsma.model import make_pairing
+    p = make_pairing(model)
+    tie = np.ones(p.n_pairs, bool) if tied == "all" else np.zeros(p.n_pairs, bool)
+    return linear_modes(model, [assemble_body(b) for b in model.bodies], p, tied=tie,
+                        n_modes=n_modes)
+
+
+@pytest.mark.parametrize("kw", [dict(nu=0.4999999999), dict(E_top=1e3)],
+                         ids=["nu-0.4999999999", "top-E-1e3"])
+def test_soft_or_incompressible_body_is_not_a_rigid_body_mode(kw):
+    """Both gave "rigid-body mode" with the old threshold 1e-12 x max(K_ii) / max(M_ii)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")                 # the locking warning (nu)
+        model = _material_everywhere(sandwich_2d(1), **kw)
+        f = _first_modes(model).f_hz
+    assert np.all(f > 0) and np.all(np.diff(f) >= 0)
+    if "E_top" in kw:                                   # the soft top beam's own bending:
+        assert f[0] < 212.544 * np.sqrt(1e3 / 200e9) * 10   # far below the steel f0
+
+
+def test_unclamped_body_is_still_caught():
+    free_top = _replace_body(sandwich_2d(1), 1, clamps=())
+    with pytest.raises(InputError, match="rigid-body"):
+        _first_modes(free_top, tied="none")
+
+
+def test_rigid_mode_check_is_kinematic():
+    """A rigid motion of one body is refused whatever its eigenvalue; the elastic first
+    mode is not."""
+    from qsma.condense import rigid_body_modes
+    from qsma.fe import assemble_body
+    from qsma.modal import RIGID_TOL, _check_rigid, nonrigid_part, tie_transform
+    from qsma.model import make_pairing
+    m = _replace_body(sandwich_2d(1), 1, clamps=())
+    p = make_pairing(m)
+    A = [assemble_body(b) for b in m.bodies]
+    T = tie_transform(m, A, p, np.zeros(p.n_pairs, bool))   # a selection: T.T T = I
+    u = np.zeros(m.n_dofs)
+    off = m.dof_offsets()
+    u[off[1]:off[2]] = rigid_body_modes(m.bodies[1].mesh.points)[:, 2]   # top rotates
+    vec = (T.T @ u)[:, None]
+    with pytest.raises(InputError, match="rigid-body mode.*'top'"):
+        _check_rigid(np.array([123.0]), None, None, m, A, T, vec)
+    mode = _first_modes(sandwich_2d(1), tied="none", n_modes=1).shapes[:, 0]
+    assert nonrigid_part(m, A, mode) > 100 * RIGID_TOL
+
+
+@pytest.mark.parametrize("scale", [1e-10, 1.0, 1e6])
+def test_clamp_check_is_independent_of_units(scale):
+    """Coordinates in any unit: a clamped body passes, an unclamped one is refused (the
+    old absolute tolerance 1e-9 refused every body smaller than about 1e-9 m)."""
+    from qsma.condense import check_constrained
+    from qsma.fe import assemble_body
+    m = sandwich_2d(1)
+    b = m.bodies[1]
+    mesh = b.mesh
+    scaled = Mesh(mesh.points * scale, mesh.cells, mesh.cell_type, mesh.node_sets,
+                  mesh.facet_sets)
+    check_constrained(assemble_body(dataclasses.replace(b, mesh=scaled)))
+    with pytest.raises(InputError, match="not held against rigid-body motion"):
+        check_constrained(assemble_body(dataclasses.replace(b, mesh=scaled,
+                                                            clamps=(Clamp("clamp", (0,)),))))
+
+
+def test_level_and_mode_counts_are_bounded():
+    from qsma.levels import MAX_LEVELS
+    from qsma.modal import MAX_MODES, check_n_modes
+    with pytest.raises(InputError, match=f"at most {MAX_LEVELS}"):
+        Levels.log("tip", 1e-6, 1e-3, 10_000_000_000)     # used to allocate 74.5 GiB
+    with pytest.raises(InputError, match=f"at most {MAX_LEVELS}"):
+        Levels("alpha", tuple(range(1, MAX_LEVELS + 2)))
+    assert len(Levels.linear("alpha", 1.0, 2.0, MAX_LEVELS).values) == MAX_LEVELS
+    with pytest.raises(InputError, match=f"at most {MAX_MODES}"):
+        check_n_modes(100_000)
+    with pytest.raises(InputError, match="11 free DOFs"):
+        check_n_modes(10, n_free=11)
+    with pytest.raises(InputError, match="positive integer"):
+        check_n_modes(True)
+    check_n_modes(MAX_MODES, n_free=4500)
+    with pytest.raises(InputError, match="at most 200"):
+        qsma.run(sandwich_2d(1), n_modes=100_000, levels=Levels("tip", (1e-6,)))
+
+
+def test_nearly_incompressible_material_warns():
+    from qsma.errors import NearlyIncompressibleWarning
+    from qsma.model.body import NU_LOCKING
+    with pytest.warns(NearlyIncompressibleWarning, match="mixed .* or incompatible-mode"):
+        Material(200e9, 0.49, 7800.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        Material(200e9, NU_LOCKING, 7800.0)              # at the limit: silent

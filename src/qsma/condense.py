@@ -94,13 +94,28 @@ def rigid_body_modes(points: np.ndarray) -> np.ndarray:
     return np.concatenate([trans, rot], axis=2).reshape(n * dim, -1)
 
 
+#: Relative size below which a clamp does not hold a rigid-body motion: sqrt(eps).
+#: Clamps spread over a length d of a body of size L resist its rotation with a
+#: stiffness of relative size (d / L)^2, which is lost in round-off once it falls
+#: below eps = 2.2e-16, i.e. d / L < 1.5e-8.
+CLAMP_RANK_TOL = float(np.sqrt(np.finfo(float).eps))
+
+
 def check_constrained(assembled):
     """Raise :class:`InputError` naming the body if its clamps leave a rigid-body motion
-    free (its stiffness would be singular: no unique static answer)."""
+    free (its stiffness would be singular: no unique static answer).
+
+    The rigid motions are taken with rotations scaled by the body's size, so the test
+    is the same in any unit system (see :data:`CLAMP_RANK_TOL`)."""
     body = assembled.body
     modes = rigid_body_modes(body.mesh.points)
+    dim = body.dim
+    size = np.abs(modes[:, dim:]).max() if len(modes) else 0.0
+    if size > 0:
+        modes[:, dim:] /= size                      # rotations as motions of size 1
     at_clamps = modes[assembled.fixed]
-    rank = np.linalg.matrix_rank(at_clamps, tol=1e-9 * max(1.0, np.abs(modes).max()))
+    s = np.linalg.svd(at_clamps, compute_uv=False) if len(at_clamps) else np.zeros(0)
+    rank = int(np.sum(s > CLAMP_RANK_TOL * max(s.max(initial=0.0), 1.0)))
     if rank < modes.shape[1]:
         _, _, vt = np.linalg.svd(at_clamps) if len(at_clamps) else (None, None,
                                                                      np.eye(modes.shape[1]))

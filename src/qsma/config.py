@@ -65,17 +65,40 @@ def _check(table, section, where):
 
 
 def load_config(path) -> RunConfig:
-    """Read a TOML run configuration (mesh paths relative to the file's folder)."""
+    """Read a TOML run configuration (mesh paths relative to the file's folder).
+
+    The file must be UTF-8 (the TOML standard); a UTF-8 byte-order mark is accepted.
+    """
     path = Path(path)
     try:
-        text = path.read_text()
+        raw = path.read_bytes()
     except OSError as exc:
         raise InputError(f"cannot read configuration {str(path)!r}: {exc.strerror}") from exc
+    text = decode_toml(raw, str(path))
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"{path}: not valid TOML: {exc}") from exc
     return parse_config(data, base=path.parent, where=str(path))
+
+
+_UTF16_BOMS = (b"\xff\xfe", b"\xfe\xff")
+_UTF32_BOMS = (b"\xff\xfe\x00\x00", b"\x00\x00\xfe\xff")
+
+
+def decode_toml(raw: bytes, where: str) -> str:
+    """The text of a TOML file; :class:`InputError` naming the encoding problem, the line
+    and the fix when the bytes are not UTF-8."""
+    if raw.startswith(_UTF32_BOMS) or raw.startswith(_UTF16_BOMS) or b"\x00" in raw[:200]:
+        raise InputError(f"{where}: the file is encoded as UTF-16 or UTF-32; TOML files "
+                         f"must be UTF-8. Save it as UTF-8 (e.g. iconv -f UTF-16 -t UTF-8)")
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw[:exc.start].count(b"\n") + 1
+        raise InputError(f"{where}, line {line}: byte 0x{raw[exc.start]:02x} is not UTF-8 "
+                         f"(Latin-1 or another 8-bit encoding?); TOML files must be UTF-8. "
+                         f"Save the file as UTF-8 (e.g. iconv -f LATIN1 -t UTF-8)") from None
 
 
 def parse_config(data, base=Path("."), where="config") -> RunConfig:
@@ -92,6 +115,9 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
         pressures = tuple(Pressure(p["set"], p["p"], p.get("load", "preload"))
                           for p in (_check(p, "pressures", f"{w}.pressures") for p in
                                     b.get("pressures", [])))
+        if "\x00" in b["mesh"] or not b["mesh"].strip():
+            raise InputError(f"{w}: mesh path {b['mesh']!r} is empty or contains a NUL "
+                             f"character; give the mesh file name")
         try:
             mat = Material(b["E"], b["nu"], b["rho"])
             mesh = read_mesh(base / b["mesh"])

@@ -17,6 +17,15 @@ class MeshFileError(InputError):
     """A mesh file that cannot be read, with the file and, where known, the line."""
 
 
+class OutputFolderBusy(InputError):
+    """The output folder is locked by another live qsma run."""
+
+
+class OutputWriteError(QSMAError):
+    """Result files could not be written (full device, I/O error); the output folder
+    keeps its previous contents."""
+
+
 class AnalysisError(QSMAError, RuntimeError):
     """The analysis could not produce a valid answer (see ``partial``)."""
 
@@ -27,3 +36,7 @@ class AnalysisError(QSMAError, RuntimeError):
 
 class ContactConvergenceWarning(UserWarning):
     """A contact solve stopped without meeting its tolerance."""
+
+
+class NearlyIncompressibleWarning(UserWarning):
+    """Poisson's ratio close to 0.5: displacement elements lock (too stiff)."""

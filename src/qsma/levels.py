@@ -8,6 +8,13 @@ import numpy as np
 from .errors import InputError
 
 KINDS = ("alpha", "tip")
+#: Most load levels of one run: 200 times the 51 levels of the sandwich-2d spec. The
+#: ramp solves one contact problem per level and keeps every level's contact state
+#: (3 ms per level on sandwich-2d, `qsma run --example sandwich-2d --levels
+#: tip:log:1e-6:1e-3:5`: contact 0.015 s), so 10^4 levels already take about 30 s
+#: there and hours on 3D models; a larger count is a typo (n = 10^10 tried to allocate
+#: 74.5 GiB before this limit).
+MAX_LEVELS = 10_000
 
 
 @dataclass(frozen=True)
@@ -25,6 +32,7 @@ class Levels:
         if self.kind not in KINDS:
             raise InputError(f"load level kind must be one of {KINDS}, got {self.kind!r}")
         v = np.asarray(self.values, dtype=float).ravel()
+        _count_check(v.size)
         if v.size == 0:
             raise InputError("at least one load level is needed")
         if not np.all(np.isfinite(v)):
@@ -55,9 +63,17 @@ class Levels:
         return v * omega0 ** 2 / phi_tip
 
 
+def _count_check(n):
+    if n > MAX_LEVELS:
+        raise InputError(f"{n} load levels asked; at most {MAX_LEVELS} are allowed (each "
+                         f"level is a contact solve whose state is kept; the benchmark "
+                         f"uses 51): lower n")
+
+
 def _range_check(start, stop, n):
-    if not (isinstance(n, (int, np.integer)) and n >= 1):
+    if not (isinstance(n, (int, np.integer)) and not isinstance(n, bool) and n >= 1):
         raise InputError(f"number of levels must be a positive integer, got {n!r}")
+    _count_check(n)
     if not (np.isfinite(start) and np.isfinite(stop) and 0 < start and (start < stop or n == 1)):
         raise InputError(f"level range needs 0 < start < stop, got start={start}, stop={stop}")
 

@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 
 from .masing import masing_loop
-from .results import atomic_path
+from .rundir import atomic_path
 
 
 def _figure(nrows=1, ncols=1, figsize=None, **kw):

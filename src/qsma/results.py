@@ -1,77 +1,20 @@
-"""Result files: results.json, results.csv and VTU fields, written atomically."""
+"""Result files: results.json, results.csv and VTU fields, written as one run
+into a result folder (:mod:`qsma.rundir`)."""
 from __future__ import annotations
 
 import csv
 import io
 import json
-import os
-import tempfile
-from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 
-from .errors import AnalysisError, InputError
+from .errors import AnalysisError
 from .fe import stress_at_nodes
+from .rundir import (RunFolder, atomic_path, atomic_write,  # noqa: F401 (re-exported)
+                     prepare_output_dir, write_error)
 
 SCHEMA_VERSION = 1
-#: prefix of the temporary files renamed into place; stale ones (from a killed run)
-#: are removed by :func:`prepare_output_dir`
-TMP_PREFIX = ".qsma-tmp-"
-
-
-def _umask_mode():
-    mask = os.umask(0)
-    os.umask(mask)
-    return 0o666 & ~mask
-
-
-def replace_atomically(tmp, path):
-    """Give ``tmp`` the permissions of a normally created file and rename it to ``path``."""
-    os.chmod(tmp, _umask_mode())
-    os.replace(tmp, path)
-
-
-@contextmanager
-def atomic_path(path):
-    """A temporary path beside ``path`` (same suffix, hidden prefix) to write to; on
-    success it is renamed to ``path``, on any failure or interruption it is removed.
-    Readers see either the old file or the complete new one."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f"{TMP_PREFIX}{path.stem}.", suffix=path.suffix,
-                               dir=path.parent)
-    os.close(fd)
-    try:
-        yield tmp
-        replace_atomically(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-
-
-def atomic_write(path, data, mode="w"):
-    """Write ``data`` (str or bytes) to ``path`` atomically (:func:`atomic_path`)."""
-    with atomic_path(path) as tmp, open(tmp, mode) as f:
-        f.write(data)
-        f.flush()
-        os.fsync(f.fileno())
-
-
-def prepare_output_dir(out) -> Path:
-    """Create ``out`` if needed and check that it is writable (before any computation)."""
-    out = Path(out)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=TMP_PREFIX + "write-check-", dir=out)
-        os.close(fd)
-        os.unlink(tmp)
-        for stale in out.glob(TMP_PREFIX + "*"):
-            stale.unlink()
-    except OSError as exc:
-        raise InputError(f"output folder {str(out)!r} cannot be written ({exc.strerror}); "
-                         f"choose another --out folder or fix its permissions") from exc
-    return out
-
 
 def _clean(x, where="results"):
     """JSON-safe value: numpy to Python; NaN/Inf are refused, never written."""
@@ -243,16 +186,49 @@ def _interface_point_data(res, k, offsets, n):
     return out
 
 
-def write_all(res, out, plots=True, vtu=True):
-    """Write every result file of a run into folder ``out``; returns the paths."""
-    out = prepare_output_dir(out)
-    paths = {"json": out / "results.json", "csv": out / "results.csv"}
-    write_csv(res, paths["csv"])
-    if vtu and res.n_levels:
-        paths["vtu"] = out / "fields.vtu"
-        write_vtu(res, paths["vtu"])
-    if plots and res.n_levels:
-        from .plots import write_plots
-        paths.update(write_plots(res, out))
-    write_json(res, paths["json"])          # last: its presence marks a complete run
-    return paths
+def write_all(res, out, plots=True, vtu=True, folder=None):
+    """Write every result file of a run as one run into folder ``out``.
+
+    The files are written into a private staging folder, listed with their SHA-256 in
+    ``manifest.json`` and swapped into place together (:class:`qsma.rundir.RunFolder`):
+    ``out`` holds either its previous contents or every file of this run.
+
+    Parameters
+    ----------
+    res : :class:`qsma.analysis.QSMAResult`
+    out : result folder (replaced as a whole)
+    plots, vtu : also write the PNG figures / the VTU fields
+    folder : a :class:`~qsma.rundir.RunFolder` already entered for ``out`` (the CLI
+        takes it before computing); ``None`` takes and releases one here
+
+    Returns
+    -------
+    dict
+        name -> final path of each file (``"manifest"`` included).
+
+    Raises
+    ------
+    OutputFolderBusy
+        another run holds ``out``.
+    OutputWriteError
+        a file could not be written (e.g. the device is full); ``out`` is unchanged.
+    """
+    if folder is None:
+        with RunFolder(out) as folder:
+            return write_all(res, out, plots, vtu, folder)
+    stage = folder.staging
+    paths = {"json": stage / "results.json", "csv": stage / "results.csv"}
+    try:
+        write_csv(res, paths["csv"])
+        if vtu and res.n_levels:
+            paths["vtu"] = stage / "fields.vtu"
+            write_vtu(res, paths["vtu"])
+        if plots and res.n_levels:
+            from .plots import write_plots
+            paths.update(write_plots(res, stage))
+        write_json(res, paths["json"])
+    except OSError as exc:
+        raise write_error(exc, folder.path) from exc
+    folder.commit()
+    paths["manifest"] = stage / "manifest.json"
+    return {k: folder.path / Path(p).name for k, p in paths.items()}

@@ -1,20 +1,27 @@
 """Command line: ``qsma run`` and ``qsma modes``. The only place that prints.
 
-Exit codes: 0 success, 1 analysis failed, 2 bad input.
+Exit codes: 0 success, 1 analysis failed (or results could not be written), 2 bad
+input (including an output folder in use by another run), 130 interrupted
+(SIGTERM, SIGINT / Ctrl-C).
 """
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 import threading
 import traceback
 import warnings
 
-from ..errors import AnalysisError, ContactConvergenceWarning, InputError, QSMAError
+from ..errors import (AnalysisError, ContactConvergenceWarning, InputError,
+                      NearlyIncompressibleWarning, QSMAError)
 from . import modes as _modes, run as _run
 
 EXIT_OK, EXIT_FAILED, EXIT_INPUT = 0, 1, 2
+#: 128 + SIGINT, the shell convention for a command stopped by Ctrl-C; also used for
+#: SIGTERM so that scripts see one code for "interrupted"
+EXIT_INTERRUPTED = 130
 SUBCOMMANDS = {"run": _run, "modes": _modes}
 
 
@@ -22,7 +29,8 @@ def build_parser():
     from .. import __version__
     parser = argparse.ArgumentParser(
         prog="qsma", description="Quasi-static modal analysis of jointed structures.",
-        epilog="exit codes: 0 success, 1 analysis failed, 2 bad input")
+        epilog="exit codes: 0 success, 1 analysis failed or results not written, "
+               "2 bad input or output folder in use, 130 interrupted")
     parser.add_argument("--version", action="version", version=f"qsma {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     for name, module in SUBCOMMANDS.items():
@@ -33,19 +41,57 @@ def build_parser():
     return parser
 
 
+class _Interrupt:
+    """Set by the SIGTERM / SIGINT handler. Code we call (matplotlib, meshio, C
+    extensions) may swallow the ``KeyboardInterrupt`` the handler raises or turn it
+    into another exception; the flag makes any outcome after a signal exit 130."""
+
+    signum = None
+
+
 def _terminate(signum, frame):
-    raise KeyboardInterrupt            # unwinds: temporary result files are removed
+    _Interrupt.signum = signum
+    raise KeyboardInterrupt            # unwinds: the staging folder is removed
 
 
 def main(argv=None) -> int:
-    """Run the command line; returns the exit code (0 ok, 1 analysis failed, 2 bad input)."""
+    """Run the command line; returns the exit code (0 ok, 1 analysis failed or results
+    not written, 2 bad input, 130 interrupted)."""
     if threading.current_thread() is not threading.main_thread():
         return _main(argv)
-    previous = signal.signal(signal.SIGTERM, _terminate)
+    _Interrupt.signum = None
+    previous = {s: signal.signal(s, _terminate) for s in (signal.SIGTERM, signal.SIGINT)}
     try:
-        return _main(argv)
+        code = _main(argv)
+    except KeyboardInterrupt:          # a signal during the error report itself
+        code = _interrupted()
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for s, handler in previous.items():
+            # the process itself (argv from sys.argv) exits next: a signal while the
+            # interpreter shuts down exits 130 too, instead of dying by the signal
+            signal.signal(s, _exit_now if argv is None else handler)
+    if argv is None and code == EXIT_INTERRUPTED:
+        # CPython kills itself with SIGINT at exit (status -2, not 130) when the
+        # KeyboardInterrupt went through C code that ran Python code (e.g. an import of
+        # a compiled module), even though we handled it: leave directly instead
+        _exit_now(None, None, message=False)
+    return code
+
+
+def _exit_now(signum, frame, message=True):
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError, RuntimeError):
+            pass
+    if message:
+        os.write(2, b"qsma: interrupted\n")
+    os._exit(EXIT_INTERRUPTED)
+
+
+def _interrupted():
+    print("qsma: interrupted", file=sys.stderr)
+    return EXIT_INTERRUPTED
 
 
 def _main(argv):
@@ -55,29 +101,54 @@ def _main(argv):
     except SystemExit as exc:           # argparse: usage error (2) or --help/--version (0)
         return int(exc.code or 0)
     try:
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(record=True) as seen:
             warnings.simplefilter("ignore", ContactConvergenceWarning)  # reported by the CLI
-            return SUBCOMMANDS[args.command].execute(args)
-    except InputError as exc:
-        _report(args, exc, "error")
-        return EXIT_INPUT
-    except AnalysisError as exc:
-        _report(args, exc, "analysis failed")
-        return EXIT_FAILED
-    except QSMAError as exc:
-        _report(args, exc, "error")
-        return EXIT_FAILED
-    except Exception as exc:            # a bug of ours, not a user mistake
-        _report(args, exc, "internal error (please report it; --debug shows where)")
-        return EXIT_FAILED
+            warnings.simplefilter("always", NearlyIncompressibleWarning)
+            try:
+                code = SUBCOMMANDS[args.command].execute(args)
+            finally:
+                _print_warnings(seen)
+        return EXIT_INTERRUPTED if _Interrupt.signum is not None else code
     except KeyboardInterrupt:
-        print("qsma: interrupted", file=sys.stderr)
-        return 130
+        return _interrupted()
+    except BaseException as exc:
+        if _Interrupt.signum is not None:   # the signal surfaced as another exception
+            return _interrupted()
+        return _exit_code(args, exc)
+
+
+def _print_warnings(seen):
+    """Print the warnings of our own classes meant for the user; others are re-emitted."""
+    printed = set()
+    for w in seen:
+        if issubclass(w.category, NearlyIncompressibleWarning):
+            if str(w.message) not in printed:       # e.g. one line for two equal bodies
+                print(f"qsma: warning: {w.message}", file=sys.stderr)
+                printed.add(str(w.message))
+        else:
+            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+
+
+def _exit_code(args, exc):
+    """Report ``exc`` and return its exit code; anything not an ``Exception`` (e.g.
+    ``SystemExit``) propagates."""
+    if not isinstance(exc, Exception):
+        raise exc
+    if isinstance(exc, InputError):
+        what, code = "error", EXIT_INPUT
+    elif isinstance(exc, AnalysisError):
+        what, code = "analysis failed", EXIT_FAILED
+    elif isinstance(exc, QSMAError):
+        what, code = "error", EXIT_FAILED
+    else:                               # a bug of ours, not a user mistake
+        what, code = "internal error (please report it; --debug shows where)", EXIT_FAILED
+    _report(args, exc, what)
+    return code
 
 
 def _report(args, exc, what):
     if getattr(args, "debug", False):
-        traceback.print_exc()
+        traceback.print_exception(type(exc), exc, exc.__traceback__)
     text = str(exc) or type(exc).__name__
     print(f"qsma: {what}: {text}", file=sys.stderr)
 

@@ -16,7 +16,9 @@ CLI_OPTIONS = ("mode", "method", "tol", "maxiter", "dissipation", "direct_loop",
 
 def add_arguments(p):
     add_model_arguments(p)
-    p.add_argument("--out", required=True, help="output folder (created if needed)")
+    p.add_argument("--out", required=True,
+                   help="result folder, replaced as a whole by this run's files (created "
+                        "if needed; refused while another run writes to it)")
     p.add_argument("--mode", type=int, help="mode index of the tied structure (default 0)")
     p.add_argument("--method", help="contact solver (default from the config or 'basket')")
     p.add_argument("--tol", type=float, help="contact solver tolerance")
@@ -41,10 +43,21 @@ def add_arguments(p):
 
 
 def execute(args) -> int:
-    from ..analysis import run
-    from ..results import prepare_output_dir, write_all
+    from ..rundir import RunFolder
 
-    out = prepare_output_dir(args.out)           # fail before computing anything
+    with RunFolder(args.out) as folder:          # locked and checked before computing
+        res, paths, options = _run_into(args, folder)
+    out = folder.path
+    if not args.quiet:
+        _summary(res, paths, args.verbose)
+    return _outcome(res, options, out, args.quiet)
+
+
+def _run_into(args, folder):
+    """Load the model, run the analysis and write every file into ``folder``."""
+    from ..analysis import run
+    from ..results import write_all
+
     model, options = load_model(args)
     options = options.replace(**{key: getattr(args, key) for key in CLI_OPTIONS},
                               levels=None if args.levels is None
@@ -53,11 +66,15 @@ def execute(args) -> int:
     res = run(model, options, progress=progress)
     if progress:
         print(file=sys.stderr)
-    paths = write_all(res, out, plots=not args.no_plots, vtu=not args.no_vtu)
-    if not args.quiet:
-        _summary(res, paths, args.verbose)
+    paths = write_all(res, folder.path, plots=not args.no_plots, vtu=not args.no_vtu,
+                      folder=folder)
+    return res, paths, options
+
+
+def _outcome(res, options, out, quiet=False) -> int:
+    """Exit code of a written run, with the warnings and failures printed."""
     dl = res.direct_loop
-    if not args.quiet:
+    if not quiet:
         _warn_flags(res)
     if dl is not None and not dl.success:
         if not options.continue_on_failure:
