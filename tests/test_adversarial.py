@@ -330,7 +330,7 @@ def test_nul_or_empty_mesh_path(tmp_path, capsys, mesh):
 
 
 @pytest.mark.parametrize("tol, match", [("nan", "must be finite"), ("inf", "must be finite"),
-                                        ("-1e-9", "must be >= 0"),
+                                        ("-1e-9", "must be > 0"),
                                         ("1.0", "below half the smallest node spacing")])
 def test_nonsense_pairing_tolerance(tmp_path, capsys, tol, match):
     cfg = tmp_path / "c.toml"

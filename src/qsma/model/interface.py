@@ -60,9 +60,16 @@ class Interface:
         if self.slave is not None and self.slave not in (self.body1, self.body2):
             raise InputError(f"interface slave must name one of its bodies "
                              f"({self.body1!r}, {self.body2!r}), got {self.slave!r}")
-        if self.tol is not None and not (isinstance(self.tol, (int, float))
-                                         and np.isfinite(self.tol) and self.tol > 0):
-            raise InputError(f"interface tol must be a positive number, got {self.tol!r}")
+        if self.tol is not None:
+            if isinstance(self.tol, bool) or not isinstance(self.tol, (int, float)):
+                raise InputError(f"interface pairing tolerance tol must be a number, "
+                                 f"got {self.tol!r}")
+            if not np.isfinite(self.tol):
+                raise InputError(f"interface pairing tolerance tol must be finite, got "
+                                 f"{self.tol!r} (leave it out for the default)")
+            if self.tol <= 0:
+                raise InputError(f"interface pairing tolerance tol must be > 0, got "
+                                 f"{self.tol!r}")
 
 
 @dataclass(frozen=True, eq=False)
