@@ -1,5 +1,5 @@
 r"""Static condensation of each body to its interface DOFs and the two-body
-relative-displacement contact problem (``shared/spec/method.md`` sections 2-3).
+relative-displacement contact problem (docs/theory.md sections 3-4).
 
 Per body ``j`` with Dirichlet DOFs removed, interface DOFs C (rotated into the
 pair frames) and the rest E::
