@@ -176,7 +176,7 @@ def _check_vector_numbering(basis, n_scalar, dim):
     for c in range(dim):
         u = np.zeros(basis.N)
         u[c::dim] = 1.0
-        val = basis.interpolate(u).value                   # (dim, ncells, nqp)
+        val = np.asarray(basis.interpolate(u))             # (dim, ncells, nqp)
         target = np.eye(dim)[c][:, None, None]
         if np.abs(val - target).max() > 1e-10:
             raise RuntimeError("unexpected scikit-fem vector DOF ordering")
