@@ -177,3 +177,120 @@ def test_quadratic_hexahedra_cantilever_one_cell_thick(cell_type):
     f, _ = cantilever_frequencies(cell_type, 1, dim=3, k=1)
     ex = euler_bernoulli(3)[0]
     assert abs(f[0] - ex) / ex < 3e-3
+
+
+# ---------------------------------------------------------------- incompatible modes
+import scipy.sparse as sp  # noqa: E402
+from qsma.fe.incompatible import element_stiffness  # noqa: E402
+
+
+def _global(mesh, Ke):
+    dim = mesh.dim
+    nd = Ke.shape[1]
+    d = (dim * mesh.cells[:, :, None] + np.arange(dim)).reshape(len(mesh.cells), nd)
+    n = dim * mesh.n_nodes
+    return sp.csr_matrix((Ke.ravel(), (np.repeat(d, nd, 1).ravel(), np.tile(d, (1, nd)).ravel())),
+                         shape=(n, n))
+
+
+@pytest.mark.parametrize("mesh", [_distorted_patch("quad"), _distorted("hexahedron")],
+                         ids=["quad", "hexahedron"])
+def test_hand_assembly_without_modes_equals_scikit_fem(mesh):
+    """The hand-written element loop with the modes switched off is scikit-fem's Q1."""
+    lam, mu = STEEL.lame
+    K = _global(mesh, element_stiffness(mesh.points[mesh.cells], lam, mu, modes=False))
+    K_ref = assemble_body(Body("p", mesh, STEEL)).K
+    assert abs(K - K_ref).max() <= 1e-13 * abs(K_ref).max()
+
+
+def _interior_error(K, mesh, A):
+    """Relative error of the interior displacement when ``u = A x`` is imposed on the
+    boundary nodes (zero for an element that passes the patch test)."""
+    dim = mesh.dim
+    u = (mesh.points @ A.T).ravel()
+    bnd = np.unique(boundary_facets(mesh))
+    B = (dim * bnd[:, None] + np.arange(dim)).ravel()
+    I = np.setdiff1d(np.arange(K.shape[0]), B)
+    uI = spla.spsolve(K[I][:, I].tocsc(), -K[I][:, B] @ u[B])
+    return np.abs(uI - u[I]).max() / np.abs(u).max()
+
+
+@pytest.mark.parametrize("element, mesh, A", [
+    ("CPE4I", _distorted_patch("quad"), A2), ("C3D8I", _distorted("hexahedron"), A3)])
+def test_incompatible_patch_on_distorted_mesh(element, mesh, A):
+    a = check_patch(dataclasses.replace(mesh, element=element), A)
+    assert "incompatible modes" in a.formulation
+
+
+def test_plane_stress_incompatible_patch_on_distorted_mesh():
+    mesh = dataclasses.replace(_distorted_patch("quad"), element="CPS4I")
+    a = assemble_body(Body("p", mesh, STEEL))
+    assert _interior_error(a.K, mesh, A2) < 1e-12
+    assert a.formulation.startswith("CPS4I: plane stress")
+
+
+@pytest.mark.parametrize("mesh", [_distorted_patch("quad"), _distorted("hexahedron")],
+                         ids=["quad", "hexahedron"])
+def test_wilson_element_without_taylor_correction_fails_the_patch_test(mesh):
+    """The reason for Taylor's correction: with the local Jacobian in the mode gradients,
+    a linear boundary displacement on a distorted mesh is not reproduced inside."""
+    lam, mu = STEEL.lame
+    K = _global(mesh, element_stiffness(mesh.points[mesh.cells], lam, mu, taylor=False))
+    assert _interior_error(K, mesh, A2 if mesh.dim == 2 else A3) > 1e-4
+
+
+def test_incompatible_cantilever_one_element_thick():
+    """One incompatible-mode element through the thickness: f1 within 0.1 % (2D) and
+    0.2 % (3D) of Euler-Bernoulli where full-integration Q1 is 24 % too stiff (measured
+    -6.0e-4 for CPE4I, 1.5e-3 for C3D8I; the 3D limit itself lies ~1e-3 above
+    Euler-Bernoulli, see the hexahedron27 cantilever)."""
+    f2 = cantilever_frequencies("quad", 1, element="CPE4I")[0][0]
+    f3 = cantilever_frequencies("hexahedron", 1, element="C3D8I", dim=3, k=1)[0][0]
+    q1 = cantilever_frequencies("quad", 1, element="CPE4")[0][0]
+    ex2, ex3 = euler_bernoulli(2)[0], euler_bernoulli(3)[0]
+    assert abs(f2 - ex2) / ex2 < 1e-3 and abs(f3 - ex3) / ex3 < 2e-3
+    assert (q1 - ex2) / ex2 > 0.2
+
+
+def test_plane_stress_cantilever_uses_young_modulus():
+    """CPS: the beam modulus is E (plane strain: E / (1 - nu^2)); frequencies ratio
+    sqrt(1 - nu^2) at the same mesh up to the (small) Poisson coupling of the solid."""
+    fe = cantilever_frequencies("quad8", 2, element="CPS8")
+    fs = fe[0][0]
+    assert "plane stress" in fe[1].formulation
+    ex = euler_bernoulli(2, E=STEEL.E)[0]
+    assert abs(fs - ex) / ex < 5e-4
+    fp = cantilever_frequencies("quad8", 2)[0][0]
+    assert fp / fs == pytest.approx(1 / np.sqrt(1 - STEEL.nu ** 2), rel=2e-3)
+
+
+# ---------------------------------------------------------------- formulation names
+from qsma.fe import resolve_formulation  # noqa: E402
+
+
+@pytest.mark.parametrize("cell_type, element, label", [
+    ("quad", None, "CPE4: plane strain"), ("quad", "CPE4", "CPE4: plane strain"),
+    ("quad", "cps4", "CPS4: plane stress"), ("quad", "CPE4I", "CPE4I: plane strain"),
+    ("quad8", "CPS8", "CPS8: plane stress"), ("triangle6", "CPE6", "CPE6: plane strain"),
+    ("hexahedron", "C3D8I", "C3D8I: 8-node hexahedron"),
+    ("tetra10", "C3D10", "C3D10: 10-node tetrahedron"),
+    ("hexahedron20", None, "C3D20: 20-node hexahedron (serendipity)")])
+def test_formulation_resolved_from_mesh_element(cell_type, element, label):
+    dim = 3 if cell_type in ("hexahedron", "tetra10", "hexahedron20") else 2
+    m = _quadratic_patch(cell_type) if cell_type in ("quad8", "triangle6", "tetra10",
+                                                     "hexahedron20") else \
+        (_distorted_patch("quad") if dim == 2 else _distorted("hexahedron"))
+    form = resolve_formulation(dataclasses.replace(m, element=element))
+    assert form.label.startswith(label)
+
+
+@pytest.mark.parametrize("cell_type, element, words", [
+    ("quad", "CAX4", "axisymmetric"), ("quad", "CPE4R", "reduced integration"),
+    ("hexahedron", "C3D8R", "C3D8I"), ("hexahedron", "C3D8H", "hybrid"),
+    ("quad", "CPE8", "disagree"), ("quad", "C3D8", "does not fit"),
+    ("quad", "S4R", "not an element"), ("quad8", "CPE8I", "CPE4I/CPS4I/C3D8I only")])
+def test_unimplemented_formulations_are_refused_not_replaced(cell_type, element, words):
+    m = _quadratic_patch(cell_type) if cell_type == "quad8" else _distorted_patch("quad") \
+        if cell_type == "quad" else _distorted("hexahedron")
+    with pytest.raises(InputError, match=words):
+        assemble_body(Body("b", dataclasses.replace(m, element=element), STEEL))
