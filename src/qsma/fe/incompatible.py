@@ -62,6 +62,11 @@ def corner_shape_gradients(xi):
     return out
 
 
+def mode_shape_values(xi):
+    """Values of the modes ``P_i = 1 - xi_i^2``, shape ``(nq, d)``."""
+    return 1.0 - xi ** 2
+
+
 def mode_shape_gradients(xi):
     """Reference gradients of the modes ``P_i = 1 - xi_i^2``: ``dP_i/dxi_j =
     -2 xi_i delta_ij``, shape ``(nq, d, d)``."""
@@ -69,14 +74,15 @@ def mode_shape_gradients(xi):
     return -2.0 * xi[:, :, None] * np.eye(dim)[None]
 
 
-def element_stiffness(X, lam, mu, modes=True, taylor=True):
+def element_stiffness(X, lam, mu, modes=True, taylor=True, condensed=True):
     """Condensed stiffness of incompatible-mode elements with node coordinates ``X``
     (``(n_el, 2^d, d)``, meshio order), Lame parameters ``lam``, ``mu``.
 
     Returns ``(n_el, d 2^d, d 2^d)`` in node-major element DOF order (``d a + i``).
     ``modes=False`` gives the plain bilinear (trilinear) element and ``taylor=False``
     the original Wilson element (mode gradients with the local Jacobian ``J(xi)``,
-    which fails the patch test on distorted meshes); both are test references.
+    which fails the patch test on distorted meshes); ``condensed=False`` returns the
+    full ``d (2^d + d)`` square matrix, mode parameters last (all test references).
     The element matrix is
 
     .. math:: K_{(a i)(b k)} = \\sum_q w_q \\det J_q \\left[\\lambda g_{a i} g_{b k}
@@ -112,7 +118,7 @@ def element_stiffness(X, lam, mu, modes=True, taylor=True):
     gg = np.einsum("eq,eqaj,eqbj->eab", wd, G, G)
     K += mu * gg[:, :, None, :, None] * np.eye(dim)[None, None, :, None, :]
     K = K.reshape(ne, nf * dim, nf * dim)
-    if not modes:
+    if not modes or not condensed:
         return K
     nu = na * dim
     Kuu, Kua, Kaa = K[:, :nu, :nu], K[:, :nu, nu:], K[:, nu:, nu:]
