@@ -409,3 +409,27 @@ def test_c3d8i_differs_from_calculix_only_by_the_mass_of_the_modes(tmp_path):
                             sigma=0, which="LM")[0])
     f_massive = np.sqrt(w2) / (2 * np.pi)
     assert np.all(np.abs(f_massive - fc) / fc < 1.5e-6)
+
+
+@pytest.mark.parametrize("cell_type", ["triangle6", "quad8", "quad9", "tetra10",
+                                       "hexahedron20", "hexahedron27"])
+def test_boundary_facets_and_normals_of_quadratic_cells(cell_type):
+    """Boundary of the unit square / cube: facets of the right type (corner nodes first,
+    midside nodes at the middle of the corner edges), outward normals summing to zero,
+    areas to the perimeter (4) / surface (6), each normal along an axis."""
+    from qsma.model.interface import facet_normals
+    from qsma.model.mesh import FACET_CORNERS, FACET_TYPES
+    mesh = _quadratic_patch(cell_type)
+    bf = boundary_facets(mesh)
+    assert bf.shape[1] == FACET_TYPES[mesh.facet_type]
+    nc = FACET_CORNERS[mesh.facet_type]
+    p = mesh.points[bf]
+    if mesh.facet_type in ("line3", "triangle6", "quad8", "quad9"):   # first midside node
+        assert np.allclose(p[:, nc], 0.5 * (p[:, 0] + p[:, 1]), atol=1e-12)
+    n = facet_normals(mesh, bf)
+    area = np.linalg.norm(n, axis=1)
+    assert np.abs(n.sum(axis=0)).max() < 1e-12
+    assert area.sum() == pytest.approx(2 * mesh.dim, rel=1e-12)
+    assert np.allclose(np.abs(n / area[:, None]).max(axis=1), 1.0)
+    centre = np.full(mesh.dim, 0.5)
+    assert np.all(np.einsum("ij,ij->i", n, p.mean(axis=1) - centre) > 0)     # outward
