@@ -341,7 +341,6 @@ def ccx_frequencies(mesh, etype, tmp_path, k=4):
 
 def _qsma_frequencies(mesh, k=4):
     m = mesh.with_sets(node_sets={"clamp": np.flatnonzero(mesh.points[:, 0] < 1e-12)})
-    m = dataclasses.replace(m, element=mesh.element)
     a = assemble_body(Body("b", m, STEEL, clamps=(Clamp("clamp"),)))
     w2 = np.sort(spla.eigsh(a.K[a.free][:, a.free].tocsc(), k=k,
                             M=a.M[a.free][:, a.free].tocsc(), sigma=0, which="LM")[0])
@@ -433,3 +432,10 @@ def test_boundary_facets_and_normals_of_quadratic_cells(cell_type):
     assert np.allclose(np.abs(n / area[:, None]).max(axis=1), 1.0)
     centre = np.full(mesh.dim, 0.5)
     assert np.all(np.einsum("ij,ij->i", n, p.mean(axis=1) - centre) > 0)     # outward
+
+
+def test_with_sets_keeps_the_element_name():
+    """Adding sets must not silently drop the formulation the source file named."""
+    m = dataclasses.replace(_distorted_patch("quad"), element="CPS4I")
+    assert m.with_sets(node_sets={"a": [0]}).element == "CPS4I"
+    assert "plane stress" in assemble_body(Body("b", m.with_sets(), STEEL)).formulation

@@ -62,8 +62,8 @@ def _beam(y0, refine, top, element="quad"):
     }
     node_sets = {"clamp": np.flatnonzero(np.abs(mesh.points[:, 0]) < eps),
                  "tip": np.flatnonzero(np.abs(mesh.points[:, 0] - L) < eps)}
-    return dataclasses.replace(mesh.with_sets(node_sets=node_sets, facet_sets=facet_sets),
-                               element=name)
+    return dataclasses.replace(mesh, element=name).with_sets(node_sets=node_sets,
+                                                             facet_sets=facet_sets)
 
 
 def sandwich_2d(refine: int = 1, mu: float | None = None, element: str = "quad") -> Model:
@@ -126,8 +126,8 @@ def _beam_3d(y0, refine, top, element="hexahedron"):
     }
     node_sets = {"clamp": np.flatnonzero(np.abs(mesh.points[:, 0]) < eps),
                  "tip": np.flatnonzero(np.abs(mesh.points[:, 0] - L) < eps)}
-    return dataclasses.replace(mesh.with_sets(node_sets=node_sets, facet_sets=facet_sets),
-                               element=name)
+    return dataclasses.replace(mesh, element=name).with_sets(node_sets=node_sets,
+                                                             facet_sets=facet_sets)
 
 
 def sandwich_3d(refine: int = 1, mu: float | None = None,

@@ -125,7 +125,7 @@ class Mesh:
         return Mesh(self.points, self.cells, self.cell_type,
                     {**self.node_sets, **(node_sets or {})},
                     {**self.facet_sets, **(facet_sets or {})},
-                    {**self.cell_sets, **(cell_sets or {})})
+                    {**self.cell_sets, **(cell_sets or {})}, element=self.element)
 
 
 def _index_array(values, bound, what, unique=False):
