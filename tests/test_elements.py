@@ -32,7 +32,7 @@ def _rel(a, b):
     (sandwich_3d, (1000.0, 1000.0, -1000.0)),
 ])
 def test_model_translated_by_one_km_gives_same_operators_and_frequency(make, offset):
-    """Assembly on coordinates relative to each body's bounding-box centre: K, M, the
+    """Assembly on coordinates relative to each body's bounding-box corner: K, M, the
     preload and the tied f0 agree to 1e-8 (the translation itself rounds the
     coordinates at 1e3 * 2^-52 = 2e-13 m, 1e-10 of the smallest element)."""
     m0 = make(1)

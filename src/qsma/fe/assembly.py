@@ -6,7 +6,7 @@ own numbering (entity by entity for quadratic elements) is mapped to it by
 or plane stress with unit thickness in 2D, full integration or incompatible modes) is
 resolved from its mesh by :func:`qsma.fe.formulation.resolve_formulation` and
 reported in :attr:`AssembledBody.formulation`. Assembly runs on coordinates relative
-to the body's bounding-box centre, so results do not depend on where the model sits.
+to the body's bounding-box corner, so results do not depend on where the model sits.
 """
 from __future__ import annotations
 
@@ -25,7 +25,7 @@ from .formulation import Formulation, resolve_formulation
 
 
 def skfem_mesh(mesh: Mesh):
-    """The scikit-fem mesh of ``mesh``, on coordinates relative to the centre of its
+    """The scikit-fem mesh of ``mesh``, on coordinates relative to the lower corner of its
     bounding box (:func:`qsma.fe.elements.local_origin`)."""
     return fe_space(mesh).mesh
 

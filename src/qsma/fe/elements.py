@@ -15,9 +15,9 @@ centre points are evaluated from the serendipity map itself: the serendipity
 functions lie in the (tri)biquadratic space, so interpolating them at the extra
 nodes reproduces the serendipity geometry exactly. The extra points carry no DOF.
 
-Coordinates: every scikit-fem mesh is built on coordinates relative to the centre
-of the body's bounding box, so that assembly does not depend on where the model sits
-in space (scikit-fem's inverse iso-parametric map, used by facet bases, iterates to
+Coordinates: every scikit-fem mesh is built on coordinates relative to the lower
+corner of the body's bounding box, so that assembly does not depend on where the
+model sits in space (scikit-fem's inverse iso-parametric map, used by facet bases, iterates to
 an absolute tolerance of 1e-12 and fails for models metres away from the origin).
 Stiffness, mass and loads are invariant under translation; outputs keep the user's
 coordinates because no qsma output is taken from the scikit-fem mesh.
@@ -56,9 +56,12 @@ _HEX27_ORDER = [0, 4, 3, 1, 7, 5, 2, 6, 16, 11, 8, 15, 12, 19, 10, 17, 9, 14, 13
 
 
 def local_origin(points: np.ndarray) -> np.ndarray:
-    """Centre of the bounding box of ``points``: the origin of the assembly coordinates."""
-    return 0.5 * (points.min(axis=0) + points.max(axis=0)) if len(points) else \
-        np.zeros(points.shape[1])
+    """Lower corner of the bounding box of ``points``: the origin of the assembly
+    coordinates. Local coordinates then lie in ``[0, size]``; a body whose box already
+    starts at the origin is assembled exactly as before (bit for bit), and for a
+    translated body ``x - origin`` is computed without rounding (Sterbenz: the two
+    numbers are within a factor 2 of each other) wherever ``|x| >= size``."""
+    return points.min(axis=0) if len(points) else np.zeros(points.shape[1])
 
 
 def lagrange_geometry(points: np.ndarray, cells: np.ndarray, cell_type: str):

@@ -151,7 +151,7 @@ def _cached(mesh, lam, mu):
 def incompatible_stiffness(mesh, lam, mu) -> sp.csr_matrix:
     """Global condensed stiffness of a quad / hexahedron mesh with incompatible modes,
     in qsma DOF order (``dim * node + component``), on coordinates relative to the
-    bounding-box centre (:func:`qsma.fe.elements.local_origin`). Cached per mesh."""
+    bounding-box corner (:func:`qsma.fe.elements.local_origin`). Cached per mesh."""
     if mesh.cell_type not in ("quad", "hexahedron"):
         raise ValueError(f"incompatible modes need quad or hexahedron cells, not "
                          f"{mesh.cell_type!r}")
