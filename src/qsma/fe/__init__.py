@@ -1,6 +1,9 @@
-"""Finite element assembly (scikit-fem): stiffness, consistent mass, pressure loads."""
+"""Finite element assembly (scikit-fem): stiffness, consistent mass, pressure loads,
+element formulations (plane strain / stress, quadratic cells, incompatible modes)."""
 from .assembly import (assemble_body, AssembledBody, skfem_mesh, pressure_load,
-                       body_load, stress_at_nodes)
+                       body_load, stress_at_nodes, stiffness_matrix, mass_matrix)
+from .formulation import Formulation, resolve_formulation
 
 __all__ = ["assemble_body", "AssembledBody", "skfem_mesh", "pressure_load", "body_load",
-           "stress_at_nodes"]
+           "stress_at_nodes", "stiffness_matrix", "mass_matrix", "Formulation",
+           "resolve_formulation"]

@@ -1,13 +1,16 @@
 """Assembly of one body with scikit-fem: K, M, pressure loads, free DOFs.
 
-DOFs are node-major: DOF ``dim * node + component`` (the ordering of
-``skfem.ElementVector`` on nodal elements, checked at assembly).
-Plane strain with unit out-of-plane depth in 2D.
+DOFs are node-major: DOF ``dim * node + component`` over the mesh points; scikit-fem's
+own numbering (entity by entity for quadratic elements) is mapped to it by
+:func:`qsma.fe.elements.fe_space`. The element formulation of a body (plane strain
+or plane stress with unit thickness in 2D, full integration or incompatible modes) is
+resolved from its mesh by :func:`qsma.fe.formulation.resolve_formulation` and
+reported in :attr:`AssembledBody.formulation`. Assembly runs on coordinates relative
+to the body's bounding-box corner, so results do not depend on where the model sits.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-import functools
 
 import numpy as np
 import scipy.sparse as sp
@@ -16,41 +19,31 @@ from skfem.helpers import ddot, div, dot, sym_grad
 
 from ..errors import InputError
 from ..model import Body, Mesh
-
-_SKFEM = {
-    "triangle": (skfem.MeshTri1, skfem.ElementTriP1, 2),
-    "quad": (skfem.MeshQuad1, skfem.ElementQuad1, 2),     # 2x2 Gauss
-    "tetra": (skfem.MeshTet1, skfem.ElementTetP1, 2),
-    "hexahedron": (skfem.MeshHex1, skfem.ElementHex1, 2),  # 2x2x2 Gauss
-}
-# meshio -> scikit-fem local node order (hexahedron differs)
-_HEX_ORDER = [0, 4, 3, 1, 7, 5, 2, 6]   # skfem.io.meshio INV_HEX_MAPPING
+from ..model.mesh import FACET_CORNERS
+from .elements import fe_space
+from .formulation import Formulation, resolve_formulation
 
 
 def skfem_mesh(mesh: Mesh):
-    """The scikit-fem mesh of ``mesh`` with the same node numbering."""
-    cls = _SKFEM[mesh.cell_type][0]
-    cells = mesh.cells
-    if mesh.cell_type == "hexahedron":
-        cells = cells[:, _HEX_ORDER]
-    try:
-        return cls(np.ascontiguousarray(mesh.points.T), np.ascontiguousarray(cells.T),
-                   validate=True, sort_t=False)
-    except Exception as exc:  # scikit-fem raises ValueError / AssertionError
-        raise InputError(f"invalid {mesh.cell_type} mesh: {exc}") from exc
+    """The scikit-fem mesh of ``mesh``, on coordinates relative to the lower corner of its
+    bounding box (:func:`qsma.fe.elements.local_origin`)."""
+    return fe_space(mesh).mesh
 
 
-@functools.lru_cache(maxsize=4)
 def _basis(mesh: Mesh):
-    """scikit-fem mesh and vector basis of ``mesh`` (cached: assembly and the stress
-    recovery of every result level share them; meshes are immutable)."""
-    _, elem, intorder = _SKFEM[mesh.cell_type]
-    m = skfem_mesh(mesh)
-    basis = skfem.Basis(m, skfem.ElementVector(elem()), intorder=intorder)
-    expected = mesh.dim * np.arange(mesh.n_nodes)[None, :] + np.arange(mesh.dim)[:, None]
-    if not np.array_equal(basis.nodal_dofs, expected):
-        raise RuntimeError("unexpected scikit-fem DOF ordering")  # guards our convention
-    return m, basis
+    """scikit-fem mesh and vector basis of ``mesh`` (cached in :func:`fe_space`)."""
+    space = fe_space(mesh)
+    return space.mesh, space.basis
+
+
+def plane_lame(material, formulation: Formulation):
+    """Lame parameters of the formulation: ``(lambda, mu)`` of the material in plane
+    strain and 3D; in plane stress ``lambda* = 2 lambda mu / (lambda + 2 mu)``
+    (sigma_zz = 0 eliminates eps_zz), i.e. ``E nu / (1 - nu^2)``."""
+    lam, mu = material.lame
+    if formulation.kinematics == "plane stress":
+        lam = 2.0 * lam * mu / (lam + 2.0 * mu)
+    return lam, mu
 
 
 def _elasticity_form(lam, mu):
@@ -76,6 +69,9 @@ class AssembledBody:
     """Sparse operators of one body (all DOFs; Dirichlet DOFs listed in ``fixed``).
 
     ``loads`` maps a load pattern name to its full-length force vector.
+    ``formulation`` says which element was computed (:attr:`Formulation.label`, e.g.
+    ``"CPE4: plane strain (unit thickness), 4-node quadrilateral (bilinear), full
+    integration, 2x2 Gauss"``); ``element`` is the :class:`Formulation` itself.
     """
 
     body: Body
@@ -84,26 +80,51 @@ class AssembledBody:
     loads: dict
     fixed: np.ndarray
     free: np.ndarray
+    element: Formulation | None = None
 
     @property
     def n_dofs(self):
         return self.K.shape[0]
 
+    @property
+    def formulation(self) -> str:
+        return self.element.label if self.element is not None else ""
+
+
+def stiffness_matrix(body: Body, formulation: Formulation | None = None) -> sp.csr_matrix:
+    """Stiffness matrix of ``body`` in qsma DOF order for its formulation."""
+    form = resolve_formulation(body.mesh) if formulation is None else formulation
+    lam, mu = plane_lame(body.material, form)
+    if form.incompatible:
+        from .incompatible import incompatible_stiffness
+        return incompatible_stiffness(body.mesh, lam, mu)
+    space = fe_space(body.mesh)
+    return space.to_qsma_matrix(skfem.asm(_elasticity_form(lam, mu), space.basis),
+                                body.n_dofs)
+
+
+def mass_matrix(body: Body) -> sp.csr_matrix:
+    """Consistent mass matrix of ``body`` (the displacement interpolation of the cell
+    type; incompatible modes carry no mass)."""
+    space = fe_space(body.mesh)
+    return space.to_qsma_matrix(skfem.asm(_mass_form(body.material.rho), space.basis),
+                                body.n_dofs)
+
 
 def assemble_body(body: Body) -> AssembledBody:
-    """Assemble stiffness, consistent mass and the pressure load patterns of a body."""
-    m, basis = _basis(body.mesh)
-    lam, mu = body.material.lame
-    K = skfem.asm(_elasticity_form(lam, mu), basis).tocsr()
-    M = skfem.asm(_mass_form(body.material.rho), basis).tocsr()
-    loads = {name: body_load(body, name, mesh=m) for name in body.load_names()}
+    """Assemble stiffness, consistent mass and the pressure load patterns of a body,
+    with the formulation :func:`resolve_formulation` gives for its mesh."""
+    form = resolve_formulation(body.mesh)
+    K = stiffness_matrix(body, form)
+    M = mass_matrix(body)
+    loads = {name: body_load(body, name) for name in body.load_names()}
     fixed = body.clamped_dofs()
     free = np.setdiff1d(np.arange(body.n_dofs), fixed)
-    return AssembledBody(body, K, M, loads, fixed, free)
+    return AssembledBody(body, K, M, loads, fixed, free, form)
 
 
 def _facet_indices(m, facets: np.ndarray, what: str) -> np.ndarray:
-    """Indices into ``m.facets`` of the facets given by node rows."""
+    """Indices into ``m.facets`` of the facets given by scikit-fem vertex rows."""
     key = {tuple(k): i for i, k in enumerate(np.sort(m.facets.T, axis=1).tolist())}
     idx = [key.get(tuple(f)) for f in np.sort(facets, axis=1).tolist()]
     missing = [facets[i].tolist() for i, v in enumerate(idx) if v is None]
@@ -113,17 +134,38 @@ def _facet_indices(m, facets: np.ndarray, what: str) -> np.ndarray:
 
 
 def pressure_load(body: Body, facet_set: str, p: float, mesh=None) -> np.ndarray:
-    """Consistent nodal forces of pressure ``p`` (positive into the body) on a facet set."""
-    m = skfem_mesh(body.mesh) if mesh is None else mesh
-    _, elem, _ = _SKFEM[body.mesh.cell_type]
-    facets = _facet_indices(m, body.mesh.facets(facet_set),
-                            f"body {body.name!r} facet set {facet_set!r}")
-    fb = skfem.FacetBasis(m, skfem.ElementVector(elem()), facets=facets, intorder=2)
+    """Consistent nodal forces of pressure ``p`` (positive into the body) on a facet set,
+    ``f_a = -p int_Gamma N_a n dGamma`` (``n`` the outward unit normal), by Gauss
+    quadrature on the iso-parametric facets. On quadratic facets these forces are not
+    all positive (serendipity quad8 facets: corners get -1/12 of the resultant each).
+
+    ``mesh`` is ignored (kept for callers of the former signature).
+    """
+    space = fe_space(body.mesh)
+    rows = body.mesh.facets(facet_set)
+    ncorner = FACET_CORNERS[body.mesh.facet_type]
+    vertex_of = np.full(body.mesh.n_nodes, -1, dtype=np.int64)
+    vertex_of[space.vertex_node] = np.arange(len(space.vertex_node))
+    corners = vertex_of[rows[:, :ncorner]]
+    what = f"body {body.name!r} facet set {facet_set!r}"
+    if np.any(corners < 0):
+        raise InputError(f"{what}: facet with nodes {rows[0].tolist()} is not a facet of "
+                         f"the mesh")
+    facets = _facet_indices(space.mesh, corners, what)
+    intorder = _facet_order(body.mesh.cell_type)
+    fb = skfem.FacetBasis(space.mesh, skfem.ElementVector(space.element), facets=facets,
+                          intorder=intorder)
 
     @skfem.LinearForm
     def traction(v, w):
         return -p * dot(w.n, v)          # w.n: outward unit normal
-    return skfem.asm(traction, fb)
+    return space.to_qsma_vector(skfem.asm(traction, fb), body.n_dofs)
+
+
+def _facet_order(cell_type):
+    """Facet quadrature: 2 Gauss points per direction for linear facets (exact), 3 for
+    quadratic ones (exact for the shape functions times a straight facet's Jacobian)."""
+    return 2 if cell_type in ("triangle", "quad", "tetra", "hexahedron") else 4
 
 
 def body_load(body: Body, name: str, mesh=None) -> np.ndarray:
@@ -131,7 +173,7 @@ def body_load(body: Body, name: str, mesh=None) -> np.ndarray:
     f = np.zeros(body.n_dofs)
     for pr in body.pressures:
         if pr.load == name:
-            f += pressure_load(body, pr.set, pr.p, mesh=mesh)
+            f += pressure_load(body, pr.set, pr.p)
     return f
 
 
@@ -139,13 +181,18 @@ def stress_at_nodes(body: Body, u: np.ndarray):
     """Nodal averages of the stress tensor from displacement ``u`` (full DOF vector).
 
     Returns ``(n_nodes, dim, dim)`` stresses and the von Mises stress per node (plane
-    strain: sigma_zz = nu (sigma_xx + sigma_yy) included).
+    strain: sigma_zz = nu (sigma_xx + sigma_yy) included; plane stress: sigma_zz = 0).
+    Incompatible-mode elements: the stress of the compatible (bilinear / trilinear)
+    field; the incompatible modes' strain vanishes at the element centre, where the
+    Gauss-point average is taken for parallelogram-shaped cells.
     """
-    m, basis = _basis(body.mesh)
-    lam, mu = body.material.lame
+    form = resolve_formulation(body.mesh)
+    space = fe_space(body.mesh)
+    basis = space.basis
+    lam, mu = plane_lame(body.material, form)
     dim = body.dim
     # element-centre projection: average the Gauss point stresses per element, then to nodes
-    gu = basis.interpolate(u).grad                     # (dim, dim, nelem, nqp)
+    gu = basis.interpolate(space.from_qsma_vector(u)).grad                     # (dim, dim, nelem, nqp)
     eps = 0.5 * (gu + np.swapaxes(gu, 0, 1))
     tr = np.trace(eps, axis1=0, axis2=1)
     sig = 2 * mu * eps + lam * tr[None, None] * np.eye(dim)[:, :, None, None]
@@ -159,6 +206,8 @@ def stress_at_nodes(body: Body, u: np.ndarray):
     s = acc / cnt[:, None, None]
     if dim == 2:
         szz = lam * np.trace(s, axis1=1, axis2=2) / (2 * (lam + mu))  # = nu (sxx + syy)
+        if form.kinematics == "plane stress":
+            szz = 0.0 * szz
         full = np.zeros((len(s), 3, 3))
         full[:, :2, :2] = s
         full[:, 2, 2] = szz

@@ -1,4 +1,5 @@
-"""Structured meshes (quadrilaterals in 2D, hexahedra in 3D) on tensor grids."""
+"""Structured meshes (quadrilaterals in 2D, hexahedra in 3D, linear or quadratic) on
+tensor grids."""
 from __future__ import annotations
 
 import numpy as np
@@ -13,11 +14,30 @@ def graded_axis(*segments):
     return np.concatenate([parts[0]] + [p[1:] for p in parts[1:]])
 
 
-def structured_mesh(*axes) -> Mesh:
+#: grid offsets (0, 1, 2 per axis: start, middle, end of the cell) of the local nodes
+#: of quadratic cells in meshio / VTK order; serendipity cells are the first 8 / 20
+QUADRATIC_OFFSETS = {
+    "quad9": [(0, 0), (2, 0), (2, 2), (0, 2), (1, 0), (2, 1), (1, 2), (0, 1), (1, 1)],
+    "hexahedron27": [
+        (0, 0, 0), (2, 0, 0), (2, 2, 0), (0, 2, 0), (0, 0, 2), (2, 0, 2), (2, 2, 2),
+        (0, 2, 2),                                                  # corners
+        (1, 0, 0), (2, 1, 0), (1, 2, 0), (0, 1, 0), (1, 0, 2), (2, 1, 2), (1, 2, 2),
+        (0, 1, 2), (0, 0, 1), (2, 0, 1), (2, 2, 1), (0, 2, 1),      # edge midsides
+        (0, 1, 1), (2, 1, 1), (1, 0, 1), (1, 2, 1), (1, 1, 0), (1, 1, 2),  # face centres
+        (1, 1, 1)],                                                 # body centre
+}
+QUADRATIC_OFFSETS["quad8"] = QUADRATIC_OFFSETS["quad9"][:8]
+QUADRATIC_OFFSETS["hexahedron20"] = QUADRATIC_OFFSETS["hexahedron27"][:20]
+
+
+def structured_mesh(*axes, cell_type=None) -> Mesh:
     """Tensor-product mesh of the grid ``axes`` (2 axes: quads, 3 axes: hexahedra).
 
-    Node ``(i, j[, k])`` has index ``i + nx * (j + ny * k)``; cells are counter-clockwise
-    (positive Jacobian) in meshio order.
+    ``cell_type`` ``None`` (``"quad"`` / ``"hexahedron"``): linear cells, node
+    ``(i, j[, k])`` has index ``i + nx * (j + ny * k)``. ``"quad8"``, ``"quad9"``,
+    ``"hexahedron20"``, ``"hexahedron27"``: quadratic cells on the same grid cells,
+    midside nodes at the middle of each interval (nodes no cell uses are dropped).
+    Cells are counter-clockwise (positive Jacobian) in meshio order.
 
     The axes must increase strictly: then every cell is a box with positive Jacobian,
     which is all :func:`~qsma.model.validate.validate_mesh` would check (at no cost here).
@@ -28,6 +48,9 @@ def structured_mesh(*axes) -> Mesh:
             raise InputError(f"axis {k} of a structured mesh must be at least 2 strictly "
                              f"increasing coordinates, got {a.tolist()}; sort it and remove "
                              f"repeated values")
+    linear = {2: "quad", 3: "hexahedron"}[len(axes)]
+    if cell_type not in (None, linear):
+        return _quadratic_structured(axes, cell_type)
     shape = [len(a) for a in axes]
     grids = np.meshgrid(*axes, indexing="ij")
     points = np.stack([g.ravel(order="F") for g in grids], axis=1)
@@ -43,6 +66,30 @@ def structured_mesh(*axes) -> Mesh:
     # bottom face normal must point away from the top face (-z): order (0,1,2,3) with
     # x then y is counter-clockwise seen from +z, giving a positive hexahedron Jacobian.
     return Mesh(points, cells.reshape(-1, 8, order="F"), "hexahedron")
+
+
+def _quadratic_structured(axes, cell_type) -> Mesh:
+    offsets = QUADRATIC_OFFSETS.get(cell_type)
+    if offsets is None or len(offsets[0]) != len(axes):
+        raise ValueError(f"no {len(axes)}D structured mesh of {cell_type!r} cells")
+    fine = []
+    for a in axes:
+        a = np.asarray(a, dtype=float)
+        f = np.empty(2 * len(a) - 1)
+        f[0::2], f[1::2] = a, 0.5 * (a[:-1] + a[1:])
+        fine.append(f)
+    shape = [len(a) for a in fine]
+    grids = np.meshgrid(*fine, indexing="ij")
+    points = np.stack([g.ravel(order="F") for g in grids], axis=1)
+    idx = np.arange(np.prod(shape)).reshape(shape, order="F")
+    ncell = [(n - 1) // 2 for n in shape]
+    cols = []
+    for off in offsets:
+        sl = tuple(slice(o, o + 2 * n, 2) for o, n in zip(off, ncell))
+        cols.append(idx[sl].ravel(order="F"))
+    cells = np.stack(cols, axis=1)
+    used, cells = np.unique(cells, return_inverse=True)
+    return Mesh(points[used], cells.reshape(-1, len(offsets)), cell_type)
 
 
 def box_facets(mesh: Mesh, predicate) -> np.ndarray:

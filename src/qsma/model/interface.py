@@ -214,14 +214,19 @@ def node_match(mesh1, set1, mesh2, set2, tol=None) -> _Match:
 
 
 def facet_normals(mesh: Mesh, facets: np.ndarray) -> np.ndarray:
-    """Unit outward normals of boundary facets, scaled by their area (length in 2D)."""
-    p = mesh.points[facets]
+    """Unit outward normals of boundary facets, scaled by their area (length in 2D).
+
+    Computed from the corner nodes (the first ``FACET_CORNERS`` of each row): exact for
+    straight / flat facets, the chord (flat) approximation of curved quadratic ones.
+    """
+    from .mesh import FACET_CORNERS
+    p = mesh.points[facets[:, :FACET_CORNERS[mesh.facet_type]]]
     if mesh.dim == 2:
         t = p[:, 1] - p[:, 0]
         nrm = np.stack([t[:, 1], -t[:, 0]], axis=1)
     else:
         # polygon (triangle or quad): half the cross product of the diagonals / edges
-        if facets.shape[1] == 3:
+        if p.shape[1] == 3:
             nrm = 0.5 * np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
         else:
             nrm = 0.5 * np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 1])

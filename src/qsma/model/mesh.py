@@ -8,15 +8,26 @@ import numpy as np
 
 from ..errors import InputError
 
-#: cell type -> (spatial dimension, nodes per cell, facet cell type)
+#: cell type -> (spatial dimension, nodes per cell, facet cell type); meshio names and
+#: node orders (VTK): corner nodes first, then edge midside nodes, face and body centres
 CELL_TYPES = {
     "triangle": (2, 3, "line"),
     "quad": (2, 4, "line"),
     "tetra": (3, 4, "triangle"),
     "hexahedron": (3, 8, "quad"),
+    "triangle6": (2, 6, "line3"),
+    "quad8": (2, 8, "line3"),
+    "quad9": (2, 9, "line3"),
+    "tetra10": (3, 10, "triangle6"),
+    "hexahedron20": (3, 20, "quad8"),
+    "hexahedron27": (3, 27, "quad9"),
 }
 #: facet cell type -> nodes per facet
-FACET_TYPES = {"line": 2, "triangle": 3, "quad": 4}
+FACET_TYPES = {"line": 2, "triangle": 3, "quad": 4,
+               "line3": 3, "triangle6": 6, "quad8": 8, "quad9": 9}
+#: facet cell type -> corner nodes per facet (the first nodes of a facet row)
+FACET_CORNERS = {"line": 2, "triangle": 3, "quad": 4,
+                 "line3": 2, "triangle6": 3, "quad8": 4, "quad9": 4}
 
 
 @dataclass(frozen=True, eq=False)
@@ -131,13 +142,31 @@ def _index_array(values, bound, what, unique=False):
     return np.unique(a) if unique else a
 
 
-#: local node lists of the facets of each cell type (meshio / VTK node order)
+#: local node lists of the facets of each cell type (meshio / VTK node order), corner
+#: nodes first (counter-clockwise seen from outside in 3D), then the facet's midside
+#: nodes in the facet type's own order (line3: ends then middle; triangle6 / quad8:
+#: midside of corner edge (0, 1), (1, 2), ...; quad9: then the face centre)
 CELL_FACETS = {
     "triangle": [(0, 1), (1, 2), (2, 0)],
     "quad": [(0, 1), (1, 2), (2, 3), (3, 0)],
     "tetra": [(0, 2, 1), (0, 1, 3), (1, 2, 3), (0, 3, 2)],
     "hexahedron": [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4),
                    (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7)],
+    "triangle6": [(0, 1, 3), (1, 2, 4), (2, 0, 5)],
+    "quad8": [(0, 1, 4), (1, 2, 5), (2, 3, 6), (3, 0, 7)],
+    "quad9": [(0, 1, 4), (1, 2, 5), (2, 3, 6), (3, 0, 7)],
+    # tetra10 edges: 4 (0,1), 5 (1,2), 6 (0,2), 7 (0,3), 8 (1,3), 9 (2,3)
+    "tetra10": [(0, 2, 1, 6, 5, 4), (0, 1, 3, 4, 8, 7), (1, 2, 3, 5, 9, 8),
+                (0, 3, 2, 7, 9, 6)],
+    # hexahedron20 edges: 8 (0,1), 9 (1,2), 10 (2,3), 11 (3,0), 12 (4,5), 13 (5,6),
+    # 14 (6,7), 15 (7,4), 16 (0,4), 17 (1,5), 18 (2,6), 19 (3,7)
+    "hexahedron20": [(0, 3, 2, 1, 11, 10, 9, 8), (4, 5, 6, 7, 12, 13, 14, 15),
+                     (0, 1, 5, 4, 8, 17, 12, 16), (1, 2, 6, 5, 9, 18, 13, 17),
+                     (2, 3, 7, 6, 10, 19, 14, 18), (3, 0, 4, 7, 11, 16, 15, 19)],
+    # hexahedron27 face centres: 20 (x-), 21 (x+), 22 (y-), 23 (y+), 24 (z-), 25 (z+)
+    "hexahedron27": [(0, 3, 2, 1, 11, 10, 9, 8, 24), (4, 5, 6, 7, 12, 13, 14, 15, 25),
+                     (0, 1, 5, 4, 8, 17, 12, 16, 22), (1, 2, 6, 5, 9, 18, 13, 17, 21),
+                     (2, 3, 7, 6, 10, 19, 14, 18, 23), (3, 0, 4, 7, 11, 16, 15, 19, 20)],
 }
 
 

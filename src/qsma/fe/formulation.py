@@ -1,0 +1,139 @@
+"""Element formulations: which element a body is computed with, resolved from the mesh.
+
+A body's formulation is fixed by its mesh: the cell type (meshio name) and
+``Mesh.element``, the element name given by the source file (Abaqus/CalculiX names
+such as ``CPS4``, ``C3D8I``; ``None`` when the file names none, as Gmsh files do).
+Nothing is silently replaced: a name qsma does not implement is refused with a
+message, and :attr:`Formulation.label` (copied to ``AssembledBody.formulation``)
+says what was computed.
+
+Plane stress uses unit thickness, like plane strain uses unit depth: stiffness, mass
+and pressure loads are all per metre of thickness, so displacements, frequencies,
+mode shapes and contact pressures do not depend on the thickness as long as every
+body of the model has the same one (a section thickness in the source file is not
+read).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+import re
+
+from ..errors import InputError
+
+#: meshio cell type -> (element family text, Abaqus node-count digits, full integration)
+_CELLS = {
+    "triangle": ("3-node triangle (linear)", "3", "3-point rule"),
+    "quad": ("4-node quadrilateral (bilinear)", "4", "2x2 Gauss"),
+    "triangle6": ("6-node triangle (quadratic)", "6", "6-point rule"),
+    "quad8": ("8-node quadrilateral (serendipity)", "8", "3x3 Gauss"),
+    "quad9": ("9-node quadrilateral (biquadratic Lagrange)", "9", "3x3 Gauss"),
+    "tetra": ("4-node tetrahedron (linear)", "4", "4-point rule"),
+    "hexahedron": ("8-node hexahedron (trilinear)", "8", "2x2x2 Gauss"),
+    "tetra10": ("10-node tetrahedron (quadratic)", "10", "11-point rule"),
+    "hexahedron20": ("20-node hexahedron (serendipity)", "20", "3x3x3 Gauss"),
+    "hexahedron27": ("27-node hexahedron (triquadratic Lagrange)", "27", "3x3x3 Gauss"),
+}
+#: cells that have an incompatible-mode variant (Wilson-Taylor)
+_INCOMPATIBLE = {"quad", "hexahedron"}
+KINEMATICS = ("plane strain", "plane stress", "3d")
+
+
+@dataclass(frozen=True)
+class Formulation:
+    """The element formulation of one body.
+
+    Attributes
+    ----------
+    cell_type : meshio cell type of the mesh
+    kinematics : ``"plane strain"``, ``"plane stress"`` or ``"3d"``
+    incompatible : Wilson-Taylor incompatible modes (``CPE4I``, ``CPS4I``, ``C3D8I``)
+    source : element name given by the source file (``None``: none given)
+    """
+
+    cell_type: str
+    kinematics: str
+    incompatible: bool = False
+    source: str | None = None
+
+    def __post_init__(self):
+        if self.cell_type not in _CELLS:
+            raise InputError(f"no element formulation for cell type {self.cell_type!r}")
+        if self.kinematics not in KINEMATICS:
+            raise InputError(f"kinematics must be one of {KINEMATICS}, got "
+                             f"{self.kinematics!r}")
+        if self.incompatible and self.cell_type not in _INCOMPATIBLE:
+            raise InputError(f"incompatible modes exist for 4-node quadrilaterals and "
+                             f"8-node hexahedra only, not {self.cell_type!r}")
+
+    @property
+    def name(self) -> str:
+        """Abaqus-style name of what is computed (``CPE4I``, ``CPS8``, ``C3D20``; qsma
+        writes ``CPE9`` / ``C3D27`` for the 9- and 27-node Lagrange cells)."""
+        digits = _CELLS[self.cell_type][1]
+        prefix = {"plane strain": "CPE", "plane stress": "CPS", "3d": "C3D"}[self.kinematics]
+        return prefix + digits + ("I" if self.incompatible else "")
+
+    @property
+    def label(self) -> str:
+        """One line saying what is computed, e.g. ``"CPE4I: plane strain, 4-node
+        quadrilateral (bilinear), incompatible modes (Wilson-Taylor), 2x2 Gauss"``."""
+        family, _, rule = _CELLS[self.cell_type]
+        what = "incompatible modes (Wilson-Taylor QM6 with Taylor's correction)" \
+            if self.incompatible else "full integration"
+        if self.incompatible and self.kinematics == "3d":
+            what = "incompatible modes (Wilson-Taylor, 9 modes, Taylor's correction)"
+        kin = "" if self.kinematics == "3d" else f"{self.kinematics} (unit thickness), "
+        return f"{self.name}: {kin}{family}, {what}, {rule}"
+
+
+_ABAQUS = re.compile(r"^(CPE|CPS|CAX|CGAX|C3D)(\d+)([A-Z]*)$")
+
+
+def resolve_formulation(mesh) -> Formulation:
+    """The formulation of a body with mesh ``mesh`` (see the module docstring).
+
+    ``mesh.element`` ``None``: plane strain in 2D, full integration. Otherwise an
+    Abaqus/CalculiX name whose node count must match the cell type: ``CPE*`` plane
+    strain, ``CPS*`` plane stress, ``C3D*`` solid, suffix ``I`` incompatible modes.
+    Refused with :class:`InputError`: axisymmetric ``CAX*``, reduced integration
+    ``*R``, hybrid ``*H`` and other suffixes, node-count mismatches.
+    """
+    ct = mesh.cell_type
+    name = getattr(mesh, "element", None)
+    dim = mesh.dim
+    if name is None:
+        return Formulation(ct, "plane strain" if dim == 2 else "3d")
+    key = str(name).strip().upper()
+    m = _ABAQUS.match(key)
+    if m is None:
+        raise InputError(f"element type {name!r} is not an element qsma knows; supported: "
+                         f"CPE*/CPS* (2D plane strain / stress), C3D* (3D solids), with "
+                         f"suffix I for incompatible modes on 4-node quads / 8-node bricks")
+    family, digits, suffix = m.groups()
+    if family in ("CAX", "CGAX"):
+        raise InputError(f"element type {name!r} is axisymmetric; qsma does not implement "
+                         f"axisymmetric elements (they would need the hoop strain u_r / r "
+                         f"and the 2 pi r weight). Model the joint in 3D, or as plane "
+                         f"strain (CPE*) if that is what you mean")
+    if (family == "C3D") != (dim == 3):
+        raise InputError(f"element type {name!r} does not fit a {dim}D {ct!r} mesh")
+    expected = _CELLS[ct][1]
+    if digits != expected and not (ct == "quad9" and digits == "9"):
+        raise InputError(f"element type {name!r} has {digits} nodes but the mesh cells are "
+                         f"{ct!r} with {expected}; the mesh and the element name disagree")
+    if suffix == "R":
+        raise InputError(
+            f"element type {name!r} uses reduced integration, which qsma does not "
+            f"implement (no hourglass control: spurious zero-energy modes would corrupt "
+            f"the frequencies). Use the fully integrated {family}{digits}"
+            + (f" or the incompatible-mode {family}{digits}I (bending-accurate)"
+               if ct in _INCOMPATIBLE else "") + " instead")
+    if suffix not in ("", "I"):
+        raise InputError(f"element type {name!r}: suffix {suffix!r} (hybrid, modified, "
+                         f"coupled...) is not implemented; use {family}{digits}"
+                         + (f" or {family}{digits}I" if ct in _INCOMPATIBLE else ""))
+    if suffix == "I" and ct not in _INCOMPATIBLE:
+        raise InputError(f"element type {name!r}: incompatible modes exist for CPE4I/CPS4I"
+                         f"/C3D8I only")
+    kin = {"CPE": "plane strain", "CPS": "plane stress", "C3D": "3d"}[family]
+    return Formulation(ct, kin, suffix == "I", source=str(name))
