@@ -139,8 +139,10 @@ def _bar(k, n, width=40):
 
 def _summary(res, paths, verbose):
     info = res.model_info
-    print(f"{info['name']}: {info['n_nodes']} nodes, {info['n_pairs']} interface pairs, "
-          f"mu = {info['mu']}")
+    print(f"{info['name']}: {info['n_nodes']} nodes, {info['n_pairs']} interface pairs "
+          f"({info['coupling']} coupling), mu = {info['mu']}")
+    for body, element in info["elements"].items():
+        print(f"  {body}: {element}")
     print(f"mode {res.mode_index}: f0 = {res.f0_hz:.3f} Hz; {res.n_levels} load levels, "
           f"solver {res.solver['method']}")
     n_loop = int(np.sum(res.dissipation_method == "loop"))
