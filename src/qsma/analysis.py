@@ -347,9 +347,9 @@ def _scaled_preload(model, factor):
 
 def _unpickle_prepared(model, pairing, assembled, schur_backend, mu, scale):
     clock = _Timer()
-    base = Prepared(model, pairing, assembled,
-                    _condense(model, assembled, pairing, schur_backend, clock), 1.0,
-                    schur_backend, clock.t, {})
+    with threads_limited(threads_for(pairing.n_pairs * model.dim)):  # as prepare(): the
+        reduced = _condense(model, assembled, pairing, schur_backend, clock)  # same bits
+    base = Prepared(model, pairing, assembled, reduced, 1.0, schur_backend, clock.t, {})
     base = base.with_mu(mu)
     return base.with_preload_scale(scale) if scale != 1.0 else base
 

@@ -12,10 +12,10 @@ import traceback
 import warnings
 
 from ..errors import AnalysisError, ContactConvergenceWarning, InputError, QSMAError
-from . import modes as _modes, run as _run
+from . import modes as _modes, run as _run, sweep as _sweep
 
 EXIT_OK, EXIT_FAILED, EXIT_INPUT = 0, 1, 2
-SUBCOMMANDS = {"run": _run, "modes": _modes}
+SUBCOMMANDS = {"run": _run, "modes": _modes, "sweep": _sweep}
 
 
 def build_parser():

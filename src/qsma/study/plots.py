@@ -44,7 +44,7 @@ def plot_parameter(table, parameter, others, path):
     a2.set_xlabel("peak tip deflection [m]")
     a1.set_title(f"Study over {parameter}")
     for a in (a1, a2):
-        a.grid(True, which="both", alpha=0.3)
+        a.grid(True, alpha=0.3)
     if len(rows) <= 12:
         a1.legend(fontsize=7)
     return _save(fig, path)

@@ -236,7 +236,7 @@ def _model_with_materials(model, key):
     for b, over in zip(model.bodies, key):
         if over:
             m = b.material
-            vals = dict(E=m.E, nu=m.nu, rho=m.rho, **dict(over))
+            vals = {**dict(E=m.E, nu=m.nu, rho=m.rho), **dict(over)}
             b = replace(b, material=Material(vals["E"], vals["nu"], vals["rho"]))
         bodies.append(b)
     return replace(model, bodies=tuple(bodies))
@@ -389,7 +389,8 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
     key_of = lambda c: _material_key(c, len(model.bodies), names)
     serial = scheduler == "serial" or (scheduler is None and workers == 0)
     run = _run_serial if serial else _run_dask
-    for outcome in run(groups, key_of, todo, options, out, files, scheduler, workers):
+    for outcome in (run(groups, key_of, todo, options, out, files, scheduler, workers)
+                    if todo else ()):
         outcomes[outcome.index] = outcome
         if progress is not None:
             progress(len(outcomes), n_total)
