@@ -30,7 +30,8 @@ def add_arguments(p):
     p.add_argument("--mode", type=int, help="mode index of every case")
     p.add_argument("--method", help="contact solver of every case")
     p.add_argument("--case-files", default="", metavar="KINDS",
-                   help="per-case files besides results.json/csv: plots,vtu")
+                   help="per-case files besides results.json/csv: plots, vtu, rom "
+                        "(rom.json: a fitted modal Iwan model)")
     p.add_argument("--no-plots", action="store_true", help="skip the study figures")
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
 

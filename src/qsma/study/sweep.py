@@ -53,7 +53,7 @@ DONE_NAME = "case.done.json"
 #: Workers of the default local cluster: one process per core of the 2-core machines
 #: this package is developed on; ``workers=`` or ``--workers`` changes it.
 DEFAULT_WORKERS = 2
-CASE_FILES = ("plots", "vtu")
+CASE_FILES = ("plots", "vtu", "rom")
 
 
 @dataclass(frozen=True)
@@ -282,6 +282,9 @@ def run_case(prepared, case: Case, options: RunOptions, folder, files=()) -> Cas
                                   if parameter_kind(k) == "option"})
         res = run_prepared(p, opts)
         write_all(res, folder, plots="plots" in files, vtu="vtu" in files)
+        if "rom" in files and res.n_levels:
+            from ..rom import export_rom
+            export_rom(res, Path(folder) / "rom.json")
         if not res.success:
             status, message = "unsuccessful", res.message
     except QSMAError as exc:
@@ -338,8 +341,8 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
         or a client: that scheduler (the workers must see ``out``).
     workers : int
         Processes of the local cluster.
-    files : iterable of {"plots", "vtu"}
-        Per-case files besides results.json and results.csv.
+    files : iterable of {"plots", "vtu", "rom"}
+        Per-case files besides results.json and results.csv (rom: :mod:`qsma.rom`).
     plots : bool
         Study figures (frequency and damping versus amplitude per parameter).
     progress : callable, optional
