@@ -54,6 +54,9 @@ DONE_NAME = "case.done.json"
 #: this package is developed on; ``workers=`` or ``--workers`` changes it.
 DEFAULT_WORKERS = 2
 CASE_FILES = ("plots", "vtu", "rom")
+#: Run options a sweep does not vary: the BLAS thread count does not change results,
+#: the condensation backend is fixed when the shared preparation is made.
+NOT_SWEPT = ("blas_threads", "schur_backend")
 
 
 @dataclass(frozen=True)
@@ -113,12 +116,11 @@ def parameter_kind(name: str) -> str:
         return "model"
     if base in MATERIAL_PARAMETERS:
         return "material"
-    if name in RunOptions.__dataclass_fields__ and name not in ("blas_threads",
-                                                                 "schur_backend"):
+    options = sorted(set(RunOptions.__dataclass_fields__) - set(NOT_SWEPT))
+    if name in options:
         return "option"
     raise InputError(f"unknown sweep parameter {name!r}; valid: mu, preload, "
-                     f"E|nu|rho[:BODY], or a run option "
-                     f"{sorted(set(RunOptions.__dataclass_fields__) - {'blas_threads', 'schur_backend'})}")
+                     f"E|nu|rho[:BODY], or a run option {options}")
 
 
 def parse_values(name: str, spec) -> list:
@@ -439,8 +441,15 @@ def _run_dask(groups, key_of, todo, options, out, files, scheduler, workers):
                          f"install it or use scheduler='serial' (--workers 0)") from None
     cluster = None
     if scheduler is None:
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=logging.ERROR)
+        try:
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
+                                   processes=True, dashboard_address=None,
+                                   silence_logs=logging.ERROR)
+        except Exception as exc:    # e.g. no process spawning in a sandbox
+            raise QSMAError(f"a local Dask cluster of {workers} processes could not "
+                            f"start ({type(exc).__name__}: {exc}); run the cases serially "
+                            f"(--workers 0, scheduler='serial') or give --scheduler "
+                            f"ADDRESS") from exc
         client = Client(cluster)
     elif isinstance(scheduler, str):
         try:
