@@ -67,8 +67,10 @@ def test_grid_is_the_cartesian_product_last_fastest():
 def test_values_of_options_are_typed():
     assert parse_values("mode", "0:2:3") == [0, 1, 2]
     assert parse_values("method", "basket,active_set") == ["basket", "active_set"]
-    lv = parse_values("levels", "tip:log:1e-6:1e-3:5;tip:list:1e-5,1e-4")
+    lv = parse_values("levels", [LEVELS, qsma.Levels("tip", (1e-5, 1e-4))])
     assert [len(v.values) for v in lv] == [5, 2]
+    with pytest.raises(InputError, match="qsma.Levels"):
+        parse_values("levels", "tip:log:1e-6:1e-3:5")
 
 
 @pytest.mark.parametrize("name, spec, words", [
@@ -138,7 +140,7 @@ def test_material_of_one_body_reassembles_that_body_only(model, tmp_path):
 
 def test_a_failing_case_is_recorded_and_the_others_go_on(model, tmp_path):
     res = sweep(model, {"mode": [7, 0]}, OPTIONS.replace(n_modes=6), out=tmp_path,
-                scheduler="serial", plots=False)
+                scheduler="serial", plots=False, files=("rom",))
     assert not res.success and res.n_failed == 1
     bad, good = res.cases
     assert bad.status == "failed" and "mode index 7" in bad.message
@@ -147,6 +149,8 @@ def test_a_failing_case_is_recorded_and_the_others_go_on(model, tmp_path):
     assert table["status"].count("failed") == 1 and table["level"][0] == ""
     assert len(table["case"]) == 1 + 5
     assert json.loads((tmp_path / "case-0000" / DONE_NAME).read_text())["status"] == "failed"
+    assert (tmp_path / "case-0001" / "rom.json").exists()
+    assert not (tmp_path / "case-0000" / "rom.json").exists()
 
 
 def test_an_interrupted_study_resumes_with_the_cases_not_done(model, serial, tmp_path):
@@ -212,6 +216,17 @@ def test_cli_sweep_writes_the_table_and_figures(tmp_path):
     assert table["mu"] == ["0.3"] * 3 + ["0.6"] * 3
     assert (out / "sweep_mu.png").stat().st_size > 0
     assert (out / "case-0001" / "results.json").exists()
+
+
+def test_cli_levels_as_a_varied_parameter(tmp_path):
+    out = tmp_path / "study"
+    rc = main(["sweep", "--example", "sandwich-2d", "--vary",
+               "levels=tip:log:1e-6:1e-3:3;tip:list:1e-6,1e-3", "--workers", "0",
+               "--no-plots", "--out", str(out), "-q"])
+    assert rc == 0
+    table = read_table(out / "study.csv")
+    assert table["case"] == ["0"] * 3 + ["1"] * 2
+    assert table["tip_lin"][-1] == table["tip_lin"][2] == "0.001"
 
 
 def test_cli_names_a_bad_vary(tmp_path, capsys):

@@ -60,6 +60,8 @@ def execute(args) -> int:
         raise InputError("--workers sets up a local cluster; with --scheduler the "
                          "scheduler's workers are used: give one of them")
     vary = parse_vary(args.vary)
+    if "levels" in vary:
+        vary["levels"] = [parse_levels_spec(s) for s in vary["levels"].split(";") if s]
     files = tuple(f for f in args.case_files.split(",") if f)
     model, options = load_model(args)
     options = options.replace(mode=args.mode, method=args.method,

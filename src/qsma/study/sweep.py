@@ -124,15 +124,14 @@ def parameter_kind(name: str) -> str:
 
 
 def parse_values(name: str, spec) -> list:
-    """Values of a parameter from ``START:STOP:N`` (N evenly spaced, ends included),
-    ``V1,V2,...`` or, for ``levels``, level specs separated by ``;``
-    (``tip:log:1e-6:1e-3:5;tip:log:1e-6:1e-2:5``). A list or tuple is taken as is."""
+    """Values of a parameter from ``START:STOP:N`` (N evenly spaced, ends included) or
+    ``V1,V2,...``; a list or tuple is taken as is (``levels``: :class:`qsma.Levels`)."""
     parameter_kind(name)
     if not isinstance(spec, str):
         values = list(spec) if isinstance(spec, (list, tuple, np.ndarray)) else [spec]
     elif name == "levels":
-        from ..cli.run import parse_levels_spec
-        values = [parse_levels_spec(s) for s in spec.split(";") if s]
+        raise InputError(f"levels values must be qsma.Levels objects, got the text "
+                         f"{spec!r} (the command line parses level specs)")
     else:
         parts = spec.split(":")
         try:
