@@ -9,7 +9,9 @@ from scipy.integrate import quad
 import qsma
 from qsma.errors import InputError
 from qsma.examples import sandwich_2d
-from qsma.rom import Iwan4, ModalIwan, export_rom, fit_iwan, read_rom
+from qsma.masing import masing
+from qsma.rom import (Iwan4, JenkinsSeries, ModalIwan, export_rom, fit_iwan, fit_jenkins,
+                      read_rom)
 
 #: The tied first mode of sandwich-2d (212.5 Hz, tests/test_analysis.py) and Iwan
 #: parameters spanning Segalman's lap-joint identifications (-1 < chi <= 0, beta >= 0).
@@ -82,3 +84,40 @@ def test_rom_json_of_a_sandwich_run(tmp_path):
     assert np.allclose(back.alpha(res.q), lv["alpha_fit"], rtol=1e-12)
     # the tied stiffness at small amplitude is kept by construction
     assert back.frequency(1e-12 * res.q[0]) == pytest.approx(res.f0_hz, rel=1e-6)
+
+
+# --------------------------------------------------------------- modal Jenkins series
+
+#: A series with slip amplitudes on the default log grid of a 1e-6..1e-3 backbone and
+#: two elements switched off (NNLS must find the zeros too).
+SLIP = np.logspace(-6, -3, 9)[:-1]
+K_SERIES = np.array([1e5, 3e4, 0.0, 2e4, 5e3, 1e4, 0.0, 2e3])
+
+
+def test_jenkins_fit_recovers_a_known_series():
+    known = JenkinsSeries(4e5, tuple(K_SERIES), tuple(SLIP))
+    q = np.logspace(-6, -3, 40)
+    series, err = fit_jenkins(q, known.alpha(q))
+    assert series.k_inf == pytest.approx(known.k_inf, rel=1e-6)
+    assert np.allclose(series.stiffness, K_SERIES, rtol=0, atol=1e-6 * K_SERIES.max())
+    assert np.max(np.abs(err)) < 1e-9
+
+
+def test_jenkins_dissipation_is_masing_of_its_backbone():
+    """On a grid holding every slip amplitude the backbone is piecewise linear, so the
+    trapezoidal Masing integral of qsma.masing is exact."""
+    known = JenkinsSeries(4e5, tuple(K_SERIES), tuple(SLIP))
+    q = np.union1d(np.logspace(-6.5, -2.5, 30), SLIP)
+    D = masing(known.alpha(q), q).dissipation
+    assert np.allclose(known.dissipation(q), D, rtol=1e-9, atol=1e-12 * D.max())
+
+
+def test_iwan_dissipation_is_masing_of_its_backbone():
+    """The closed-form dissipation agrees with Masing's rule applied to the closed-form
+    backbone, to the trapezoidal error of a fine grid."""
+    el = KNOWN[0]
+    m = ModalIwan(OMEGA0, el)
+    q = np.logspace(np.log10(el.phi_max) - 4, np.log10(el.phi_max) + 0.3, 4000)
+    D = masing(m.alpha(q), q).dissipation
+    sel = slice(2000, None)
+    assert np.allclose(D[sel], el.dissipation(q[sel]), rtol=1e-3)

@@ -269,7 +269,7 @@ def run_case(prepared, case: Case, options: RunOptions, folder, files=()) -> Cas
     done-marker. Errors are caught and recorded: a case never stops the study."""
     from ..analysis import run_prepared
     from ..results import atomic_write, prepare_output_dir, write_all
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     params = case.as_dict()
     status, message = "ok", "all levels converged"
     folder = prepare_output_dir(folder)
@@ -294,7 +294,7 @@ def run_case(prepared, case: Case, options: RunOptions, folder, files=()) -> Cas
         status, message = "failed", f"internal error {type(exc).__name__}: {exc}"
     seconds = time.perf_counter() - t0
     marker = dict(index=case.index, params=case.json_params(), status=status,
-                  message=message, seconds=seconds)
+                  message=message, seconds=seconds, cpu_seconds=time.process_time() - c0)
     atomic_write(Path(folder) / DONE_NAME, json.dumps(marker, indent=1) + "\n")
     return CaseOutcome(case.index, params, status, message, seconds, str(folder))
 
