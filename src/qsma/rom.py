@@ -227,6 +227,10 @@ def fit_iwan(q, alpha, omega0, *, rtol=1e-12) -> IwanFit:
 #: to integrate, and 8 log-spaced slip amplitudes over the 3 decades of the spec's
 #: levels put about 3 per decade (the fit error per level in rom.json tells if not).
 JENKINS_ELEMENTS = 8
+#: A secant stiffness within this of the first level's is the linear (stuck) range,
+#: where no element is placed: QSMA's stuck levels of sandwich-2d match the tied
+#: stiffness to 1e-9 (docs/theory.md, STUCK_FREQUENCY_RTOL 1e-6 on the frequency).
+LINEAR_RTOL = 1e-6
 
 
 @dataclass(frozen=True)
@@ -265,13 +269,16 @@ class JenkinsSeries:
 
 def fit_jenkins(q, alpha, slip=None, n_elements=JENKINS_ELEMENTS):
     r"""Fit a :class:`JenkinsSeries` with slip amplitudes ``slip`` (default
-    ``n_elements`` log-spaced from the first to the last q) to a backbone: the backbone
+    ``n_elements`` log-spaced from the last level whose secant stiffness is that of
+    the first level, to :data:`LINEAR_RTOL`, to the last level) to a backbone: the backbone
     is linear in :math:`(k_\infty, k_i)`, fitted by non-negative least squares of the
     relative error. Returns ``(series, relative error per level)``."""
     from scipy.optimize import nnls
     q, alpha = np.asarray(q, float), np.asarray(alpha, float)
     if slip is None:
-        slip = np.logspace(np.log10(q[0]), np.log10(q[-1]), n_elements + 1)[:-1]
+        soft = np.flatnonzero(alpha / q < (1 - LINEAR_RTOL) * alpha[0] / q[0])
+        start = q[max(soft[0] - 1, 0)] if soft.size else q[0]
+        slip = np.logspace(np.log10(start), np.log10(q[-1]), n_elements + 1)[:-1]
     slip = np.asarray(slip, float)
     A = np.column_stack([q, np.minimum(q[:, None], slip)]) / alpha[:, None]
     x, _ = nnls(A, np.ones(len(q)), maxiter=50 * A.shape[1])
