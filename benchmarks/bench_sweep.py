@@ -57,7 +57,7 @@ def main():
             res = qsma.sweep(model, {"mu": mus}, opts, out=d, plots=False, **kw)
             assert res.success, res.message
             return sum(json.load(open(f))["cpu_seconds"]
-                       for f in glob.glob(os.path.join(d, "case-*", "case.done.json")))
+                       for f in glob.glob(os.path.join(d, "case-*.done.json")))
 
     ways = {"separate runs": separate,
             "serial sweep": lambda: study(scheduler="serial"),

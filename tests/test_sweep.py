@@ -15,7 +15,7 @@ from qsma.errors import InputError
 from qsma.examples import sandwich_2d
 from qsma.model import Material, Pressure
 from qsma.study import grid, parse_values, read_table, sweep
-from qsma.study.sweep import DONE_NAME
+from qsma.study.sweep import done_path
 
 #: 5 levels over the spec's range of linear tied tip deflection (1 um .. 1 mm): small
 #: enough for a test, wide enough to cross from stuck to gross slip on sandwich-2d.
@@ -148,16 +148,16 @@ def test_a_failing_case_is_recorded_and_the_others_go_on(model, tmp_path):
     table = read_table(tmp_path / "study.csv")
     assert table["status"].count("failed") == 1 and table["level"][0] == ""
     assert len(table["case"]) == 1 + 5
-    assert json.loads((tmp_path / "case-0000" / DONE_NAME).read_text())["status"] == "failed"
-    assert (tmp_path / "case-0001" / "rom.json").exists()
-    assert not (tmp_path / "case-0000" / "rom.json").exists()
+    assert json.loads(done_path(tmp_path / "case-0000").read_text())["status"] == "failed"
+    assert (tmp_path / "case-0001.rom.json").exists()
+    assert not (tmp_path / "case-0000.rom.json").exists()
 
 
 def test_an_interrupted_study_resumes_with_the_cases_not_done(model, serial, tmp_path):
     res, out = serial
     import shutil
     shutil.copytree(out, tmp_path, dirs_exist_ok=True)
-    (tmp_path / "case-0001" / DONE_NAME).unlink()        # as if killed during case 1
+    done_path(tmp_path / "case-0001").unlink()        # as if killed during case 1
     again = sweep(model, {"mu": [0.3, 0.6], "preload": [1.5]}, OPTIONS, out=tmp_path,
                   scheduler="serial", plots=False)
     assert [c.skipped for c in again.cases] == [True, False]

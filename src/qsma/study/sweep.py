@@ -31,6 +31,7 @@ import io
 import itertools
 import json
 import logging
+import os
 from pathlib import Path
 import time
 
@@ -48,8 +49,10 @@ MODEL_PARAMETERS = ("mu", "preload")
 MATERIAL_PARAMETERS = ("E", "nu", "rho")
 #: File names inside the study folder (docs/studies.md describes each).
 STUDY_NAME, TABLE_NAME, PARQUET_NAME = "study.json", "study.csv", "study.parquet"
-#: Written last into a case folder: its presence marks the case as done.
-DONE_NAME = "case.done.json"
+#: Written beside a case folder (``case-0003.done.json``) once the case is finished:
+#: its presence marks the case as done. Outside the folder, so that the folder is
+#: exactly what ``qsma run`` writes (a result folder holds one run and nothing else).
+DONE_SUFFIX = ".done.json"
 #: Workers of the default local cluster: one process per core of the 2-core machines
 #: this package is developed on; ``workers=`` or ``--workers`` changes it.
 DEFAULT_WORKERS = 2
@@ -268,11 +271,10 @@ def run_case(prepared, case: Case, options: RunOptions, folder, files=()) -> Cas
     """Run one case from its group's preparation, write its folder and, last, its
     done-marker. Errors are caught and recorded: a case never stops the study."""
     from ..analysis import run_prepared
-    from ..results import atomic_write, prepare_output_dir, write_all
+    from ..results import atomic_write, write_all
     t0, c0 = time.perf_counter(), time.process_time()
     params = case.as_dict()
     status, message = "ok", "all levels converged"
-    folder = prepare_output_dir(folder)
     try:
         p = prepared
         if "mu" in params:
@@ -285,7 +287,7 @@ def run_case(prepared, case: Case, options: RunOptions, folder, files=()) -> Cas
         write_all(res, folder, plots="plots" in files, vtu="vtu" in files)
         if "rom" in files and res.n_levels:
             from ..rom import export_rom
-            export_rom(res, Path(folder) / "rom.json")
+            export_rom(res, Path(folder).with_name(Path(folder).name + ".rom.json"))
         if not res.success:
             status, message = "unsuccessful", res.message
     except QSMAError as exc:
@@ -295,13 +297,19 @@ def run_case(prepared, case: Case, options: RunOptions, folder, files=()) -> Cas
     seconds = time.perf_counter() - t0
     marker = dict(index=case.index, params=case.json_params(), status=status,
                   message=message, seconds=seconds, cpu_seconds=time.process_time() - c0)
-    atomic_write(Path(folder) / DONE_NAME, json.dumps(marker, indent=1) + "\n")
+    atomic_write(done_path(folder), json.dumps(marker, indent=1) + "\n")
     return CaseOutcome(case.index, params, status, message, seconds, str(folder))
+
+
+def done_path(folder) -> Path:
+    """The done-marker of the case folder ``folder``: ``<folder>.done.json``."""
+    folder = Path(folder)
+    return folder.with_name(folder.name + DONE_SUFFIX)
 
 
 def _done(case, folder):
     """The outcome recorded in ``folder`` for ``case``, or None if it is not done."""
-    path = Path(folder) / DONE_NAME
+    path = done_path(folder)
     if not path.exists():
         return None
     marker = json.loads(path.read_text())
@@ -343,7 +351,8 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
     workers : int
         Processes of the local cluster.
     files : iterable of {"plots", "vtu", "rom"}
-        Per-case files besides results.json and results.csv (rom: :mod:`qsma.rom`).
+        Per-case files besides results.json and results.csv (rom: :mod:`qsma.rom`,
+        written beside the case folder as ``case-NNNN.rom.json``).
     plots : bool
         Study figures (frequency and damping versus amplitude per parameter).
     progress : callable, optional
@@ -354,7 +363,7 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
     SweepResult
     """
     from ..config import RunConfig
-    from ..results import atomic_write, prepare_output_dir
+    from ..results import atomic_write
     t0 = time.perf_counter()
     if isinstance(model_or_config, RunConfig):
         model = model_or_config.model
@@ -370,7 +379,7 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
         raise InputError(f"workers must be an integer >= 0, got {workers!r}")
     cases = grid(vary)
     _check_bodies(cases, model)
-    out = prepare_output_dir(out)
+    out = _study_dir(out)
     study = dict(model=model.name, parameters=list(vary), n_cases=len(cases),
                  cases=[c.json_params() for c in cases])
     _check_study(out / STUDY_NAME, study)
@@ -413,6 +422,22 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
     return SweepResult(not bad, message, ordered, table, paths, tuple(vary), len(failed),
                        sum(o.skipped for o in ordered),
                        dict(prepare=t_prep, total=time.perf_counter() - t0))
+
+
+def _study_dir(out) -> Path:
+    """Create the study folder if needed and check that it can be written, before any
+    computation (the case folders inside it are result folders of their own)."""
+    import tempfile
+    out = Path(out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=".qsma-study-write-check-", dir=out)
+        os.close(fd)
+        os.unlink(tmp)
+    except OSError as exc:
+        raise InputError(f"study folder {str(out)!r} cannot be written ({exc.strerror}); "
+                         f"choose another --out folder or fix its permissions") from exc
+    return out
 
 
 def _check_study(path, study):
