@@ -191,8 +191,9 @@ def client():
 
 def test_two_dask_workers_give_the_serial_table(model, serial, client, tmp_path):
     res, _ = serial
+    # by address, as --scheduler tcp://host:port: the sweep connects its own client
     par = sweep(model, {"mu": [0.3, 0.6], "preload": [1.5]}, OPTIONS, out=tmp_path,
-                scheduler=client, plots=False)
+                scheduler=client.scheduler.address, plots=False)
     assert par.success, par.message
     assert len(client.scheduler_info()["workers"]) == 2
     assert list(par.table) == list(res.table)
