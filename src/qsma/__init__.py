@@ -16,6 +16,12 @@ def run(model, options=None, **overrides):
     return _run(model, options, **overrides)
 
 
+def sweep(model_or_config, vary, options=None, **kwargs):
+    """A parameter study over ``vary``; see :func:`qsma.study.sweep`."""
+    from .study import sweep as _sweep
+    return _sweep(model_or_config, vary, options, **kwargs)
+
+
 def __getattr__(name):
     """Lazy access to the heavier public names (they import scikit-fem, meshio)."""
     if name == "QSMAResult":
@@ -30,5 +36,5 @@ def __getattr__(name):
     raise AttributeError(f"module 'qsma' has no attribute {name!r}")
 
 
-__all__ = ["run", "RunOptions", "Levels", "QSMAResult", "Model", "read_mesh", "write_all",
+__all__ = ["run", "sweep", "RunOptions", "Levels", "QSMAResult", "Model", "read_mesh", "write_all",
            "__version__"]

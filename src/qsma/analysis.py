@@ -259,20 +259,158 @@ def run(model, options: RunOptions | None = None, *, progress=None, **overrides)
         return _run(model, pairing, opts, progress, clock)
 
 
+@dataclass(frozen=True, eq=False)
+class Prepared:
+    r"""The part of a run that a parameter study shares between its cases.
+
+    Assembly and static condensation do not depend on the friction coefficient nor on
+    the scale of the preload: the condensed loads are linear in the applied pressures,
+    so scaling the 'preload' pattern by :math:`s` scales its columns of
+    :math:`F_c` and of the welded contact force :math:`W` by :math:`s`. The tied modes
+    depend only on the pairs closed by the preload: they are cached by that mask.
+    Pickling keeps the model, pairing and assembled matrices; the factorisations of
+    the condensation are remade once where the object is unpickled (a Dask worker).
+
+    Attributes
+    ----------
+    model : the model of the cases (its ``mu`` and preload pressures are the case's)
+    pairing, assembled : interface pairing and the assembled bodies
+    reduced : :class:`qsma.condense.ReducedModel` with the 'preload' pattern
+    preload_scale : factor applied to the 'preload' pattern of the model it was made from
+    schur_backend : condensation backend used
+    timings_s : seconds per stage of the preparation
+    """
+
+    model: object
+    pairing: object
+    assembled: tuple
+    reduced: object
+    preload_scale: float = 1.0
+    schur_backend: str = "auto"
+    timings_s: dict = None
+    cache: dict = None
+
+    def __reduce__(self):
+        base = replace(self, model=_scaled_preload(self.model, 1 / self.preload_scale),
+                       preload_scale=1.0) if self.preload_scale != 1.0 else self
+        return (_unpickle_prepared, (base.model, base.pairing, base.assembled,
+                                     base.schur_backend, self.model.mu, self.preload_scale))
+
+    def with_mu(self, mu) -> "Prepared":
+        """The same preparation for friction coefficient ``mu`` (nothing recomputed)."""
+        return replace(self, model=replace(self.model, mu=mu))
+
+    def with_preload_scale(self, scale) -> "Prepared":
+        """The same preparation with every pressure of the 'preload' pattern multiplied
+        by ``scale`` relative to the model it was prepared from (no re-assembly)."""
+        if not (np.isfinite(scale) and scale > 0):
+            raise InputError(f"the preload scale must be a positive finite number, "
+                             f"got {scale!r}")
+        factor = scale / self.preload_scale
+        j = self.reduced.patterns.index("preload")
+        col = lambda A: np.column_stack([A[:, i] * factor if i == j else A[:, i]
+                                         for i in range(A.shape[1])])
+        reduced = replace(self.reduced, W=col(self.reduced.W),
+                          Fc=tuple(col(F) for F in self.reduced.Fc),
+                          loads=tuple(col(L) for L in self.reduced.loads))
+        return replace(self, model=_scaled_preload(self.model, factor), reduced=reduced,
+                       preload_scale=float(scale))
+
+    def preloaded(self, opts, clock):
+        """``(reduced, problem, preload result)`` for this model's mu and preload scale,
+        cached (the preload does not depend on the load levels nor on the mode)."""
+        key = ("preload", float(self.model.mu), self.preload_scale, opts.method,
+               tuple(sorted(opts.solver_options.items())))
+        if key not in self.cache:
+            self.cache[key] = preload(self.model, self.assembled, self.pairing,
+                                      method=opts.method, opts=opts.solver_options,
+                                      clock=clock, reduced=self.reduced)
+        return self.cache[key]
+
+    def mode(self, closed, opts, clock):
+        """:func:`_mode` cached by the mask of closed pairs, the mode and ``n_modes``."""
+        key = ("mode", np.asarray(closed, bool).tobytes(), opts.mode, opts.n_modes)
+        if key not in self.cache:
+            self.cache[key] = _mode(self.model, self.assembled, self.pairing, closed, opts,
+                                    clock)
+        return self.cache[key]
+
+
+def _scaled_preload(model, factor):
+    """``model`` with every pressure of the 'preload' pattern multiplied by ``factor``."""
+    from .model import Pressure
+    bodies = tuple(replace(b, pressures=tuple(
+        Pressure(p.set, p.p * factor, p.load) if p.load == "preload" else p
+        for p in b.pressures)) for b in model.bodies)
+    return replace(model, bodies=bodies)
+
+
+def _unpickle_prepared(model, pairing, assembled, schur_backend, mu, scale):
+    clock = _Timer()
+    with threads_limited(threads_for(pairing.n_pairs * model.dim)):  # as prepare(): the
+        reduced = _condense(model, assembled, pairing, schur_backend, clock)  # same bits
+    base = Prepared(model, pairing, assembled, reduced, 1.0, schur_backend, clock.t, {})
+    base = base.with_mu(mu)
+    return base.with_preload_scale(scale) if scale != 1.0 else base
+
+
+def prepare(model, options: RunOptions | None = None, *, assembled=None) -> Prepared:
+    """Pairing, assembly and static condensation of ``model``: the work a parameter
+    study does once (:class:`Prepared`; :func:`run_prepared` does the rest).
+
+    ``assembled``: per body, an :class:`qsma.fe.AssembledBody` to reuse (``None``
+    entries are assembled), e.g. when only one body's material changes.
+    """
+    opts = options or RunOptions()
+    if len(model.bodies) != 2:
+        raise InputError(f"QSMA needs exactly two bodies joined by the interface, "
+                         f"got {len(model.bodies)}")
+    clock = _Timer()
+    with clock.stage("model"):
+        pairing = make_pairing(model)
+    limit = threads_for(pairing.n_pairs * model.dim) if opts.blas_threads == "auto" \
+        else opts.blas_threads
+    with threads_limited(limit):
+        assembled = _assemble(model, clock, keep=assembled)
+        reduced = _condense(model, assembled, pairing, opts.schur_backend, clock)
+    return Prepared(model, pairing, tuple(assembled), reduced, 1.0, opts.schur_backend,
+                    clock.done(), {})
+
+
+def run_prepared(prepared: Prepared, options: RunOptions | None = None, *, progress=None,
+                 **overrides) -> QSMAResult:
+    """The stages of :func:`run` after the condensation (preload, tied modes, ramps,
+    hysteresis) on a :class:`Prepared`; equals ``run(prepared.model, options)``.
+
+    ``options.schur_backend`` is that of the preparation. The stage timings of the
+    result count only the work done here (assembly and condensation are 0).
+    """
+    try:
+        opts = replace(options or RunOptions(), **overrides)
+    except TypeError as exc:
+        raise InputError(f"qsma.run_prepared: {exc}; valid options: "
+                         f"{sorted(RunOptions.__dataclass_fields__)}") from None
+    clock = _Timer()
+    model, pairing = prepared.model, prepared.pairing
+    limit = threads_for(pairing.n_pairs * model.dim) if opts.blas_threads == "auto" \
+        else opts.blas_threads
+    with threads_limited(limit):
+        return _run(model, pairing, opts, progress, clock, prepared)
+
+
 def preload(model, assembled, pairing, *, method="basket", opts=None, schur_backend="auto",
-            clock=None):
+            clock=None, reduced=None):
     """Condense the assembled bodies and solve the bolt preload with frictional contact.
 
+    ``reduced``: the condensed model if already made (:func:`prepare`), else it is made.
     Returns ``(reduced, problem, result)``. Raises :class:`AnalysisError` if the solve
     fails or leaves no pair in contact (tied modes of a disconnected assembly would be
     meaningless).
     """
     clock = _Timer() if clock is None else clock
-    i1 = model.body_index(model.interface.body1)
-    i2 = model.body_index(model.interface.body2)
+    if reduced is None:
+        reduced = _condense(model, assembled, pairing, schur_backend, clock)
     with clock.stage("condensation"):
-        reduced = reduce_two_bodies(assembled[i1], assembled[i2], pairing,
-                                    backend=schur_backend)
         problem = ContactProblem(reduced.K, model.mu, dim=model.dim)
     with clock.stage("contact"):
         pre, _ = _solve(problem, reduced, 0.0, None, method, opts or {}, "preload")
@@ -287,9 +425,20 @@ def preload(model, assembled, pairing, *, method="basket", opts=None, schur_back
     return reduced, problem, pre
 
 
-def _assemble(model, clock):
+def _condense(model, assembled, pairing, schur_backend, clock):
+    """The two-body reduced model with the 'preload' pattern (static condensation)."""
+    i1 = model.body_index(model.interface.body1)
+    i2 = model.body_index(model.interface.body2)
+    with clock.stage("condensation"):
+        return reduce_two_bodies(assembled[i1], assembled[i2], pairing,
+                                 backend=schur_backend)
+
+
+def _assemble(model, clock, keep=None):
+    """Assembled bodies; ``keep[k]``, if given and not None, is reused for body ``k``."""
+    keep = [None] * len(model.bodies) if keep is None else list(keep)
     with clock.stage("assembly"):
-        assembled = [assemble_body(b) for b in model.bodies]
+        assembled = [assemble_body(b) if a is None else a for b, a in zip(model.bodies, keep)]
         for a in assembled:
             for name, F in a.loads.items():
                 if name != "preload":
@@ -326,15 +475,23 @@ def _mode(model, assembled, pairing, closed, opts, clock):
     return modes, phi, phi_tip, float(modes.omega[mode]), ltip
 
 
-def _run(model, pairing, opts, progress, clock):
+def _run(model, pairing, opts, progress, clock, prepared=None):
     i1 = model.body_index(model.interface.body1)
     i2 = model.body_index(model.interface.body2)
     sopts = opts.solver_options
-    assembled = _assemble(model, clock)
-    reduced, problem, pre = preload(model, assembled, pairing, method=opts.method, opts=sopts,
-                                    schur_backend=opts.schur_backend, clock=clock)
-    closed = pre.status != OPEN
-    modes, phi, phi_tip, omega0, ltip = _mode(model, assembled, pairing, closed, opts, clock)
+    if prepared is None:
+        assembled = _assemble(model, clock)
+        reduced, problem, pre = preload(model, assembled, pairing, method=opts.method,
+                                        opts=sopts, schur_backend=opts.schur_backend,
+                                        clock=clock)
+        closed = pre.status != OPEN
+        modes, phi, phi_tip, omega0, ltip = _mode(model, assembled, pairing, closed, opts,
+                                                  clock)
+    else:
+        assembled = prepared.assembled
+        reduced, problem, pre = prepared.preloaded(opts, clock)
+        closed = pre.status != OPEN
+        modes, phi, phi_tip, omega0, ltip = prepared.mode(closed, opts, clock)
 
     with clock.stage("condensation"):
         off = model.dof_offsets()

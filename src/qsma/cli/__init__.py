@@ -16,13 +16,13 @@ import warnings
 
 from ..errors import (AnalysisError, ContactConvergenceWarning, InputError,
                       NearlyIncompressibleWarning, QSMAError)
-from . import modes as _modes, run as _run
+from . import modes as _modes, run as _run, sweep as _sweep
 
 EXIT_OK, EXIT_FAILED, EXIT_INPUT = 0, 1, 2
 #: 128 + SIGINT, the shell convention for a command stopped by Ctrl-C; also used for
 #: SIGTERM so that scripts see one code for "interrupted"
 EXIT_INTERRUPTED = 130
-SUBCOMMANDS = {"run": _run, "modes": _modes}
+SUBCOMMANDS = {"run": _run, "modes": _modes, "sweep": _sweep}
 
 
 def build_parser():

@@ -1,0 +1,7 @@
+"""Parameter studies on top of a QSMA run: sweeps (:mod:`.sweep`, on Dask), their
+figures (:mod:`.plots`) and the reduced-order model export (:mod:`qsma.rom`)."""
+from .sweep import (Case, CaseOutcome, SweepResult, grid, parse_values, read_table,
+                    run_case, study_table, sweep)
+
+__all__ = ["sweep", "grid", "parse_values", "Case", "CaseOutcome", "SweepResult",
+           "run_case", "study_table", "read_table"]

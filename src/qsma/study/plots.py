@@ -1,0 +1,62 @@
+"""Figures of a study: frequency and damping versus amplitude, one curve per case,
+one figure per varied parameter (matplotlib Agg, as :mod:`qsma.plots`)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..plots import _figure, _save
+
+
+def _cases(table):
+    """Per case index: row indices of its levels (cases without levels are left out)."""
+    out = {}
+    for i, (c, lv) in enumerate(zip(table["case"], table["level"])):
+        if lv is not None:
+            out.setdefault(c, []).append(i)
+    return out
+
+
+def plot_parameter(table, parameter, others, path):
+    """Secant frequency and damping ratio versus peak tip deflection, a curve per case,
+    coloured by the value of ``parameter`` (the other parameters in the label)."""
+    from matplotlib import colormaps
+    fig, (a1, a2) = _figure(2, 1, figsize=(6.5, 7), sharex=True)
+    rows = _cases(table)
+    values = sorted({table[parameter][r[0]] for r in rows.values()}, key=str)
+    cmap = colormaps["viridis"]
+    for c, r in rows.items():
+        v = table[parameter][r[0]]
+        colour = cmap(values.index(v) / max(len(values) - 1, 1))
+        tip = np.abs(np.array([table["tip"][i] for i in r], float))
+        f = np.array([table["f_hz"][i] for i in r], float)
+        z = np.array([table["zeta"][i] for i in r], float)
+        label = f"{parameter} = {v:.4g}" if isinstance(v, float) else f"{parameter} = {v}"
+        rest = ", ".join(f"{o} = {table[o][r[0]]:.3g}" if isinstance(table[o][r[0]], float)
+                         else f"{o} = {table[o][r[0]]}" for o in others)
+        a1.semilogx(tip, f, "-", color=colour, lw=1.2, label=label + (f" ({rest})" if rest
+                                                                       else ""))
+        a2.semilogx(tip, z, "-", color=colour, lw=1.2)
+    a1.set_ylabel("secant frequency [Hz]")
+    a2.set_ylabel(r"damping ratio $\zeta$")
+    a2.set_yscale("symlog", linthresh=1e-6)   # zero and round-off stay visible (plots.py)
+    a2.set_xlabel("peak tip deflection [m]")
+    a1.set_title(f"Study over {parameter}")
+    for a in (a1, a2):
+        a.grid(True, alpha=0.3)
+    if len(rows) <= 12:
+        a1.legend(fontsize=7)
+    return _save(fig, path)
+
+
+def plot_study(table, parameters, out) -> dict:
+    """One figure per varied parameter: ``sweep_<parameter>.png`` in ``out``."""
+    paths = {}
+    if not _cases(table):
+        return paths
+    for p in parameters:
+        others = [o for o in parameters if o != p]
+        safe = p.replace(":", "_")
+        paths[f"plot_{p}"] = plot_parameter(table, p, others, Path(out) / f"sweep_{safe}.png")
+    return paths

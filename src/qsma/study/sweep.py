@@ -1,0 +1,576 @@
+r"""Parameter studies: a grid of QSMA cases sharing the work they have in common.
+
+A study is the cartesian product of the values given per parameter (:func:`grid`).
+Work is shared between cases as far as the method allows (docs/theory.md, "What a
+sweep reuses"):
+
+- friction coefficient ``mu`` and preload scale ``preload``: assembly and static
+  condensation are done once (:func:`qsma.analysis.prepare`); a preload scale
+  :math:`s` multiplies the condensed 'preload' pattern (the condensed loads are linear
+  in the pressures); the tied modes are recomputed only when the set of pairs closed
+  by the preload changes (cached by that mask);
+- ``mode``, ``levels`` and other run options: the preload solve and the tied modes
+  are reused as well;
+- material constants ``E``, ``nu``, ``rho`` (of all bodies, or of one as
+  ``E:bottom``): the changed body is re-assembled, both are condensed again.
+
+Cases run on Dask (:mod:`distributed`): a :class:`distributed.LocalCluster` of
+processes by default, any scheduler by address, or serially in this process
+(``scheduler="serial"``). Each case writes a folder as ``qsma run`` does
+(:func:`qsma.results.write_all`) and then a done-marker; a study started again in the
+same folder skips the cases whose marker exists. A failing case is recorded with its
+message and the others go on. The study table (:data:`TABLE_NAME`) has a row per case
+and level, read back from the case folders, so a resumed study and a fresh one give
+the same table.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import csv
+import io
+import itertools
+import json
+import logging
+import os
+from pathlib import Path
+import time
+
+import numpy as np
+
+from ..errors import InputError, QSMAError
+from ..levels import Levels
+from ..options import RunOptions
+
+log = logging.getLogger("qsma")
+
+#: Parameters that change the model rather than the run options. ``E``, ``nu``, ``rho``
+#: may name a body (``E:bottom``); without a body they apply to every body.
+MODEL_PARAMETERS = ("mu", "preload")
+MATERIAL_PARAMETERS = ("E", "nu", "rho")
+#: File names inside the study folder (docs/studies.md describes each).
+STUDY_NAME, TABLE_NAME, PARQUET_NAME = "study.json", "study.csv", "study.parquet"
+#: Written beside a case folder (``case-0003.done.json``) once the case is finished:
+#: its presence marks the case as done. Outside the folder, so that the folder is
+#: exactly what ``qsma run`` writes (a result folder holds one run and nothing else).
+DONE_SUFFIX = ".done.json"
+#: Workers of the default local cluster: one process per core of the 2-core machines
+#: this package is developed on; ``workers=`` or ``--workers`` changes it.
+DEFAULT_WORKERS = 2
+CASE_FILES = ("plots", "vtu", "rom")
+#: Run options a sweep does not vary: the BLAS thread count does not change results,
+#: the condensation backend is fixed when the shared preparation is made.
+NOT_SWEPT = ("blas_threads", "schur_backend")
+
+
+@dataclass(frozen=True)
+class Case:
+    """One case of a study: its index in the grid and its parameter values."""
+
+    index: int
+    params: tuple          # ((name, value), ...) in the order of ``vary``
+
+    @property
+    def name(self) -> str:
+        return f"case-{self.index:04d}"
+
+    def as_dict(self) -> dict:
+        return dict(self.params)
+
+    def json_params(self) -> dict:
+        """Parameters as JSON values (levels as ``{"kind", "values"}``)."""
+        return {k: _json_value(v) for k, v in self.params}
+
+
+@dataclass(frozen=True)
+class CaseOutcome:
+    """What became of a case: ``status`` is ``"ok"``, ``"unsuccessful"`` (computed but
+    ``success`` is False: see ``message``) or ``"failed"`` (nothing computed)."""
+
+    index: int
+    params: dict
+    status: str
+    message: str
+    seconds: float
+    folder: str
+    skipped: bool = False
+
+
+@dataclass(frozen=True, eq=False)
+class SweepResult:
+    """A study: the outcome per case, the table (column name -> list) and the files."""
+
+    success: bool
+    message: str
+    cases: tuple
+    table: dict
+    paths: dict
+    parameters: tuple
+    n_failed: int
+    n_skipped: int
+    timings_s: dict = field(default_factory=dict)
+
+
+# ---------------------------------------------------------------------------- the grid
+
+def parameter_kind(name: str) -> str:
+    """``"model"``, ``"material"`` or ``"option"``; unknown names raise with the valid ones."""
+    base = name.split(":", 1)[0]
+    if name in MODEL_PARAMETERS:
+        return "model"
+    if base in MATERIAL_PARAMETERS:
+        return "material"
+    options = sorted(set(RunOptions.__dataclass_fields__) - set(NOT_SWEPT))
+    if name in options:
+        return "option"
+    raise InputError(f"unknown sweep parameter {name!r}; valid: mu, preload, "
+                     f"E|nu|rho[:BODY], or a run option {options}")
+
+
+def parse_values(name: str, spec) -> list:
+    """Values of a parameter from ``START:STOP:N`` (N evenly spaced, ends included) or
+    ``V1,V2,...``; a list or tuple is taken as is (``levels``: :class:`qsma.Levels`)."""
+    parameter_kind(name)
+    if not isinstance(spec, str):
+        values = list(spec) if isinstance(spec, (list, tuple, np.ndarray)) else [spec]
+    elif name == "levels":
+        raise InputError(f"levels values must be qsma.Levels objects, got the text "
+                         f"{spec!r} (the command line parses level specs)")
+    else:
+        parts = spec.split(":")
+        try:
+            if len(parts) == 3:
+                start, stop, n = float(parts[0]), float(parts[1]), int(parts[2])
+                if n < 1:
+                    raise ValueError
+                values = np.linspace(start, stop, n).tolist()
+            elif len(parts) == 1:
+                values = [_scalar(v) for v in spec.split(",") if v.strip()]
+            else:
+                raise ValueError
+        except ValueError:
+            raise InputError(f"--vary {name}={spec!r}: expected START:STOP:N (e.g. "
+                             f"0.2:0.8:10) or a list V1,V2,... (e.g. 0.3,0.5,0.7)") from None
+    if not values:
+        raise InputError(f"--vary {name}: no values given")
+    return [_typed(name, v) for v in values]
+
+
+def grid(vary: dict) -> list:
+    """The cases of the cartesian product of ``vary`` (name -> values or spec), the last
+    parameter varying fastest."""
+    if not vary:
+        raise InputError("a sweep needs at least one parameter to vary, e.g. "
+                         "vary={'mu': [0.3, 0.5]} or --vary mu=0.3,0.5")
+    names = list(vary)
+    values = [parse_values(n, vary[n]) for n in names]
+    return [Case(i, tuple(zip(names, combo)))
+            for i, combo in enumerate(itertools.product(*values))]
+
+
+def _scalar(text):
+    t = text.strip()
+    if t.lower() in ("true", "false"):
+        return t.lower() == "true"
+    for cast in (int, float):
+        try:
+            return cast(t)
+        except ValueError:
+            pass
+    return t
+
+
+def _typed(name, v):
+    if name == "levels":
+        if not isinstance(v, Levels):
+            raise InputError(f"levels values must be qsma.Levels, got {v!r}")
+        return v
+    kind = parameter_kind(name)
+    if kind in ("model", "material"):
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) \
+                or not np.isfinite(v):
+            raise InputError(f"sweep parameter {name!r} needs numbers, got {v!r}")
+        return float(v)
+    if isinstance(v, (float, np.floating)) and float(v).is_integer() and \
+            RunOptions.__dataclass_fields__[name].type in ("int", "int | None"):
+        return int(v)
+    if isinstance(v, np.generic):
+        return v.item()
+    return v
+
+
+def _json_value(v):
+    if isinstance(v, Levels):
+        return {"kind": v.kind, "values": list(v.values)}
+    return v
+
+
+def _table_value(v):
+    if isinstance(v, Levels):
+        return f"{v.kind}:{len(v.values)}:{v.values[0]:.6g}..{v.values[-1]:.6g}"
+    return v
+
+
+# ------------------------------------------------------------------- preparing the cases
+
+def _material_key(case, n_bodies, names):
+    """Per body, ``(E, nu, rho)`` overrides of the case (None = the model's)."""
+    out = []
+    for k in range(n_bodies):
+        over = {}
+        for name, v in case.params:
+            base, _, body = name.partition(":")
+            if base in MATERIAL_PARAMETERS and (not body or body == names[k]):
+                over[base] = v
+        out.append(tuple(sorted(over.items())))
+    return tuple(out)
+
+
+def _check_bodies(cases, model):
+    names = [b.name for b in model.bodies]
+    for name, _ in cases[0].params:
+        base, _, body = name.partition(":")
+        if base in MATERIAL_PARAMETERS and body and body not in names:
+            raise InputError(f"sweep parameter {name!r}: no body {body!r}; bodies: {names}")
+
+
+def _model_with_materials(model, key):
+    from dataclasses import replace
+    from ..model import Material
+    bodies = []
+    for b, over in zip(model.bodies, key):
+        if over:
+            m = b.material
+            vals = {**dict(E=m.E, nu=m.nu, rho=m.rho), **dict(over)}
+            b = replace(b, material=Material(vals["E"], vals["nu"], vals["rho"]))
+        bodies.append(b)
+    return replace(model, bodies=tuple(bodies))
+
+
+def _prepare_groups(model, options, cases):
+    """One :class:`qsma.analysis.Prepared` per distinct set of material constants;
+    bodies whose constants are those of another group reuse its assembly."""
+    from ..analysis import prepare
+    names = [b.name for b in model.bodies]
+    groups, by_body = {}, {}
+    for case in cases:
+        key = _material_key(case, len(model.bodies), names)
+        if key in groups:
+            continue
+        m = _model_with_materials(model, key)
+        keep = [by_body.get((k, over)) for k, over in enumerate(key)]
+        prep = prepare(m, options, assembled=keep)
+        for k, over in enumerate(key):
+            by_body.setdefault((k, over), prep.assembled[k])
+        groups[key] = prep
+    return groups
+
+
+# ------------------------------------------------------------------------ running a case
+
+def run_case(prepared, case: Case, options: RunOptions, folder, files=()) -> CaseOutcome:
+    """Run one case from its group's preparation, write its folder and, last, its
+    done-marker. Errors are caught and recorded: a case never stops the study."""
+    from ..analysis import run_prepared
+    from ..results import atomic_write, write_all
+    t0, c0 = time.perf_counter(), time.process_time()
+    params = case.as_dict()
+    status, message = "ok", "all levels converged"
+    try:
+        p = prepared
+        if "mu" in params:
+            p = p.with_mu(params["mu"])
+        if "preload" in params:
+            p = p.with_preload_scale(params["preload"])
+        opts = options.replace(**{k: v for k, v in params.items()
+                                  if parameter_kind(k) == "option"})
+        res = run_prepared(p, opts)
+        write_all(res, folder, plots="plots" in files, vtu="vtu" in files)
+        if "rom" in files and res.n_levels:
+            from ..rom import export_rom
+            export_rom(res, Path(folder).with_name(Path(folder).name + ".rom.json"))
+        if not res.success:
+            status, message = "unsuccessful", res.message
+    except QSMAError as exc:
+        status, message = "failed", f"{type(exc).__name__}: {exc}"
+    except Exception as exc:        # recorded, the study goes on; the message names it
+        status, message = "failed", f"internal error {type(exc).__name__}: {exc}"
+    seconds = time.perf_counter() - t0
+    marker = dict(index=case.index, params=case.json_params(), status=status,
+                  message=message, seconds=seconds, cpu_seconds=time.process_time() - c0)
+    atomic_write(done_path(folder), json.dumps(marker, indent=1) + "\n")
+    return CaseOutcome(case.index, params, status, message, seconds, str(folder))
+
+
+def done_path(folder) -> Path:
+    """The done-marker of the case folder ``folder``: ``<folder>.done.json``."""
+    folder = Path(folder)
+    return folder.with_name(folder.name + DONE_SUFFIX)
+
+
+def _done(case, folder):
+    """The outcome recorded in ``folder`` for ``case``, or None if it is not done."""
+    path = done_path(folder)
+    if not path.exists():
+        return None
+    marker = json.loads(path.read_text())
+    if marker.get("params") != _roundtrip(case.json_params()):
+        raise InputError(f"{path} records parameters {marker.get('params')} but case "
+                         f"{case.index} of this study is {case.json_params()}: the folder "
+                         f"holds another study; choose another output folder")
+    return CaseOutcome(case.index, case.as_dict(), marker["status"], marker["message"],
+                       marker["seconds"], str(folder), skipped=True)
+
+
+def _roundtrip(x):
+    return json.loads(json.dumps(x))
+
+
+# --------------------------------------------------------------------------- the study
+
+def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out,
+          scheduler=None, workers: int = DEFAULT_WORKERS, files=(), plots=True,
+          progress=None) -> SweepResult:
+    """Run a parameter study: every case of the grid ``vary``, sharing the work the
+    cases have in common (module docstring), on Dask or serially.
+
+    Parameters
+    ----------
+    model_or_config : :class:`qsma.model.Model` or :class:`qsma.config.RunConfig`
+    vary : dict
+        Parameter name -> values (list) or spec (``"0.2:0.8:10"``, ``"0.3,0.5"``); names:
+        ``mu``, ``preload`` (scale of every 'preload' pressure), ``E``/``nu``/``rho``
+        (``E:BODY`` for one body), ``mode``, ``levels`` or another run option.
+    options : RunOptions, optional
+        Options of every case (a config's options when ``None``).
+    out : path
+        Study folder: :data:`STUDY_NAME`, :data:`TABLE_NAME`, figures, one folder per case.
+    scheduler : None, "serial", str or distributed.Client
+        ``None``: a local cluster of ``workers`` processes; ``"serial"`` (or
+        ``workers=0``): in this process, in order; an address (``tcp://host:8786``)
+        or a client: that scheduler (the workers must see ``out``).
+    workers : int
+        Processes of the local cluster.
+    files : iterable of {"plots", "vtu", "rom"}
+        Per-case files besides results.json and results.csv (rom: :mod:`qsma.rom`,
+        written beside the case folder as ``case-NNNN.rom.json``).
+    plots : bool
+        Study figures (frequency and damping versus amplitude per parameter).
+    progress : callable, optional
+        ``progress(done, total)`` after each case (skipped ones included).
+
+    Returns
+    -------
+    SweepResult
+    """
+    from ..config import RunConfig
+    from ..results import atomic_write
+    t0 = time.perf_counter()
+    if isinstance(model_or_config, RunConfig):
+        model = model_or_config.model
+        options = model_or_config.options if options is None else options
+    else:
+        model = model_or_config
+    options = options or RunOptions()
+    files = tuple(files)
+    for f in files:
+        if f not in CASE_FILES:
+            raise InputError(f"unknown per-case file kind {f!r}; valid: {CASE_FILES}")
+    if not (isinstance(workers, int) and workers >= 0):
+        raise InputError(f"workers must be an integer >= 0, got {workers!r}")
+    cases = grid(vary)
+    _check_bodies(cases, model)
+    out = _study_dir(out)
+    study = dict(model=model.name, parameters=list(vary), n_cases=len(cases),
+                 cases=[c.json_params() for c in cases])
+    _check_study(out / STUDY_NAME, study)
+    atomic_write(out / STUDY_NAME, json.dumps(study, indent=1) + "\n")
+
+    outcomes, todo = {}, []
+    for c in cases:
+        done = _done(c, out / c.name)
+        if done is None:
+            todo.append(c)
+        else:
+            outcomes[c.index] = done
+    n_total = len(cases)
+    if progress is not None:
+        progress(len(outcomes), n_total)
+    t_prep = time.perf_counter()
+    groups = _prepare_groups(model, options, todo) if todo else {}
+    t_prep = time.perf_counter() - t_prep
+    names = [b.name for b in model.bodies]
+    key_of = lambda c: _material_key(c, len(model.bodies), names)
+    serial = scheduler == "serial" or (scheduler is None and workers == 0)
+    run = _run_serial if serial else _run_dask
+    for outcome in (run(groups, key_of, todo, options, out, files, scheduler, workers)
+                    if todo else ()):
+        outcomes[outcome.index] = outcome
+        if progress is not None:
+            progress(len(outcomes), n_total)
+    ordered = tuple(outcomes[c.index] for c in cases)
+    table = study_table(cases, ordered, out)
+    paths = write_table(table, out)
+    if plots:
+        from .plots import plot_study
+        paths.update(plot_study(table, list(vary), out))
+    failed = [o for o in ordered if o.status == "failed"]
+    bad = [o for o in ordered if o.status != "ok"]
+    message = "all cases succeeded" if not bad else (
+        f"{len(failed)} case(s) failed and {len(bad) - len(failed)} did not succeed: "
+        + "; ".join(f"case {o.index} {o.params}: {o.message}" for o in bad[:5])
+        + (" ..." if len(bad) > 5 else ""))
+    return SweepResult(not bad, message, ordered, table, paths, tuple(vary), len(failed),
+                       sum(o.skipped for o in ordered),
+                       dict(prepare=t_prep, total=time.perf_counter() - t0))
+
+
+def _study_dir(out) -> Path:
+    """Create the study folder if needed and check that it can be written, before any
+    computation (the case folders inside it are result folders of their own)."""
+    import tempfile
+    out = Path(out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=".qsma-study-write-check-", dir=out)
+        os.close(fd)
+        os.unlink(tmp)
+    except OSError as exc:
+        raise InputError(f"study folder {str(out)!r} cannot be written ({exc.strerror}); "
+                         f"choose another --out folder or fix its permissions") from exc
+    return out
+
+
+def _check_study(path, study):
+    if not path.exists():
+        return
+    old = json.loads(path.read_text())
+    if old.get("cases") != _roundtrip(study["cases"]):
+        raise InputError(f"{path.parent} holds another study ({old.get('n_cases')} cases "
+                         f"over {old.get('parameters')}); to resume, give the same "
+                         f"parameters, else choose another output folder")
+
+
+def _run_serial(groups, key_of, todo, options, out, files, scheduler, workers):
+    for c in todo:
+        yield run_case(groups[key_of(c)], c, options, out / c.name, files)
+
+
+def _run_dask(groups, key_of, todo, options, out, files, scheduler, workers):
+    """Cases as Dask tasks; each group's preparation is scattered once to every
+    worker (its factorisations are remade there on arrival, once per worker)."""
+    try:
+        from distributed import Client, LocalCluster, as_completed
+    except ImportError as exc:      # dask is the optional extra 'sweep'
+        raise InputError(f"parallel sweeps need the 'distributed' package ({exc}): "
+                         f"pip install 'qsma[sweep]', or run the cases one after the "
+                         f"other with scheduler='serial' (--workers 0)") from None
+    cluster = None
+    if scheduler is None:
+        try:
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
+                                   processes=True, dashboard_address=None,
+                                   silence_logs=logging.ERROR)
+        except Exception as exc:    # e.g. no process spawning in a sandbox
+            raise QSMAError(f"a local Dask cluster of {workers} processes could not "
+                            f"start ({type(exc).__name__}: {exc}); run the cases serially "
+                            f"(--workers 0, scheduler='serial') or give --scheduler "
+                            f"ADDRESS") from exc
+        client = Client(cluster)
+    elif isinstance(scheduler, str):
+        try:
+            client = Client(scheduler, timeout="20s")
+        except OSError as exc:
+            raise InputError(f"cannot reach the Dask scheduler at {scheduler!r}: {exc}; "
+                             f"start one (dask scheduler) or drop --scheduler") from None
+    else:
+        client = scheduler
+    try:
+        shared = {k: client.scatter(p, broadcast=True, hash=False) for k, p in groups.items()}
+        futures = {client.submit(run_case, shared[key_of(c)], c, options, out / c.name,
+                                 files, pure=False): c for c in todo}
+        for fut in as_completed(futures):
+            c = futures[fut]
+            try:
+                yield fut.result()
+            except Exception as exc:    # the worker died: recorded, the others go on
+                yield CaseOutcome(c.index, c.as_dict(), "failed",
+                                  f"worker error {type(exc).__name__}: {exc}", float("nan"),
+                                  str(out / c.name))
+    finally:
+        if client is not scheduler:
+            client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+# --------------------------------------------------------------------------- the table
+
+def table_columns(parameters) -> tuple:
+    """Columns of the study table: case, parameters, status, message, then those of a
+    run's results.csv (:func:`qsma.results.csv_columns`)."""
+    from ..results import csv_columns
+    return ("case",) + tuple(parameters) + ("status", "message") + csv_columns()
+
+
+def study_table(cases, outcomes, out) -> dict:
+    """Column name -> list, a row per case and level, read from the case folders
+    (a case without levels has one row with empty level values)."""
+    from ..results import csv_columns
+    params = [n for n, _ in cases[0].params]
+    cols = {c: [] for c in table_columns(params)}
+    level_cols = csv_columns()
+    for case, o in zip(cases, outcomes):
+        path = out / case.name / "results.json"
+        levels = json.loads(path.read_text())["levels"] if o.status != "failed" and \
+            path.exists() else {}
+        n = len(levels.get("alpha", []))
+        for k in range(max(n, 1)):
+            cols["case"].append(case.index)
+            for name, v in case.params:
+                cols[name].append(_table_value(v))
+            cols["status"].append(o.status)
+            cols["message"].append(o.message)
+            for c in level_cols:
+                if n == 0:
+                    cols[c].append(None)
+                elif c == "level":
+                    cols[c].append(k)
+                else:
+                    cols[c].append(levels[c][k])
+    return cols
+
+
+def write_table(table, out) -> dict:
+    """Write the study table as CSV (always) and Parquet (when pyarrow is installed)."""
+    from ..results import atomic_path, atomic_write, _csv_cell
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    names = list(table)
+    w.writerow(names)
+    n = len(table[names[0]]) if names else 0
+    for i in range(n):
+        w.writerow([_csv_cell(table[c][i]) for c in names])
+    paths = {"table": Path(out) / TABLE_NAME}
+    atomic_write(paths["table"], buf.getvalue())
+    try:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+    except ImportError:
+        return paths
+    cols = {c: [";".join(v) if isinstance(v, list) else v for v in vals]
+            for c, vals in table.items()}
+    paths["parquet"] = Path(out) / PARQUET_NAME
+    with atomic_path(paths["parquet"]) as tmp:
+        pq.write_table(pa.table(cols), tmp)
+    return paths
+
+
+def read_table(path) -> dict:
+    """The study CSV as column name -> list of strings (empty cells as '')."""
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f))
+    return {name: [r[i] for r in rows[1:]] for i, name in enumerate(rows[0])}
+
+
+__all__ = ["sweep", "grid", "parse_values", "Case", "CaseOutcome", "SweepResult",
+           "run_case", "study_table", "read_table", "DEFAULT_WORKERS"]

@@ -1,0 +1,236 @@
+"""Parameter studies: the grid, sharing of the preparation, equality with separate runs,
+Dask against serial, failures, resumption and the command line."""
+from dataclasses import replace
+import json
+import pickle
+import warnings
+
+import numpy as np
+import pytest
+
+import qsma
+from qsma.analysis import prepare, run_prepared
+from qsma.cli import main
+from qsma.errors import InputError
+from qsma.examples import sandwich_2d
+from qsma.model import Material, Pressure
+from qsma.study import grid, parse_values, read_table, sweep
+from qsma.study.sweep import done_path
+
+#: 5 levels over the spec's range of linear tied tip deflection (1 um .. 1 mm): small
+#: enough for a test, wide enough to cross from stuck to gross slip on sandwich-2d.
+LEVELS = qsma.Levels.log("tip", 1e-6, 1e-3, 5)
+OPTIONS = qsma.RunOptions(levels=LEVELS)
+#: Columns that are round-off by construction, with their absolute tolerance: the
+#: asymmetry (q + q_neg) / q is ~1e-10 on sandwich-2d (contact tol 1e-10), a residual
+#: is below the contact tolerance (qsma.contact.DEFAULT_TOL = 1e-10).
+ROUND_OFF = {"asymmetry": 1e-9, "residual": 1e-10}
+#: The fields compared between a sweep case and a separate run.
+COMPARED = ("alpha", "q", "tip", "f_hz", "zeta", "dissipation", "n_stuck", "n_slip")
+
+
+def scaled(model, s):
+    """The model with every preload pressure multiplied by ``s`` (assembled anew)."""
+    return replace(model, bodies=tuple(replace(b, pressures=tuple(
+        Pressure(p.set, p.p * s, p.load) for p in b.pressures)) for b in model.bodies))
+
+
+def assert_close(a, b, rtol=1e-10):
+    """Equal to ``rtol`` relative to the largest magnitude of the column."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    scale = max(np.max(np.abs(a)), np.max(np.abs(b)), 1e-300)
+    assert np.max(np.abs(a - b)) <= rtol * scale, (a, b)
+
+
+@pytest.fixture(scope="module")
+def model():
+    return sandwich_2d(1)
+
+
+@pytest.fixture(scope="module")
+def serial(model, tmp_path_factory):
+    out = tmp_path_factory.mktemp("serial")
+    return sweep(model, {"mu": [0.3, 0.6], "preload": [1.5]}, OPTIONS, out=out,
+                 scheduler="serial", plots=False), out
+
+
+# ------------------------------------------------------------------------------ grid
+
+def test_grid_is_the_cartesian_product_last_fastest():
+    cases = grid({"mu": "0.2:0.8:4", "preload": "0.5,1.5"})
+    assert len(cases) == 8
+    assert [c.as_dict()["preload"] for c in cases[:2]] == [0.5, 1.5]
+    assert [c.as_dict()["mu"] for c in cases[::2]] == pytest.approx([0.2, 0.4, 0.6, 0.8])
+    assert [c.name for c in cases[:2]] == ["case-0000", "case-0001"]
+
+
+def test_values_of_options_are_typed():
+    assert parse_values("mode", "0:2:3") == [0, 1, 2]
+    assert parse_values("method", "basket,active_set") == ["basket", "active_set"]
+    lv = parse_values("levels", [LEVELS, qsma.Levels("tip", (1e-5, 1e-4))])
+    assert [len(v.values) for v in lv] == [5, 2]
+    with pytest.raises(InputError, match="qsma.Levels"):
+        parse_values("levels", "tip:log:1e-6:1e-3:5")
+
+
+@pytest.mark.parametrize("name, spec, words", [
+    ("friction", "0.1,0.2", "unknown sweep parameter"),
+    ("mu", "0.1:0.2", "START:STOP:N"),
+    ("mu", "a,b", "needs numbers"),
+    ("E:middle", "1e9", "no body 'middle'"),
+])
+def test_bad_parameters_are_named(model, tmp_path, name, spec, words):
+    with pytest.raises(InputError, match=words):
+        sweep(model, {name: spec}, OPTIONS, out=tmp_path, scheduler="serial")
+
+
+# ------------------------------------------------------------------ shared preparation
+
+def test_prepared_case_equals_a_separate_run_for_mu_and_preload_scale(model, serial):
+    res, out = serial
+    assert res.success, res.message
+    for case in res.cases:
+        mu, s = case.params["mu"], case.params["preload"]
+        ref = qsma.run(scaled(replace(model, mu=mu), s), OPTIONS)
+        rows = [i for i, c in enumerate(res.table["case"]) if c == case.index]
+        assert len(rows) == ref.n_levels == 5
+        for name in COMPARED:
+            assert_close([res.table[name][i] for i in rows], getattr(ref, name))
+        info = json.loads((out / f"case-{case.index:04d}" / "results.json").read_text())
+        assert info["model"]["mu"] == mu
+
+
+def test_a_different_mu_changes_the_damping(serial):
+    """The comparison above could pass with mu ignored: the two cases must differ."""
+    res, _ = serial
+    z = np.array(res.table["zeta"], float).reshape(2, 5)
+    assert abs(z[0, -1] - z[1, -1]) > 1e-3 * abs(z[1, -1])
+
+
+def test_tied_modes_are_reused_while_the_closed_set_is_the_same(model):
+    prep = prepare(model, OPTIONS)
+    run_prepared(prep.with_mu(0.3), OPTIONS)
+    run_prepared(prep.with_mu(0.5), OPTIONS)
+    modes = [k for k in prep.cache if k[0] == "mode"]
+    preloads = [k for k in prep.cache if k[0] == "preload"]
+    assert len(preloads) == 2
+    assert len(modes) == 1       # sandwich-2d: mu does not change the pairs the bolt closes
+
+
+def test_prepared_survives_pickling_with_its_preload_scale(model):
+    prep = prepare(model, OPTIONS).with_mu(0.4).with_preload_scale(1.5)
+    back = pickle.loads(pickle.dumps(prep))
+    assert back.preload_scale == 1.5 and back.model.mu == 0.4
+    assert back.model.bodies[0].pressures == prep.model.bodies[0].pressures
+    assert_close(back.reduced.W, prep.reduced.W, 1e-12)
+
+
+def test_material_of_one_body_reassembles_that_body_only(model, tmp_path):
+    res = sweep(model, {"E:bottom": [150e9]}, OPTIONS, out=tmp_path, scheduler="serial",
+                plots=False)
+    bottom = model.bodies[0]
+    changed = replace(model, bodies=(replace(bottom, material=Material(
+        150e9, bottom.material.nu, bottom.material.rho)), model.bodies[1]))
+    ref = qsma.run(changed, OPTIONS)
+    for name in ("q", "f_hz", "zeta"):
+        assert_close(res.table[name], getattr(ref, name))
+
+
+# ------------------------------------------------------------- failures and resumption
+
+def test_a_failing_case_is_recorded_and_the_others_go_on(model, tmp_path):
+    res = sweep(model, {"mode": [7, 0]}, OPTIONS.replace(n_modes=6), out=tmp_path,
+                scheduler="serial", plots=False, files=("rom",))
+    assert not res.success and res.n_failed == 1
+    bad, good = res.cases
+    assert bad.status == "failed" and "mode index 7" in bad.message
+    assert good.status == "ok"
+    table = read_table(tmp_path / "study.csv")
+    assert table["status"].count("failed") == 1 and table["level"][0] == ""
+    assert len(table["case"]) == 1 + 5
+    assert json.loads(done_path(tmp_path / "case-0000").read_text())["status"] == "failed"
+    assert (tmp_path / "case-0001.rom.json").exists()
+    assert not (tmp_path / "case-0000.rom.json").exists()
+
+
+def test_an_interrupted_study_resumes_with_the_cases_not_done(model, serial, tmp_path):
+    res, out = serial
+    import shutil
+    shutil.copytree(out, tmp_path, dirs_exist_ok=True)
+    done_path(tmp_path / "case-0001").unlink()        # as if killed during case 1
+    again = sweep(model, {"mu": [0.3, 0.6], "preload": [1.5]}, OPTIONS, out=tmp_path,
+                  scheduler="serial", plots=False)
+    assert [c.skipped for c in again.cases] == [True, False]
+    for name in COMPARED:
+        assert_close(again.table[name], res.table[name], 1e-10)
+    with pytest.raises(InputError, match="another study"):
+        sweep(model, {"mu": [0.2]}, OPTIONS, out=tmp_path, scheduler="serial")
+
+
+# ------------------------------------------------------------------------------ Dask
+
+@pytest.fixture(scope="module")
+def client():
+    """One two-worker local cluster of processes for the module; threads if processes
+    cannot start here (the reason is given as a warning)."""
+    distributed = pytest.importorskip("distributed")
+    import logging
+    try:
+        cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1,
+                                           processes=True, dashboard_address=None,
+                                           silence_logs=logging.ERROR)
+    except Exception as exc:   # e.g. no semaphores / forking refused in a sandbox
+        warnings.warn(f"LocalCluster of processes failed ({exc}); using threads")
+        cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1,
+                                           processes=False, dashboard_address=None)
+    c = distributed.Client(cluster)
+    yield c
+    c.close()
+    cluster.close()
+
+
+def test_two_dask_workers_give_the_serial_table(model, serial, client, tmp_path):
+    res, _ = serial
+    # by address, as --scheduler tcp://host:port: the sweep connects its own client
+    par = sweep(model, {"mu": [0.3, 0.6], "preload": [1.5]}, OPTIONS, out=tmp_path,
+                scheduler=client.scheduler.address, plots=False)
+    assert par.success, par.message
+    assert len(client.scheduler_info()["workers"]) == 2
+    assert list(par.table) == list(res.table)
+    for name, col in res.table.items():
+        if name in ROUND_OFF:
+            assert np.allclose(par.table[name], col, rtol=0, atol=ROUND_OFF[name]), name
+        elif isinstance(col[0], (float, int)) and not isinstance(col[0], bool):
+            assert_close(par.table[name], col, 1e-10)
+        else:
+            assert par.table[name] == col, name
+
+
+# ----------------------------------------------------------------------- command line
+
+def test_cli_sweep_writes_the_table_and_figures(tmp_path):
+    out = tmp_path / "study"
+    rc = main(["sweep", "--example", "sandwich-2d", "--vary", "mu=0.3,0.6",
+               "--levels", "tip:log:1e-6:1e-3:3", "--workers", "0", "--out", str(out), "-q"])
+    assert rc == 0
+    table = read_table(out / "study.csv")
+    assert table["mu"] == ["0.3"] * 3 + ["0.6"] * 3
+    assert (out / "sweep_mu.png").stat().st_size > 0
+    assert (out / "case-0001" / "results.json").exists()
+
+
+def test_cli_levels_as_a_varied_parameter(tmp_path):
+    out = tmp_path / "study"
+    rc = main(["sweep", "--example", "sandwich-2d", "--vary",
+               "levels=tip:log:1e-6:1e-3:3;tip:list:1e-6,1e-3", "--workers", "0",
+               "--no-plots", "--out", str(out), "-q"])
+    assert rc == 0
+    table = read_table(out / "study.csv")
+    assert table["case"] == ["0"] * 3 + ["1"] * 2
+    assert table["tip_lin"][-1] == table["tip_lin"][2] == "0.001"
+
+
+def test_cli_names_a_bad_vary(tmp_path, capsys):
+    rc = main(["sweep", "--example", "sandwich-2d", "--vary", "mu", "--out", str(tmp_path)])
+    assert rc == 2
+    assert "expected NAME=VALUES" in capsys.readouterr().err
