@@ -35,11 +35,27 @@ def scaled(model, s):
         Pressure(p.set, p.p * s, p.load) for p in b.pressures)) for b in model.bodies))
 
 
-def assert_close(a, b, rtol=1e-10):
-    """Equal to ``rtol`` relative to the largest magnitude of the column."""
+#: A damping ratio of a stuck level is round-off (~1e-11 on sandwich-2d; the analysis
+#: calls |zeta| < qsma.analysis.ZETA_ZERO = 1e-8 zero): compared absolutely to this.
+ZETA_ROUND_OFF = 1e-10
+#: Dissipation and damping are differences of integrals of the backbone: they amplify
+#: the contact tolerance (1e-10 relative) about tenfold near gross slip (measured
+#: 1.2e-10 relative between a prepared case and a separate run, zeta = 0.94).
+INTEGRAL_RTOL = 1e-9
+
+
+def _tol(name):
+    """(rtol, atol) of the comparison of column ``name``."""
+    if name in ("zeta", "dissipation"):
+        return INTEGRAL_RTOL, ZETA_ROUND_OFF if name == "zeta" else 0.0
+    return 1e-10, 0.0
+
+
+def assert_close(a, b, rtol=1e-10, atol=0.0):
+    """Equal to ``rtol`` relative to the largest magnitude of the column (plus ``atol``)."""
     a, b = np.asarray(a, float), np.asarray(b, float)
     scale = max(np.max(np.abs(a)), np.max(np.abs(b)), 1e-300)
-    assert np.max(np.abs(a - b)) <= rtol * scale, (a, b)
+    assert np.max(np.abs(a - b)) <= rtol * scale + atol, (a, b)
 
 
 @pytest.fixture(scope="module")
@@ -95,7 +111,8 @@ def test_prepared_case_equals_a_separate_run_for_mu_and_preload_scale(model, ser
         rows = [i for i, c in enumerate(res.table["case"]) if c == case.index]
         assert len(rows) == ref.n_levels == 5
         for name in COMPARED:
-            assert_close([res.table[name][i] for i in rows], getattr(ref, name))
+            assert_close([res.table[name][i] for i in rows], getattr(ref, name),
+                         *_tol(name))
         info = json.loads((out / f"case-{case.index:04d}" / "results.json").read_text())
         assert info["model"]["mu"] == mu
 
@@ -133,7 +150,7 @@ def test_material_of_one_body_reassembles_that_body_only(model, tmp_path):
         150e9, bottom.material.nu, bottom.material.rho)), model.bodies[1]))
     ref = qsma.run(changed, OPTIONS)
     for name in ("q", "f_hz", "zeta"):
-        assert_close(res.table[name], getattr(ref, name))
+        assert_close(res.table[name], getattr(ref, name), *_tol(name))
 
 
 # ------------------------------------------------------------- failures and resumption
