@@ -1,6 +1,6 @@
 """The sandwich-2d benchmark: two clamped beams joined by a bolt near the tip.
 
-Every number below is fixed by ``shared/spec/sandwich-2d.md``.
+Every number below is fixed by the benchmark definition in docs/benchmarks.md.
 """
 from __future__ import annotations
 
@@ -93,7 +93,7 @@ def sandwich_2d(refine: int = 1, mu: float | None = None, element: str = "quad")
     )
 
 
-#: parameters of shared/spec/sandwich-3d.md (SI units)
+#: parameters of sandwich-3d (docs/benchmarks.md; SI units)
 SANDWICH_3D = dict(
     L=0.2032, h=0.00635, b=0.0254, contact_length=0.0508, E=200e9, nu=0.285, rho=6600.0,
     x_bolt=0.2032 - 0.0254, a_washer=0.0127, bolt_force=4450.0, mu=0.6,
@@ -132,7 +132,7 @@ def _beam_3d(y0, refine, top, element="hexahedron"):
 
 def sandwich_3d(refine: int = 1, mu: float | None = None,
                 element: str = "hexahedron") -> Model:
-    """The sandwich-3d model (``shared/spec/sandwich-3d.md``): 10,710 nodes and 561
+    """The sandwich-3d model (docs/benchmarks.md): 10,710 nodes and 561
     interface pairs at ``refine=1``; every hexahedron divided ``refine^3``.
 
     ``element`` (a key of ``ELEMENTS_3D``): ``"hexahedron"`` (default, trilinear, full
