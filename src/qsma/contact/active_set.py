@@ -16,11 +16,13 @@ carries the cone curvature in 3D) is a primal-dual active-set step: the
 displacements of the stuck components and the closed normals are fixed and
 one dense solve gives the rest (:mod:`qsma.contact.linear`).
 
-Safeguards (FIELD-NOTES, ping-pong of active sets): once an active set
-repeats, steps are damped by a backtracking line search on ``|F|^2``; if the
-line search fails, the Jacobian is singular or ``maxiter`` is reached, the
-method falls back to ``"basket"`` started from the current iterate (unless
-``fallback=False``). Success is decided by :func:`qsma.contact.residual`.
+Safeguards (ping-pong of active sets, a known failure of semismooth Newton
+contact solvers): once an active set repeats, steps are damped by a
+backtracking line search on ``|F|^2``; if the line search fails, the
+Jacobian is singular or ``maxiter`` is reached, the method stops unconverged
+and :func:`qsma.contact.solve` hands over to ``"basket"`` from the current
+iterate (unless ``fallback=False``). Success is decided by
+:func:`qsma.contact.residual`.
 """
 from __future__ import annotations
 
@@ -29,12 +31,11 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import InputError
-from .basket import run_baskets
 from .law import augmented_forces, pair_quantities, slip_directions_from_forces
 from .linear import basket_system, solve_partitioned
 from .registry import Iterate, register_method
 from .residual import residual
-from .state import OPEN, SLIPPING, STUCK, ContactState
+from .state import OPEN, SLIPPING, STUCK
 
 #: Armijo constant and the smallest step of the damped line search.
 ARMIJO, MIN_STEP = 1e-4, 2.0 ** -30
@@ -43,8 +44,8 @@ NEWTON_STEPS = 50
 
 
 @register_method("active_set")
-def solve_active_set(problem, lam_w, previous, *, tol, maxiter=None, augmentation=1.0,
-                     fallback=True):
+def solve_active_set(problem, lam_w, previous, *, tol, maxiter=None, guess=None,
+                     augmentation=1.0):
     """Semismooth Newton / primal-dual active set with cycling safeguards.
 
     Parameters
@@ -52,17 +53,17 @@ def solve_active_set(problem, lam_w, previous, *, tol, maxiter=None, augmentatio
     augmentation : float
         ``c = augmentation * kappa`` in ``sigma_n = P - c w``,
         ``sigma_t = Q - c dv``.
-    fallback : bool
-        Hand over to ``"basket"`` when Newton fails (see module docstring).
     maxiter : int, optional
         Cap on the iterations of the solve, fallback included: at most
-        ``min(maxiter, 50)`` Newton steps, the rest for the fallback
-        (``None``: 50 Newton steps, then the fallback's own default).
+        ``min(maxiter, 50)`` Newton steps, the rest for the fallback.
+    guess : ContactState, optional
+        Starting iterate (default ``previous``, whose active sets the first
+        step holds).
     """
     if not (np.isscalar(augmentation) and np.isfinite(augmentation) and augmentation > 0):
         raise InputError(f"augmentation must be a positive number, got {augmentation!r}")
     steps = NEWTON_STEPS if maxiter is None else min(maxiter, NEWTON_STEPS)
-    newton = _Newton(problem, lam_w, previous, augmentation * problem.kappa)
+    newton = _Newton(problem, lam_w, previous, augmentation * problem.kappa, guess)
     for it in range(steps + 1):
         if residual(problem, lam_w, newton.d2, newton.lam2, previous) <= tol:
             return Iterate(newton.d2, newton.lam2, it, True,
@@ -70,12 +71,7 @@ def solve_active_set(problem, lam_w, previous, *, tol, maxiter=None, augmentatio
         if it == steps or not newton.step():
             break
     reason = (newton.failure or f"no convergence in {it} Newton steps") + newton.note()
-    left = None if maxiter is None else maxiter - it
-    if not fallback or left == 0:
-        return Iterate(newton.d2, newton.lam2, it, False, reason)
-    guess = ContactState(newton.d2, newton.lam2, newton.sets().status)
-    out = run_baskets(problem, lam_w, previous, tol=tol, maxiter=left, guess=guess)
-    return out._replace(nit=it + out.nit, message=f"{reason}; fell back to basket: {out.message}")
+    return Iterate(newton.d2, newton.lam2, it, False, reason)
 
 
 def _previous_sets(previous):
@@ -103,12 +99,13 @@ class ActiveSets(NamedTuple):
 class _Newton:
     """Iterate and safeguards of the semismooth Newton method."""
 
-    def __init__(self, problem, lam_w, previous, c):
+    def __init__(self, problem, lam_w, previous, c, guess=None):
         self.problem, self.lw, self.prev, self.c = problem, lam_w.ravel(), previous.d, c
-        self.d = previous.d.ravel().copy()
+        start = previous if guess is None else guess
+        self.d = np.array(start.d, dtype=float).ravel()
         self.lam = problem.K @ self.d + self.lw
         self.seen, self.damped, self.failure = set(), False, None
-        self.first = _previous_sets(previous)
+        self.first = _previous_sets(previous) if guess is None else None
 
     @property
     def d2(self):
