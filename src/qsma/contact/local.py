@@ -95,6 +95,12 @@ def solve_pair(A, r, t_prev, g0, mu):
 def pair_solution(A, r, t_prev, g0, mu):
     """One solution of one pair: the first valid candidate (stuck, open, slipping),
     else the least violated. Returns the :class:`Candidate`."""
+    A, r, t_prev = np.asarray(A, float), np.asarray(r, float), np.asarray(t_prev, float)
+    m = len(r) - 1
+    d = np.append(t_prev, -g0)
+    lam = A @ d + r
+    if lam[m] >= 0.0 and np.linalg.norm(lam[:m]) <= mu * lam[m]:      # stuck: the usual case
+        return Candidate(STUCK, d, lam, 0.0, np.zeros(m))
     candidates = solve_pair(A, r, t_prev, g0, mu)
     for c in candidates:
         if c.violation == 0.0:

@@ -118,24 +118,24 @@ def solve(problem, lam_w, state=None, *, method="basket", tol=DEFAULT_TOL, maxit
     lam_w = _check_load(problem, lam_w)
     previous = ContactState.reference(problem) if state is None else state.check_against(problem)
     tol, maxiter = _check_tol(tol), _check_maxiter(maxiter)
-    out, used = _run_chain(problem, lam_w, previous, method, fn, tol, maxiter,
-                           bool(fallback), options)
-    return _result(problem, lam_w, previous, out, method, tol, fallback=used)
-
-
-def _run_chain(problem, lam_w, previous, method, fn, tol, maxiter, fallback, options):
-    """The method, then its fallback if it failed; ``(Iterate, fallback name or None)``."""
     scaled = _Scaled(problem, lam_w, previous)
+    out, used = _run_chain(scaled, method, fn, tol, maxiter, bool(fallback), options)
+    return _result(problem, lam_w, previous, out, method, tol, fallback=used, scaled=scaled)
+
+
+def _run_chain(scaled, method, fn, tol, maxiter, fallback, options):
+    """The method, then its fallback if it failed; ``(Iterate, fallback name or None)``,
+    the iterate in the internal units of ``scaled``."""
     out = _guarded(fn, scaled, None, tol, maxiter, options)
     rescue = FALLBACKS.get(method)
     left = None if maxiter is None else maxiter - out.nit
     if out.converged or not fallback or rescue is None or left == 0:
-        return scaled.back(out), None
+        return out, None
     guess = None if out.numerical_error else scaled.guess(out)
     second = _guarded(METHODS[rescue], scaled, guess, tol, left, {})
     merged = second._replace(nit=out.nit + second.nit,
                              message=f"{out.message}; fell back to {rescue}: {second.message}")
-    return scaled.back(merged), rescue
+    return merged, rescue
 
 
 def _guarded(fn, scaled, guess, tol, maxiter, options):
@@ -227,10 +227,21 @@ def _check_maxiter(maxiter):
     return int(maxiter)
 
 
-def _result(problem, lam_w, previous, out, method, tol, fallback=None):
-    """Accept or reject the method's iterate on the public residual and the force check."""
-    r = residual(problem, lam_w, out.d, out.lam, previous)
-    r_force = force_residual(problem, lam_w, out.d, out.lam, previous)
+def _result(problem, lam_w, previous, out, method, tol, fallback=None, scaled=None):
+    """Accept or reject the method's iterate on the public residual and the force check.
+
+    With ``scaled`` (see :class:`_Scaled`), ``out`` is in its internal units: the
+    measures (all dimensionless) are evaluated there, where nothing overflows, and
+    the result is given in the units of ``problem``.
+    """
+    if scaled is not None:
+        problem, lam_w, previous, internal = (scaled.problem, scaled.lam_w, scaled.previous,
+                                              out)
+        out = scaled.back(out)
+    else:
+        internal = out
+    r = residual(problem, lam_w, internal.d, internal.lam, previous)
+    r_force = force_residual(problem, lam_w, internal.d, internal.lam, previous)
     success = bool(out.converged and r <= tol and r_force <= FORCE_TOL)
     message = out.message
     if out.converged and not success:
@@ -238,13 +249,13 @@ def _result(problem, lam_w, previous, out, method, tol, fallback=None):
                    f"{r_force:.3e} (tol {FORCE_TOL:.0e})")
     outcome = (Outcome.CONVERGED if success else Outcome.REJECTED if out.converged
                else Outcome.NUMERICAL_ERROR if out.numerical_error else Outcome.NOT_CONVERGED)
-    state = ContactState(out.d, out.lam, _classify(problem, previous, out, tol))
+    state = ContactState(out.d, out.lam, _classify(problem, previous, internal, tol))
     if not success:
         warnings.warn(f"contact method {method!r}: {message} (residual {r:.3e}, tol {tol:.1e})",
                       ContactConvergenceWarning, stacklevel=3)
     return ContactResult(state.d, state.lam, state.status, success, out.nit, float(r), message,
                          method, state, outcome, fallback, r_force,
-                         legacy_residual(problem, lam_w, out.d, out.lam, previous))
+                         legacy_residual(problem, lam_w, internal.d, internal.lam, previous))
 
 
 def _classify(problem, previous, out, tol):
