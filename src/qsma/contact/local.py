@@ -27,6 +27,7 @@ have three solutions): :func:`solve_pair` returns all of them, and
 """
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -72,15 +73,28 @@ def solve_pair(A, r, t_prev, g0, mu):
         valid (``max(-P, |Q| - mu P)``, ``-k w`` with ``k = A_nn``, ``-P``).
     """
     A, r, t_prev = np.asarray(A, float), np.asarray(r, float), np.asarray(t_prev, float)
+    stuck = _stuck(A, r, t_prev, g0, mu)
+    return [stuck, _open(A, r, g0), *_slipping(A, r, t_prev, g0, mu, stuck.lam)]
+
+
+def _stuck(A, r, t_prev, g0, mu):
     m = len(r) - 1
-    d_stuck = np.append(t_prev, -g0)
-    lam = A @ d_stuck + r
-    Q0, P0 = lam[:m], lam[m]
-    out = [Candidate(STUCK, d_stuck, lam, max(-P0, float(np.linalg.norm(Q0)) - mu * P0, 0.0),
-                     np.zeros(m))]
-    d_open = -np.linalg.solve(A, r)
-    out.append(Candidate(OPEN, d_open, np.zeros_like(r), max(-A[m, m] * (d_open[m] + g0), 0.0),
-                         np.zeros(m)))
+    d = np.append(t_prev, -g0)
+    lam = A @ d + r
+    P = float(lam[m])
+    return Candidate(STUCK, d, lam, max(-P, math.hypot(*lam[:m]) - mu * P, 0.0), np.zeros(m))
+
+
+def _open(A, r, g0):
+    m = len(r) - 1
+    d = -np.linalg.solve(A, r)
+    return Candidate(OPEN, d, np.zeros_like(r), max(-A[m, m] * (d[m] + g0), 0.0), np.zeros(m))
+
+
+def _slipping(A, r, t_prev, g0, mu, lam_stuck):
+    m = len(r) - 1
+    Q0, P0 = lam_stuck[:m], lam_stuck[m]
+    out = []
     directions = _slip_directions_2d() if m == 1 else _slip_directions_3d(A, Q0, P0, mu)
     for s in directions:
         rho = _slip_length(A, Q0, P0, mu, s)
@@ -94,18 +108,50 @@ def solve_pair(A, r, t_prev, g0, mu):
 
 def pair_solution(A, r, t_prev, g0, mu):
     """One solution of one pair: the first valid candidate (stuck, open, slipping),
-    else the least violated. Returns the :class:`Candidate`."""
+    else the least violated. Returns the :class:`Candidate`.
+
+    Candidates are built lazily in that order, so the usual stuck or open pair
+    costs one small product or solve.
+    """
     A, r, t_prev = np.asarray(A, float), np.asarray(r, float), np.asarray(t_prev, float)
-    m = len(r) - 1
-    d = np.append(t_prev, -g0)
-    lam = A @ d + r
-    if lam[m] >= 0.0 and np.linalg.norm(lam[:m]) <= mu * lam[m]:      # stuck: the usual case
-        return Candidate(STUCK, d, lam, 0.0, np.zeros(m))
-    candidates = solve_pair(A, r, t_prev, g0, mu)
-    for c in candidates:
+    stuck = _stuck(A, r, t_prev, g0, mu)
+    if stuck.violation == 0.0:
+        return stuck
+    opened = _open(A, r, g0)
+    if opened.violation == 0.0:
+        return opened
+    candidates = [stuck, opened, *_slipping(A, r, t_prev, g0, mu, stuck.lam)]
+    for c in candidates[2:]:
         if c.violation == 0.0:
             return c
     return min(candidates, key=lambda c: c.violation)
+
+
+def pair_solution_2d(a, b, c, rt, rn, tp, g0, mu):
+    """:func:`pair_solution` of a 2D pair in scalar arithmetic (the inner loop of
+    ``nodal_gs``): ``A = [[a, b], [b, c]]``, ``r = (rt, rn)``; returns ``(d_t, d_n)``.
+
+    Stuck, open, then slipping with ``s = +-1`` and
+    ``rho = -(s Q0 + mu P0) / (a + mu b s)``; if round-off leaves none valid,
+    the least violated candidate of :func:`solve_pair`.
+    """
+    dn = -g0
+    Q0, P0 = a * tp + b * dn + rt, b * tp + c * dn + rn
+    if P0 >= 0.0 and abs(Q0) <= mu * P0:
+        return tp, dn
+    det = a * c - b * b
+    dt_open, dn_open = (b * rn - c * rt) / det, (b * rt - a * rn) / det
+    if dn_open + g0 >= 0.0:
+        return dt_open, dn_open
+    for s in ((-1.0, 1.0) if Q0 > 0 else (1.0, -1.0)):
+        denom = a + mu * b * s
+        if denom == 0.0:
+            continue
+        rho = -(s * Q0 + mu * P0) / denom
+        if rho > 0.0 and P0 + rho * b * s >= 0.0:
+            return tp + rho * s, dn
+    best = pair_solution(np.array([[a, b], [b, c]]), np.array([rt, rn]), np.array([tp]), g0, mu)
+    return float(best.d[0]), float(best.d[1])
 
 
 def _slip_directions_2d():
@@ -156,26 +202,29 @@ def _slip_directions_3d(A, Q0, P0, mu):
     while abs(coeffs[0]) < 1e-14 and len(coeffs) > 1:
         coeffs = coeffs[1:]
     roots = np.roots(coeffs) if len(coeffs) > 1 else np.array([])
-    angles = [np.angle(z) for z in roots if abs(abs(z) - 1.0) <= CIRCLE_TOL]
+    fourier = (c[0].real, 2 * c[1].real, -2 * c[1].imag, 2 * c[2].real, -2 * c[2].imag)
     out = []
-    for t in angles:
-        t = _polish(A, Q0, P0, mu, t)
-        s = np.array([np.cos(t), np.sin(t)])
-        if not any(np.allclose(s, o, rtol=0, atol=1e-12) for o in out):
+    for z in roots:
+        if abs(abs(z) - 1.0) > CIRCLE_TOL:
+            continue
+        t = _polish(fourier, float(np.angle(z)))
+        s = np.array([math.cos(t), math.sin(t)])
+        if not any(abs(s[0] - o[0]) + abs(s[1] - o[1]) <= 1e-12 for o in out):
             out.append(s)
     return out
 
 
-def _polish(A, Q0, P0, mu, t):
-    """Newton steps on ``f`` from ``t`` (derivative by a central difference)."""
-    h = 1e-7
+def _polish(fourier, t):
+    """Newton steps on ``f(t) = a0 + a1 cos t + b1 sin t + a2 cos 2t + b2 sin 2t``."""
+    a0, a1, b1, a2, b2 = fourier
     for _ in range(POLISH_STEPS):
-        f = _trig_f(A, Q0, P0, mu, t)
-        df = (_trig_f(A, Q0, P0, mu, t + h) - _trig_f(A, Q0, P0, mu, t - h)) / (2 * h)
-        if f == 0.0 or not df != 0.0:
+        c1, s1, c2, s2 = math.cos(t), math.sin(t), math.cos(2 * t), math.sin(2 * t)
+        f = a0 + a1 * c1 + b1 * s1 + a2 * c2 + b2 * s2
+        df = -a1 * s1 + b1 * c1 - 2 * a2 * s2 + 2 * b2 * c2
+        if f == 0.0 or df == 0.0:
             break
         step = f / df
         if abs(step) > 1e-3:          # not in the quadratic basin: keep the root as found
             break
-        t = t - step
+        t -= step
     return t

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
-from .local import pair_solution
+from .local import pair_solution, pair_solution_2d
 from .registry import Iterate, register_method
 from .residual import residual
 
@@ -73,8 +73,7 @@ class _Sweeper:
                         for i in range(p.n_pairs)]
         self.blocks = p.diagonal_blocks
         self.t_prev = previous.d[:, :-1]
-        self.args = [(self.blocks[i], self.t_prev[i], float(p.gap0[i]), float(p.mu[i]))
-                     for i in range(p.n_pairs)]
+        self.args = [self._local_args(i) for i in range(p.n_pairs)]
 
     @property
     def d2(self):
@@ -84,14 +83,28 @@ class _Sweeper:
     def lam2(self):
         return self.lam.reshape(-1, self.problem.dim)
 
+    def _local_args(self, i):
+        p = self.problem
+        if p.dim == 2:
+            (a, b), (_, c) = self.blocks[i].tolist()
+            return a, b, c, float(self.t_prev[i, 0]), float(p.gap0[i]), float(p.mu[i])
+        return self.blocks[i], self.t_prev[i], float(p.gap0[i]), float(p.mu[i])
+
+    def _local(self, i, r):
+        """Exact solution of pair ``i`` with the others held, ``lam_i = K_ii d_i + r``."""
+        args = self.args[i]
+        if self.problem.dim == 2:
+            a, b, c, tp, g0, mu = args
+            return np.array(pair_solution_2d(a, b, c, float(r[0]), float(r[1]), tp, g0, mu))
+        return pair_solution(args[0], r, *args[1:]).d
+
     def sweep(self):
         dim, d, lam = self.problem.dim, self.d, self.lam
         for i in range(self.problem.n_pairs):
             s = slice(i * dim, (i + 1) * dim)
             old = d[s].copy()
             r = lam[s] - self.blocks[i] @ old
-            A, t_prev, g0, mu = self.args[i]
-            new = pair_solution(A, r, t_prev, g0, mu).d
+            new = self._local(i, r)
             delta = new - old
             if np.any(delta):
                 d[s] = new
