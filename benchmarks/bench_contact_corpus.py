@@ -1,7 +1,7 @@
 """Every contact method on the third-party corpus (Siconos test problems).
 
 Usage: python benchmarks/bench_contact_corpus.py [--extra FILE ...] [--nodal-maxiter 2000]
-                                                 [--repeat 3] [--roundoff]
+                                                 [--repeat 3]
 
 Problems: tests/data/contact/siconos/*.dat (see the README there) plus any
 ``--extra`` Siconos ``.dat`` files (e.g. ``fc2d_granularflowonwall_00667_00000.dat``
@@ -12,10 +12,6 @@ runs, the residual (new), the force check, the legacy residual, and an independe
 natural-map residual in the Delassus form (``u = W lam + q``, relative to
 ``max|lam|``). An *invalid success* is a success whose independent residual exceeds
 1e-5 (tests/contact/test_contact_corpus.py, INDEPENDENT_TOL).
-
-``--roundoff`` prints, over every converged answer, the largest ratio of a pair's
-natural map to ``eps sqrt(N) max_j (|K| |d| + |lam_w|)_j``: the measured basis of
-``qsma.contact.residual.ROUNDOFF``.
 """
 import argparse
 import statistics
@@ -28,21 +24,10 @@ import numpy as np
 
 from qsma.contact import METHODS, solve
 from qsma.contact.external import read_siconos_dat, stiffness_form
-from qsma.contact.law import natural_map, pair_quantities
-from qsma.contact.residual import EPS, _terms, pair_stiffness
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests" / "contact"))
 from test_contact_corpus import INDEPENDENT_TOL, MAX_ASYMMETRY, delassus_residual  # noqa: E402
-
-
-def roundoff_ratio(problem, lam_w, d, lam):
-    """max_i natural map_i / (eps sqrt(N) max_j in i e_j)."""
-    r_n, r_t = natural_map(pair_quantities(problem, d, lam, np.zeros_like(d)), problem.mu,
-                           pair_stiffness(problem))
-    e = _terms(problem, lam_w, d).reshape(problem.n_pairs, -1).max(axis=1)
-    unit = EPS * np.sqrt(problem.size) * e
-    return float(np.max(np.maximum(r_n, r_t) / np.maximum(unit, 1e-300)))
 
 
 def main():
@@ -50,7 +35,6 @@ def main():
     ap.add_argument("--extra", nargs="*", default=[])
     ap.add_argument("--nodal-maxiter", type=int, default=2000)
     ap.add_argument("--repeat", type=int, default=3)
-    ap.add_argument("--roundoff", action="store_true")
     args = ap.parse_args()
     files = sorted((ROOT / "tests" / "data" / "contact" / "siconos").glob("*.dat"))
     files += [Path(f) for f in args.extra]
@@ -58,7 +42,6 @@ def main():
           "| residual | force check | legacy | independent |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     totals = {m: [0, 0, 0, 0.0] for m in METHODS}      # solved, invalid, fallbacks, time
-    worst_ratio = 0.0
     for path in files:
         delassus = read_siconos_dat(path)
         problem, lam_w = stiffness_form(delassus, MAX_ASYMMETRY)
@@ -79,8 +62,6 @@ def main():
             tot[1] += invalid
             tot[2] += r.fallback is not None
             tot[3] += statistics.median(times)
-            if r.success and args.roundoff:
-                worst_ratio = max(worst_ratio, roundoff_ratio(problem, lam_w, r.d, r.lam))
             print(f"| {path.stem} | {problem.n_pairs} | {problem.dim} | {cond:.1e} | {method} "
                   f"| {r.success}{' INVALID' if invalid else ''} | {r.nit} | {r.fallback or '-'} "
                   f"| {statistics.median(times):.3f} | {r.residual:.1e} | {r.residual_force:.1e} "
@@ -90,8 +71,6 @@ def main():
     print("| --- | --- | --- | --- | --- |")
     for method, (ok, bad, fb, t) in totals.items():
         print(f"| {method} | {ok}/{len(files)} | {bad} | {fb} | {t:.2f} |")
-    if args.roundoff:
-        print(f"\nlargest natural map / (eps sqrt(N) e) over converged answers: {worst_ratio:.2f}")
 
 
 if __name__ == "__main__":

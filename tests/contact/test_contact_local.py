@@ -4,7 +4,7 @@ import itertools
 import numpy as np
 import pytest
 
-from qsma.contact import METHODS, ContactProblem, OPEN, SLIPPING, STUCK, solve
+from qsma.contact import METHODS, SLIPPING, ContactProblem, solve
 from qsma.contact.local import _trig_f, pair_solution, solve_pair
 
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from qsma.contact import (FALLBACKS, METHODS, ContactProblem, Iterate, Outcome, PairState,
-                          OPEN, SLIPPING, STUCK, force_residual, legacy_residual, residual, solve)
+                          OPEN, SLIPPING, STUCK, legacy_residual, residual, solve)
 from qsma.contact import registry
 
 

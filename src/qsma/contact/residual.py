@@ -26,10 +26,10 @@ TINY_FORCE = np.finfo(float).tiny
 EPS = np.finfo(float).eps
 #: Round-off allowance of a pair's force, in units of ``eps`` times the size of
 #: the terms of ``lam_i = K_i d + lam_w,i``, per ``sqrt(N)`` (N unknowns: the
-#: statistical growth of a dot product of length N). Measured: converged
-#: answers of sandwich-2d/3d, the bar, the Hertz line contact and the Siconos
-#: corpus need at most 2.1 (python benchmarks/bench_contact_corpus.py --roundoff);
-#: 8 leaves a factor ~4.
+#: statistical growth of the rounding error of a dot product of length N); 8 is a
+#: margin on that estimate, not a fit. The sandwich-2d ramp converges on every level
+#: with any factor from 0 to 8 (python benchmarks/bench_contact_roundoff.py): the
+#: allowance matters only when the load dwarfs the reaction (docs/contact.md).
 ROUNDOFF = 8.0
 #: Tolerance of :func:`force_residual` that every success must meet: the
 #: largest value seen on exact answers is 2.5e-10 (sandwich-2d, every pair
