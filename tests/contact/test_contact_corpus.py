@@ -71,3 +71,13 @@ def test_reader_keeps_the_siconos_component_order():
     W_qsma = np.linalg.inv(problem.K)
     assert W_qsma[2, 2] == pytest.approx(15.0)          # normal last in qsma
     np.testing.assert_allclose(-np.linalg.solve(problem.K, lam_w.ravel()), [2, 3, -1])
+
+
+def test_nodal_gs_solves_the_single_coupled_3d_contact_in_one_sweep():
+    """FrictionContact3D_RR_1c: stuck trial pressure negative, slipping raises it
+    through the coupling; the old local solve returned lam = 0 with a penetration."""
+    delassus = read_siconos_dat(DATA / "FrictionContact3D_RR_1c.dat")
+    problem, lam_w = stiffness_form(delassus)
+    r = solve(problem, lam_w, method="nodal_gs")
+    assert r.success and r.nit == 1 and r.P[0] > 0
+    assert delassus_residual(delassus, problem, r.lam) <= 1e-12
