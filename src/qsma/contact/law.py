@@ -12,6 +12,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .local import solve_pair
 from .state import OPEN, SLIPPING, STUCK
 
 
@@ -221,7 +222,6 @@ def local_states(problem, d, lam, d_prev, threshold, pairs):
         ``direction`` is that of the first valid slipping candidate (else of
         the least violated one, else the current ``-Q/|Q|``).
     """
-    from .local import solve_pair            # local imports this module's state codes
     threshold = np.broadcast_to(np.asarray(threshold, dtype=float), (len(pairs),))
     m = problem.dim - 1
     valid = np.zeros((len(pairs), 3), bool)
