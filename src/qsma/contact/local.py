@@ -41,6 +41,16 @@ CIRCLE_TOL = 1e-4
 #: Newton steps that polish a root angle on ``f`` (quadratic convergence from
 #: ~1e-8: two steps reach round-off; four leave a margin).
 POLISH_STEPS = 4
+#: Relative misfit of ``rho M(s) s = g(s)`` above which a root direction is not a
+#: solution (a spurious root of the quartic, or ``M(s) s`` and ``g`` anti-parallel
+#: with ``rho`` of the wrong sign is rejected by ``rho > 0``): round-off leaves
+#: ~1e-15, a polished double root ~1e-8 of the angle; 1e-8 keeps both.
+SLIP_MISFIT = 1e-8
+#: Leading quartic coefficients below this (relative to the largest) are dropped:
+#: the polynomial has lower degree (round-off of the FFT is ~1e-16).
+DEGREE_DROP = 1e-14
+#: Two directions closer than this (sum of component differences) are one root.
+SAME_DIRECTION = 1e-12
 
 
 class Candidate(NamedTuple):
@@ -160,7 +170,7 @@ def _slip_directions_2d():
 
 def _slip_length(A, Q0, P0, mu, s):
     """``rho`` of direction ``s``: least squares of ``rho M(s) s = g(s)``, None if
-    the equation does not hold there (relative misfit above 1e-8)."""
+    the equation does not hold there (relative misfit above :data:`SLIP_MISFIT`)."""
     m = len(s)
     Ms = A[:m, :m] @ s + mu * (A[m, :m] @ s) * s
     g = -(Q0 + mu * P0 * s)
@@ -169,7 +179,7 @@ def _slip_length(A, Q0, P0, mu, s):
         return None
     rho = (Ms @ g) / denom
     scale = max(np.linalg.norm(g), abs(rho) * np.sqrt(denom))
-    if np.linalg.norm(rho * Ms - g) > 1e-8 * scale:
+    if np.linalg.norm(rho * Ms - g) > SLIP_MISFIT * scale:
         return None
     return rho
 
@@ -199,7 +209,7 @@ def _slip_directions_3d(A, Q0, P0, mu):
     if not size > 0:
         return []
     coeffs = coeffs / size
-    while abs(coeffs[0]) < 1e-14 and len(coeffs) > 1:
+    while abs(coeffs[0]) < DEGREE_DROP and len(coeffs) > 1:
         coeffs = coeffs[1:]
     roots = np.roots(coeffs) if len(coeffs) > 1 else np.array([])
     fourier = (c[0].real, 2 * c[1].real, -2 * c[1].imag, 2 * c[2].real, -2 * c[2].imag)
@@ -209,7 +219,7 @@ def _slip_directions_3d(A, Q0, P0, mu):
             continue
         t = _polish(fourier, float(np.angle(z)))
         s = np.array([math.cos(t), math.sin(t)])
-        if not any(abs(s[0] - o[0]) + abs(s[1] - o[1]) <= 1e-12 for o in out):
+        if not any(abs(s[0] - o[0]) + abs(s[1] - o[1]) <= SAME_DIRECTION for o in out):
             out.append(s)
     return out
 
