@@ -111,13 +111,19 @@ def main():
     ap.add_argument("--max-pairs", type=int, default=2000)
     ap.add_argument("--levels", type=int, default=4)
     ap.add_argument("--nodal-max-pairs", type=int, default=30)
+    ap.add_argument("--seconds", type=float, default=None,
+                    help="stop drawing new problems after this many seconds")
     args = ap.parse_args()
     rng = np.random.default_rng(args.seed)
     keys = ("levels", "solved", "failed", "invalid", "crash", "fallback", "nit", "time")
     stats = {m: dict.fromkeys(keys, 0) for m in METHODS}
     by_cond = {m: {} for m in METHODS}
     t_start = time.perf_counter()
+    done = 0
     for k in range(args.problems):
+        if args.seconds is not None and time.perf_counter() - t_start > args.seconds:
+            break
+        done += 1
         problem, W, cond = random_problem(rng, args.max_pairs)
         loads = load_sequence(rng, problem, W, args.levels)
         for method in sorted(METHODS):
@@ -156,7 +162,7 @@ def main():
                     break                        # a ramp stops at its first failure
         if (k + 1) % 20 == 0:
             print(f"... {k + 1} problems, {time.perf_counter() - t_start:.0f} s", flush=True)
-    print(f"\n{args.problems} problems (seed {args.seed}, max pairs {args.max_pairs}, "
+    print(f"\n{done} problems (seed {args.seed}, max pairs {args.max_pairs}, "
           f"{args.levels} levels), {time.perf_counter() - t_start:.0f} s\n")
     print("| method | levels | solved | failed | invalid successes | crashes | fallbacks "
           "| iterations | time [s] |")
