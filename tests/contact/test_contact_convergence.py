@@ -75,7 +75,7 @@ def test_literal_basket_gauss_seidel_gives_the_same_answer():
 
 
 def test_solve_rejects_a_method_that_claims_success_wrongly(monkeypatch):
-    def liar(problem, lam_w, previous, *, tol, maxiter=None):
+    def liar(problem, lam_w, previous, *, tol, maxiter=None, guess=None):
         return Iterate(previous.d, np.zeros_like(lam_w), 1, True, "trust me")
     monkeypatch.setitem(registry.METHODS, "liar", liar)
     monkeypatch.setitem(registry._OPTIONS, "liar", ())

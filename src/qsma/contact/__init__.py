@@ -14,12 +14,14 @@ open, stuck or slipping (Coulomb friction, 2D or 3D)::
 Methods (:data:`METHODS`): ``"basket"`` (default, block Gauss-Seidel with
 baskets), ``"active_set"`` (semismooth Newton, Alart-Curnier), ``"nodal_gs"``
 (one pair at a time, the baseline). All of them are judged by the same
-:func:`residual`.
+:func:`residual` and the force check :func:`force_residual`.
 """
 from .problem import ContactProblem
-from .registry import DEFAULT_TOL, METHODS, Iterate, register_method, solve
-from .residual import ResidualComponents, residual, residual_components
-from .state import OPEN, SLIPPING, STATUS_NAMES, STUCK, ContactResult, ContactState
+from .registry import DEFAULT_TOL, FALLBACKS, METHODS, Iterate, register_method, solve
+from .residual import (FORCE_TOL, ResidualComponents, force_residual, legacy_residual, residual,
+                       residual_components)
+from .state import (OPEN, SLIPPING, STATUS_NAMES, STUCK, ContactResult, ContactState, Outcome,
+                    PairState)
 
 # Importing the method modules registers them in METHODS.
 from . import active_set, basket, nodal_gs  # noqa: E402,F401  isort: skip
@@ -27,5 +29,6 @@ from . import active_set, basket, nodal_gs  # noqa: E402,F401  isort: skip
 __all__ = [
     "ContactProblem", "ContactResult", "ContactState", "ResidualComponents", "METHODS",
     "DEFAULT_TOL", "Iterate", "register_method", "solve", "residual", "residual_components",
-    "STUCK", "SLIPPING", "OPEN", "STATUS_NAMES",
+    "STUCK", "SLIPPING", "OPEN", "STATUS_NAMES", "PairState", "Outcome", "FALLBACKS",
+    "FORCE_TOL", "force_residual", "legacy_residual",
 ]

@@ -16,11 +16,13 @@ carries the cone curvature in 3D) is a primal-dual active-set step: the
 displacements of the stuck components and the closed normals are fixed and
 one dense solve gives the rest (:mod:`qsma.contact.linear`).
 
-Safeguards (FIELD-NOTES, ping-pong of active sets): once an active set
-repeats, steps are damped by a backtracking line search on ``|F|^2``; if the
-line search fails, the Jacobian is singular or ``maxiter`` is reached, the
-method falls back to ``"basket"`` started from the current iterate (unless
-``fallback=False``). Success is decided by :func:`qsma.contact.residual`.
+Safeguards (ping-pong of active sets, a known failure of semismooth Newton
+contact solvers): once an active set repeats, steps are damped by a
+backtracking line search on ``|F|^2``; if the line search fails, the
+Jacobian is singular or ``maxiter`` is reached, the method stops unconverged
+and :func:`qsma.contact.solve` hands over to ``"basket"`` from the current
+iterate (unless ``fallback=False``). Success is decided by
+:func:`qsma.contact.residual`.
 """
 from __future__ import annotations
 
@@ -29,22 +31,28 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import InputError
-from .basket import run_baskets
 from .law import augmented_forces, pair_quantities, slip_directions_from_forces
 from .linear import basket_system, solve_partitioned
 from .registry import Iterate, register_method
 from .residual import residual
-from .state import OPEN, SLIPPING, STUCK, ContactState
+from .state import OPEN, SLIPPING, STUCK
 
 #: Armijo constant and the smallest step of the damped line search.
 ARMIJO, MIN_STEP = 1e-4, 2.0 ** -30
 #: Newton steps before the fallback.
 NEWTON_STEPS = 50
+#: Undamped steps without a new lowest ``|F|`` before damping starts. On the 667-pair
+#: Siconos granular-flow problem the undamped iteration wandered through new active
+#: sets (no exact repeat) for all 50 steps; with damping after 5 stalled steps it
+#: converges in 17 (benchmarks/bench_contact_corpus.py). 5: long enough not to damp
+#: the ordinary non-monotone first steps of a ramp level (the warm-started ramps of
+#: tests/contact/test_contact_convergence.py keep their iteration counts).
+STALL_STEPS = 5
 
 
 @register_method("active_set")
-def solve_active_set(problem, lam_w, previous, *, tol, maxiter=None, augmentation=1.0,
-                     fallback=True):
+def solve_active_set(problem, lam_w, previous, *, tol, maxiter=None, guess=None,
+                     augmentation=1.0):
     """Semismooth Newton / primal-dual active set with cycling safeguards.
 
     Parameters
@@ -52,17 +60,17 @@ def solve_active_set(problem, lam_w, previous, *, tol, maxiter=None, augmentatio
     augmentation : float
         ``c = augmentation * kappa`` in ``sigma_n = P - c w``,
         ``sigma_t = Q - c dv``.
-    fallback : bool
-        Hand over to ``"basket"`` when Newton fails (see module docstring).
     maxiter : int, optional
         Cap on the iterations of the solve, fallback included: at most
-        ``min(maxiter, 50)`` Newton steps, the rest for the fallback
-        (``None``: 50 Newton steps, then the fallback's own default).
+        ``min(maxiter, 50)`` Newton steps, the rest for the fallback.
+    guess : ContactState, optional
+        Starting iterate (default ``previous``, whose active sets the first
+        step holds).
     """
     if not (np.isscalar(augmentation) and np.isfinite(augmentation) and augmentation > 0):
         raise InputError(f"augmentation must be a positive number, got {augmentation!r}")
     steps = NEWTON_STEPS if maxiter is None else min(maxiter, NEWTON_STEPS)
-    newton = _Newton(problem, lam_w, previous, augmentation * problem.kappa)
+    newton = _Newton(problem, lam_w, previous, augmentation * problem.kappa, guess)
     for it in range(steps + 1):
         if residual(problem, lam_w, newton.d2, newton.lam2, previous) <= tol:
             return Iterate(newton.d2, newton.lam2, it, True,
@@ -70,12 +78,7 @@ def solve_active_set(problem, lam_w, previous, *, tol, maxiter=None, augmentatio
         if it == steps or not newton.step():
             break
     reason = (newton.failure or f"no convergence in {it} Newton steps") + newton.note()
-    left = None if maxiter is None else maxiter - it
-    if not fallback or left == 0:
-        return Iterate(newton.d2, newton.lam2, it, False, reason)
-    guess = ContactState(newton.d2, newton.lam2, newton.sets().status)
-    out = run_baskets(problem, lam_w, previous, tol=tol, maxiter=left, guess=guess)
-    return out._replace(nit=it + out.nit, message=f"{reason}; fell back to basket: {out.message}")
+    return Iterate(newton.d2, newton.lam2, it, False, reason)
 
 
 def _previous_sets(previous):
@@ -103,12 +106,14 @@ class ActiveSets(NamedTuple):
 class _Newton:
     """Iterate and safeguards of the semismooth Newton method."""
 
-    def __init__(self, problem, lam_w, previous, c):
+    def __init__(self, problem, lam_w, previous, c, guess=None):
         self.problem, self.lw, self.prev, self.c = problem, lam_w.ravel(), previous.d, c
-        self.d = previous.d.ravel().copy()
+        start = previous if guess is None else guess
+        self.d = np.array(start.d, dtype=float).ravel()
         self.lam = problem.K @ self.d + self.lw
         self.seen, self.damped, self.failure = set(), False, None
-        self.first = _previous_sets(previous)
+        self.best, self.stall = np.inf, 0
+        self.first = _previous_sets(previous) if guess is None else None
 
     @property
     def d2(self):
@@ -119,7 +124,7 @@ class _Newton:
         return self.lam.reshape(-1, self.problem.dim)
 
     def note(self):
-        return "; cycling detected, damped steps" if self.damped else ""
+        return "; cycling or stall detected, damped steps" if self.damped else ""
 
     def sets(self, d=None, lam=None, imposed=None):
         """Active sets and ``F`` at ``(d, lam)`` (default: the current iterate)."""
@@ -153,10 +158,18 @@ class _Newton:
         return True
 
     def _watch_cycle(self, sets):
+        """Damp from now on if an active set repeats, or if ``|F|`` has not gone below
+        its best value for :data:`STALL_STEPS` steps (a wander through ever new sets)."""
         key = sets.status.tobytes() + (sets.h > 0).tobytes()
         if key in self.seen:
             self.damped = True
         self.seen.add(key)
+        merit = float(np.sum(sets.F ** 2))
+        if merit < self.best:
+            self.best, self.stall = merit, 0
+        else:
+            self.stall += 1
+            self.damped |= self.stall >= STALL_STEPS
 
     def _newton_point(self, sets):
         """Full Newton step: ``J d_new = J d - F`` with the fixed components known.

@@ -45,7 +45,7 @@ from .law import (basket_transitions, local_states, pair_quantities, row_norm,
                   slip_directions_from_forces)
 from .linear import basket_system, known_displacement, open_rows, slip_rows, solve_partitioned
 from .registry import Iterate, register_method
-from .residual import force_scale, residual
+from .residual import reaction_scale, residual, roundoff_allowance
 from .state import OPEN, SLIPPING, STUCK
 
 #: Checks ignore violations below this fraction of ``tol * F``, so that
@@ -59,8 +59,8 @@ DIRECTION_STEPS, ARMIJO, MIN_STEP = 30, 1e-4, 2.0 ** -20
 
 
 @register_method("basket")
-def solve_basket(problem, lam_w, previous, *, tol, maxiter=None, coupling="joint",
-                 pass_tol=None, fallback=True):
+def solve_basket(problem, lam_w, previous, *, tol, maxiter=None, guess=None, coupling="joint",
+                 pass_tol=None):
     """Block Gauss-Seidel with baskets.
 
     Parameters
@@ -71,22 +71,13 @@ def solve_basket(problem, lam_w, previous, *, tol, maxiter=None, coupling="joint
         Relative change of displacement at slipping and open pairs below
         which a pass has settled (paper eq. 19); default ``tol``.
     maxiter : int, optional
-        Cap on the iterations of the solve, fallback included: block steps
-        (default 200 for ``"joint"``, 20000 for ``"gauss_seidel"``), then
-        what is left for the fallback (its own default if ``None``).
-    fallback : bool
-        If the baskets fail, hand over to ``"active_set"`` (without its own
-        fallback) from the previous state; the message says so.
+        Cap on block steps (default 200 for ``"joint"``, 20000 for
+        ``"gauss_seidel"``).
+    guess : ContactState, optional
+        Initial baskets and iterate (default ``previous``).
     """
-    out = run_baskets(problem, lam_w, previous, tol=tol, maxiter=maxiter, coupling=coupling,
-                      pass_tol=pass_tol)
-    left = None if maxiter is None else maxiter - out.nit
-    if out.converged or not fallback or left == 0:
-        return out
-    from .active_set import solve_active_set  # deferred: active_set imports this module
-    rescue = solve_active_set(problem, lam_w, previous, tol=tol, maxiter=left, fallback=False)
-    return rescue._replace(nit=out.nit + rescue.nit,
-                           message=f"{out.message}; fell back to active_set: {rescue.message}")
+    return run_baskets(problem, lam_w, previous, tol=tol, maxiter=maxiter, coupling=coupling,
+                       pass_tol=pass_tol, guess=guess)
 
 
 def run_baskets(problem, lam_w, previous, *, tol, maxiter=None, coupling="joint",
@@ -169,11 +160,11 @@ class _BasketRun:
         except np.linalg.LinAlgError:
             return False, f"singular block system ({self.summary()})"
         q = pair_quantities(self.problem, self.d2, self.lam2, self.prev)
-        threshold = CHECK_FRACTION * self.tol * force_scale(self.lw, self.lam)
+        threshold = self._threshold()
         tr = basket_transitions(
             self.status, self.direction, q, self.problem.mu, self.problem.kappa, threshold,
-            lambda pairs: local_states(self.problem, self.d2, self.lam2, self.prev, threshold,
-                                       pairs))
+            lambda pairs: local_states(self.problem, self.d2, self.lam2, self.prev,
+                                       threshold[pairs], pairs))
         if unsettled is not None and tr.status[unsettled[0]] == SLIPPING:
             tr.status[unsettled[0]] = STUCK       # no slip direction satisfies the law
             tr.violation[unsettled[0]] = unsettled[1]
@@ -186,6 +177,13 @@ class _BasketRun:
             return None
         stalled = self.quiet >= 2 if self.coupling == "joint" else change == 0.0
         return self._end_of_pass(tr, stalled)
+
+    def _threshold(self):
+        """Per pair, the violation a check ignores (force units): a fraction of what
+        the residual allows, ``CHECK_FRACTION tol max|lam|``, plus the round-off
+        allowance of the pair's force (:func:`qsma.contact.residual.roundoff_allowance`)."""
+        return (CHECK_FRACTION * self.tol * reaction_scale(self.lam)
+                + roundoff_allowance(self.problem, self.lam_w, self.d2))
 
     def _set_iterate(self, d):
         self.d, self._lam = d, None
@@ -321,8 +319,8 @@ class _BasketRun:
         change = 0.0
         for _ in range(DIRECTION_STEPS):
             s, alpha, misfit = self._slip_law(self.d)
-            goal = CHECK_FRACTION * self.tol * force_scale(self.lw, self.lam)
-            if not slip.any() or misfit.sum() <= goal ** 2 or self.solves >= self.maxiter:
+            goal = self._threshold()[slip]
+            if not slip.any() or np.all(np.sqrt(misfit) <= goal) or self.solves >= self.maxiter:
                 return change, None
             self.direction[slip], self.alpha[slip] = s, alpha
             target = self._block_step()

@@ -12,6 +12,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .local import solve_pair
 from .state import OPEN, SLIPPING, STUCK
 
 
@@ -70,11 +71,14 @@ def natural_map(q, mu, c):
         r_t = \\lVert Q - \\mathrm{proj}_{\\mu \\max(P, 0)}(Q - c\\, dv) \\rVert
 
     Both vanish exactly when the pair satisfies one of the rows of the table
-    of method.md section 4 (open, stuck or slipping).
+    of the contact law (open, stuck or slipping). ``c`` is a stiffness, a
+    scalar or one per pair.
     """
+    c = np.asarray(c, dtype=float)
     r_n = np.abs(q.P - np.maximum(0.0, q.P - c * q.w))
     radius = mu * np.maximum(q.P, 0.0)
-    r_t = row_norm(q.Q - project_disk(q.Q - c * q.dv, radius))
+    c_t = c[:, None] if c.ndim == 1 else c
+    r_t = row_norm(q.Q - project_disk(q.Q - c_t * q.dv, radius))
     return r_n, r_t
 
 
@@ -201,74 +205,42 @@ def local_states(problem, d, lam, d_prev, threshold, pairs):
     """Which rows of the contact law each pair can satisfy when solved alone.
 
     With the other pairs held, pair ``i`` sees ``lam_i = K_ii d_i + r_i``,
-    ``r_i = lam_i - K_ii d_i``. Its candidates: stuck
-    (``d_i = (d_t,prev, -g0)``: needs ``P >= 0``, ``|Q| <= mu P``); open
-    (``lam_i = 0``: needs ``w >= 0``); slipping (``d_n = -g0``,
-    ``Q = -mu P s`` with ``s = -Q/|Q|`` of the stuck trial force, held fixed;
-    in 2D the other sign is tried too: needs ``P >= 0``, ``dv . s >= 0``).
+    ``r_i = lam_i - K_ii d_i``; its exact candidates (stuck, open, every
+    slipping direction) come from :func:`qsma.contact.local.solve_pair`.
 
     Parameters
     ----------
     d, lam, d_prev : (n_pairs, dim)
-    threshold : float
+    threshold : float or (k,)
         Tolerance of the inequalities, force units.
     pairs : (k,) int
         The pairs to solve; the result has ``k`` rows.
+
+    Returns
+    -------
+    LocalStates
+        ``direction`` is that of the first valid slipping candidate (else of
+        the least violated one, else the current ``-Q/|Q|``).
     """
-    Kii, mu, kappa = problem.diagonal_blocks[pairs], problem.mu[pairs], problem.kappa
-    d, lam, d_prev, gap0 = d[pairs], lam[pairs], d_prev[pairs], problem.gap0[pairs]
-    r = lam - np.einsum("kij,kj->ki", Kii, d)
-    d_stuck = np.concatenate([d_prev[:, :-1], -gap0[:, None]], axis=1)
-    lam_stuck = np.einsum("kij,kj->ki", Kii, d_stuck) + r
-    P, Q = lam_stuck[:, -1], lam_stuck[:, :-1]
-    q_norm = row_norm(Q)
-    stuck_ok = (P >= -threshold) & (q_norm - mu * P <= threshold)
-    open_ok = kappa * (gap0 - _solve_small(Kii, r)[:, -1]) >= -threshold
-    s = -Q / np.maximum(q_norm, np.finfo(float).tiny)[:, None]
-    s[q_norm == 0, 0] = 1.0
-    slip_ok = _slip_consistent(Kii, Q, P, s, mu, kappa, threshold)
-    if problem.dim == 2:
-        flip = ~slip_ok & _slip_consistent(Kii, Q, P, -s, mu, kappa, threshold)
-        s[flip], slip_ok = -s[flip], slip_ok | flip
-    return LocalStates(np.stack([stuck_ok, slip_ok, open_ok], axis=1), s)
-
-
-def _slip_consistent(Kii, Q0, P0, s, mu, kappa, threshold):
-    """Whether slipping along ``s`` is consistent for each pair alone.
-
-    The slip increment ``v`` solves ``(A + mu s b^T) v = -(Q0 + mu P0 s)``
-    (``A = K_tt``, ``b = K_nt`` of the pair, ``Q0, P0`` the stuck trial
-    forces); consistent if ``P0 + b.v >= 0`` and ``v . s >= 0``.
-    """
-    A, b = Kii[:, :-1, :-1], Kii[:, -1, :-1]
-    M = A + mu[:, None, None] * s[:, :, None] * b[:, None, :]
-    rhs = -(Q0 + (mu * P0)[:, None] * s)
-    singular = np.abs(_det_small(M)) <= 1e-14 * np.abs(_det_small(A))
-    M[singular] = A[singular]
-    v = _solve_small(M, rhs)
-    P = P0 + np.einsum("ij,ij->i", b, v)
-    return ~singular & (P >= -threshold) & (kappa * np.einsum("ij,ij->i", v, s) >= -threshold)
-
-
-def _det_small(M):
-    """Determinants of a stack of small matrices (closed form up to 2x2)."""
-    if M.shape[1] == 1:
-        return M[:, 0, 0]
-    if M.shape[1] == 2:
-        return M[:, 0, 0] * M[:, 1, 1] - M[:, 0, 1] * M[:, 1, 0]
-    return np.linalg.det(M)
-
-
-def _solve_small(M, rhs):
-    """Solve a stack of small systems ``M x = rhs`` (closed form up to 2x2)."""
-    if M.shape[1] == 1:
-        return rhs / M[:, 0, :]
-    if M.shape[1] == 2:
-        det = _det_small(M)
-        x0 = (M[:, 1, 1] * rhs[:, 0] - M[:, 0, 1] * rhs[:, 1]) / det
-        x1 = (M[:, 0, 0] * rhs[:, 1] - M[:, 1, 0] * rhs[:, 0]) / det
-        return np.stack([x0, x1], axis=1)
-    return np.linalg.solve(M, rhs[:, :, None])[:, :, 0]
+    threshold = np.broadcast_to(np.asarray(threshold, dtype=float), (len(pairs),))
+    m = problem.dim - 1
+    valid = np.zeros((len(pairs), 3), bool)
+    direction = np.zeros((len(pairs), m))
+    for k, i in enumerate(pairs):
+        A = problem.diagonal_blocks[i]
+        r = lam[i] - A @ d[i]
+        candidates = solve_pair(A, r, d_prev[i, :-1], float(problem.gap0[i]),
+                                float(problem.mu[i]))
+        for c in candidates:
+            valid[k, c.state] |= c.violation <= threshold[k]
+        slips = sorted((c for c in candidates if c.state == SLIPPING),
+                       key=lambda c: c.violation)
+        if slips:
+            direction[k] = slips[0].s
+        else:
+            q_norm = np.linalg.norm(lam[i, :-1])
+            direction[k] = -lam[i, :-1] / q_norm if q_norm > 0 else np.eye(m)[0]
+    return LocalStates(valid, direction)
 
 
 def slip_directions_from_forces(Q, status):

@@ -85,6 +85,30 @@ class ContactProblem:
         for name, value in values.items():
             object.__setattr__(self, name, value)
 
+    def rescaled(self, stiffness, length):
+        """The same problem in other units: ``K / stiffness``, ``gap0 / length``.
+
+        Forces then count in ``stiffness * length``. No validation is repeated
+        (a positive rescaling keeps every property); the last rescaled copy is
+        cached, and ``self`` is returned for ``(1, 1)``.
+        """
+        if stiffness == 1.0 and length == 1.0:
+            return self
+        cache = self.__dict__.setdefault("_rescaled", {})
+        if cache.get("stiffness") != stiffness:
+            cache.clear()
+            cache["stiffness"] = stiffness
+            cache["K"] = _frozen(self.K / stiffness)
+            cache["blocks"] = _frozen(self.diagonal_blocks / stiffness)
+        new = object.__new__(ContactProblem)
+        values = {"K": cache["K"], "mu": self.mu, "gap0": _frozen(self.gap0 / length),
+                  "dim": self.dim, "n_pairs": self.n_pairs, "kappa": self.kappa / stiffness,
+                  "normal_index": self.normal_index, "tangent_index": self.tangent_index,
+                  "diagonal_blocks": cache["blocks"]}
+        for name, value in values.items():
+            object.__setattr__(new, name, value)
+        return new
+
     @property
     def size(self):
         """Number of unknowns, ``n_pairs * dim``."""

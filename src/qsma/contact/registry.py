@@ -9,13 +9,19 @@ import numpy as np
 
 from ..errors import ContactConvergenceWarning, InputError
 from .law import classify, pair_quantities
-from .residual import force_scale, residual
-from .state import ContactResult, ContactState
+from .residual import FORCE_TOL, force_residual, legacy_residual, reaction_scale, residual
+from .state import ContactResult, ContactState, Outcome
 
 #: name -> solver function; filled by :func:`register_method`.
 METHODS = {}
 #: name -> the method's own keyword options.
 _OPTIONS = {}
+#: name -> the method that takes over when it fails (``solve(..., fallback=True)``).
+#: The one place that decides a hand-over; ``nodal_gs`` is the baseline and has none.
+FALLBACKS = {"basket": "active_set", "active_set": "basket"}
+#: Errors a method may raise on extreme but finite input; :func:`solve` turns them
+#: into a failed result (``Outcome.NUMERICAL_ERROR``) instead of letting them out.
+NUMERICAL_ERRORS = (np.linalg.LinAlgError, ArithmeticError, FloatingPointError, ValueError)
 
 #: Default relative tolerance of :func:`solve` on :func:`residual`. The exact
 #: block solves reach ~1e-15 (round-off of ``K d`` relative to the force
@@ -29,7 +35,8 @@ class Iterate(NamedTuple):
 
     ``d``, ``lam`` (n_pairs, dim) the last iterate, ``nit`` iterations,
     ``converged`` whether the method's own stopping test (the residual)
-    passed, ``message`` a sentence for the user.
+    passed, ``message`` a sentence for the user, ``numerical_error`` set by
+    :func:`solve` when the method raised.
     """
 
     d: np.ndarray
@@ -37,14 +44,17 @@ class Iterate(NamedTuple):
     nit: int
     converged: bool
     message: str
+    numerical_error: bool = False
 
 
 def register_method(name):
     """Decorator registering a solver function under ``name`` in :data:`METHODS`.
 
     The function is called as ``fn(problem, lam_w, previous, *, tol, maxiter,
-    **options)`` with ``lam_w`` ``(n_pairs, dim)``, ``previous`` a
-    :class:`ContactState`, ``maxiter`` ``None`` for the method's default, and
+    guess, **options)`` with ``lam_w`` ``(n_pairs, dim)``, ``previous`` a
+    :class:`ContactState` (the slip reference), ``guess`` a
+    :class:`ContactState` to start from (``previous`` unless a fallback hands
+    over an iterate), ``maxiter`` ``None`` for the method's default, and
     returns an :class:`Iterate`. Its other keyword-only parameters are its
     options.
     """
@@ -53,17 +63,18 @@ def register_method(name):
             raise ValueError(f"contact method {name!r} registered twice")
         METHODS[name] = fn
         _OPTIONS[name] = tuple(p.name for p in inspect.signature(fn).parameters.values()
-                               if p.kind is p.KEYWORD_ONLY and p.name not in ("tol", "maxiter"))
+                               if p.kind is p.KEYWORD_ONLY
+                               and p.name not in ("tol", "maxiter", "guess"))
         return fn
     return register
 
 
 def solve(problem, lam_w, state=None, *, method="basket", tol=DEFAULT_TOL, maxiter=None,
-          **options):
+          fallback=True, **options):
     """Solve one load level of the frictional contact problem.
 
     Find ``d`` and ``lam = K d + lam_w`` such that every pair is open, stuck
-    or slipping (method.md section 4), the slip increment measured from
+    or slipping (docs/contact.md), the slip increment measured from
     ``state``.
 
     Parameters
@@ -78,10 +89,14 @@ def solve(problem, lam_w, state=None, *, method="basket", tol=DEFAULT_TOL, maxit
         A key of :data:`METHODS`: ``"basket"`` (default), ``"active_set"``,
         ``"nodal_gs"``.
     tol : float
-        Success means ``residual(...) <= tol`` (relative, see :func:`residual`).
+        Success means ``residual(...) <= tol`` (see :func:`residual`) and
+        ``force_residual(...) <= FORCE_TOL``.
     maxiter : int, optional
         Cap on ``nit``, the iterations of the method including any fallback
         (``None``: the method's own defaults, see docs/contact.md).
+    fallback : bool
+        If the method fails, hand over to :data:`FALLBACKS` ``[method]``
+        (started from the failed iterate); ``result.fallback`` names it.
     **options
         Keyword options of the method; an unknown name raises.
 
@@ -90,7 +105,8 @@ def solve(problem, lam_w, state=None, *, method="basket", tol=DEFAULT_TOL, maxit
     ContactResult
         ``success=False`` (with a :class:`ContactConvergenceWarning`) if the
         tolerance was not met; ``d``, ``lam``, ``state`` then hold the last
-        iterate.
+        iterate. No exception but :class:`InputError` leaves this function
+        for finite input: numerical errors give ``Outcome.NUMERICAL_ERROR``.
 
     Raises
     ------
@@ -101,9 +117,79 @@ def solve(problem, lam_w, state=None, *, method="basket", tol=DEFAULT_TOL, maxit
     fn = _lookup(method, options)
     lam_w = _check_load(problem, lam_w)
     previous = ContactState.reference(problem) if state is None else state.check_against(problem)
-    out = fn(problem, lam_w, previous, tol=_check_tol(tol), maxiter=_check_maxiter(maxiter),
-             **options)
-    return _result(problem, lam_w, previous, out, method, tol)
+    tol, maxiter = _check_tol(tol), _check_maxiter(maxiter)
+    scaled = _Scaled(problem, lam_w, previous)
+    out, used = _run_chain(scaled, method, fn, tol, maxiter, bool(fallback), options)
+    return _result(problem, lam_w, previous, out, method, tol, fallback=used, scaled=scaled)
+
+
+def _run_chain(scaled, method, fn, tol, maxiter, fallback, options):
+    """The method, then its fallback if it failed; ``(Iterate, fallback name or None)``,
+    the iterate in the internal units of ``scaled``."""
+    out = _guarded(fn, scaled, None, tol, maxiter, options)
+    rescue = FALLBACKS.get(method)
+    left = None if maxiter is None else maxiter - out.nit
+    if out.converged or not fallback or rescue is None or left == 0:
+        return out, None
+    guess = None if out.numerical_error else scaled.guess(out)
+    second = _guarded(METHODS[rescue], scaled, guess, tol, left, {})
+    merged = second._replace(nit=out.nit + second.nit,
+                             message=f"{out.message}; fell back to {rescue}: {second.message}")
+    return merged, rescue
+
+
+def _guarded(fn, scaled, guess, tol, maxiter, options):
+    """Call a method on the scaled problem; numerical errors become a failed Iterate."""
+    start = scaled.previous if guess is None else guess
+    try:
+        out = fn(scaled.problem, scaled.lam_w, scaled.previous, tol=tol, maxiter=maxiter,
+                 guess=guess, **options)
+    except InputError:
+        raise
+    except NUMERICAL_ERRORS as err:
+        return Iterate(start.d, start.lam, 0, False,
+                       f"numerical error: {type(err).__name__}: {err}", True)
+    if not (np.all(np.isfinite(out.d)) and np.all(np.isfinite(out.lam))):
+        return Iterate(start.d, start.lam, out.nit, False,
+                       f"non-finite iterate ({out.message})", True)
+    return out
+
+
+class _Scaled:
+    """The level in internal units: forces by ``f``, stiffness by ``k``, both powers of 2.
+
+    Powers of two make the scaling exact (no rounding), so a well-scaled
+    problem is solved bit for bit as given, while ``|lam_w| ~ 1e200`` or
+    ``K ~ 1e-300`` are brought to order one before any square or product.
+    """
+
+    def __init__(self, problem, lam_w, previous):
+        self.f = _power_of_two(max(np.abs(lam_w).max(), np.abs(previous.lam).max()))
+        self.k = _power_of_two(problem.kappa)
+        self.u = self.f / self.k
+        self.problem = problem.rescaled(self.k, self.u)
+        self.lam_w = lam_w / self.f
+        self.previous = self.to_internal(previous)
+
+    def to_internal(self, s):
+        return ContactState(s.d / self.u, s.lam / self.f, s.status)
+
+    def guess(self, out):
+        """The failed iterate as a starting state, its pairs classified."""
+        q = pair_quantities(self.problem, out.d, out.lam, self.previous.d)
+        with np.errstate(over="ignore", invalid="ignore"):
+            status = classify(q, self.problem.mu, self.problem.kappa)
+        return ContactState(out.d, out.lam, status)
+
+    def back(self, out):
+        return out._replace(d=out.d * self.u, lam=out.lam * self.f)
+
+
+def _power_of_two(x):
+    """``2**round(log2 x)`` for ``x > 0``, 1 otherwise."""
+    if not (np.isfinite(x) and x > 0):
+        return 1.0
+    return float(2.0 ** round(np.log2(x)))
 
 
 def _lookup(method, options):
@@ -141,18 +227,38 @@ def _check_maxiter(maxiter):
     return int(maxiter)
 
 
-def _result(problem, lam_w, previous, out, method, tol):
-    """Accept or reject the method's iterate on the public residual, warn on failure."""
-    r = residual(problem, lam_w, out.d, out.lam, previous)
-    success = bool(out.converged and r <= tol)
+def _result(problem, lam_w, previous, out, method, tol, fallback=None, scaled=None):
+    """Accept or reject the method's iterate on the public residual and the force check.
+
+    With ``scaled`` (see :class:`_Scaled`), ``out`` is in its internal units: the
+    measures (all dimensionless) are evaluated there, where nothing overflows, and
+    the result is given in the units of ``problem``.
+    """
+    if scaled is not None:
+        problem, lam_w, previous, internal = (scaled.problem, scaled.lam_w, scaled.previous,
+                                              out)
+        out = scaled.back(out)
+    else:
+        internal = out
+    r = residual(problem, lam_w, internal.d, internal.lam, previous)
+    r_force = force_residual(problem, lam_w, internal.d, internal.lam, previous)
+    success = bool(out.converged and r <= tol and r_force <= FORCE_TOL)
     message = out.message
     if out.converged and not success:
-        message = f"{message}; rejected: residual {r:.3e} > tol {tol:.1e}"
-    q = pair_quantities(problem, out.d, out.lam, previous.d)
-    status = classify(q, problem.mu, problem.kappa, tol * force_scale(lam_w, out.lam))
-    state = ContactState(out.d, out.lam, status)
+        message = (f"{message}; rejected: residual {r:.3e} (tol {tol:.1e}), force check "
+                   f"{r_force:.3e} (tol {FORCE_TOL:.0e})")
+    outcome = (Outcome.CONVERGED if success else Outcome.REJECTED if out.converged
+               else Outcome.NUMERICAL_ERROR if out.numerical_error else Outcome.NOT_CONVERGED)
+    state = ContactState(out.d, out.lam, _classify(problem, previous, internal, tol))
     if not success:
         warnings.warn(f"contact method {method!r}: {message} (residual {r:.3e}, tol {tol:.1e})",
                       ContactConvergenceWarning, stacklevel=3)
     return ContactResult(state.d, state.lam, state.status, success, out.nit, float(r), message,
-                         method, state)
+                         method, state, outcome, fallback, r_force,
+                         legacy_residual(problem, lam_w, internal.d, internal.lam, previous))
+
+
+def _classify(problem, previous, out, tol):
+    q = pair_quantities(problem, out.d, out.lam, previous.d)
+    with np.errstate(over="ignore", invalid="ignore"):
+        return classify(q, problem.mu, problem.kappa, tol * reaction_scale(out.lam))

@@ -2,14 +2,42 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import Enum, IntEnum
 
 import numpy as np
 
 from ..errors import InputError
 
-#: Pair status codes (``ContactResult.status``).
-STUCK, SLIPPING, OPEN = 0, 1, 2
-STATUS_NAMES = {STUCK: "stuck", SLIPPING: "slipping", OPEN: "open"}
+
+class PairState(IntEnum):
+    """State of a node pair (``ContactResult.status`` holds these codes)."""
+
+    STUCK = 0
+    SLIPPING = 1
+    OPEN = 2
+
+
+#: Module-level aliases of the members (``status == OPEN`` works on int arrays).
+STUCK, SLIPPING, OPEN = PairState.STUCK, PairState.SLIPPING, PairState.OPEN
+STATUS_NAMES = {state: state.name.lower() for state in PairState}
+
+
+class Outcome(Enum):
+    """How a contact solve ended (``ContactResult.outcome``).
+
+    ``CONVERGED``: the residual and the force check passed (``success``).
+    ``NOT_CONVERGED``: the method stopped (iteration cap, stall, cycling,
+    singular block, failed line search) without meeting the tolerance.
+    ``REJECTED``: the method claimed convergence but :func:`solve`'s own
+    re-check (residual or force check) failed.
+    ``NUMERICAL_ERROR``: the method raised a floating-point or linear-algebra
+    error, or returned non-finite values; the result holds the previous state.
+    """
+
+    CONVERGED = "converged"
+    NOT_CONVERGED = "not_converged"
+    REJECTED = "rejected"
+    NUMERICAL_ERROR = "numerical_error"
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -78,11 +106,22 @@ class ContactResult:
     nit : int
         Iterations of the method (block solves, Newton steps or sweeps).
     residual : float
-        :func:`qsma.contact.residual` of ``(d, lam)``.
+        :func:`qsma.contact.residual` of ``(d, lam)`` (the acceptance test).
     message : str
     method : str
+        The method asked for.
     state : ContactState
         ``(d, lam, status)``, to pass to the next load level.
+    outcome : Outcome
+        How the solve ended (``Outcome.CONVERGED`` iff ``success``).
+    fallback : str or None
+        The method that took over when ``method`` failed (set by
+        :func:`qsma.contact.solve` only), else None.
+    residual_force : float
+        :func:`qsma.contact.force_residual`, the force-only check.
+    residual_legacy : float
+        :func:`qsma.contact.residual.legacy_residual`, the measure before
+        issue 17 (for comparison).
     """
 
     d: np.ndarray
@@ -94,6 +133,10 @@ class ContactResult:
     message: str
     method: str
     state: ContactState
+    outcome: Outcome = Outcome.CONVERGED
+    fallback: str | None = None
+    residual_force: float = 0.0
+    residual_legacy: float = 0.0
 
     @property
     def P(self):
@@ -120,7 +163,8 @@ class ContactResult:
     def __repr__(self):
         return (f"ContactResult(success={self.success}, method={self.method!r}, nit={self.nit}, "
                 f"residual={self.residual:.3e}, n_pairs={len(self.status)}, "
-                f"{_count_text(self.status)}, message={self.message!r})")
+                f"{_count_text(self.status)}, outcome={self.outcome.name}, "
+                f"fallback={self.fallback!r}, message={self.message!r})")
 
 
 def _count_text(status):

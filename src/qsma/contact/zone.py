@@ -116,4 +116,4 @@ def solve_in_zone(zone: ContactZone, lam_w, state: ContactState, *, method="bask
     if closing.any():         # max_growth rebuilds and still an eliminated pair closing
         msg += f"; {int(closing.sum())} eliminated pair(s) still closing, zone not settled"
     out = Iterate(d, lam, nit, bool(sub.success and not closing.any()), msg)
-    return _result(full, lam_w, state, out, method, tol), zone
+    return _result(full, lam_w, state, out, method, tol, fallback=sub.fallback), zone
