@@ -682,7 +682,7 @@ def _ramp(solver, alpha, start, keep_going, progress, where="load level", respon
                        f"{res.message}; residual {res.residual:.2e}")
             if not keep_going:
                 break
-        if "fell back to" in res.message:
+        if res.fallback is not None:          # set by the contact method registry
             fallback.append(k)
             log.info("%s %d: solver fell back: %s", where, k, res.message)
         for name, v in (("d", res.d), ("lam", res.lam), ("status", res.status),

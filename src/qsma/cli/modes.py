@@ -47,4 +47,5 @@ def execute(args) -> int:
 def _closed_after_preload(model, assembled, pairing):
     from ..analysis import preload
     _, _, pre = preload(model, assembled, pairing)
-    return pre.status != 2
+    from ..contact import OPEN
+    return pre.status != OPEN
