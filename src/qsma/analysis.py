@@ -713,7 +713,7 @@ def _refined_backbone(solver, alpha, pre, opts, progress, response, k_ref):
     out = _ramp(solver, grid, pre.state, opts.continue_on_failure, tick, response=response)
     rounds = LEVEL_REFINE_ROUNDS if opts.refine_levels and out.success else 0
     for _ in range(rounds):
-        new = _insert_levels(grid, out, k_ref, opts.dissipation_rtol)
+        new = _insert_levels(grid, out, k_ref, opts.dissipation_rtol, pre.status)
         if new is None:
             break
         first = int(np.flatnonzero(new[:len(grid)] != grid)[0]) if not np.array_equal(
@@ -731,23 +731,24 @@ def _refined_backbone(solver, alpha, pre, opts, progress, response, k_ref):
     return grid, user, out
 
 
-def _insert_levels(grid, out, k_ref, rtol):
-    """The grid with midpoints inserted where the backbone needs them, or None."""
+def _insert_levels(grid, out, k_ref, rtol, pre_status):
+    """The grid with midpoints inserted where the backbone needs them, or None.
+
+    The interval ending at point ``k`` is ``(k-1, k]``, the first one ``(0, alpha_0]``
+    from the preload; it is halved where a pair changed state across it or where the
+    error estimate at ``k`` (which covers ``(k-2, k]``) or at ``k+1`` is too large."""
     n = out.n
     est = masing_estimate(grid[:n], out.q, k_ref)
     atol = ZETA_ZERO * 2 * np.pi * grid[:n] * np.abs(out.q)
     need = est.error > rtol * np.abs(est.dissipation) + atol
-    changed = np.concatenate([[False], np.any(out.status[1:] != out.status[:-1], axis=1)])
-    # the interval ending at point k is (k-1, k]; the estimate at k covers (k-2, k]
+    before = np.concatenate([pre_status[None, :], out.status[:-1]])
+    changed = np.any(out.status != before, axis=1)
     pick = need | changed
     pick[:-1] |= need[1:]
     if not pick.any():
         return None
     lo = np.concatenate([[0.0], grid[:n - 1]])
-    mids = 0.5 * (lo + grid[:n])[pick & (np.arange(n) > 0)]
-    if mids.size == 0:
-        return None
-    return np.union1d(grid, mids)
+    return np.union1d(grid, 0.5 * (lo + grid[:n])[pick])
 
 
 def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref):

@@ -64,10 +64,8 @@ class RunOptions:
         BLAS thread limit; ``"auto"``: one thread for small interface problems.
     loop_steps : int
         Largest number of increments per loop branch before refinement (the branch
-        mirrors the backbone levels below the amplitude, thinned to this count). 32:
-        on lap-2d at refine 2, 16 increments gave a stabilised loop 22 % below the
-        converged one with a blind error estimate, 32 and 64 agree to 1e-4
-        (benchmarks/validate_lap_loops.py, docs/validation.md).
+        mirrors the backbone levels below the amplitude, thinned to this count); the
+        refinement rounds halve them where pair states change.
     eliminate_open : bool
         Solve the ramp on the pairs closed after the preload, the open ones eliminated
         exactly (a pair that would close joins the zone).
@@ -81,7 +79,7 @@ class RunOptions:
     dissipation: str = "auto"
     dissipation_rtol: float = 5e-3
     max_cycles: int = 8
-    loop_steps: int = 32
+    loop_steps: int = 16
     refine_levels: bool = True
     direct_loop: bool = False
     n_modes: int | None = None
