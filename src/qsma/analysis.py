@@ -247,6 +247,14 @@ def run(model, options: RunOptions | None = None, *, progress=None, **overrides)
     except TypeError as exc:
         raise InputError(f"qsma.run: {exc}; valid options: "
                          f"{sorted(RunOptions.__dataclass_fields__)}") from None
+    clock, pairing, limit = _start(model, opts)
+    with threads_limited(limit):
+        return _run(model, pairing, opts, progress, clock)
+
+
+def _start(model, opts):
+    """``(clock, pairing, BLAS thread limit)`` of a run: the two-body check, the
+    interface pairing (timed as stage "model") and the thread limit of its size."""
     if len(model.bodies) != 2:
         raise InputError(f"QSMA needs exactly two bodies joined by the interface, "
                          f"got {len(model.bodies)}")
@@ -255,8 +263,7 @@ def run(model, options: RunOptions | None = None, *, progress=None, **overrides)
         pairing = make_pairing(model)
     limit = threads_for(pairing.n_pairs * model.dim) if opts.blas_threads == "auto" \
         else opts.blas_threads
-    with threads_limited(limit):
-        return _run(model, pairing, opts, progress, clock)
+    return clock, pairing, limit
 
 
 @dataclass(frozen=True, eq=False)
@@ -362,14 +369,7 @@ def prepare(model, options: RunOptions | None = None, *, assembled=None) -> Prep
     entries are assembled), e.g. when only one body's material changes.
     """
     opts = options or RunOptions()
-    if len(model.bodies) != 2:
-        raise InputError(f"QSMA needs exactly two bodies joined by the interface, "
-                         f"got {len(model.bodies)}")
-    clock = _Timer()
-    with clock.stage("model"):
-        pairing = make_pairing(model)
-    limit = threads_for(pairing.n_pairs * model.dim) if opts.blas_threads == "auto" \
-        else opts.blas_threads
+    clock, pairing, limit = _start(model, opts)
     with threads_limited(limit):
         assembled = _assemble(model, clock, keep=assembled)
         reduced = _condense(model, assembled, pairing, opts.schur_backend, clock)
