@@ -30,8 +30,12 @@ def facet_keys(rows) -> set:
 
 
 def assert_same_mesh(read: Mesh, mesh: Mesh):
-    """Same points (to round-off), cells in the same order, and the same sets."""
+    """Same points (to round-off), cells in the same order, the same sets, and the same
+    element formulation (a Gmsh file names none: only the default, CPE/C3D with full
+    integration, may come back as None)."""
     assert read.cell_type == mesh.cell_type
+    default = lambda e: e is None or re.fullmatch(r"(CPE|C3D)\d+", e)
+    assert read.element == mesh.element or (default(read.element) and default(mesh.element))
     assert read.points.shape == mesh.points.shape
     scale = np.abs(mesh.points).max()
     np.testing.assert_allclose(read.points, mesh.points, rtol=0, atol=1e-14 * scale)
@@ -876,3 +880,14 @@ def test_hexahedron27_cannot_be_written_to_inp(tmp_path):
     m = read_mesh(DATA / "quadratic_box_hex27.msh")
     with pytest.raises(InputError, match="hexahedron27 cells cannot be written to an .inp"):
         write_mesh(tmp_path / "h.inp", m)
+
+
+def test_gmsh_writer_refuses_a_formulation_it_cannot_keep(tmp_path):
+    """A CPS4I (plane stress, incompatible modes) mesh written to .msh would come back
+    as plane strain Q1: refused; the .inp writer keeps it."""
+    m = structured_mesh(np.linspace(0, 1, 3), np.linspace(0, 1, 3))
+    m = Mesh(m.points, m.cells, m.cell_type, element="CPS4I")
+    with pytest.raises(InputError, match="cannot be kept in a Gmsh file"):
+        write_mesh(tmp_path / "a.msh", m)
+    write_mesh(tmp_path / "a.inp", m)
+    assert read_mesh(tmp_path / "a.inp").element == "CPS4I"

@@ -182,6 +182,21 @@ def test_an_interrupted_study_resumes_with_the_cases_not_done(model, serial, tmp
         assert_close(again.table[name], res.table[name], 1e-10)
     with pytest.raises(InputError, match="another study"):
         sweep(model, {"mu": [0.2]}, OPTIONS, out=tmp_path, scheduler="serial")
+    # the same cases with other levels would mix two studies' results: refused
+    with pytest.raises(InputError, match="other run options"):
+        sweep(model, {"mu": [0.3, 0.6], "preload": [1.5]},
+              OPTIONS.replace(levels=qsma.Levels.log("tip", 1e-6, 1e-3, 3)), out=tmp_path,
+              scheduler="serial")
+
+
+def test_a_failed_case_is_retried_on_resume(model, tmp_path):
+    """A failure may pass (a full disk): resuming runs a failed case again."""
+    first = sweep(model, {"mode": [7]}, OPTIONS.replace(n_modes=6), out=tmp_path,
+                  scheduler="serial", plots=False)
+    again = sweep(model, {"mode": [7]}, OPTIONS.replace(n_modes=6), out=tmp_path,
+                  scheduler="serial", plots=False)
+    assert first.cases[0].status == again.cases[0].status == "failed"
+    assert not again.cases[0].skipped
 
 
 # ------------------------------------------------------------------------------ Dask

@@ -535,8 +535,8 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
                              pos.residual[user], pos.nit[user])
         omega = np.where(hyst["use_loop"], 2 * np.pi * hyst["f_hz_loop"],
                          2 * np.pi * hyst["f_hz_masing"])
-        flags = _flags(al, q, tip, hyst, counts, status, pre, omega0, opts, pos, user)
-        success, message = _outcome(pos, flags, n_ok, len(alpha), opts)
+        flags = _flags(al, q, tip, hyst, status, pre, omega0, opts)
+        success, message = _outcome(pos, flags, opts)
 
     loop = None
     if opts.direct_loop and n_ok:
@@ -765,14 +765,13 @@ def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref):
     neg_status[:nn] = neg.status[:nn]
     open_neg = neg_status == OPEN
     atol = ZETA_ZERO * 2 * np.pi * grid * np.abs(pos.q)
+    linear = _untouched(pos.status, pre) & _untouched(neg_status, pre)
     checks = masing_checks(grid, pos.q, np.where(np.isnan(q_neg), -pos.q, q_neg),
                            pos.lam[:, :, -1], np.where(np.isnan(P_neg), P_pre, P_neg), P_pre,
                            pos.status == OPEN, open_neg, open_pre, k_ref,
-                           opts.dissipation_rtol, atol,
-                           linear=_untouched(pos.status, pre) & _untouched(neg_status, pre))
+                           opts.dissipation_rtol, atol, linear=linear)
     valid = checks.valid.copy()
     valid[nn:] = False                 # no negative backbone there: nothing verified
-    linear = _untouched(pos.status, pre) & _untouched(neg_status, pre)
     reason = np.where(valid, np.where(linear, "linear: no pair has left its preload state",
                                       "Masing's assumptions verified"),
                       checks.reason).astype(object)
@@ -792,8 +791,7 @@ def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref):
                f_hz_loop=nan.copy(), zeta_loop=nan.copy(), dissipation_loop=nan.copy(),
                loop_error=nan.copy(), first=nan.copy(), cycles=np.zeros(n_ok, int),
                shakedown=np.zeros(n_ok, bool), use_loop=use_loop[user],
-               reason=reason[user], loops={}, n_solves=0,
-               pressure_change=checks.pressure_change[user])
+               reason=reason[user], loops={}, n_solves=0)
     linear_end = _linear_end(pos, pre)
     for i, g in enumerate(user):
         if not out["use_loop"][i]:
@@ -856,7 +854,7 @@ def _loop_fractions(grid, g, linear_end, steps):
     return u
 
 
-def _flags(alpha, q, tip, hyst, counts, status, pre, omega0, opts, pos, user):
+def _flags(alpha, q, tip, hyst, status, pre, omega0, opts):
     """Per level, what the physics forbids (failures) and what it allows but a reader
     should know (information); see :data:`FAILURE_FLAGS`."""
     n = len(alpha)
@@ -866,17 +864,15 @@ def _flags(alpha, q, tip, hyst, counts, status, pre, omega0, opts, pos, user):
     err = np.where(use_loop, hyst["loop_error"], hyst["masing_error"])
     D = np.where(use_loop, hyst["dissipation_loop"], hyst["dissipation_masing"])
     f0 = omega0 / (2 * np.pi)
-    untouched = np.array([np.array_equal(status[k], pre.status) for k in range(n)], dtype=bool)
-    untouched &= np.cumsum(~untouched) == 0
+    untouched = _untouched(status, pre)
     out = []
     for k in range(n):
         fl = []
         if not (np.isfinite(f[k]) and np.isfinite(zeta[k])):
-            fl.append("loop_failed" if use_loop[k] else "not_finite")
             lp = hyst["loops"].get(k)
-            if lp is not None and not lp.stabilised and lp.success is False and \
-                    "not stabilised" in lp.message:
-                fl[-1] = "loop_not_stabilised"
+            fl.append("not_finite" if lp is None else
+                      "loop_not_stabilised" if lp.outcome == "not_stabilised" else
+                      "loop_failed")
         elif D[k] < -(abs(err[k]) + ZETA_ZERO * 2 * np.pi * alpha[k] * abs(q[k])):
             fl.append("negative_dissipation")
         if hyst["zeta_masing"][k] < -ZETA_ZERO and use_loop[k]:
@@ -902,7 +898,7 @@ def _flags(alpha, q, tip, hyst, counts, status, pre, omega0, opts, pos, user):
     return tuple(out)
 
 
-def _outcome(pos, flags, n_ok, n_asked, opts):
+def _outcome(pos, flags, opts):
     """``(success, message)`` of the run from the ramp and the level flags."""
     bad = [k for k, f in enumerate(flags) if set(f) & set(FAILURE_FLAGS)]
     parts = []

@@ -21,7 +21,7 @@ integration error from the same rule on every second point (Richardson,
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -29,6 +29,8 @@ import numpy as np
 #: it started from" (relative to the displacement range of the cycle). The contact
 #: solves meet 1e-10 (qsma.contact.DEFAULT_TOL); 1e-7 leaves three decades of margin.
 STATE_RTOL = 1e-7
+#: The ways a loop computation ends (:attr:`Loop.outcome`).
+LOOP_OUTCOMES = ("stabilised", "not_stabilised", "solve_failed")
 #: Rounds of loop-increment refinement (each halves the increments where the pair
 #: states change and solves the history again; the change of D between rounds is the
 #: error estimate).
@@ -55,11 +57,12 @@ class Loop:
         ``q`` at ``+A`` and ``-A`` of the stabilised cycle.
     n_cycles : int
         Cycles computed (the last one is the stabilised cycle).
-    stabilised : bool
-        Whether a cycle repeated itself within the allowed count.
     n_solves : int
         Contact solves spent (all refinement rounds included).
-    success : bool
+    outcome : str
+        One of :data:`LOOP_OUTCOMES`: ``"stabilised"`` (the answer), ``"not_stabilised"``
+        (no cycle repeated within ``max_cycles``), ``"solve_failed"`` (a contact solve
+        of the history failed; no dissipation).
     message : str
     """
 
@@ -72,10 +75,18 @@ class Loop:
     q_top: float
     q_bottom: float
     n_cycles: int
-    stabilised: bool
     n_solves: int
-    success: bool
+    outcome: str
     message: str
+
+    @property
+    def success(self) -> bool:
+        """Only a stabilised loop is an answer."""
+        return self.outcome == "stabilised"
+
+    @property
+    def stabilised(self) -> bool:
+        return self.outcome == "stabilised"
 
     @property
     def q_amplitude(self) -> float:
@@ -175,26 +186,20 @@ def compute_loop(step, modal, amplitude, start, fractions, *, k_ref, max_cycles=
     u = np.union1d(u[u > 0], [1.0])
     n_solves, previous = 0, None
     for round_ in range(refine_rounds + 1):
-        loop, changed, _ = _cycles(step, modal, amplitude, start, u, k_ref, max_cycles,
-                                   rtol, atol)
+        loop, changed = _cycles(step, modal, amplitude, start, u, k_ref, max_cycles,
+                                rtol, atol)
         n_solves += loop.n_solves
         if not loop.success:
             break
         if previous is not None:
-            loop = _with(loop, error=max(loop.error,
-                                         abs(loop.dissipation - previous.dissipation)))
+            loop = replace(loop, error=max(loop.error,
+                                           abs(loop.dissipation - previous.dissipation)))
         elif refine_rounds > 0 and changed.any():
-            loop = _with(loop, error=np.inf)       # no path estimate yet: refine once
+            loop = replace(loop, error=np.inf)     # no path estimate yet: refine once
         if loop.error <= rtol * abs(loop.dissipation) + atol or round_ == refine_rounds:
             break
         previous, u = loop, _refined(u, changed)
-    return _with(loop, n_solves=n_solves)
-
-
-def _with(loop, **changes):
-    values = {k: getattr(loop, k) for k in Loop.__dataclass_fields__}
-    values.update(changes)
-    return Loop(**values)
+    return replace(loop, n_solves=n_solves)
 
 
 def _refined(u, changed):
@@ -208,8 +213,8 @@ def _cycles(step, modal, A, start, u, k_ref, max_cycles, rtol, atol):
     """Cycles from ``start`` until one ends in the state it started from (it repeats
     exactly), or two successive cycles agree: dissipation within ``rtol |D| + atol`` and
     the shape of ``q`` (about its mean) within ``rtol`` of its range. ``(Loop,
-    changed, start_state)`` with ``changed[i]`` whether a pair changed state in branch
-    interval ``i`` of the last cycle and the state the last cycle started from."""
+    changed)`` with ``changed[i]`` whether a pair changed state in branch interval ``i``
+    of the last cycle."""
     path = cycle_path(A, u)
     state0, first, previous, n_solves = start, None, None, 0
     for cycle in range(1, max_cycles + 1):
@@ -221,7 +226,7 @@ def _cycles(step, modal, A, start, u, k_ref, max_cycles, rtol, atol):
                 return _failed(A, path[:k], qs, first, cycle, n_solves,
                                f"loop at A = {A:.6g}, cycle {cycle}: contact solve failed at "
                                f"alpha = {a:.6g}: {res.message} (residual "
-                               f"{res.residual:.2e})"), None, state0
+                               f"{res.residual:.2e})"), None
             state = res.state
             qs.append(modal(res.d, a))
             status.append(res.status)
@@ -235,14 +240,14 @@ def _cycles(step, modal, A, start, u, k_ref, max_cycles, rtol, atol):
             <= rtol * max(np.ptp(qs), np.finfo(float).tiny))
         if repeats:
             return Loop(A, path, qs, D, first, cycle_area_error(path, qs, k_ref), qs[0],
-                        qs[len(u)], cycle, True, n_solves, True,
-                        f"stabilised after {cycle} cycle(s)"), _changed(status, len(u)), state0
+                        qs[len(u)], cycle, n_solves, "stabilised",
+                        f"stabilised after {cycle} cycle(s)"), _changed(status, len(u))
         previous, state0 = (qs, D), state
     return Loop(A, path, qs, D, first, cycle_area_error(path, qs, k_ref), qs[0], qs[len(u)],
-                max_cycles, False, n_solves, False,
+                max_cycles, n_solves, "not_stabilised",
                 f"loop at A = {A:.6g} not stabilised after {max_cycles} cycles (the state "
                 f"at +A still changes: ratcheting or slow shakedown); raise max_cycles"), \
-        _changed(status, len(u)), state0
+        _changed(status, len(u))
 
 
 def _same(a, b, span):
@@ -263,7 +268,7 @@ def _failed(A, path, qs, first, cycle, n_solves, message):
     nan = float("nan")
     q = np.array(qs, dtype=float)
     return Loop(A, np.asarray(path, float), q, nan, nan if first is None else first, nan,
-                q[0], nan, cycle, False, n_solves, False, message)
+                q[0], nan, cycle, n_solves, "solve_failed", message)
 
 
 # -- Masing ---------------------------------------------------------------------------

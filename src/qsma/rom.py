@@ -290,8 +290,11 @@ def rom_dict(res, fit: IwanFit) -> dict:
     """The content of rom.json for a :class:`qsma.analysis.QSMAResult` and its fit."""
     from .results import _clean
     m = fit.model
-    q = np.asarray(res.q, float)
-    series, jerr = fit_jenkins(q, res.alpha)
+    q, alpha = np.asarray(res.q, float), np.asarray(res.alpha, float)
+    keep = np.isfinite(q) & np.isfinite(alpha) & (q > 0) & (alpha > 0)   # as fit_iwan
+    q, alpha = q[keep], alpha[keep]
+    level = lambda v: np.asarray(v)[keep]
+    series, jerr = fit_jenkins(q, alpha)
     return _clean({
         "schema_version": ROM_SCHEMA_VERSION,
         "kind": "modal_iwan4",
@@ -312,9 +315,11 @@ def rom_dict(res, fit: IwanFit) -> dict:
                     "max_relative_error": float(np.max(np.abs(jerr))),
                     "objective": "non-negative least squares of (alpha_fit - alpha) / "
                                  "alpha, slip displacements fixed (log spaced)"},
-        "levels": {"q": q, "alpha": res.alpha, "tip": res.tip,
-                   "alpha_fit": m.alpha(q), "fit_error": m.alpha(q) / res.alpha - 1,
-                   "f_hz": res.f_hz, "zeta": res.zeta, "dissipation": res.dissipation,
+        "levels": {"level": np.flatnonzero(keep), "q": q, "alpha": alpha,
+                   "tip": level(res.tip),
+                   "alpha_fit": m.alpha(q), "fit_error": m.alpha(q) / alpha - 1,
+                   "f_hz": level(res.f_hz), "zeta": level(res.zeta),
+                   "dissipation": level(res.dissipation),
                    "f_hz_rom": m.frequency(q), "zeta_rom": m.damping(q),
                    "dissipation_rom": m.element.dissipation(q),
                    "alpha_jenkins": series.alpha(q), "fit_error_jenkins": jerr,

@@ -308,11 +308,15 @@ def done_path(folder) -> Path:
 
 
 def _done(case, folder):
-    """The outcome recorded in ``folder`` for ``case``, or None if it is not done."""
+    """The outcome recorded in ``folder`` for ``case``, or None if it is to be run: no
+    marker, a failed case (a failure may be passing, e.g. a full disk: retried), or a
+    marker whose result folder is gone."""
     path = done_path(folder)
     if not path.exists():
         return None
     marker = json.loads(path.read_text())
+    if marker.get("status") == "failed" or not (Path(folder) / "results.json").exists():
+        return None
     if marker.get("params") != _roundtrip(case.json_params()):
         raise InputError(f"{path} records parameters {marker.get('params')} but case "
                          f"{case.index} of this study is {case.json_params()}: the folder "
@@ -380,7 +384,8 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
     cases = grid(vary)
     _check_bodies(cases, model)
     out = _study_dir(out)
-    study = dict(model=model.name, parameters=list(vary), n_cases=len(cases),
+    study = dict(model=model.name, fingerprint=_fingerprint(model, options),
+                 parameters=list(vary), n_cases=len(cases),
                  cases=[c.json_params() for c in cases])
     _check_study(out / STUDY_NAME, study)
     atomic_write(out / STUDY_NAME, json.dumps(study, indent=1) + "\n")
@@ -441,6 +446,8 @@ def _study_dir(out) -> Path:
 
 
 def _check_study(path, study):
+    """Refuse to resume into a folder of another study: other cases, or the same cases
+    of another model or other run options (their results would be mixed)."""
     if not path.exists():
         return
     old = json.loads(path.read_text())
@@ -448,6 +455,29 @@ def _check_study(path, study):
         raise InputError(f"{path.parent} holds another study ({old.get('n_cases')} cases "
                          f"over {old.get('parameters')}); to resume, give the same "
                          f"parameters, else choose another output folder")
+    if old.get("fingerprint") != study["fingerprint"]:
+        raise InputError(f"{path.parent} holds a study of the same cases but another model "
+                         f"or other run options (levels, method, mode, ...): its results "
+                         f"would be mixed with this one's; choose another output folder or "
+                         f"rerun with the options it was made with")
+
+
+def _fingerprint(model, options) -> str:
+    """SHA-256 of what a case's results depend on besides its own parameters: every
+    body's mesh, material, clamps and loads, the interface, probe and mu, and every
+    run option (levels included)."""
+    import hashlib
+    h = hashlib.sha256()
+    for b in model.bodies:
+        h.update(b.name.encode())
+        h.update(np.ascontiguousarray(b.mesh.points).tobytes())
+        h.update(np.ascontiguousarray(b.mesh.cells).tobytes())
+        h.update(repr((b.mesh.cell_type, b.mesh.element, b.material, b.clamps,
+                       b.pressures)).encode())
+    h.update(repr((model.interface, model.tip, model.mu)).encode())
+    h.update(repr(sorted(options.as_dict().items())).encode())
+    h.update(repr(options.levels).encode())
+    return h.hexdigest()
 
 
 def _run_serial(groups, key_of, todo, options, out, files, scheduler, workers):

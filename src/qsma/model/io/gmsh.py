@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...errors import MeshFileError
+from ...errors import InputError, MeshFileError
 from ..mesh import CELL_TYPES, Mesh, facet_index
 from ..validate import HIGHER_NODES
 from .common import (_MAX_ID, _boundary_of_sets, _cell_type_of, _check_names,
@@ -594,6 +594,14 @@ def _rows_text(first_label: int, rows: np.ndarray) -> list:
 
 
 def _format_gmsh(mesh: Mesh, version: str) -> str:
+    """File text of ``mesh``. A Gmsh file names no element formulation: what is read
+    back is plane strain / 3D continuum with full integration, so a mesh whose
+    ``element`` says otherwise (CPS4, C3D8I, ...) is refused rather than silently
+    turned into another element."""
+    if mesh.element is not None and not re.fullmatch(r"(CPE|C3D)\d+", mesh.element):
+        raise InputError(f"mesh.element = {mesh.element!r} cannot be kept in a Gmsh file "
+                         f"(Gmsh names no formulation: reading it back gives plane strain / "
+                         f"full integration); write an .inp file instead")
     return (_format_gmsh41 if version == "4.1" else _format_gmsh22)(mesh)
 
 
