@@ -390,7 +390,7 @@ def test_rigid_mode_check_is_kinematic():
     u[off[1]:off[2]] = rigid_body_modes(m.bodies[1].mesh.points)[:, 2]   # top rotates
     vec = (T.T @ u)[:, None]
     with pytest.raises(InputError, match="rigid-body mode.*'top'"):
-        _check_rigid(np.array([123.0]), None, None, m, A, T, vec)
+        _check_rigid(np.array([123.0]), m, A, T, vec)
     mode = _first_modes(sandwich_2d(1), tied="none", n_modes=1).shapes[:, 0]
     assert nonrigid_part(m, A, mode) > 100 * RIGID_TOL
 

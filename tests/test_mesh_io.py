@@ -835,10 +835,7 @@ def test_quadratic_files_read_in_meshio_node_order(name, cell_type, element, tmp
     """Straight-edged Gmsh meshes (tests/data/make_quadratic_fixtures.py): in meshio order
     every further node is the mean of its corners; Gmsh's own Abaqus export gives the
     same cells; round trips keep cells and facet sets."""
-    from qsma.model.mesh import CELL_TYPES
     from qsma.model.validate import scaled_jacobians
-    if cell_type not in CELL_TYPES:
-        pytest.skip("quadratic cell types not yet in CELL_TYPES")
     m = read_mesh(DATA / name)
     assert (m.cell_type, m.element) == (cell_type, element)
     nc, groups = VTK_HIGHER[cell_type]
@@ -859,24 +856,12 @@ def test_quadratic_files_read_in_meshio_node_order(name, cell_type, element, tmp
         assert_same_mesh(again, m)
 
 
-@pytest.mark.parametrize("name,cell_type,element", QUADRATIC)
-def test_quadratic_files_are_refused_until_supported(name, cell_type, element):
-    from qsma.model.mesh import CELL_TYPES
-    if cell_type in CELL_TYPES:
-        pytest.skip(f"{cell_type} is in CELL_TYPES: read by the test above")
-    with pytest.raises(MeshFileError, match=rf"{name}.*not supported.*convert the mesh"):
-        read_mesh(DATA / name)
-
-
 def test_abaqus_c3d27_is_refused_with_its_reason(tmp_path):
     text = QUAD_GRID.replace("TYPE=CPE4", "TYPE=C3D27")
     assert "use C3D20" in inp_error(tmp_path, text)
 
 
 def test_hexahedron27_cannot_be_written_to_inp(tmp_path):
-    from qsma.model.mesh import CELL_TYPES
-    if "hexahedron27" not in CELL_TYPES:
-        pytest.skip("quadratic cell types not yet in CELL_TYPES")
     m = read_mesh(DATA / "quadratic_box_hex27.msh")
     with pytest.raises(InputError, match="hexahedron27 cells cannot be written to an .inp"):
         write_mesh(tmp_path / "h.inp", m)

@@ -23,7 +23,7 @@ from .condense import reduce_two_bodies
 from .contact import DEFAULT_TOL, ContactProblem, ContactState, OPEN, SLIPPING, STUCK
 from .contact import solve as contact_solve
 from .contact.zone import solve_in_zone, zone_from_state
-from .errors import AnalysisError, ContactConvergenceWarning, InputError
+from .errors import AnalysisError, ContactConvergenceWarning, InputError, InterfaceGapWarning
 from .fe import assemble_body
 from .hysteresis import SECANT_RTOL, compute_loop, masing_checks, masing_estimate
 from .masing import loop_area
@@ -261,6 +261,7 @@ def _start(model, opts):
     clock = _Timer()
     with clock.stage("model"):
         pairing = make_pairing(model)
+    _warn_closed_gaps(model, pairing)
     limit = threads_for(pairing.n_pairs * model.dim) if opts.blas_threads == "auto" \
         else opts.blas_threads
     return clock, pairing, limit
@@ -396,6 +397,29 @@ def run_prepared(prepared: Prepared, options: RunOptions | None = None, *, progr
         else opts.blas_threads
     with threads_limited(limit):
         return _run(model, pairing, opts, progress, clock, prepared)
+
+
+#: Mortar surfaces closer than this fraction of the interface size count as coincident
+#: (coordinates written with ~10 significant digits); farther apart they are reported.
+GAP_REPORT_RTOL = 1e-9
+
+
+def _warn_closed_gaps(model, pairing):
+    """Say so when the mortar coupling took surfaces that are apart (or overlap) in the
+    mesh as touching (gaps up to a tenth of an element, docs/theory.md section 8)."""
+    gap = getattr(pairing, "gap", None)
+    if gap is None or not len(gap):
+        return
+    size = float(np.linalg.norm(np.ptp(pairing.x, axis=0)))
+    worst = float(np.abs(gap).max())
+    if worst > GAP_REPORT_RTOL * size:
+        itf = model.interface
+        warnings.warn(f"interface {itf.set1!r} / {itf.set2!r}: the two surfaces are up to "
+                      f"{worst:.3e} apart or overlapping in the mesh; the mortar coupling "
+                      f"takes them as touching (initial gap zero; faceted curved surfaces "
+                      f"differ like this). A real initial gap is not modelled by the mortar "
+                      f"coupling yet: mesh the surfaces coincident or accept it closed",
+                      InterfaceGapWarning, stacklevel=3)
 
 
 def preload(model, assembled, pairing, *, method="basket", opts=None, schur_backend="auto",

@@ -311,7 +311,7 @@ def projection_matrix(pairing, R_slave) -> np.ndarray:
     return np.asarray((R_slave.T @ N).todense())
 
 
-def combine(slave, master, P, sigma):
+def combine(slave, master, P):
     r"""Relative-displacement stiffness of a slave body coupled to a master body by the
     projection ``P``, and the factor of the welded pair's stiffness.
 
@@ -360,7 +360,7 @@ def reduce_two_bodies(assembled1, assembled2, pairing, patterns=("preload",),
     bm = condense_body(asm[m], nodes[m], eye, backend)
     P = projection_matrix(pairing, bs.R)
     sigma = 1.0 if s == 1 else -1.0
-    K, S_cho = combine(bs, bm, P, sigma)
+    K, S_cho = combine(bs, bm, P)
     bodies = (bs, bm) if s == 0 else (bm, bs)
     Fc = tuple(b.condensed_load(L) for b, L in zip(bodies, loads))
     W = _welded(bodies, S_cho, Fc, P, s)

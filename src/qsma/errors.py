@@ -38,5 +38,13 @@ class ContactConvergenceWarning(UserWarning):
     """A contact solve stopped without meeting its tolerance."""
 
 
-class NearlyIncompressibleWarning(UserWarning):
+class QSMAWarning(UserWarning):
+    """A warning meant for the user (the CLI prints it as ``qsma: warning: ...``)."""
+
+
+class InterfaceGapWarning(QSMAWarning):
+    """Mortar surfaces that do not touch in the mesh were taken as touching."""
+
+
+class NearlyIncompressibleWarning(QSMAWarning):
     """Poisson's ratio close to 0.5: displacement elements lock (too stiff)."""

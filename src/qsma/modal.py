@@ -153,7 +153,7 @@ def linear_modes(model, assembled, pairing, tied=None, n_modes=6) -> Modes:
                             f"modes found)", partial=exc) from exc
     order = np.argsort(lam)
     lam, vec = lam[order], vec[:, order]
-    _check_rigid(lam, K, M, model, assembled, T, vec)
+    _check_rigid(lam, model, assembled, T, vec)
     vec /= np.sqrt(np.einsum("ik,ik->k", vec, M @ vec))
     return Modes(np.sqrt(np.maximum(lam, 0.0)), T @ vec, tied.copy())
 
@@ -182,7 +182,15 @@ def check_n_modes(n_modes, n_free=None):
 
 
 def _free_memory():
-    """Available physical memory in bytes, ``None`` where the system does not say."""
+    """Available physical memory in bytes (Linux ``MemAvailable``, which counts the
+    reclaimable page cache; else the free pages), ``None`` where the system does not say."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
     try:
         return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
     except (AttributeError, ValueError, OSError):
@@ -206,9 +214,9 @@ def _unclamped(model, assembled):
     return f"body {names}" if names else "the bodies"
 
 
-def _check_rigid(lam, K, M, model, assembled, T, vec):
+def _check_rigid(lam, model, assembled, T, vec):
     """Raise :class:`InputError` if the lowest mode is a rigid-body motion of the
-    bodies (see :data:`RIGID_TOL`); ``lam``, ``K``, ``M`` are kept for the message."""
+    bodies (see :data:`RIGID_TOL`); ``lam`` is quoted in the message."""
     part = nonrigid_part(model, assembled, T @ vec[:, 0])
     if part < RIGID_TOL:
         full = T @ vec[:, 0]

@@ -212,11 +212,15 @@ def reduce_bodies(assembled, couplings, patterns=("preload",), backend="auto",
     slave = _slave_dofs(couplings, nodes, offsets, dim)
     rest = np.setdiff1d(np.arange(offsets[-1]), slave)
     Gs, Gr = G[:, slave].toarray(), G[:, rest].toarray()
+    singular = InputError("the contact points do not determine their slave nodes (a node "
+                          "is the slave of two interfaces?)")
     try:
         lu = sla.lu_factor(Gs, check_finite=True)
     except (np.linalg.LinAlgError, ValueError) as exc:
-        raise InputError("the contact points do not determine their slave nodes (a node "
-                         "is the slave of two interfaces?)") from exc
+        raise singular from exc
+    pivots = np.abs(np.diag(lu[0]))       # lu_factor only warns on a singular matrix
+    if pivots.size and pivots.min() <= 1e3 * np.finfo(float).eps * pivots.max():
+        raise singular
     n_u, n_c = offsets[-1], G.shape[0]
     T_r = np.zeros((n_u, len(rest)))
     T_r[slave] = -sla.lu_solve(lu, Gr)

@@ -58,9 +58,8 @@ _RENAME_EXCHANGE = 2            # linux/fs.h
 
 
 def _umask_mode():
-    mask = os.umask(0)
-    os.umask(mask)
-    return 0o666 & ~mask
+    """Permission bits of a normally created file."""
+    return 0o666 & ~_umask_bits()
 
 
 def replace_atomically(tmp, path):
@@ -87,8 +86,10 @@ def atomic_path(path):
 
 
 def atomic_write(path, data, mode="w"):
-    """Write ``data`` (str or bytes) to ``path`` atomically (:func:`atomic_path`)."""
-    with atomic_path(path) as tmp, open(tmp, mode) as f:
+    """Write ``data`` (str or bytes) to ``path`` atomically (:func:`atomic_path`); text as
+    UTF-8 with ``\n`` line ends."""
+    text = {} if "b" in mode else {"encoding": "utf-8", "newline": "\n"}
+    with atomic_path(path) as tmp, open(tmp, mode, **text) as f:
         f.write(data)
         f.flush()
         os.fsync(f.fileno())
@@ -417,6 +418,7 @@ def _read_owner(fd) -> str:
 
 
 def _umask_bits():
+    """The process umask (read by setting and restoring it)."""
     mask = os.umask(0)
     os.umask(mask)
     return mask

@@ -14,8 +14,8 @@ import threading
 import traceback
 import warnings
 
-from ..errors import (AnalysisError, ContactConvergenceWarning, InputError,
-                      NearlyIncompressibleWarning, QSMAError)
+from ..errors import (AnalysisError, ContactConvergenceWarning, InputError, QSMAError,
+                      QSMAWarning)
 from . import modes as _modes, run as _run, sweep as _sweep
 
 EXIT_OK, EXIT_FAILED, EXIT_INPUT = 0, 1, 2
@@ -103,7 +103,7 @@ def _main(argv):
     try:
         with warnings.catch_warnings(record=True) as seen:
             warnings.simplefilter("ignore", ContactConvergenceWarning)  # reported by the CLI
-            warnings.simplefilter("always", NearlyIncompressibleWarning)
+            warnings.simplefilter("always", QSMAWarning)
             try:
                 code = SUBCOMMANDS[args.command].execute(args)
             finally:
@@ -121,7 +121,7 @@ def _print_warnings(seen):
     """Print the warnings of our own classes meant for the user; others are re-emitted."""
     printed = set()
     for w in seen:
-        if issubclass(w.category, NearlyIncompressibleWarning):
+        if issubclass(w.category, QSMAWarning):
             if str(w.message) not in printed:       # e.g. one line for two equal bodies
                 print(f"qsma: warning: {w.message}", file=sys.stderr)
                 printed.add(str(w.message))

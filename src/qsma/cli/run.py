@@ -131,9 +131,10 @@ def _warn_flags(res):
               file=sys.stderr)
 
 
-def _bar(k, n, width=40):
-    done = int(width * k / n)
-    print(f"\r  load levels [{'#' * done}{'.' * (width - done)}] {k}/{n}", end="",
+def _bar(k, n, width=40, label="load levels"):
+    """A progress bar on stderr (the line is rewritten in place)."""
+    done = int(width * k / n) if n else width
+    print(f"\r  {label} [{'#' * done}{'.' * (width - done)}] {k}/{n}", end="",
           file=sys.stderr, flush=True)
 
 

@@ -84,7 +84,6 @@ def execute(args) -> int:
     return 0
 
 
-def _bar(k, n, width=40):
-    done = int(width * k / n) if n else width
-    print(f"\r  cases [{'#' * done}{'.' * (width - done)}] {k}/{n}", end="",
-          file=sys.stderr, flush=True)
+def _bar(k, n):
+    from .run import _bar as bar
+    bar(k, n, label="cases")

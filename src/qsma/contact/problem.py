@@ -85,6 +85,16 @@ class ContactProblem:
         for name, value in values.items():
             object.__setattr__(self, name, value)
 
+    @property
+    def abs_K(self):
+        """``|K|`` (element-wise), built once on first use: the residual's round-off
+        allowance multiplies it by ``|d|`` at every check of a solve."""
+        cached = self.__dict__.get("_abs_K")
+        if cached is None:
+            cached = _frozen(np.abs(self.K))
+            self.__dict__["_abs_K"] = cached
+        return cached
+
     def rescaled(self, stiffness, length):
         """The same problem in other units: ``K / stiffness``, ``gap0 / length``.
 
@@ -107,6 +117,9 @@ class ContactProblem:
                   "diagonal_blocks": cache["blocks"]}
         for name, value in values.items():
             object.__setattr__(new, name, value)
+        if "abs_K" not in cache:
+            cache["abs_K"] = _frozen(np.abs(cache["K"]))
+        new.__dict__["_abs_K"] = cache["abs_K"]       # shared by every solve of the ramp
         return new
 
     @property

@@ -119,23 +119,35 @@ def solve(problem, lam_w, state=None, *, method="basket", tol=DEFAULT_TOL, maxit
     previous = ContactState.reference(problem) if state is None else state.check_against(problem)
     tol, maxiter = _check_tol(tol), _check_maxiter(maxiter)
     scaled = _Scaled(problem, lam_w, previous)
-    out, used = _run_chain(scaled, method, fn, tol, maxiter, bool(fallback), options)
-    return _result(problem, lam_w, previous, out, method, tol, fallback=used, scaled=scaled)
+    out, used, measures = _run_chain(scaled, method, fn, tol, maxiter, bool(fallback),
+                                     options)
+    return _result(problem, lam_w, previous, out, method, tol, fallback=used, scaled=scaled,
+                   measures=measures)
+
+
+def _measures(scaled, out):
+    """``(residual, force_residual)`` of an iterate in the internal units of ``scaled``."""
+    args = (scaled.problem, scaled.lam_w, out.d, out.lam, scaled.previous)
+    return residual(*args), force_residual(*args)
 
 
 def _run_chain(scaled, method, fn, tol, maxiter, fallback, options):
-    """The method, then its fallback if it failed; ``(Iterate, fallback name or None)``,
-    the iterate in the internal units of ``scaled``."""
+    """The method, then its fallback if its answer is not accepted (not converged, or
+    rejected by the residual or the force check of :func:`_result`); ``(Iterate,
+    fallback name or None, measures of the first iterate or None)``, the iterate in
+    the internal units of ``scaled``."""
     out = _guarded(fn, scaled, None, tol, maxiter, options)
     rescue = FALLBACKS.get(method)
     left = None if maxiter is None else maxiter - out.nit
-    if out.converged or not fallback or rescue is None or left == 0:
-        return out, None
+    measures = _measures(scaled, out) if out.converged else None
+    accepted = measures is not None and measures[0] <= tol and measures[1] <= FORCE_TOL
+    if accepted or not fallback or rescue is None or left == 0:
+        return out, None, measures
     guess = None if out.numerical_error else scaled.guess(out)
     second = _guarded(METHODS[rescue], scaled, guess, tol, left, {})
     merged = second._replace(nit=out.nit + second.nit,
                              message=f"{out.message}; fell back to {rescue}: {second.message}")
-    return merged, rescue
+    return merged, rescue, None
 
 
 def _guarded(fn, scaled, guess, tol, maxiter, options):
@@ -227,7 +239,8 @@ def _check_maxiter(maxiter):
     return int(maxiter)
 
 
-def _result(problem, lam_w, previous, out, method, tol, fallback=None, scaled=None):
+def _result(problem, lam_w, previous, out, method, tol, fallback=None, scaled=None,
+            measures=None):
     """Accept or reject the method's iterate on the public residual and the force check.
 
     With ``scaled`` (see :class:`_Scaled`), ``out`` is in its internal units: the
@@ -240,8 +253,10 @@ def _result(problem, lam_w, previous, out, method, tol, fallback=None, scaled=No
         out = scaled.back(out)
     else:
         internal = out
-    r = residual(problem, lam_w, internal.d, internal.lam, previous)
-    r_force = force_residual(problem, lam_w, internal.d, internal.lam, previous)
+    if measures is None:
+        measures = (residual(problem, lam_w, internal.d, internal.lam, previous),
+                    force_residual(problem, lam_w, internal.d, internal.lam, previous))
+    r, r_force = measures
     success = bool(out.converged and r <= tol and r_force <= FORCE_TOL)
     message = out.message
     if out.converged and not success:

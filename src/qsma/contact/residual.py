@@ -105,7 +105,7 @@ def roundoff_allowance(problem, lam_w, d):
 
 def _terms(problem, lam_w, d):
     with np.errstate(over="ignore"):
-        return np.abs(problem.K) @ np.abs(d.ravel()) + np.abs(lam_w.ravel())
+        return problem.abs_K @ np.abs(d.ravel()) + np.abs(lam_w.ravel())
 
 
 def residual_components(problem, lam_w, d, lam, previous_state=None):

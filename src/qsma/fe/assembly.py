@@ -133,13 +133,11 @@ def _facet_indices(m, facets: np.ndarray, what: str) -> np.ndarray:
     return np.asarray(idx, dtype=np.int64)
 
 
-def pressure_load(body: Body, facet_set: str, p: float, mesh=None) -> np.ndarray:
+def pressure_load(body: Body, facet_set: str, p: float) -> np.ndarray:
     """Consistent nodal forces of pressure ``p`` (positive into the body) on a facet set,
     ``f_a = -p int_Gamma N_a n dGamma`` (``n`` the outward unit normal), by Gauss
     quadrature on the iso-parametric facets. On quadratic facets these forces are not
     all positive (serendipity quad8 facets: corners get -1/12 of the resultant each).
-
-    ``mesh`` is ignored (kept for callers of the former signature).
     """
     space = fe_space(body.mesh)
     rows = body.mesh.facets(facet_set)
@@ -168,7 +166,7 @@ def _facet_order(cell_type):
     return 2 if cell_type in ("triangle", "quad", "tetra", "hexahedron") else 4
 
 
-def body_load(body: Body, name: str, mesh=None) -> np.ndarray:
+def body_load(body: Body, name: str) -> np.ndarray:
     """Sum of the pressure loads of pattern ``name``."""
     f = np.zeros(body.n_dofs)
     for pr in body.pressures:

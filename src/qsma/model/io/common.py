@@ -9,9 +9,7 @@ messages that name the file, file ids to indices, and the atomic write of
 """
 from __future__ import annotations
 
-import contextlib
 import os
-import secrets
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -33,23 +31,14 @@ _N_NODES = {"vertex": 1, "line": 2, "triangle": 3, "quad": 4, "tetra": 4, "hexah
 _MAX_ID = 2**62
 
 def _write_atomically(path: Path, text: str) -> None:
-    """Write ``text`` to a temporary file beside ``path``, then rename it to ``path``."""
-    tmp = path.with_name(f".{path.name}.{secrets.token_hex(6)}.tmp")
+    """Write ``text`` atomically (:func:`qsma.rundir.atomic_write`), an unwritable folder
+    reported as a :class:`MeshFileError`."""
+    from ...rundir import atomic_write
     try:
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)  # umask applies
+        atomic_write(path, text)
     except OSError as exc:
         raise MeshFileError(f"cannot write {path}: {exc.strerror}; check that the folder "
                             f"{path.parent} exists and is writable") from exc
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
 
 
 # --------------------------------------------------------------------------------------

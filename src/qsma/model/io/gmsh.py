@@ -375,7 +375,7 @@ class _Gmsh4:
             dim, entity = (first, second) if self.v41 else (second, first)
             if number not in _GMSH_TYPES:
                 raise MeshFileError(f"{where}: unknown Gmsh element type number {number}; "
-                                    f"qsma reads linear meshes (Gmsh types 1-5 and 15)")
+                                    f"qsma reads the types {sorted(_GMSH_TYPES)}")
             etype, nv, _ = _GMSH_TYPES[number]
             n = int(s.sizes(1)[0])
             rows = (s.sizes if self.v41 else s.ints)(n * (1 + nv)).reshape(n, 1 + nv)
