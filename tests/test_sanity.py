@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import qsma
-from qsma.analysis import FAILURE_FLAGS
+from qsma.result import FAILURE_FLAGS
 from qsma.examples import sandwich_2d
 from qsma.levels import Levels
 from qsma.model import Material, Pressure

@@ -25,7 +25,7 @@ def sweep(model_or_config, vary, options=None, **kwargs):
 def __getattr__(name):
     """Lazy access to the heavier public names (they import scikit-fem, meshio)."""
     if name == "QSMAResult":
-        from .analysis import QSMAResult
+        from .result import QSMAResult
         return QSMAResult
     if name in ("Model", "read_mesh"):
         from . import model

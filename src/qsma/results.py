@@ -11,6 +11,7 @@ import numpy as np
 
 from .errors import AnalysisError
 from .fe import stress_at_nodes
+from .result import LEVEL_FIELDS
 from .rundir import (RunFolder, atomic_path, atomic_write,  # noqa: F401 (re-exported)
                      prepare_output_dir, write_error)
 
@@ -89,9 +90,8 @@ def write_json(res, path):
     atomic_write(path, json.dumps(results_dict(res), indent=1) + "\n")
 
 
-#: Columns of results.csv: the level index, then :data:`qsma.analysis.LEVEL_FIELDS`.
-def csv_columns():
-    from .analysis import LEVEL_FIELDS
+def csv_columns() -> tuple[str, ...]:
+    """Columns of results.csv: the level index, then :data:`qsma.result.LEVEL_FIELDS`."""
     return ("level",) + LEVEL_FIELDS
 
 
@@ -195,7 +195,7 @@ def write_all(res, out, plots=True, vtu=True, folder=None):
 
     Parameters
     ----------
-    res : :class:`qsma.analysis.QSMAResult`
+    res : :class:`qsma.result.QSMAResult`
     out : result folder (replaced as a whole)
     plots, vtu : also write the PNG figures / the VTU fields
     folder : a :class:`~qsma.rundir.RunFolder` already entered for ``out`` (the CLI

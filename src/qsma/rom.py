@@ -287,7 +287,7 @@ def fit_jenkins(q, alpha, slip=None, n_elements=JENKINS_ELEMENTS):
 
 
 def rom_dict(res, fit: IwanFit) -> dict:
-    """The content of rom.json for a :class:`qsma.analysis.QSMAResult` and its fit."""
+    """The content of rom.json for a :class:`qsma.result.QSMAResult` and its fit."""
     from .results import _clean
     m = fit.model
     q, alpha = np.asarray(res.q, float), np.asarray(res.alpha, float)

@@ -115,7 +115,7 @@ def parse_levels_spec(spec: str):
 
 def _warn_flags(res):
     """Name the levels whose values the physics forbids, and the hardening ones."""
-    from ..analysis import FAILURE_FLAGS
+    from ..result import FAILURE_FLAGS
     by_flag = {}
     for k, flags in enumerate(res.flags):
         for f in flags:
