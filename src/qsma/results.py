@@ -55,7 +55,26 @@ def _level_columns(res) -> dict:
 
 
 def results_dict(res) -> dict:
-    """The content of results.json (every field: docs/results.md)."""
+    """The content of results.json as plain, JSON-safe Python values.
+
+    Parameters
+    ----------
+    res : :class:`qsma.result.QSMAResult`
+
+    Returns
+    -------
+    dict
+        ``schema_version``, ``success``, ``message``, ``failed_levels``, the model
+        summary, the analysed mode (``f0_hz = omega0 / 2 pi``), the preload solve, the
+        per-level columns :data:`qsma.result.LEVEL_FIELDS` (NaN of optional fields as
+        ``None``), timings, solver statistics and the options of the run. Every field,
+        its unit and its meaning: docs/results.md.
+
+    Raises
+    ------
+    AnalysisError
+        a required value is NaN or infinite (nothing is written for it).
+    """
     out = {
         "schema_version": SCHEMA_VERSION,
         "qsma_version": res.version,
@@ -87,6 +106,8 @@ def results_dict(res) -> dict:
 
 
 def write_json(res, path):
+    """Write :func:`results_dict` to ``path`` as indented JSON, atomically (a crash
+    leaves the previous file or none, never half of one)."""
     atomic_write(path, json.dumps(results_dict(res), indent=1) + "\n")
 
 
@@ -108,6 +129,11 @@ def _csv_cell(v):
 
 
 def write_csv(res, path):
+    """Write the per-level table to ``path`` as CSV, atomically.
+
+    One row per level, columns :func:`csv_columns`; floats with 10 significant digits,
+    optional values that were not computed as empty cells, flags joined by ``;``.
+    """
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     columns = csv_columns()
@@ -119,9 +145,20 @@ def write_csv(res, path):
 
 
 def write_vtu(res, path, levels=None):
-    """One VTU file with both bodies: displacement (total and modal, i.e. from the
-    preloaded state) and von Mises stress at the preload and at the chosen levels,
-    interface pressure / shear / state as point data on the interface nodes."""
+    """Write one VTU file holding every body of the model, atomically.
+
+    Point data: ``body`` (index), at the preload ``u_preload`` and
+    ``von_mises_preload``, and for each level ``k`` of ``levels`` the total displacement
+    ``u_levelKK``, the modal part ``u_modal_levelKK = u_levelKK - u_preload``, the von
+    Mises stress and the interface pressure, shear and contact state (``-1`` off the
+    interface). Coordinates are the model's, in its units.
+
+    Parameters
+    ----------
+    res : :class:`qsma.result.QSMAResult`
+    path : file to write (``.vtu``)
+    levels : level indices to write; default the first, middle and last level.
+    """
     import meshio
 
     model = res.model
