@@ -120,6 +120,7 @@ def plot_interface(res, path, levels=None):
     axes[0].set_ylabel("contact pressure [MPa]")
     axes[1].set_ylabel("shear [MPa]")
     axes[2].set_yticks([0, 1, 2], ["stuck", "slip", "open"])
+    axes[2].set_ylabel("contact state [-]")
     axes[2].set_xlabel("x along the interface [m]")
     for a in axes:
         a.grid(True, alpha=0.3)
@@ -137,7 +138,8 @@ def plot_interface_map(res, path, levels=None):
     p = res.pairing
     t1, t2 = p.frames[0, 0], p.frames[0, 1]
     u, v = p.x @ t1, p.x @ t2
-    fig, axes = _figure(3, len(levels), figsize=(4.2 * len(levels), 6.5), squeeze=False)
+    fig, axes = _figure(3, len(levels), figsize=(4.2 * len(levels), 6.5), squeeze=False,
+                        sharex=True, sharey=True)
     states = ListedColormap(["tab:blue", "tab:orange", "lightgray"])
     pmax = max(res.states.lam[k][:, -1].max() for k in levels) / p.area.max() / 1e6
     for j, k in enumerate(levels):
@@ -155,10 +157,9 @@ def plot_interface_map(res, path, levels=None):
             fig.colorbar(sc, ax=ax, shrink=0.8, label=label)
             if i == 0:
                 ax.set_title(f"level {k}, tip {res.tip[k]:.2e} m", fontsize=9)
-            if i == 2:
-                ax.set_xlabel("t1 coordinate [m]")
-            if j == 0:
-                ax.set_ylabel("t2 coordinate [m]")
+            ax.set_xlabel("t1 coordinate [m]")
+            ax.set_ylabel("t2 coordinate [m]")
+            ax.label_outer()            # coordinates once per row and column
     return _save(fig, path)
 
 

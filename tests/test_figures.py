@@ -1,0 +1,119 @@
+"""Figures a person can read: no overlapping tick labels, a unit on every axis, every
+plotted curve inside its axes, on the 2D and 3D examples.
+
+The figures are captured as they are saved (``qsma.plots._save``) and inspected
+through matplotlib's own text extents after a draw, so the test measures what the PNG
+shows.
+"""
+import re
+
+import numpy as np
+import pytest
+
+import qsma
+import qsma.plots as plots
+from qsma.examples import lap_2d, lap_3d, sandwich_2d
+from qsma.levels import Levels, spec_levels
+
+#: An axis label names its unit in brackets, e.g. "modal amplitude q [kg$^{1/2}$ m]";
+#: a dimensionless quantity says "[-]".
+UNIT = re.compile(r"\[[^\]]+\]")
+
+
+def _capture(res, tmp_path, monkeypatch):
+    figures = {}
+    save = plots._save
+
+    def keep(fig, path):
+        figures[str(path).rsplit("/", 1)[-1]] = fig
+        return save(fig, path)
+
+    monkeypatch.setattr(plots, "_save", keep)
+    plots.write_plots(res, tmp_path)
+    return figures
+
+
+def _overlaps(boxes):
+    """Pairs of boxes (matplotlib Bbox) that overlap by more than a pixel."""
+    bad = []
+    for i in range(len(boxes)):
+        for j in range(i + 1, len(boxes)):
+            a, b = boxes[i], boxes[j]
+            w = min(a.x1, b.x1) - max(a.x0, b.x0)
+            h = min(a.y1, b.y1) - max(a.y0, b.y0)
+            if w > 1 and h > 1:
+                bad.append((i, j))
+    return bad
+
+
+def _tick_boxes(axis, renderer):
+    labels = [t for t in axis.get_ticklabels() if t.get_visible() and t.get_text()]
+    lo, hi = sorted(axis.get_view_interval())
+    # only the ticks matplotlib actually draws (inside the view interval)
+    locs = axis.get_ticklocs()
+    shown = [t for t, x in zip(labels, locs) if lo - 1e-12 * abs(hi - lo) <= x
+             <= hi + 1e-12 * abs(hi - lo)] if len(locs) == len(labels) else labels
+    return [t.get_window_extent(renderer) for t in shown]
+
+
+def _check_figure(name, fig):
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    problems = []
+    for ax in fig.axes:
+        if not ax.get_visible() or ax.get_label() == "<colorbar>":
+            continue
+        for which, axis in (("x", ax.xaxis), ("y", ax.yaxis)):
+            bad = _overlaps(_tick_boxes(axis, renderer))
+            if bad:
+                texts = [t.get_text() for t in axis.get_ticklabels()]
+                problems.append(f"{name}: overlapping {which} tick labels {texts}")
+        for which, axis, label in (("x", ax.xaxis, ax.get_xlabel()),
+                                   ("y", ax.yaxis, ax.get_ylabel())):
+            shows_ticks = any(t.get_visible() and t.get_text()
+                              for t in axis.get_ticklabels())
+            if shows_ticks and not UNIT.search(label):   # (shared axes show them once)
+                problems.append(f"{name}: {which} axis label {label!r} has no [unit]")
+        x0, x1 = sorted(ax.get_xlim())
+        y0, y1 = sorted(ax.get_ylim())
+        for line in ax.get_lines():
+            x, y = (np.asarray(v, float) for v in line.get_data())
+            ok = np.isfinite(x) & np.isfinite(y)
+            if line.get_label().startswith("_") and not ok.any():
+                continue
+            inside = ok & (x >= x0) & (x <= x1) & (y >= y0) & (y <= y1)
+            if not inside.any():
+                problems.append(f"{name}: curve {line.get_label()!r} is outside its axes")
+    return problems
+
+
+@pytest.fixture(scope="module")
+def results():
+    # every sixth of the default levels: the same range as the figures users see
+    full = spec_levels()
+    levels = Levels(full.kind, full.values[::6])
+    return {"sandwich-2d": qsma.run(sandwich_2d(), levels=levels),
+            "lap-2d": qsma.run(lap_2d(), levels=levels),
+            "lap-3d": qsma.run(lap_3d(), levels=levels)}
+
+
+@pytest.mark.parametrize("case", ["sandwich-2d", "lap-2d", "lap-3d"])
+def test_figures_are_readable(results, case, tmp_path, monkeypatch):
+    res = results[case]
+    assert res.n_levels > 3
+    figures = _capture(res, tmp_path, monkeypatch)
+    assert figures, "no figure was written"
+    problems = [p for name, fig in figures.items() for p in _check_figure(name, fig)]
+    assert not problems, "\n".join(problems)
+
+
+def test_checker_sees_crowded_ticks_and_missing_units():
+    """The checks above can fail: a crowded axis without units is caught."""
+    fig, ax = plots._figure(figsize=(2, 2))
+    ax.plot([0, 1], [0, 1])
+    ax.set_xticks(np.linspace(0, 1, 40), [f"{x:.6f}" for x in np.linspace(0, 1, 40)])
+    ax.set_xlabel("no unit here")
+    ax.set_ylabel("y [m]")
+    problems = _check_figure("crowded", fig)
+    assert any("overlapping x tick labels" in p for p in problems)
+    assert any("has no [unit]" in p for p in problems)
