@@ -60,7 +60,11 @@ def stacked(matrices):
 def tie_transform(model, assembled, pairing, tied) -> sp.csr_matrix:
     """``T`` with ``x_all = T x_reduced``: Dirichlet DOFs dropped, tied body-2 DOFs mapped
     onto their body-1 partners (node-to-node) or tied slave DOFs onto the projection of
-    the master DOFs (mortar, :func:`_mpc_transform`)."""
+    the master DOFs (mortar, :func:`_mpc_transform`); several interfaces:
+    :func:`qsma.multibody.tie_transform`."""
+    from .multibody import MultiPairing, tie_transform as multi_tie_transform
+    if isinstance(pairing, MultiPairing):
+        return multi_tie_transform(model, assembled, pairing, tied)
     if pairing.projection is not None:
         return _mpc_transform(model, assembled, pairing, tied)
     off = model.dof_offsets()
