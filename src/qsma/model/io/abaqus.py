@@ -628,13 +628,17 @@ _INP_KEYWORDS = {
 
 
 def _read_abaqus(path: Path, cell_type: str | None) -> Mesh:
+    return _to_mesh(*_abaqus_file_mesh(path, cell_type))
+
+
+def _abaqus_file_mesh(path: Path, cell_type: str | None):
+    """``(what the file holds, its cell type)``, before it becomes a Mesh."""
     reader = _InpReader(path)
     for card in _inp_cards(path):
         handler = _INP_KEYWORDS.get(card.keyword)
         if handler is not None:
             handler(reader, card)
-    fm, vtype = reader.file_mesh(cell_type)
-    return _to_mesh(fm, vtype)
+    return reader.file_mesh(cell_type)
 
 
 def _inp_name(name: str) -> str:
