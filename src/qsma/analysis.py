@@ -30,8 +30,8 @@ from .masing import loop_area
 from .levels import spec_levels
 from .modal import linear_modes, probe_vector
 from .model import make_pairing
-from .multibody import (MultiPairing, body_order, multi_pairing, pair_mu, reduce_model,
-                        warn_closed_gaps)
+from .multibody import (MultiPairing, body_order, multi_pairing, pair_gaps, pair_mu,
+                        reduce_model, warn_closed_gaps)
 from .options import RunOptions
 from .result import (FAILURE_FLAGS, LEVEL_FIELDS, DirectLoop, LevelStates,  # noqa: F401
                      QSMAResult, load_factors as _load_factors)
@@ -258,13 +258,15 @@ def run_prepared(prepared: Prepared, options: RunOptions | None = None, *, progr
 
 
 #: Mortar surfaces closer than this fraction of the interface size count as coincident
-#: (coordinates written with ~10 significant digits); farther apart they are reported.
+#: (coordinates written with ~10 significant digits); farther apart their gaps are the
+#: initial gaps of the contact problem, and reported.
 GAP_REPORT_RTOL = 1e-9
 
 
 def _warn_closed_gaps(model, pairing):
-    """Say so when the mortar coupling took surfaces that are apart (or overlap) in the
-    mesh as touching (gaps up to a tenth of an element, docs/theory.md section 8)."""
+    """Say so when the mortar coupling found surfaces that are apart (or overlap) in the
+    mesh (gaps up to a tenth of an element, docs/theory.md section 8): the contact
+    problem starts from these gaps."""
     warn_closed_gaps(model, pairing, GAP_REPORT_RTOL)
 
 
@@ -281,7 +283,8 @@ def preload(model, assembled, pairing, *, method="basket", opts=None, schur_back
     if reduced is None:
         reduced = _condense(model, assembled, pairing, schur_backend, clock)
     with clock.stage("condensation"):
-        problem = ContactProblem(reduced.K, pair_mu(model, pairing), dim=model.dim)
+        problem = ContactProblem(reduced.K, pair_mu(model, pairing), dim=model.dim,
+                                 gap0=pair_gaps(model, pairing, GAP_REPORT_RTOL))
     with clock.stage("contact"):
         pre, _ = _solve(problem, reduced, 0.0, None, method, opts or {}, "preload")
     if not pre.success:

@@ -464,21 +464,42 @@ def _substitute(B, is_slave, depth):
                      "(Interface(slave=...)) so that they do not")
 
 
+def _significant_gaps(p, rtol):
+    """The mortar gaps of pairing ``p`` with those within ``rtol`` of the interface size
+    (coincident surfaces written with ~10 digits) set to zero; None for node-to-node."""
+    gap = getattr(p, "gap", None)
+    if gap is None or not len(gap):
+        return None
+    size = float(np.linalg.norm(np.ptp(p.x, axis=0)))
+    return np.where(np.abs(gap) > rtol * size, gap, 0.0)
+
+
+def pair_gaps(model, pairing, rtol) -> np.ndarray | None:
+    r"""Initial normal gap ``g0`` of each contact point (opening ``w = d_n + g0``): the
+    mortar weighted gap :math:`g_i = D_i^{-1} \int \psi_i (x_m - x_s) \cdot n_s\,dA` of
+    the undeformed surfaces, positive apart, negative where they overlap; zero at
+    node-to-node pairs and where ``|g_i|`` is within ``rtol`` of the interface size.
+    ``None`` when every gap is zero (the contact problem's default)."""
+    parts = [_significant_gaps(p, rtol) for _, p in interface_pairings(model, pairing)]
+    if all(g is None or not g.any() for g in parts):
+        return None
+    return np.concatenate([np.zeros(p.n_pairs) if g is None else g for g, (_, p) in
+                           zip(parts, interface_pairings(model, pairing))])
+
+
 def warn_closed_gaps(model, pairing, rtol):
-    """Say so when a mortar coupling took surfaces that are apart (or overlap) in the
-    mesh as touching (docs/theory.md section 8)."""
+    """Say so when the mortar coupling found surfaces that are apart (or overlap) in the
+    mesh: the contact problem starts from these gaps (docs/theory.md section 8)."""
     import warnings
     for itf, p in interface_pairings(model, pairing):
-        gap = getattr(p, "gap", None)
-        if gap is None or not len(gap):
+        gap = _significant_gaps(p, rtol)
+        if gap is None or not gap.any():
             continue
-        size = float(np.linalg.norm(np.ptp(p.x, axis=0)))
         worst = float(np.abs(gap).max())
-        if worst > rtol * size:
-            warnings.warn(f"interface {itf.label}: the two surfaces are up "
-                          f"to {worst:.3e} apart or overlapping in the mesh; the mortar "
-                          f"coupling takes them as touching (initial gap zero; faceted "
-                          f"curved surfaces differ like this). A real initial gap is not "
-                          f"modelled by the mortar coupling yet: mesh the surfaces "
-                          f"coincident or accept it closed", InterfaceGapWarning,
-                          stacklevel=4)
+        what = "apart" if gap[np.argmax(np.abs(gap))] > 0 else "overlapping"
+        warnings.warn(f"interface {itf.label}: the two surfaces are up to {worst:.3e} "
+                      f"{what} in the mesh (largest of {int(np.count_nonzero(gap))} mortar "
+                      f"gaps); the contact problem starts from these initial gaps (faceted "
+                      f"curved surfaces differ like this, by about h^2 / 8R). If the "
+                      f"surfaces should touch, mesh them coincident or refine",
+                      InterfaceGapWarning, stacklevel=4)
