@@ -67,14 +67,49 @@ class Assembly:
                              f"group of the mesh dimension or an Abaqus *ELSET of "
                              f"{self.cell_type} elements); cell sets of the file: "
                              f"{self.cell_sets}")
+        return self._mesh_of(self._volume_members(cells), f"cell set {cells!r}")
+
+    def _mesh_of(self, members, what) -> Mesh:
+        fm = self.file_mesh
         keep_cells = np.zeros(sum(len(c) for _, _, c, _ in fm.blocks), dtype=bool)
-        keep_cells[self._volume_members(cells)] = True
+        keep_cells[members] = True
         body = _restrict(fm, keep_cells, self.cell_type)
         try:
             mesh = _to_mesh(body, self.cell_type)
         except MeshFileError as exc:
-            raise MeshFileError(f"{exc} (body: cell set {cells!r})") from exc
-        return mesh
+            raise MeshFileError(f"{exc} (body: {what})") from exc
+        return _with_node_surfaces(mesh, fm.node_surfaces)
+
+    def components(self) -> list:
+        """Global element indices of the cells of each connected part of the mesh (cells
+        joined through shared nodes), ordered by their first cell: the bodies of a file
+        that names none (a CalculiX deck)."""
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
+        fm = self.file_mesh
+        offsets = np.concatenate([[0], np.cumsum([len(c) for _, _, c, _ in fm.blocks])])
+        cells = [(offsets[b] + np.arange(len(conn)), conn) for b, (t, _, conn, cell)
+                 in enumerate(fm.blocks) if t == self.cell_type and cell]
+        index = np.concatenate([i for i, _ in cells])
+        conn = np.vstack([c for _, c in cells])
+        n_nodes = len(fm.points)
+        rows = np.repeat(np.arange(len(conn)), conn.shape[1])
+        graph = coo_matrix((np.ones(conn.size), (rows, len(conn) + conn.ravel())),
+                           shape=(len(conn) + n_nodes,) * 2)
+        _, label = connected_components(graph, directed=False)
+        cell_label = label[:len(conn)]
+        order = [lab for lab in _first_appearance_labels(cell_label)]
+        return [index[cell_label == lab] for lab in order]
+
+    def component_meshes(self) -> list:
+        """The mesh of each of :meth:`components` (named ``body1``, ``body2``, ...)."""
+        return [self._mesh_of(c, f"connected part {k + 1}")
+                for k, c in enumerate(self.components())]
+
+    @property
+    def contact_pairs(self) -> list:
+        """The ``*CONTACT PAIR`` rows of the file (slave, master, mu, kind, where)."""
+        return list(self.file_mesh.contact_pairs)
 
 
 def read_assembly(path, *, cell_type: str | None = None) -> Assembly:
@@ -156,3 +191,24 @@ def _restrict(fm: _FileMesh, keep_cells: np.ndarray, vtype: str) -> _FileMesh:
                    facet_rows=facet_rows, free_faces=free_faces,
                    empty_sets=dict(fm.empty_sets),
                    element_ids=ids if fm.element_ids is not None else None)
+
+
+def _first_appearance_labels(labels):
+    _, first = np.unique(labels, return_index=True)
+    return labels[np.sort(first)]
+
+
+def _with_node_surfaces(mesh: Mesh, names) -> Mesh:
+    """A node-based surface (``*SURFACE, TYPE=NODE``) also becomes the facet set of the
+    boundary facets whose nodes all belong to it, so it can be one side of an interface."""
+    from ..mesh import boundary_facets
+    extra = {}
+    for name in names:
+        if name in mesh.node_sets and name not in mesh.facet_sets:
+            inside = np.zeros(mesh.n_nodes, dtype=bool)
+            inside[mesh.node_sets[name]] = True
+            facets = boundary_facets(mesh)
+            facets = facets[np.all(inside[facets], axis=1)]
+            if len(facets):
+                extra[name] = facets
+    return mesh.with_sets(facet_sets=extra) if extra else mesh
