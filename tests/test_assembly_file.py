@@ -184,3 +184,62 @@ def test_a_body_in_no_interface_exits_2_from_the_cli(tmp_path, capsys):
     assert main(["run", str(path), "--out", str(tmp_path / "out"), "--quiet"]) == 2
     err = capsys.readouterr().err
     assert "body 'top' belongs to no interface" in err and "Fix" in err
+
+
+def _two_cubes_deck(path):
+    """Two unit-cube blocks of C3D8 (2x2x2 each) stacked along z, meshed apart, in one
+    flat deck: a node-based slave surface on the lower block's top, an element-based
+    master surface on the upper block's bottom, a *CONTACT PAIR whose names differ in
+    case from their definitions, a friction coefficient and a clamp."""
+    from qsma.model.generate import structured_mesh
+    from qsma.model import Body, Material
+    steel = Material(200e9, 0.3, 7800.0)
+    bodies = []
+    for k, name in enumerate(("lower", "upper")):
+        m = structured_mesh(*(np.linspace(0, 1, 3),) * 2, np.linspace(k, k + 1, 3))
+        on = lambda z: (lambda p: np.abs(p[:, 2] - z) < 1e-9)
+        m = m.with_sets(node_sets={"clamp": np.flatnonzero(on(0)(m.points)),
+                                   "top_nodes": np.flatnonzero(on(k + 1)(m.points))},
+                        facet_sets={"bottom": m.boundary_facets_where(on(k))})
+        bodies.append(Body(name, m, steel))
+    _one_file(bodies, path)
+    with open(path, "a") as f:
+        f.write("*SURFACE, NAME=SLAVE_TOP, TYPE=NODE\nlower_top_nodes\n"
+                "*CONTACT PAIR, INTERACTION=si1, TYPE=SURFACE TO SURFACE\n"
+                "slave_top, UPPER_BOTTOM\n"
+                "*SURFACE INTERACTION, NAME=SI1\n*FRICTION\n0.25, 1e5\n"
+                "*BOUNDARY\nlower_clamp, 1, 3\nupper_top_nodes, 3, 3, 0.001\n")
+    return path
+
+
+def test_contact_pairs_and_connected_bodies_of_a_flat_deck(tmp_path):
+    """What a CalculiX-style deck holds: the contact pair (names as defined, the mu of
+    its interaction), the homogeneous clamp (a prescribed displacement is not a clamp),
+    the connected parts as bodies, a node-based surface as the facets it spans; the two
+    bodies and the pair make a model whose interface is coupled and tied."""
+    asm = read_assembly(_two_cubes_deck(tmp_path / "cubes.inp"))
+    (pair,) = asm.contact_pairs
+    assert (pair.slave, pair.master, pair.mu) == ("SLAVE_TOP", "upper_bottom", 0.25)
+    assert asm.file_mesh.boundaries == [("lower_clamp", 1, 3)]
+    lower, upper = asm.component_meshes()
+    assert lower.n_nodes == upper.n_nodes == 27
+    assert len(lower.facets("SLAVE_TOP")) == 4 and "SLAVE_TOP" not in upper.facet_sets
+    steel = qsma.model.Material(200e9, 0.3, 7800.0)
+    bodies = (qsma.model.Body("lower", lower, steel, (qsma.model.Clamp("lower_clamp"),)),
+              qsma.model.Body("upper", upper, steel))
+    itf = qsma.model.Interface("upper", pair.master, "lower", pair.slave, mu=pair.mu)
+    model = qsma.model.Model(bodies, itf)
+    p = make_pairing(model)
+    assert p.coupling == "node" and p.n_pairs == 9
+    assert np.allclose(p.normals, [0, 0, -1])          # from body 1 (upper) into lower
+    modes = linear_modes(model, [assemble_body(b) for b in bodies], p, n_modes=1)
+    assert modes.f_hz[0] > 0
+
+
+def test_mortar_refuses_quadratic_facets_by_name():
+    from qsma.examples import sandwich_2d as s2d
+    import dataclasses
+    m = s2d(1, element="quad8")
+    m = dataclasses.replace(m, interface=dataclasses.replace(m.interface, coupling="mortar"))
+    with pytest.raises(InputError, match="mortar coupling is built for linear facets.*line3"):
+        make_pairing(m)
