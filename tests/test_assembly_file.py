@@ -243,3 +243,76 @@ def test_mortar_refuses_quadratic_facets_by_name():
     m = dataclasses.replace(m, interface=dataclasses.replace(m.interface, coupling="mortar"))
     with pytest.raises(InputError, match="mortar coupling is built for linear facets.*line3"):
         make_pairing(m)
+
+
+PARTS_DECK = """\
+*Heading
+*Part, name=Beam
+*Node
+      1,           0.,           0.
+      2,           1.,           0.
+      3,           2.,           0.
+      4,           0.,           1.
+      5,           1.,           1.
+      6,           2.,           1.
+*Element, type=CPS4
+1, 1, 2, 5, 4
+2, 2, 3, 6, 5
+*Nset, nset=Set-1
+ 1, 4
+*Elset, elset=_Surf-1_S1, internal
+ 1, 2
+*Surface, type=ELEMENT, name=Bottom
+_Surf-1_S1, S1
+*Elset, elset=_Surf-2_S3, internal
+ 1, 2
+*Surface, type=ELEMENT, name=Top
+_Surf-2_S3, S3
+*End Part
+*Assembly, name=Assembly
+*Instance, name=Lower, part=Beam
+*End Instance
+*Instance, name=Upper, part=Beam
+ 0., 1., 0.
+*End Instance
+*Instance, name=Turned, part=Beam
+ 0., 0., 0.
+ 0., 0., 0., 0., 0., 1., 90.
+*End Instance
+*Nset, nset=Fixed, instance=Upper
+ 3, 6
+*Surface, type=ELEMENT, name=Left
+Upper._Surf-1_S1, S1
+*End Assembly
+*Contact Pair, interaction=IntProp-1
+Upper.Bottom, Lower.Top
+"""
+
+
+def test_parts_and_placed_instances_become_bodies(tmp_path):
+    """One part placed three times (as is, translated by (0, 1), turned by 90 degrees
+    about z): each instance is a body with its nodes moved, its sets named
+    <instance>.<set>, assembly sets and the contact pair in instance terms; the
+    translated instance touches the first one node-to-node. read_mesh still refuses
+    the file (it reads one body)."""
+    path = tmp_path / "parts.inp"
+    path.write_text(PARTS_DECK)
+    with pytest.raises(MeshFileError, match="second \\*PART|second \\*INSTANCE|translated"):
+        qsma.model.read_mesh(path)
+    asm = read_assembly(path)
+    assert asm.cell_sets == ["Lower", "Turned", "Upper"]
+    (pair,) = asm.contact_pairs
+    assert (pair.slave, pair.master) == ("Upper.Bottom", "Lower.Top")
+    lower, upper, turned = (asm.body_mesh(n) for n in ("Lower", "Upper", "Turned"))
+    assert np.allclose(upper.points, lower.points + [0.0, 1.0])
+    assert np.allclose(turned.points, lower.points[:, ::-1] * [-1.0, 1.0])   # x, y -> -y, x
+    assert set(upper.node_sets) == {"Upper.Set-1", "Fixed"}
+    assert upper.nodes("Fixed").tolist() == [2, 5]
+    assert set(upper.facet_sets) == {"Upper.Bottom", "Upper.Top", "Left"}
+    steel = qsma.model.Material(200e9, 0.3, 7800.0)
+    model = qsma.model.Model((qsma.model.Body("lower", lower, steel),
+                              qsma.model.Body("upper", upper, steel)),
+                             qsma.model.Interface("lower", pair.master, "upper", pair.slave))
+    p = make_pairing(model)
+    assert p.coupling == "node" and p.n_pairs == 3
+    assert np.allclose(p.normals, [0, 1])

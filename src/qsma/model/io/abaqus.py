@@ -636,14 +636,16 @@ def _inp_scope(scope: str):
             r.parts += 1
             if r.parts > 1:
                 raise _inp_error(card.where, "a second *PART",
-                                 "qsma reads one part per file: write each part to its own "
-                                 "file or export a flat input file")
+                                 "qsma reads one part per body: write each part to its own "
+                                 "file, or read the file as an assembly (one body per "
+                                 "instance: cells = \"<instance name>\" in the body's table)")
         if scope == "instance":
             r.instances += 1
             if r.instances > 1:
                 raise _inp_error(card.where, "a second *INSTANCE",
-                                 "qsma reads one instance per file: write each instance "
-                                 "to its own file or export a flat input file")
+                                 "qsma reads one instance per body: read the file as an "
+                                 "assembly (cells = \"<instance name>\" in the body's "
+                                 "table) or write each instance to its own file")
             for where, tokens, text in _rows(card):
                 try:
                     moved = any(_abaqus_float(t) != 0.0 for t in tokens)
@@ -651,8 +653,9 @@ def _inp_scope(scope: str):
                     moved = True
                 if moved:
                     raise _inp_error(where, "the instance is translated or rotated",
-                                     "export the mesh in its final position (no instance "
-                                     "transformation)")
+                                     "read the file as an assembly (cells = \"<instance "
+                                     "name>\" in the body's table), which places instances, "
+                                     "or export the mesh in its final position")
         r.scope = scope
     return handler
 
@@ -719,10 +722,15 @@ def _read_abaqus(path: Path, cell_type: str | None) -> Mesh:
     return _to_mesh(*_abaqus_file_mesh(path, cell_type))
 
 
-def _abaqus_file_mesh(path: Path, cell_type: str | None):
-    """``(what the file holds, its cell type)``, before it becomes a Mesh."""
+def _abaqus_file_mesh(path: Path, cell_type: str | None, assembly: bool = False):
+    """``(what the file holds, its cell type)``, before it becomes a Mesh; ``assembly``:
+    several parts and placed instances are made flat (:mod:`.instances`)."""
+    from .instances import flatten_instances, needs_flattening
     reader = _InpReader(path)
-    for card in _inp_cards(path):
+    cards = _inp_cards(path)
+    if assembly and needs_flattening(cards):
+        cards = flatten_instances(cards, _Card)
+    for card in cards:
         handler = _INP_KEYWORDS.get(card.keyword)
         if handler is not None:
             handler(reader, card)

@@ -132,7 +132,8 @@ def read_assembly(path, *, cell_type: str | None = None) -> Assembly:
     if cell_type is not None and cell_type not in CELL_TYPES:
         raise InputError(f"cell_type must be one of {sorted(CELL_TYPES)} or None, "
                          f"got {cell_type!r}")
-    readers = {".msh": _gmsh_file_mesh, ".inp": _abaqus_file_mesh}
+    readers = {".msh": _gmsh_file_mesh,
+               ".inp": lambda p, c: _abaqus_file_mesh(p, c, assembly=True)}
     read = readers.get(path.suffix.lower())
     if read is None:
         raise MeshFileError(f"{path}: unknown mesh file extension {path.suffix!r}; use .msh "
