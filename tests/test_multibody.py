@@ -227,8 +227,8 @@ def test_stack_runs_end_to_end_with_both_interfaces(stack_run, tmp_path):
 def test_stack_contact_forces_balance_each_body(stack_run):
     """The recovered fields of every body are in equilibrium with the contact forces
     G^T lam (zero residual K u - F off the interfaces, G^T lam on them, to 1e-8 of the
-    largest load or contact force on the body), and each interface's forces on its two bodies cancel (action and
-    reaction through the mortar projection)."""
+    largest load or contact force on the body), and each interface's forces on its two
+    bodies cancel (action and reaction through the mortar projection)."""
     res = stack_run
     rm = res.reduced
     k = res.n_levels - 1
@@ -304,3 +304,14 @@ def test_inverted_node_to_node_normals_are_refused():
     with pytest.raises(InputError, match=r"outward normals of the two surfaces point the "
                                          r"same way.*Fix"):
         make_pairing(bad)
+
+
+def test_a_study_over_mu_refuses_interfaces_with_their_own_mu():
+    """Prepared.with_mu changes the model's mu; an interface with a mu of its own would
+    keep it silently, so that is refused (the same value is accepted: unpickling)."""
+    prepared = analysis.prepare(stack_2d(1, mu=(0.6, 0.3)))
+    with pytest.raises(InputError, match=r"interface bottom.upper / middle.lower sets its "
+                                         r"own mu = 0.6"):
+        prepared.with_mu(0.2)
+    same = analysis.prepare(stack_2d(1, mu=0.4))
+    assert same.with_mu(0.4).model.mu == 0.4

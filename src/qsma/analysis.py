@@ -163,7 +163,15 @@ class Prepared:
                                      base.schur_backend, self.model.mu, self.preload_scale))
 
     def with_mu(self, mu) -> "Prepared":
-        """The same preparation for friction coefficient ``mu`` (nothing recomputed)."""
+        """The same preparation for friction coefficient ``mu`` (nothing recomputed).
+        Refused when an interface sets a friction coefficient of its own (other than
+        ``mu``): the model's ``mu`` would not reach it."""
+        own = [i for i in self.model.interface_list if i.mu is not None and i.mu != mu]
+        if own:
+            raise InputError(f"friction coefficient mu = {mu!r} for the whole model, but "
+                             f"interface {own[0].label} sets its own mu = {own[0].mu}; "
+                             f"leave the interfaces' mu unset (the model's mu then applies "
+                             f"to every interface) to vary it in a study")
         return replace(self, model=replace(self.model, mu=mu))
 
     def with_preload_scale(self, scale) -> "Prepared":

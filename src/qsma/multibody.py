@@ -421,10 +421,11 @@ def tie_transform(model, assembled, pairing, tied) -> sp.csr_matrix:
             if fixed[sd].any():
                 if p.projection is not None:
                     bad = snodes[fixed[sd]]
-                    raise InputError(f"interface {itf.label}: slave node(s) {bad[:10].tolist()} of body "
-                                     f"{model.bodies[c.slave].name!r} are clamped and cannot "
-                                     f"be tied to the master surface; remove them from the "
-                                     f"interface set or from the clamp")
+                    raise InputError(f"interface {itf.label}: slave node(s) "
+                                     f"{bad[:10].tolist()} of body "
+                                     f"{model.bodies[c.slave].name!r} are clamped and "
+                                     f"cannot be tied to the master surface; remove them "
+                                     f"from the interface set or from the clamp")
                 fixed[md[fixed[sd][N.row]]] = True
             slaves.append(sd)
             rows.append(sd[N.row])
