@@ -184,8 +184,10 @@ class Prepared:
         j = self.reduced.patterns.index("preload")
         col = lambda A: np.column_stack([A[:, i] * factor if i == j else A[:, i]
                                          for i in range(A.shape[1])])
+        Fc = self.reduced.Fc          # per body (two bodies), or stacked (several)
         reduced = replace(self.reduced, W=col(self.reduced.W),
-                          Fc=tuple(col(F) for F in self.reduced.Fc),
+                          Fc=col(Fc) if isinstance(Fc, np.ndarray) else
+                          tuple(col(F) for F in Fc),
                           loads=tuple(col(L) for L in self.reduced.loads))
         return replace(self, model=_scaled_preload(self.model, factor), reduced=reduced,
                        preload_scale=float(scale))
@@ -224,7 +226,8 @@ def _unpickle_prepared(model, pairing, assembled, schur_backend, mu, scale):
     with threads_limited(threads_for(pairing.n_pairs * model.dim)):  # as prepare(): the
         reduced = _condense(model, assembled, pairing, schur_backend, clock)  # same bits
     base = Prepared(model, pairing, assembled, reduced, 1.0, schur_backend, clock.t, {})
-    base = base.with_mu(mu)
+    if mu != model.mu:
+        base = base.with_mu(mu)
     return base.with_preload_scale(scale) if scale != 1.0 else base
 
 
