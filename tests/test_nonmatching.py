@@ -432,3 +432,32 @@ def test_qsma_through_a_nonmatching_interface(jittered):
     # of gross slip (levels 46-48) is sensitive to the edge of the closed zone
     np.testing.assert_allclose(res.zeta[30:46], conf.zeta[30:46], rtol=0.05)
     assert res.zeta[-1] == pytest.approx(conf.zeta[-1], rel=0.01)
+
+
+# ------------------------------------------------------------------ initial gaps
+def test_mortar_gap_is_the_initial_gap_of_the_contact_problem():
+    """The top plate of sandwich-2d lifted by delta = 1 um (a thousandth of an element):
+    the mortar gap is +delta at every contact point (to 1e-9), the contact problem
+    starts from it (gap0), the run says so (InterfaceGapWarning), and every pair the
+    bolt closes has d_n = -delta (the opening d_n + g0 is zero) while open pairs keep
+    d_n + g0 > 0."""
+    from qsma.errors import InterfaceGapWarning
+    delta = 1e-6
+    base = sandwich_2d(1)
+    top = base.bodies[1]
+    pts = top.mesh.points.copy()
+    pts[:, 1] += delta
+    mesh = Mesh(pts, top.mesh.cells, top.mesh.cell_type, top.mesh.node_sets,
+                top.mesh.facet_sets)
+    m = dataclasses.replace(base, bodies=(base.bodies[0], dataclasses.replace(top, mesh=mesh)),
+                            interface=dataclasses.replace(base.interface, coupling="mortar"))
+    with pytest.warns(InterfaceGapWarning, match="1.000e-06 apart.*initial gaps"):
+        res = qsma.run(m, levels=qsma.Levels.log("tip", 1e-6, 1e-5, 3))
+    assert res.success
+    assert np.allclose(res.pairing.gap, delta, rtol=1e-9)
+    pre = res.preload
+    closed = pre.status != 2
+    assert closed.any() and (~closed).any()
+    opening = pre.d[:, -1] + delta
+    assert np.abs(opening[closed]).max() < 1e-9 * delta
+    assert opening[~closed].min() > 0

@@ -30,6 +30,8 @@ from .masing import loop_area
 from .levels import spec_levels
 from .modal import linear_modes, probe_vector
 from .model import make_pairing
+from .multibody import (MultiPairing, body_order, multi_pairing, pair_gaps, pair_mu,
+                        reduce_model, warn_closed_gaps)
 from .options import RunOptions
 from .result import (FAILURE_FLAGS, LEVEL_FIELDS, DirectLoop, LevelStates,  # noqa: F401
                      QSMAResult, load_factors as _load_factors)
@@ -77,7 +79,9 @@ def run(model, options: RunOptions | None = None, *, progress=None, **overrides)
 
     Parameters
     ----------
-    model : :class:`qsma.model.Model` with two bodies, one interface and a tip probe
+    model : :class:`qsma.model.Model` with a tip probe: two bodies and one interface, or
+        any number of bodies and interfaces (``Model(interfaces=...)``, one contact
+        problem over all of them, :mod:`qsma.multibody`)
     options : :class:`qsma.options.RunOptions`, optional
         Every option of the run (defaults: :class:`RunOptions` ``()``).
     progress : callable, optional
@@ -108,14 +112,13 @@ def run(model, options: RunOptions | None = None, *, progress=None, **overrides)
 
 
 def _start(model, opts):
-    """``(clock, pairing, BLAS thread limit)`` of a run: the two-body check, the
-    interface pairing (timed as stage "model") and the thread limit of its size."""
-    if len(model.bodies) != 2:
-        raise InputError(f"QSMA needs exactly two bodies joined by the interface, "
-                         f"got {len(model.bodies)}")
+    """``(clock, pairing, BLAS thread limit)`` of a run: the interface pairing (timed as
+    stage "model"; every interface of a model with several) and the thread limit of its
+    size."""
     clock = _Timer()
     with clock.stage("model"):
-        pairing = make_pairing(model)
+        pairing = make_pairing(model) if model.interface is not None \
+            else multi_pairing(model)
     _warn_closed_gaps(model, pairing)
     limit = threads_for(pairing.n_pairs * model.dim) if opts.blas_threads == "auto" \
         else opts.blas_threads
@@ -160,7 +163,15 @@ class Prepared:
                                      base.schur_backend, self.model.mu, self.preload_scale))
 
     def with_mu(self, mu) -> "Prepared":
-        """The same preparation for friction coefficient ``mu`` (nothing recomputed)."""
+        """The same preparation for friction coefficient ``mu`` (nothing recomputed).
+        Refused when an interface sets a friction coefficient of its own (other than
+        ``mu``): the model's ``mu`` would not reach it."""
+        own = [i for i in self.model.interface_list if i.mu is not None and i.mu != mu]
+        if own:
+            raise InputError(f"friction coefficient mu = {mu!r} for the whole model, but "
+                             f"interface {own[0].label} sets its own mu = {own[0].mu}; "
+                             f"leave the interfaces' mu unset (the model's mu then applies "
+                             f"to every interface) to vary it in a study")
         return replace(self, model=replace(self.model, mu=mu))
 
     def with_preload_scale(self, scale) -> "Prepared":
@@ -173,8 +184,10 @@ class Prepared:
         j = self.reduced.patterns.index("preload")
         col = lambda A: np.column_stack([A[:, i] * factor if i == j else A[:, i]
                                          for i in range(A.shape[1])])
+        Fc = self.reduced.Fc          # per body (two bodies), or stacked (several)
         reduced = replace(self.reduced, W=col(self.reduced.W),
-                          Fc=tuple(col(F) for F in self.reduced.Fc),
+                          Fc=col(Fc) if isinstance(Fc, np.ndarray) else
+                          tuple(col(F) for F in Fc),
                           loads=tuple(col(L) for L in self.reduced.loads))
         return replace(self, model=_scaled_preload(self.model, factor), reduced=reduced,
                        preload_scale=float(scale))
@@ -213,7 +226,8 @@ def _unpickle_prepared(model, pairing, assembled, schur_backend, mu, scale):
     with threads_limited(threads_for(pairing.n_pairs * model.dim)):  # as prepare(): the
         reduced = _condense(model, assembled, pairing, schur_backend, clock)  # same bits
     base = Prepared(model, pairing, assembled, reduced, 1.0, schur_backend, clock.t, {})
-    base = base.with_mu(mu)
+    if mu != model.mu:
+        base = base.with_mu(mu)
     return base.with_preload_scale(scale) if scale != 1.0 else base
 
 
@@ -255,26 +269,16 @@ def run_prepared(prepared: Prepared, options: RunOptions | None = None, *, progr
 
 
 #: Mortar surfaces closer than this fraction of the interface size count as coincident
-#: (coordinates written with ~10 significant digits); farther apart they are reported.
+#: (coordinates written with ~10 significant digits); farther apart their gaps are the
+#: initial gaps of the contact problem, and reported.
 GAP_REPORT_RTOL = 1e-9
 
 
 def _warn_closed_gaps(model, pairing):
-    """Say so when the mortar coupling took surfaces that are apart (or overlap) in the
-    mesh as touching (gaps up to a tenth of an element, docs/theory.md section 8)."""
-    gap = getattr(pairing, "gap", None)
-    if gap is None or not len(gap):
-        return
-    size = float(np.linalg.norm(np.ptp(pairing.x, axis=0)))
-    worst = float(np.abs(gap).max())
-    if worst > GAP_REPORT_RTOL * size:
-        itf = model.interface
-        warnings.warn(f"interface {itf.set1!r} / {itf.set2!r}: the two surfaces are up to "
-                      f"{worst:.3e} apart or overlapping in the mesh; the mortar coupling "
-                      f"takes them as touching (initial gap zero; faceted curved surfaces "
-                      f"differ like this). A real initial gap is not modelled by the mortar "
-                      f"coupling yet: mesh the surfaces coincident or accept it closed",
-                      InterfaceGapWarning, stacklevel=3)
+    """Say so when the mortar coupling found surfaces that are apart (or overlap) in the
+    mesh (gaps up to a tenth of an element, docs/theory.md section 8): the contact
+    problem starts from these gaps."""
+    warn_closed_gaps(model, pairing, GAP_REPORT_RTOL)
 
 
 def preload(model, assembled, pairing, *, method="basket", opts=None, schur_backend="auto",
@@ -290,7 +294,8 @@ def preload(model, assembled, pairing, *, method="basket", opts=None, schur_back
     if reduced is None:
         reduced = _condense(model, assembled, pairing, schur_backend, clock)
     with clock.stage("condensation"):
-        problem = ContactProblem(reduced.K, model.mu, dim=model.dim)
+        problem = ContactProblem(reduced.K, pair_mu(model, pairing), dim=model.dim,
+                                 gap0=pair_gaps(model, pairing, GAP_REPORT_RTOL))
     with clock.stage("contact"):
         pre, _ = _solve(problem, reduced, 0.0, None, method, opts or {}, "preload")
     if not pre.success:
@@ -305,10 +310,12 @@ def preload(model, assembled, pairing, *, method="basket", opts=None, schur_back
 
 
 def _condense(model, assembled, pairing, schur_backend, clock):
-    """The two-body reduced model with the 'preload' pattern (static condensation)."""
-    i1 = model.body_index(model.interface.body1)
-    i2 = model.body_index(model.interface.body2)
+    """The reduced model with the 'preload' pattern (static condensation): two bodies,
+    or every body and interface (:func:`qsma.multibody.reduce_model`)."""
     with clock.stage("condensation"):
+        if isinstance(pairing, MultiPairing):
+            return reduce_model(model, assembled, pairing, backend=schur_backend)
+        i1, i2 = body_order(model, pairing)
         return reduce_two_bodies(assembled[i1], assembled[i2], pairing,
                                  backend=schur_backend)
 
@@ -355,8 +362,7 @@ def _mode(model, assembled, pairing, closed, opts, clock):
 
 
 def _run(model, pairing, opts, progress, clock, prepared=None):
-    i1 = model.body_index(model.interface.body1)
-    i2 = model.body_index(model.interface.body2)
+    order = body_order(model, pairing)
     sopts = opts.solver_options
     if prepared is None:
         assembled = _assemble(model, clock)
@@ -376,9 +382,9 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
         off = model.dof_offsets()
         Mphi = [a.M @ phi[off[k]:off[k + 1]] for k, a in enumerate(assembled)]
         part = lambda v, k: v[off[k]:off[k + 1]]
-        reduced = reduced.add_pattern("modal", Mphi[i1], Mphi[i2]).with_functionals({
-            "q": (Mphi[i1], Mphi[i2]),
-            "tip": (part(ltip, i1), part(ltip, i2)),
+        reduced = reduced.add_pattern("modal", *(Mphi[i] for i in order)).with_functionals({
+            "q": tuple(Mphi[i] for i in order),
+            "tip": tuple(part(ltip, i) for i in order),
         })
     response = _Response(reduced, pre)
     levels = spec_levels() if opts.levels is None else opts.levels
@@ -427,7 +433,8 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
     return QSMAResult(
         success=success, message=message,
         model_info=dict(name=model.name, n_nodes=model.n_nodes, n_dofs=model.n_dofs,
-                        n_pairs=pairing.n_pairs, mu=model.mu, dim=model.dim,
+                        n_pairs=pairing.n_pairs, dim=model.dim,
+                        mu=_mu_info(model), n_interfaces=len(model.interface_list),
                         n_closed_after_preload=int(closed.sum()),
                         elements={a.body.name: a.formulation for a in assembled},
                         coupling=pairing.coupling),
@@ -462,6 +469,14 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
                     negative_ramp_levels=int(neg.n)),
         timings_s=timings, direct_loop=loop,
         gross_slip_level=gross[0] if gross else None)
+
+
+def _mu_info(model):
+    """The model's mu, or the list of the interfaces' when any sets its own."""
+    itfs = model.interface_list
+    if all(i.mu is None for i in itfs):
+        return model.mu
+    return [model.mu if i.mu is None else i.mu for i in itfs]
 
 
 class _Response:

@@ -19,9 +19,11 @@ from .model import Body, Clamp, Interface, Material, Model, Pressure, Probe
 _NUM = (int, float)
 # section -> {key: (types, required)}
 SCHEMA = {
-    "": {"name": (str, False), "bodies": (list, True), "interface": (dict, True),
+    "": {"name": (str, False), "bodies": (list, True), "interface": (dict, False),
+         "interfaces": (list, False),
          "tip": (dict, True), "analysis": (dict, False), "levels": (dict, False)},
-    "bodies": {"name": (str, True), "mesh": (str, True), "E": (_NUM, True),
+    "bodies": {"name": (str, True), "mesh": (str, True), "cells": (str, False),
+               "E": (_NUM, True),
                "nu": (_NUM, True), "rho": (_NUM, True), "clamps": (list, False),
                "pressures": (list, False)},
     "clamps": {"set": (str, True), "components": (list, False)},
@@ -29,6 +31,9 @@ SCHEMA = {
     "interface": {"body1": (str, True), "set1": (str, True), "body2": (str, True),
                   "set2": (str, True), "mu": (_NUM, True), "tol": (_NUM, False),
                   "coupling": (str, False), "slave": (str, False)},
+    "interfaces": {"body1": (str, True), "set1": (str, True), "body2": (str, True),
+                   "set2": (str, True), "mu": (_NUM, True), "tol": (_NUM, False),
+                   "coupling": (str, False), "slave": (str, False)},
     "tip": {"sets": (list, True), "direction": (list, True)},
     "levels": {"kind": (str, True), "spacing": (str, True), "start": (_NUM, False),
                "stop": (_NUM, False), "n": (int, False), "values": (list, False)},
@@ -101,11 +106,30 @@ def decode_toml(raw: bytes, where: str) -> str:
                          f"Save the file as UTF-8 (e.g. iconv -f LATIN1 -t UTF-8)") from None
 
 
-def parse_config(data, base=Path("."), where="config") -> RunConfig:
-    from .model.io import read_mesh
+def _interface(t, with_mu=True) -> Interface:
+    return Interface(t["body1"], t["set1"], t["body2"], t["set2"], t.get("tol"),
+                     coupling=t.get("coupling", "auto"), slave=t.get("slave"),
+                     mu=t["mu"] if with_mu else None)
 
+
+def _body_mesh(path, cells, files):
+    """The mesh of a body: the whole file, or its cell set ``cells`` (one file read once
+    for all the bodies taken from it)."""
+    from .model.io import read_mesh, read_assembly
+    if cells is None:
+        return read_mesh(path)
+    key = str(path)
+    if key not in files:
+        files[key] = read_assembly(path)
+    return files[key].body_mesh(cells)
+
+
+def parse_config(data, base=Path("."), where="config") -> RunConfig:
+    """A :class:`RunConfig` from the parsed TOML ``data`` (mesh paths relative to
+    ``base``); ``where`` names the source in messages."""
     _check(data, "", where)
     bodies = []
+    files = {}
     for k, b in enumerate(data["bodies"]):
         w = f"{where}: bodies[{k}]"
         _check(b, "bodies", w)
@@ -120,23 +144,33 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
                              f"character; give the mesh file name")
         try:
             mat = Material(b["E"], b["nu"], b["rho"])
-            mesh = read_mesh(base / b["mesh"])
+            mesh = _body_mesh(base / b["mesh"], b.get("cells"), files)
             bodies.append(Body(b["name"], mesh, mat, clamps, pressures))
         except InputError as exc:
             raise InputError(f"{w} ({b['name']!r}): {exc}") from exc
-    itf = _check(data["interface"], "interface", f"{where}: interface")
     tip = _check(data["tip"], "tip", f"{where}: tip")
     sets = tip["sets"]
     if not all(isinstance(s, list) and len(s) == 2 and all(isinstance(x, str) for x in s)
                for s in sets):
         raise InputError(f"{where}: tip.sets must be a list of [body, set] pairs, got {sets!r}")
-    model = Model(
-        bodies=tuple(bodies),
-        interface=Interface(itf["body1"], itf["set1"], itf["body2"], itf["set2"],
-                            itf.get("tol"), coupling=itf.get("coupling", "auto"),
-                            slave=itf.get("slave")),
-        tip=Probe(tuple(tuple(s) for s in sets), tuple(tip["direction"])),
-        mu=itf["mu"], name=data.get("name", "model"))
+    probe = Probe(tuple(tuple(s) for s in sets), tuple(tip["direction"]))
+    name = data.get("name", "model")
+    if ("interface" in data) == ("interfaces" in data):
+        raise InputError(f"{where}: give the contact interface as one [interface] table "
+                         f"(two bodies) or as a list of [[interfaces]] tables (any number "
+                         f"of bodies), exactly one of the two")
+    if "interface" in data:
+        itf = _check(data["interface"], "interface", f"{where}: interface")
+        model = Model(bodies=tuple(bodies), interface=_interface(itf, with_mu=False),
+                      tip=probe, mu=itf["mu"], name=name)
+    else:
+        if not data["interfaces"]:
+            raise InputError(f"{where}: interfaces is empty; list the touching facet sets "
+                             f"as [[interfaces]] tables")
+        itfs = tuple(_interface(_check(t, "interfaces", f"{where}: interfaces[{k}]"))
+                     for k, t in enumerate(data["interfaces"]))
+        model = Model(bodies=tuple(bodies), interfaces=itfs, tip=probe, mu=itfs[0].mu,
+                      name=name)
     options = RunOptions.from_table(data.get("analysis", {}), f"{where}: analysis",
                                     levels=parse_levels(data.get("levels"), f"{where}: levels"))
     return RunConfig(model, options)

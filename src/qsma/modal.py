@@ -60,7 +60,11 @@ def stacked(matrices):
 def tie_transform(model, assembled, pairing, tied) -> sp.csr_matrix:
     """``T`` with ``x_all = T x_reduced``: Dirichlet DOFs dropped, tied body-2 DOFs mapped
     onto their body-1 partners (node-to-node) or tied slave DOFs onto the projection of
-    the master DOFs (mortar, :func:`_mpc_transform`)."""
+    the master DOFs (mortar, :func:`_mpc_transform`); several interfaces:
+    :func:`qsma.multibody.tie_transform`."""
+    from .multibody import MultiPairing, tie_transform as multi_tie_transform
+    if isinstance(pairing, MultiPairing):
+        return multi_tie_transform(model, assembled, pairing, tied)
     if pairing.projection is not None:
         return _mpc_transform(model, assembled, pairing, tied)
     off = model.dof_offsets()
@@ -90,42 +94,11 @@ def tie_transform(model, assembled, pairing, tied) -> sp.csr_matrix:
 def _mpc_transform(model, assembled, pairing, tied):
     """``T`` for a mortar pairing: the rows of the tied slave DOFs (component c of slave
     node i) are ``sum_k P_ik e_(master k, c)``; the slave DOFs leave the unknowns, and so
-    do the Dirichlet DOFs (a clamped master DOF contributes zero)."""
-    off = model.dof_offsets()
-    dim = model.dim
-    n = off[-1]
-    fixed = np.zeros(n, dtype=bool)
-    for k, a in enumerate(assembled):
-        fixed[off[k] + a.fixed] = True
-    names = (model.interface.body1, model.interface.body2)
-    s_off = off[model.body_index(names[pairing.slave - 1])]
-    m_off = off[model.body_index(names[2 - pairing.slave])]
-    tied = np.asarray(tied, dtype=bool)
-    N = pairing.projection[tied].tocoo()
-    snodes = pairing.contact_nodes[tied]
-    mnodes = pairing.master_nodes
-    rows, cols, vals = [], [], []
-    slave_dofs = []
-    for c in range(dim):
-        sd = s_off + dim * snodes + c
-        if fixed[sd].any():
-            bad = snodes[fixed[sd]]
-            raise InputError(f"interface slave node(s) {bad[:10].tolist()} are clamped and "
-                             f"cannot be tied to the master surface; remove them from the "
-                             f"interface set or from the clamp")
-        slave_dofs.append(sd)
-        rows.append(sd[N.row])
-        cols.append(m_off + dim * mnodes[N.col] + c)
-        vals.append(N.data)
-    slave_dofs = np.concatenate(slave_dofs)
-    is_slave = np.zeros(n, dtype=bool)
-    is_slave[slave_dofs] = True
-    free = np.flatnonzero(~is_slave)
-    G = sp.coo_matrix((np.concatenate([np.ones(len(free))] + vals),
-                       (np.concatenate([free] + rows), np.concatenate([free] + cols))),
-                      shape=(n, n)).tocsc()
-    keep = np.flatnonzero(~fixed & ~is_slave)
-    return G[:, keep].tocsr()
+    do the Dirichlet DOFs (a clamped master DOF contributes zero). The one-interface
+    case of :func:`qsma.multibody.tie_transform`."""
+    from .multibody import Coupling, MultiPairing, body_order, tie_transform as general
+    coupling = Coupling(pairing, *body_order(model, pairing))
+    return general(model, assembled, MultiPairing((coupling,), (model.interface,)), tied)
 
 
 def linear_modes(model, assembled, pairing, tied=None, n_modes=6) -> Modes:

@@ -42,7 +42,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from .condense import condense_body
-from .errors import InputError
+from .errors import InputError, InterfaceGapWarning
 
 
 @dataclass(frozen=True)
@@ -130,6 +130,22 @@ class MultiReducedModel:
     def evaluate(self, name, d, a) -> float:
         c_d, c_a = self.functionals[name]
         return float(c_d @ np.asarray(d).ravel() + c_a @ np.asarray(a, dtype=float))
+
+    def add_pattern(self, name, *loads) -> "MultiReducedModel":
+        """One more load pattern, ``loads`` the full load vector of each body (body
+        order). Its column of ``W`` is ``T_d^T (Kc T_r S^-1 T_r^T fc - fc)``."""
+        if name in self.patterns:
+            raise InputError(f"load pattern {name!r} exists already")
+        if len(loads) != len(self.bodies):
+            raise InputError(f"load pattern {name!r}: {len(loads)} load vectors for "
+                             f"{len(self.bodies)} bodies")
+        fc = np.concatenate([b.condensed_load(F) for b, F in zip(self.bodies, loads)])
+        y = sla.cho_solve(self.S_cho, self.T_r.T @ fc)
+        w = self.T_d.T @ (self.Kc @ (self.T_r @ y) - fc)
+        new = replace(self, W=np.column_stack([self.W, w]), patterns=self.patterns + (name,),
+                      loads=tuple(np.column_stack([L, F]) for L, F in zip(self.loads, loads)),
+                      Fc=np.column_stack([self.Fc, fc]), functionals={}, definitions={})
+        return new.with_functionals(self.definitions)
 
     def with_functionals(self, definitions: dict) -> "MultiReducedModel":
         """Attach ``name -> (l_1, ..., l_B)`` (full DOF vectors per body): with ``h`` the
@@ -256,3 +272,235 @@ def _slave_dofs(couplings, nodes, offsets, dim):
                          "(Interface(slave=...)) so that each node carries at most one "
                          "interface's contact unknowns")
     return dofs
+
+
+@dataclass(frozen=True, eq=False)
+class MultiPairing:
+    """The contact points of every interface of a model, stacked in interface order.
+
+    Offers what the run reads of a :class:`qsma.model.interface.Pairing` (``n_pairs``,
+    ``x``, ``frames``, ``area``, ``normals``, ``coupling``) plus the couplings.
+
+    Attributes
+    ----------
+    couplings : one :class:`Coupling` per interface (``model.interface_list`` order)
+    interfaces : the :class:`qsma.model.Interface` of each coupling
+    rows : start of each interface's contact points (``rows[I]:rows[I+1]``)
+    """
+
+    couplings: tuple
+    interfaces: tuple
+
+    @property
+    def rows(self) -> np.ndarray:
+        return np.concatenate([[0], np.cumsum([c.pairing.n_pairs for c in self.couplings])])
+
+    @property
+    def n_pairs(self) -> int:
+        return int(self.rows[-1])
+
+    def _stack(self, name):
+        return np.concatenate([getattr(c.pairing, name) for c in self.couplings])
+
+    @property
+    def x(self):
+        return self._stack("x")
+
+    @property
+    def frames(self):
+        return self._stack("frames")
+
+    @property
+    def area(self):
+        return self._stack("area")
+
+    @property
+    def normals(self):
+        return self.frames[:, -1, :]
+
+    @property
+    def coupling(self) -> str:
+        """The couplings of the interfaces, e.g. ``"node+mortar"``."""
+        return "+".join(c.pairing.coupling for c in self.couplings)
+
+    @property
+    def projection(self):
+        return None                  # per interface: see couplings
+
+    @property
+    def gap(self):
+        return None                  # reported per interface (couplings)
+
+
+def multi_pairing(model) -> MultiPairing:
+    """Pair every interface of ``model`` (:func:`qsma.model.make_pairing`)."""
+    from .model import make_pairing
+    couplings = []
+    for itf in model.interface_list:
+        couplings.append(Coupling(make_pairing(model, itf), model.body_index(itf.body1),
+                                  model.body_index(itf.body2)))
+    return MultiPairing(tuple(couplings), tuple(model.interface_list))
+
+
+def pair_mu(model, pairing) -> np.ndarray | float:
+    """Friction coefficient of each contact point: its interface's ``mu``, else the
+    model's (a scalar when no interface sets its own)."""
+    itfs = model.interface_list
+    if all(i.mu is None for i in itfs):
+        return model.mu
+    if not isinstance(pairing, MultiPairing):
+        return itfs[0].mu if itfs[0].mu is not None else model.mu
+    return np.concatenate([np.full(c.pairing.n_pairs, model.mu if i.mu is None else i.mu)
+                           for c, i in zip(pairing.couplings, pairing.interfaces)])
+
+
+def reduce_model(model, assembled, pairing, backend="auto") -> MultiReducedModel:
+    """:func:`reduce_bodies` of a model and its :class:`MultiPairing`."""
+    return reduce_bodies(assembled, list(pairing.couplings), backend=backend,
+                         names=[b.name for b in model.bodies])
+
+
+def body_order(model, pairing) -> list:
+    """Indices in ``model.bodies`` of the bodies of the reduced model, in its order:
+    every body for a :class:`MultiPairing`, ``(body1, body2)`` of the interface else."""
+    if isinstance(pairing, MultiPairing):
+        return list(range(len(model.bodies)))
+    return [model.body_index(model.interface.body1), model.body_index(model.interface.body2)]
+
+
+def contact_sides(model, pairing):
+    """``(body index, nodes, contact points)`` of each side carrying contact points:
+    both sides of a node-to-node interface, the slave side of a mortar one."""
+    cps = pairing.couplings if isinstance(pairing, MultiPairing) else \
+        (Coupling(pairing, *body_order(model, pairing)),)
+    out, start = [], 0
+    for c in cps:
+        p = c.pairing
+        rows = np.arange(start, start + p.n_pairs)
+        if p.projection is None:
+            out += [(c.body1, p.nodes1, rows), (c.body2, p.nodes2, rows)]
+        else:
+            out.append((c.slave, p.contact_nodes, rows))
+        start += p.n_pairs
+    return out
+
+
+def interface_pairings(model, pairing):
+    """``(interface, pairing)`` of each interface."""
+    if isinstance(pairing, MultiPairing):
+        return [(i, c.pairing) for i, c in zip(pairing.interfaces, pairing.couplings)]
+    return [(model.interface, pairing)]
+
+
+def tie_transform(model, assembled, pairing, tied) -> sp.csr_matrix:
+    r"""``T`` with ``x_all = T x_reduced`` for the contact points in mask ``tied`` of
+    every interface tied: Dirichlet DOFs dropped, and per tied contact point, component
+    by component, the slave node's DOFs replaced by the interpolation of the master's,
+    ``u_s = sum_k N_ik u_m,k`` (``N = I`` node-to-node). A master DOF that is itself a
+    slave of another interface (a washer between two plates) is replaced in turn, so
+    ``T`` is the product of the substitutions; a chain that closes on itself is refused.
+
+    A clamped slave DOF of a node-to-node pair clamps its partner; a clamped slave node
+    of a mortar interface is refused (the projection would clamp a master patch).
+    """
+    off = model.dof_offsets()
+    dim = model.dim
+    n = off[-1]
+    fixed = np.zeros(n, dtype=bool)
+    for k, a in enumerate(assembled):
+        fixed[off[k] + a.fixed] = True
+    tied = np.asarray(tied, dtype=bool)
+    rows, cols, vals, slaves = [], [], [], []
+    for itf, c, sl in zip(pairing.interfaces, pairing.couplings, _row_slices(pairing)):
+        p, t = c.pairing, tied[sl]
+        N = c.projection[t].tocoo()
+        snodes, mnodes = p.contact_nodes[t], p.master_nodes
+        for comp in range(dim):
+            sd = off[c.slave] + dim * snodes + comp
+            md = off[c.master] + dim * mnodes[N.col] + comp
+            if fixed[sd].any():
+                if p.projection is not None:
+                    bad = snodes[fixed[sd]]
+                    raise InputError(f"interface {itf.label}: slave node(s) "
+                                     f"{bad[:10].tolist()} of body "
+                                     f"{model.bodies[c.slave].name!r} are clamped and "
+                                     f"cannot be tied to the master surface; remove them "
+                                     f"from the interface set or from the clamp")
+                fixed[md[fixed[sd][N.row]]] = True
+            slaves.append(sd)
+            rows.append(sd[N.row])
+            cols.append(md)
+            vals.append(N.data)
+    slaves = np.concatenate(slaves)
+    if len(np.unique(slaves)) != len(slaves):
+        raise InputError("a node is the slave of two interfaces; choose the slave sides "
+                         "(Interface(slave=...)) so that each node carries at most one "
+                         "interface's contact unknowns")
+    is_slave = np.zeros(n, dtype=bool)
+    is_slave[slaves] = True
+    free = np.flatnonzero(~is_slave)
+    B = sp.coo_matrix((np.concatenate([np.ones(len(free))] + vals),
+                       (np.concatenate([free] + rows), np.concatenate([free] + cols))),
+                      shape=(n, n)).tocsr()
+    B = _substitute(B, is_slave, len(pairing.couplings))
+    keep = np.flatnonzero(~fixed & ~is_slave)
+    return B[:, keep].tocsr()
+
+
+def _row_slices(pairing):
+    r = pairing.rows
+    return [slice(r[k], r[k + 1]) for k in range(len(r) - 1)]
+
+
+def _substitute(B, is_slave, depth):
+    """``B`` composed with itself until no column is a slave DOF (at most ``depth``
+    times: each interface can pass a DOF on once)."""
+    for _ in range(depth + 1):
+        if not B[:, np.flatnonzero(is_slave)].count_nonzero():
+            return B
+        B = (B @ B).tocsr()
+        B.eliminate_zeros()
+    raise InputError("the slave sides of the interfaces form a closed chain (a node is "
+                     "tied, through other interfaces, to itself); choose the slave sides "
+                     "(Interface(slave=...)) so that they do not")
+
+
+def _significant_gaps(p, rtol):
+    """The mortar gaps of pairing ``p`` with those within ``rtol`` of the interface size
+    (coincident surfaces written with ~10 digits) set to zero; None for node-to-node."""
+    gap = getattr(p, "gap", None)
+    if gap is None or not len(gap):
+        return None
+    size = float(np.linalg.norm(np.ptp(p.x, axis=0)))
+    return np.where(np.abs(gap) > rtol * size, gap, 0.0)
+
+
+def pair_gaps(model, pairing, rtol) -> np.ndarray | None:
+    r"""Initial normal gap ``g0`` of each contact point (opening ``w = d_n + g0``): the
+    mortar weighted gap :math:`g_i = D_i^{-1} \int \psi_i (x_m - x_s) \cdot n_s\,dA` of
+    the undeformed surfaces, positive apart, negative where they overlap; zero at
+    node-to-node pairs and where ``|g_i|`` is within ``rtol`` of the interface size.
+    ``None`` when every gap is zero (the contact problem's default)."""
+    parts = [_significant_gaps(p, rtol) for _, p in interface_pairings(model, pairing)]
+    if all(g is None or not g.any() for g in parts):
+        return None
+    return np.concatenate([np.zeros(p.n_pairs) if g is None else g for g, (_, p) in
+                           zip(parts, interface_pairings(model, pairing))])
+
+
+def warn_closed_gaps(model, pairing, rtol):
+    """Say so when the mortar coupling found surfaces that are apart (or overlap) in the
+    mesh: the contact problem starts from these gaps (docs/theory.md section 8)."""
+    import warnings
+    for itf, p in interface_pairings(model, pairing):
+        gap = _significant_gaps(p, rtol)
+        if gap is None or not gap.any():
+            continue
+        worst = float(np.abs(gap).max())
+        what = "apart" if gap[np.argmax(np.abs(gap))] > 0 else "overlapping"
+        warnings.warn(f"interface {itf.label}: the two surfaces are up to {worst:.3e} "
+                      f"{what} in the mesh (largest of {int(np.count_nonzero(gap))} mortar "
+                      f"gaps); the contact problem starts from these initial gaps (faceted "
+                      f"curved surfaces differ like this, by about h^2 / 8R). If the "
+                      f"surfaces should touch, mesh them coincident or refine",
+                      InterfaceGapWarning, stacklevel=4)

@@ -11,6 +11,7 @@ import numpy as np
 
 from .errors import AnalysisError
 from .fe import stress_at_nodes
+from .multibody import body_order, contact_sides
 from .result import LEVEL_FIELDS
 from .rundir import (RunFolder, atomic_path, atomic_write,  # noqa: F401 (re-exported)
                      prepare_output_dir, write_error)
@@ -193,9 +194,8 @@ def _stack_fields(res, k):
     dim = res.model.dim
     fields = res.fields(k)
     ordered = [None] * len(res.model.bodies)
-    i1 = res.model.body_index(res.model.interface.body1)
-    i2 = res.model.body_index(res.model.interface.body2)
-    ordered[i1], ordered[i2] = fields
+    for i, u in zip(body_order(res.model, res.pairing), fields):
+        ordered[i] = u
     us, vms = [], []
     for b, u in zip(res.model.bodies, ordered):
         U = u.reshape(-1, dim)
@@ -211,15 +211,12 @@ def _interface_point_data(res, k, offsets, n):
     area = p.area
     out = {"contact_pressure": np.zeros(n), "contact_shear": np.zeros(n),
            "contact_state": np.full(n, -1.0)}
-    i1 = res.model.body_index(res.model.interface.body1)
-    i2 = res.model.body_index(res.model.interface.body2)
-    sides = (((i1, p.nodes1), (i2, p.nodes2)) if p.projection is None
-             else (((i1, i2)[p.slave - 1], p.contact_nodes),))   # mortar: slave nodes
-    for i, nodes in sides:
+    # node-to-node: both sides; mortar: the slave nodes
+    for i, nodes, rows in contact_sides(res.model, p):
         idx = offsets[i] + nodes
-        out["contact_pressure"][idx] = lam[:, -1] / area
-        out["contact_shear"][idx] = np.linalg.norm(lam[:, :-1], axis=1) / area
-        out["contact_state"][idx] = res.states.status[k]
+        out["contact_pressure"][idx] = lam[rows, -1] / area[rows]
+        out["contact_shear"][idx] = np.linalg.norm(lam[rows, :-1], axis=1) / area[rows]
+        out["contact_state"][idx] = res.states.status[k][rows]
     return out
 
 

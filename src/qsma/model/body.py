@@ -147,20 +147,26 @@ class Probe:
 
 @dataclass(frozen=True, eq=False)
 class Model:
-    """Elastic bodies joined by one frictional contact interface.
+    """Elastic bodies joined by frictional contact interfaces.
 
-    ``tip`` is the probe reported as tip deflection and used to scale load levels.
+    Two bodies and one interface: ``interface``. Any number of bodies and interfaces:
+    ``interfaces`` (``interface`` then stays ``None``); :attr:`interface_list` is the
+    tuple of interfaces either way. ``mu`` is the friction coefficient of every
+    interface that sets none of its own (``Interface.mu``). ``tip`` is the probe
+    reported as tip deflection and used to scale load levels.
     """
 
     bodies: tuple
-    interface: "Interface"
+    interface: "Interface | None" = None
     tip: Probe | None = None
     mu: float = 0.6
     name: str = "model"
     extra: dict = field(default_factory=dict)
+    interfaces: tuple = ()
 
     def __post_init__(self):
         object.__setattr__(self, "bodies", tuple(self.bodies))
+        object.__setattr__(self, "interfaces", tuple(self.interfaces))
         names = [b.name for b in self.bodies]
         if len(set(names)) != len(names):
             raise InputError(f"body names must be unique, got {names}")
@@ -171,22 +177,38 @@ class Model:
         if mu < 0:
             raise InputError(f"friction coefficient mu must be >= 0, got {mu}")
         object.__setattr__(self, "mu", mu)
-        for b in (self.interface.body1, self.interface.body2):
-            if b not in names:
-                raise InputError(f"interface names body {b!r}, which is not in the model "
-                                 f"(bodies: {names})")
-        if self.interface.body1 == self.interface.body2:
-            raise InputError(f"the interface joins body {self.interface.body1!r} to itself; "
-                             f"body1 and body2 must be the two bodies in contact")
+        if self.interface is not None and self.interfaces:
+            raise InputError("give either interface (two bodies) or interfaces (a list), "
+                             "not both")
+        if not self.interface_list:
+            raise InputError("the model has no interface: name the facet sets in contact "
+                             "(Interface(body1, set1, body2, set2))")
+        for itf in self.interface_list:
+            self._check_interface(itf, names)
+        from .interface import check_interfaces
+        check_interfaces(self)
         if self.tip is not None:
             self._check_probe(self.tip)
-        self._check_pairing_tol()
 
-    def _check_pairing_tol(self):
+    @property
+    def interface_list(self) -> tuple:
+        """Every interface of the model (one for ``interface``)."""
+        return (self.interface,) if self.interface is not None else self.interfaces
+
+    def _check_interface(self, itf, names):
+        for b in (itf.body1, itf.body2):
+            if b not in names:
+                raise InputError(f"interface {itf.label} names body {b!r}, which is not in "
+                                 f"the model (bodies: {names})")
+        if itf.body1 == itf.body2:
+            raise InputError(f"the interface {itf.label} joins body {itf.body1!r} to "
+                             f"itself; body1 and body2 must be the two bodies in contact")
+        self._check_pairing_tol(itf)
+
+    def _check_pairing_tol(self, itf):
         """The interface pairing tolerance must be finite, >= 0 and below half the
         smallest distance between two nodes of either interface set, so that no node
         can find two partners (``tol = nan`` or ``inf`` used to switch pairing off)."""
-        itf = self.interface
         if itf.tol is None:
             return
         tol = _finite("interface pairing tolerance tol", itf.tol)

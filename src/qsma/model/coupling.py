@@ -93,8 +93,19 @@ def mortar_operator(slave_mesh, slave_facets, master_mesh, master_facets,
     InputError
         When part of the slave surface projects onto no master facet, when the facing
         facets have normals pointing the same way (a set on the wrong face), or when the
-        surfaces are farther apart or overlap more than :data:`GAP_FRACTION` of an element.
+        surfaces are farther apart or overlap more than :data:`GAP_FRACTION` of an element,
+        and for quadratic facets (the projection is built for linear ones).
     """
+    from .mesh import FACET_CORNERS
+    for mesh, facets, body, name in ((slave_mesh, slave_facets, names[0], names[1]),
+                                     (master_mesh, master_facets, names[2], names[3])):
+        if facets.shape[1] != FACET_CORNERS[mesh.facet_type]:
+            raise InputError(
+                f"interface body {names[0]!r} set {names[1]!r} / body {names[2]!r} set "
+                f"{names[3]!r}: the mortar coupling is built for linear facets, and body "
+                f"{body!r} set {name!r} has {mesh.facet_type} facets ({mesh.cell_type} "
+                f"cells). Fix: mesh the two sides with coincident nodes (node-to-node "
+                f"coupling handles quadratic cells) or use linear cells at the interface")
     xs, xm = slave_mesh.points, master_mesh.points
     dim = xs.shape[1]
     ns = _outward(slave_mesh, slave_facets)

@@ -43,6 +43,7 @@ class Interface:
     tol : node-to-node match tolerance (absolute, m). It can only tighten the default
         (:data:`NODE_MATCH_FRACTION` of the local element size); a larger value is
         refused: mismatched meshes are coupled by ``coupling="mortar"``, never snapped.
+    mu : Coulomb friction coefficient of this interface; ``None``: the model's ``mu``.
     """
 
     body1: str
@@ -52,8 +53,19 @@ class Interface:
     tol: float | None = None
     coupling: str = "auto"
     slave: str | None = None
+    mu: float | None = None
+
+    @property
+    def label(self) -> str:
+        """``body1.set1 / body2.set2``, how messages name the interface."""
+        return f"{self.body1}.{self.set1} / {self.body2}.{self.set2}"
 
     def __post_init__(self):
+        if self.mu is not None and (isinstance(self.mu, bool)
+                                    or not isinstance(self.mu, (int, float, np.number))
+                                    or not np.isfinite(self.mu) or self.mu < 0):
+            raise InputError(f"interface {self.label}: friction coefficient mu must be a "
+                             f"finite number >= 0, got {self.mu!r}")
         if self.coupling not in COUPLINGS:
             raise InputError(f"interface coupling must be one of {list(COUPLINGS)}, "
                              f"got {self.coupling!r}")
@@ -267,10 +279,15 @@ def local_frames(normals: np.ndarray) -> np.ndarray:
     return np.stack([t1, t2, n], axis=1)
 
 
-def make_pairing(model) -> Pairing:
-    """The contact points of ``model``'s interface: node pairs or the mortar coupling
-    (``Interface.coupling``), with their local frames."""
-    itf = model.interface
+def make_pairing(model, interface=None) -> Pairing:
+    """The contact points of ``interface`` (default: ``model.interface``): node pairs or
+    the mortar coupling (``Interface.coupling``), with their local frames. A model of
+    several interfaces (and no ``interface`` given): every one of them, as a
+    :class:`qsma.multibody.MultiPairing`."""
+    if interface is None and model.interface is None:
+        from ..multibody import multi_pairing
+        return multi_pairing(model)
+    itf = model.interface if interface is None else interface
     b1, b2 = model.body(itf.body1), model.body(itf.body2)
     facets1 = b1.mesh.facets(itf.set1)
     facets2 = b2.mesh.facets(itf.set2)
@@ -278,11 +295,11 @@ def make_pairing(model) -> Pairing:
     if itf.coupling != "node":
         _check_boundary(b2.mesh, facets2, b2.name, itf.set2)
     if itf.coupling == "mortar":
-        return mortar_pairing(model)
+        return mortar_pairing(model, itf)
     match = node_match(b1.mesh, itf.set1, b2.mesh, itf.set2, itf.tol)
     if match.error is not None:
         if itf.coupling == "auto" and match.error != "tol":
-            return mortar_pairing(model)
+            return mortar_pairing(model, itf)
         raise InputError(match.message(itf.set1, itf.set2, (b1.name, b2.name)))
     nodes1, nodes2 = match.nodes1, match.nodes2
     weighted = facet_normals(b1.mesh, facets1)          # outward normal x facet area
@@ -291,18 +308,43 @@ def make_pairing(model) -> Pairing:
     np.add.at(normal_sum, facets1.ravel(), np.repeat(weighted / nvf, nvf, axis=0))
     area = np.zeros(b1.mesh.n_nodes)
     np.add.at(area, facets1.ravel(), np.repeat(np.linalg.norm(weighted, axis=1) / nvf, nvf))
+    _check_opposed(b2, facets2, nodes2, normal_sum[nodes1], itf)
     frames = local_frames(normal_sum[nodes1])
     return Pairing(nodes1, nodes2, b1.mesh.points[nodes1].copy(), frames, area[nodes1])
 
 
-def mortar_pairing(model) -> Pairing:
-    """The mortar coupling of ``model``'s interface (:mod:`qsma.model.coupling`).
+def _check_opposed(body2, facets2, nodes2, normals1, itf):
+    """Node-to-node: the outward normals of the two sides must face each other at every
+    pair (a facet set on the wrong face of a body, or a body inside the other, points
+    them the same way)."""
+    weighted = facet_normals(body2.mesh, facets2)
+    nvf = facets2.shape[1]
+    n2 = np.zeros((body2.mesh.n_nodes, body2.dim))
+    np.add.at(n2, facets2.ravel(), np.repeat(weighted / nvf, nvf, axis=0))
+    n2 = n2[nodes2]
+    cos = np.einsum("ij,ij->i", normals1, n2) / (np.linalg.norm(normals1, axis=1)
+                                                 * np.linalg.norm(n2, axis=1))
+    bad = np.flatnonzero(cos > 0)
+    if bad.size:
+        k = bad[0]
+        raise InputError(
+            f"interface {itf.label}: the outward normals of the two surfaces point the "
+            f"same way at {len(bad)} of {len(cos)} node pair(s), e.g. node {nodes2[k]} of "
+            f"body {itf.body2!r} at {np.round(body2.mesh.points[nodes2[k]], 12).tolist()}, "
+            f"so they cannot be in contact (inverted normals). Fix: name the faces that "
+            f"touch each other (check the facet sets {itf.set1!r} and {itf.set2!r}), and "
+            f"check that the bodies do not overlap")
+
+
+def mortar_pairing(model, interface=None) -> Pairing:
+    """The mortar coupling of ``interface`` (default ``model.interface``;
+    :mod:`qsma.model.coupling`).
 
     The slave is ``Interface.slave`` if given, else the side with more interface nodes
     (body 1 on a tie); if the master does not cover it, the other side is tried.
     """
     from .coupling import mortar_operator
-    itf = model.interface
+    itf = model.interface if interface is None else interface
     sides = [(1, model.body(itf.body1), itf.set1), (2, model.body(itf.body2), itf.set2)]
     if itf.slave is not None:
         order = [0, 1] if itf.slave == itf.body1 else [1, 0]
@@ -336,3 +378,48 @@ def _check_boundary(mesh, facets, body, name):
         raise InputError(f"body {body!r}: facet set {name!r} contains {len(inner)} facet(s) "
                          f"not on the boundary of this body, e.g. nodes {inner[0]}; is the "
                          f"interface set defined on the wrong body?")
+
+
+def check_interfaces(model):
+    """Refuse a model whose interfaces cannot form one contact problem: an interface
+    listed twice, two interfaces sharing facets of one body (overlapping surfaces), a
+    body in no interface (it would float free of the others)."""
+    itfs = model.interface_list
+    seen = {}
+    for itf in itfs:
+        key = frozenset(((itf.body1, itf.set1), (itf.body2, itf.set2)))
+        if key in seen:
+            raise InputError(f"interface {itf.label} is listed twice (as "
+                             f"{seen[key].label}). Fix: remove one of the two entries; "
+                             f"give each pair of touching surfaces once")
+        seen[key] = itf
+    _check_overlaps(model, itfs)
+    used = {b for itf in itfs for b in (itf.body1, itf.body2)}
+    lonely = [b.name for b in model.bodies if b.name not in used]
+    if lonely:
+        raise InputError(f"body {lonely[0]!r} belongs to no interface: it is not connected "
+                         f"to the other bodies. Fix: add an interface joining it to another "
+                         f"body (interfaces: {[i.label for i in itfs]}), or remove it from "
+                         f"the model")
+
+
+def _check_overlaps(model, itfs):
+    """Two interfaces may not use the same facet of a body: the surface would carry two
+    contact problems (one of them would be the wrong pair of bodies)."""
+    sides = [(itf, body, name) for itf in itfs
+             for body, name in ((itf.body1, itf.set1), (itf.body2, itf.set2))]
+    for i, (itf_a, body_a, set_a) in enumerate(sides):
+        for itf_b, body_b, set_b in sides[i + 1:]:
+            if body_a != body_b or itf_a is itf_b:
+                continue
+            mesh = model.body(body_a).mesh
+            if set_a not in mesh.facet_sets or set_b not in mesh.facet_sets:
+                continue                       # the pairing names the unknown set
+            fa = {tuple(sorted(f)) for f in mesh.facets(set_a).tolist()}
+            common = [f for f in mesh.facets(set_b).tolist() if tuple(sorted(f)) in fa]
+            if common:
+                raise InputError(
+                    f"interfaces {itf_a.label} and {itf_b.label} overlap: facet sets "
+                    f"{set_a!r} and {set_b!r} of body {body_a!r} share {len(common)} "
+                    f"facet(s), e.g. nodes {common[0]}. Fix: a surface belongs to one "
+                    f"interface; split the facet sets so that each touches one other body")

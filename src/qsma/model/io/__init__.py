@@ -31,12 +31,13 @@ from typing import Callable
 
 from ...errors import InputError, MeshFileError
 from ..mesh import CELL_TYPES, Mesh
+from .assembly import Assembly, read_assembly
 from .abaqus import ABAQUS_ELEMENT_TYPES, ABAQUS_FACES, _format_abaqus, _read_abaqus
 from .common import _write_atomically
 from .gmsh import GMSH_VERSIONS, _format_gmsh, _read_gmsh
 
-__all__ = ["read_mesh", "write_mesh", "MESH_FORMATS", "ABAQUS_FACES", "ABAQUS_ELEMENT_TYPES",
-           "GMSH_VERSIONS"]
+__all__ = ["read_mesh", "read_assembly", "Assembly", "write_mesh", "MESH_FORMATS",
+           "ABAQUS_FACES", "ABAQUS_ELEMENT_TYPES", "GMSH_VERSIONS"]
 
 
 # --------------------------------------------------------------------------------------

@@ -18,8 +18,8 @@ from ...errors import InputError, MeshFileError
 from ..mesh import CELL_FACETS, CELL_TYPES, Mesh, facet_index
 from ..validate import HIGHER_NODES
 from .common import (_MAX_ID, _N_NODES, _TOPO_DIM, _boundary_of_sets,
-                     _cell_type_of, _check_names, _Elements, _FileMesh, _IdLookup,
-                     _line_of, _number, _read_bytes, _to_mesh)
+                     _cell_type_of, _check_names, _ContactPair, _Elements, _FileMesh,
+                     _IdLookup, _line_of, _number, _read_bytes, _to_mesh)
 
 #: Abaqus face numbering: face ``S<k>`` of an element is ``ABAQUS_FACES[type][k - 1]``
 #: (0-based local nodes), from the Abaqus element library ("face 1: 1-2-3-4,
@@ -259,6 +259,10 @@ class _InpReader:
         self.node_surfaces = {}     # key -> _InpSet
         self.scope = "model"        # model | part | assembly | instance
         self.parts = self.instances = 0
+        self.pairs = []             # (slave, master, interaction, type, where)
+        self.friction = {}          # interaction name (upper) -> mu
+        self.interaction = None     # the *SURFACE INTERACTION being defined
+        self.boundaries = []        # (node set or node id, first dof, last dof, where)
 
     def skips(self, card: _Card) -> bool:
         """Definitions at assembly level (reference points, connectors) are not the mesh."""
@@ -305,7 +309,43 @@ class _InpReader:
                 fm.empty_sets[s.name] = "cell"
         for name, rows in self.surfaces.values():
             self._surface(fm, name, rows, vtype, elements, elsets, index)
+        fm.node_surfaces = {s.name for s in self.node_surfaces.values()}
+        fm.contact_pairs = [_ContactPair(self._surface_name(slave), self._surface_name(master),
+                                         self.friction.get((inter or "").upper()), kind, where)
+                            for slave, master, inter, kind, where in self.pairs]
+        fm.boundaries = self._boundary_sets(fm, nodes, elsets, index)
         return fm, vtype
+
+    def _surface_name(self, name: str) -> str:
+        """The defined spelling of a surface name (Abaqus names ignore case)."""
+        key = name.upper()
+        if key in self.surfaces:
+            return self.surfaces[key][0]
+        if key in self.node_surfaces:
+            return self.node_surfaces[key].name
+        return name
+
+    def _boundary_sets(self, fm, nodes: _IdLookup, elsets, index) -> list:
+        """``*BOUNDARY`` rows with zero value as (node set name, first, last dof); a row
+        naming one node gets a node set ``_BC<id>`` of its own."""
+        out = []
+        for ref, first, last, where in self.boundaries:
+            if re.fullmatch(r"[+-]?\d{1,18}", ref):
+                idx = nodes(np.array([int(ref)]))
+                if idx[0] < 0:
+                    continue
+                name = f"_BC{ref}"
+                fm.node_sets.setdefault(name, []).append(idx)
+            else:
+                key = ref.upper().rsplit(".", 1)[-1]
+                if key not in self.sets["NSET"] and key not in self.node_surfaces:
+                    continue
+                name = (self.sets["NSET"].get(key) or self.node_surfaces[key]).name
+                if name not in fm.node_sets:     # an internal set: expose it
+                    s = self.sets["NSET"].get(key)
+                    fm.node_sets[name] = [self._node_indices(s, nodes, elsets, index)]
+            out.append((name, first, last))
+        return out
 
     def _element(self, vtype: str) -> str:
         """The one Abaqus element type (upper case) of the cells."""
@@ -596,14 +636,16 @@ def _inp_scope(scope: str):
             r.parts += 1
             if r.parts > 1:
                 raise _inp_error(card.where, "a second *PART",
-                                 "qsma reads one part per file: write each part to its own "
-                                 "file or export a flat input file")
+                                 "qsma reads one part per body: write each part to its own "
+                                 "file, or read the file as an assembly (one body per "
+                                 "instance: cells = \"<instance name>\" in the body's table)")
         if scope == "instance":
             r.instances += 1
             if r.instances > 1:
                 raise _inp_error(card.where, "a second *INSTANCE",
-                                 "qsma reads one instance per file: write each instance "
-                                 "to its own file or export a flat input file")
+                                 "qsma reads one instance per body: read the file as an "
+                                 "assembly (cells = \"<instance name>\" in the body's "
+                                 "table) or write each instance to its own file")
             for where, tokens, text in _rows(card):
                 try:
                     moved = any(_abaqus_float(t) != 0.0 for t in tokens)
@@ -611,10 +653,57 @@ def _inp_scope(scope: str):
                     moved = True
                 if moved:
                     raise _inp_error(where, "the instance is translated or rotated",
-                                     "export the mesh in its final position (no instance "
-                                     "transformation)")
+                                     "read the file as an assembly (cells = \"<instance "
+                                     "name>\" in the body's table), which places instances, "
+                                     "or export the mesh in its final position")
         r.scope = scope
     return handler
+
+
+def _inp_contact_pair(r: _InpReader, card: _Card):
+    """``*CONTACT PAIR, INTERACTION=name[, TYPE=...]`` rows ``slave, master``."""
+    inter = card.params.get("INTERACTION")
+    kind = str(card.params.get("TYPE", "NODE TO SURFACE")).upper()
+    for where, tokens, text in _rows(card):
+        if len(tokens) < 2 or not tokens[0] or not tokens[1]:
+            raise _inp_error(where, f"cannot read the contact pair row {text!r}",
+                             "expected 'slave surface, master surface'")
+        r.pairs.append((tokens[0], tokens[1], inter if isinstance(inter, str) else None,
+                        kind, where))
+
+
+def _inp_interaction(r: _InpReader, card: _Card):
+    name = card.params.get("NAME")
+    r.interaction = name.upper() if isinstance(name, str) else None
+
+
+def _inp_friction(r: _InpReader, card: _Card):
+    """``*FRICTION`` under a ``*SURFACE INTERACTION``: the first number is mu."""
+    for where, tokens, text in _rows(card):
+        if r.interaction is not None and tokens and tokens[0]:
+            try:
+                r.friction[r.interaction] = _abaqus_float(tokens[0])
+            except ValueError:
+                raise _inp_error(where, f"cannot read the friction coefficient {text!r}",
+                                 "expected 'mu[, stick slope]'") from None
+        return
+
+
+def _inp_boundary(r: _InpReader, card: _Card):
+    """Homogeneous ``*BOUNDARY`` rows ``node or set, first dof[, last dof[, 0]]`` (dofs
+    1-3: displacements); other rows (prescribed values, types) are left out."""
+    for where, tokens, text in _rows(card):
+        try:
+            first = int(tokens[1]) if len(tokens) > 1 and tokens[1] else None
+            last = int(tokens[2]) if len(tokens) > 2 and tokens[2] else first
+            value = _abaqus_float(tokens[3]) if len(tokens) > 3 else 0.0
+        except ValueError:
+            continue                    # e.g. ENCASTRE, XSYMM: not read
+        if first is None or value != 0.0:
+            continue
+        first, last = max(first, 1), min(last, 3)
+        if first <= last:
+            r.boundaries.append((tokens[0], first, last, where))
 
 
 #: keyword -> handler; other keywords (materials, steps, loads, ...) are skipped
@@ -624,17 +713,28 @@ _INP_KEYWORDS = {
     "PART": _inp_scope("part"), "END PART": _inp_scope("model"),
     "ASSEMBLY": _inp_scope("assembly"), "END ASSEMBLY": _inp_scope("model"),
     "INSTANCE": _inp_scope("instance"), "END INSTANCE": _inp_scope("assembly"),
+    "CONTACT PAIR": _inp_contact_pair, "SURFACE INTERACTION": _inp_interaction,
+    "FRICTION": _inp_friction, "BOUNDARY": _inp_boundary,
 }
 
 
 def _read_abaqus(path: Path, cell_type: str | None) -> Mesh:
+    return _to_mesh(*_abaqus_file_mesh(path, cell_type))
+
+
+def _abaqus_file_mesh(path: Path, cell_type: str | None, assembly: bool = False):
+    """``(what the file holds, its cell type)``, before it becomes a Mesh; ``assembly``:
+    several parts and placed instances are made flat (:mod:`.instances`)."""
+    from .instances import flatten_instances, needs_flattening
     reader = _InpReader(path)
-    for card in _inp_cards(path):
+    cards = _inp_cards(path)
+    if assembly and needs_flattening(cards):
+        cards = flatten_instances(cards, _Card)
+    for card in cards:
         handler = _INP_KEYWORDS.get(card.keyword)
         if handler is not None:
             handler(reader, card)
-    fm, vtype = reader.file_mesh(cell_type)
-    return _to_mesh(fm, vtype)
+    return reader.file_mesh(cell_type)
 
 
 def _inp_name(name: str) -> str:

@@ -65,6 +65,21 @@ class _FileMesh:
     empty_sets: dict = field(default_factory=dict)     # name -> "cell" | "facet" | "node"
     element: str | None = None                         # formulation named by the file
     element_ids: list | None = None    # file ids of the rows of each block (None: unknown)
+    contact_pairs: list = field(default_factory=list)  # _ContactPair, in file order
+    node_surfaces: set = field(default_factory=set)    # names of node-based surfaces
+    boundaries: list = field(default_factory=list)     # (node set name, first, last dof)
+
+
+@dataclass(frozen=True)
+class _ContactPair:
+    """A ``*CONTACT PAIR`` row: surface names, the interaction's friction coefficient
+    (None if it defines none) and where it was read."""
+
+    slave: str
+    master: str
+    mu: float | None
+    kind: str
+    where: tuple
 
 
 class _Elements:

@@ -61,6 +61,11 @@ GMSH_VERSIONS = ("4.1", "2.2")
 # ----- Gmsh ---------------------------------------------------------------------------
 
 def _read_gmsh(path: Path, cell_type: str | None) -> Mesh:
+    return _to_mesh(*_gmsh_file_mesh(path, cell_type))
+
+
+def _gmsh_file_mesh(path: Path, cell_type: str | None):
+    """``(what the file holds, its cell type)``, before it becomes a Mesh."""
     raw = _read_bytes(path)
     src = str(path)
     version, is_ascii, size_t = _gmsh_header(raw, src)
@@ -80,7 +85,7 @@ def _read_gmsh(path: Path, cell_type: str | None) -> Mesh:
     for name, gdim in dims.items():
         if name not in fm.element_sets:
             fm.empty_sets[name] = kinds.get(gdim, "node")
-    return _to_mesh(fm, vtype)
+    return fm, vtype
 
 
 def _gmsh_header(raw: bytes, src: str):
