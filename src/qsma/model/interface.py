@@ -240,11 +240,13 @@ def facet_normals(mesh: Mesh, facets: np.ndarray) -> np.ndarray:
 def _owner_centroids(mesh, facets):
     """Centroid of the cell that owns each facet."""
     from .mesh import CELL_FACETS
-    local = CELL_FACETS[mesh.cell_type]
-    nc = len(mesh.cells)
-    allf = np.sort(np.concatenate([mesh.cells[:, list(f)] for f in local]), axis=1)
-    owner = {tuple(k): c % nc for c, k in enumerate(allf.tolist())}
-    cent = mesh.points[mesh.cells].mean(axis=1)
+    owner, cent = {}, []
+    for b in mesh.cell_blocks:                      # mixed meshes: every cell block
+        local, nc, start = CELL_FACETS[b.cell_type], len(b.cells), len(cent)
+        allf = np.sort(np.concatenate([b.cells[:, list(f)] for f in local]), axis=1)
+        owner.update({tuple(k): start + c % nc for c, k in enumerate(allf.tolist())})
+        cent.extend(mesh.points[b.cells].mean(axis=1))
+    cent = np.asarray(cent)
     keys = [tuple(k) for k in np.sort(facets, axis=1).tolist()]
     missing = [k for k in keys if k not in owner]
     if missing:

@@ -31,8 +31,28 @@ FACET_CORNERS = {"line": 2, "triangle": 3, "quad": 4,
 
 
 @dataclass(frozen=True, eq=False)
+class CellBlock:
+    """Cells of one type (and one element formulation) in a mixed mesh.
+
+    Attributes
+    ----------
+    cell_type : one of ``CELL_TYPES``
+    cells : (n_cells, nodes_per_cell) int array, meshio node ordering
+    element : element name given by the source file for these cells, or None
+    """
+
+    cell_type: str
+    cells: np.ndarray
+    element: str | None = None
+
+
+#: facet type of the cells that may be mixed in one mesh -> message naming the mix
+MIXABLE = {"line": "triangle + quad", "line3": "triangle6 + quad8 / quad9"}
+
+
+@dataclass(frozen=True, eq=False)
 class Mesh:
-    """A single-cell-type finite element mesh with named sets.
+    """A finite element mesh with named sets: one cell type, or several (mixed).
 
     Parameters
     ----------
@@ -44,6 +64,14 @@ class Mesh:
     cell_sets : name -> cell indices
     element : str or None
         element name given by the source file (e.g. Abaqus 'CPS4', 'C3D8I'); None when the file names no formulation (Gmsh)
+    extra_blocks : tuple of :class:`CellBlock`
+        Mixed meshes: the cells of other types, after ``cells`` (the first block).
+        Cell indices (cell sets, facet owners) count ``cells`` first, then each extra
+        block in order. Every block must have the facet type of the first: 2D
+        ``triangle`` + ``quad`` (line facets) or ``triangle6`` + ``quad8`` / ``quad9``
+        (line3 facets); a conforming mix of quadratic and linear cells, or of 3D cells
+        (hexahedra with wedges or tetrahedra need wedge / pyramid cells) is refused.
+        Use :attr:`cell_blocks` to visit every cell.
     """
 
     points: np.ndarray
@@ -53,6 +81,7 @@ class Mesh:
     facet_sets: dict = field(default_factory=dict)
     cell_sets: dict = field(default_factory=dict)
     element: str | None = None
+    extra_blocks: tuple = ()
 
     def __post_init__(self):
         if self.cell_type not in CELL_TYPES:
@@ -82,10 +111,13 @@ class Mesh:
             f = np.asarray(v, dtype=np.int64).reshape(-1, FACET_TYPES[ftype])
             _index_array(f.ravel(), len(points), f"facet set {k!r}")
             facet_sets[k] = f
-        cell_sets = {k: _index_array(v, len(cells), f"cell set {k!r}", unique=True)
+        extra = tuple(_check_block(b, self.cell_type, len(points)) for b in self.extra_blocks)
+        n_cells = len(cells) + sum(len(b.cells) for b in extra)
+        cell_sets = {k: _index_array(v, n_cells, f"cell set {k!r}", unique=True)
                      for k, v in self.cell_sets.items()}
         for name, value in [("points", points), ("cells", cells), ("node_sets", node_sets),
-                            ("facet_sets", facet_sets), ("cell_sets", cell_sets)]:
+                            ("facet_sets", facet_sets), ("cell_sets", cell_sets),
+                            ("extra_blocks", extra)]:
             object.__setattr__(self, name, value)
         points.flags.writeable = False
         cells.flags.writeable = False
@@ -93,6 +125,32 @@ class Mesh:
     @property
     def dim(self) -> int:
         return CELL_TYPES[self.cell_type][0]
+
+    @property
+    def is_mixed(self) -> bool:
+        """True when the mesh has cells of several blocks (:attr:`extra_blocks`)."""
+        return bool(self.extra_blocks)
+
+    @property
+    def cell_blocks(self) -> tuple:
+        """Every cell block, the first (``cells``, ``cell_type``, ``element``) first."""
+        return (CellBlock(self.cell_type, self.cells, self.element),) + self.extra_blocks
+
+    @property
+    def n_cells(self) -> int:
+        return sum(len(b.cells) for b in self.cell_blocks)
+
+    def block_meshes(self) -> tuple:
+        """One single-type :class:`Mesh` per cell block, on the block's own nodes, and
+        the mesh node of each of its nodes: ``((mesh, nodes), ...)``. A single-type
+        mesh gives itself and ``None`` (all nodes, same numbering). Cached per mesh."""
+        if not self.is_mixed:
+            return ((self, None),)
+        found = _BLOCK_CACHE.get(self)
+        if found is None:
+            found = tuple(_block_mesh(self.points, b) for b in self.cell_blocks)
+            _BLOCK_CACHE[self] = found
+        return found
 
     @property
     def facet_type(self) -> str:
@@ -128,11 +186,69 @@ class Mesh:
         return facets[np.all(inside[facets], axis=1)]
 
     def with_sets(self, node_sets=None, facet_sets=None, cell_sets=None) -> "Mesh":
-        """A new mesh with sets added (existing names are replaced); same ``element``."""
+        """A new mesh with sets added (existing names are replaced); same ``element``
+        and cell blocks."""
         return Mesh(self.points, self.cells, self.cell_type,
                     {**self.node_sets, **(node_sets or {})},
                     {**self.facet_sets, **(facet_sets or {})},
-                    {**self.cell_sets, **(cell_sets or {})}, self.element)
+                    {**self.cell_sets, **(cell_sets or {})}, self.element,
+                    self.extra_blocks)
+
+
+def mixed_mesh(points, blocks, node_sets=None, facet_sets=None, cell_sets=None) -> Mesh:
+    """A mesh of several cell blocks: ``blocks`` a list of :class:`CellBlock` (or
+    ``(cell_type, cells[, element])`` tuples); empty blocks are dropped. One block
+    gives a plain single-type mesh."""
+    blocks = [b if isinstance(b, CellBlock) else CellBlock(*b) for b in blocks]
+    blocks = [b for b in blocks if len(b.cells)] or blocks[:1]
+    if not blocks:
+        raise InputError("a mesh needs at least one cell block")
+    first = blocks[0]
+    return Mesh(points, first.cells, first.cell_type, node_sets or {}, facet_sets or {},
+                cell_sets or {}, first.element, tuple(blocks[1:]))
+
+
+def _check_block(block, first_type, n_points) -> CellBlock:
+    """A validated copy of an extra cell block of a mesh whose first block is
+    ``first_type``."""
+    if not isinstance(block, CellBlock):
+        raise InputError(f"extra_blocks must hold CellBlock objects, got {block!r}")
+    ct = block.cell_type
+    if ct not in CELL_TYPES:
+        raise InputError(f"unsupported cell type {ct!r}; expected one of {sorted(CELL_TYPES)}")
+    ftype, first_ftype = CELL_TYPES[ct][2], CELL_TYPES[first_type][2]
+    if ftype != first_ftype or first_ftype not in MIXABLE:
+        raise InputError(
+            f"{first_type} and {ct} cells cannot be mixed in one body: a mixed mesh must "
+            f"share one facet type, i.e. 2D {MIXABLE['line']} (linear) or "
+            f"{MIXABLE['line3']} (quadratic); 3D mixes (hexahedra with wedges or "
+            f"tetrahedra) and linear with quadratic cells are not supported. Mesh the body "
+            f"with one of these combinations or with a single cell type")
+    if ct == first_type:
+        raise InputError(f"two cell blocks of type {ct}: put them in one block")
+    nv = CELL_TYPES[ct][1]
+    cells = np.ascontiguousarray(block.cells, dtype=np.int64)
+    if cells.ndim != 2 or cells.shape[1] != nv:
+        raise InputError(f"{ct} cells must have shape (n, {nv}), got {cells.shape}")
+    if cells.size and (cells.min() < 0 or cells.max() >= n_points):
+        raise InputError(f"cells refer to node indices outside 0..{n_points - 1}")
+    if block.element is not None and (not isinstance(block.element, str)
+                                      or not block.element.strip()):
+        raise InputError(f"element must be a non-empty name such as 'CPE4I' or None, "
+                         f"got {block.element!r}")
+    cells.flags.writeable = False
+    return CellBlock(ct, cells, block.element)
+
+
+#: mixed mesh -> its block meshes; entries go with their mesh
+_BLOCK_CACHE = weakref.WeakKeyDictionary()
+
+
+def _block_mesh(points, block: CellBlock):
+    """The single-type mesh of one block on its own nodes, and their mesh node numbers."""
+    nodes, local = np.unique(block.cells, return_inverse=True)
+    return (Mesh(points[nodes], local.reshape(block.cells.shape), block.cell_type,
+                 element=block.element), nodes)
 
 
 def _index_array(values, bound, what, unique=False):
@@ -243,12 +359,18 @@ def facet_index(mesh: Mesh) -> FacetIndex:
 
 
 def _build_facet_index(mesh: Mesh) -> FacetIndex:
-    local = CELL_FACETS[mesh.cell_type]
-    n = len(mesh.cells)
-    every = np.concatenate([mesh.cells[:, list(f)] for f in local])
+    every, cell, face, start = [], [], [], 0
+    for b in mesh.cell_blocks:          # mixed meshes: one facet type for every block
+        n = len(b.cells)
+        local = CELL_FACETS[b.cell_type]
+        every += [b.cells[:, list(f)] for f in local]
+        cell += [start + np.arange(n)] * len(local)
+        face += [np.full(n, k, dtype=np.int64) for k in range(len(local))]
+        start += n
+    every, cell, face = np.concatenate(every), np.concatenate(cell), np.concatenate(face)
     _, inverse, counts = unique_rows(np.sort(every, axis=1))
     at = np.flatnonzero(counts[inverse] == 1)
-    arrays = every[at], at % n if n else at, at // n if n else at
+    arrays = every[at], cell[at], face[at]
     for a in arrays:
         a.flags.writeable = False
     return FacetIndex(*arrays)

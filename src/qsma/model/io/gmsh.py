@@ -74,13 +74,13 @@ def _read_gmsh(path: Path, cell_type: str | None) -> Mesh:
     else:
         raise MeshFileError(f"{src}: Gmsh format version {version} is not supported; save "
                             f"the mesh as version 4.1 or 2.2 (Gmsh: Mesh.MshFileVersion)")
-    vtype = _cell_type_of(src, fm.blocks, cell_type)
-    dim = CELL_TYPES[vtype][0]
+    vtypes = _cell_type_of(src, fm.blocks, cell_type)
+    dim = CELL_TYPES[vtypes[0]][0]
     kinds = {dim: "cell", dim - 1: "facet"}
     for name, gdim in dims.items():
         if name not in fm.element_sets:
             fm.empty_sets[name] = kinds.get(gdim, "node")
-    return _to_mesh(fm, vtype)
+    return _to_mesh(fm, vtypes)
 
 
 def _gmsh_header(raw: bytes, src: str):
