@@ -335,3 +335,23 @@ def test_mixed_sandwich_pairs_preloads_and_lies_between_uniform_meshes():
     assert (pre_mix.status != 2).sum() == (pre_quad.status != 2).sum() == 17
     assert pre_mix.lam[:, -1].sum() == pytest.approx(pre_quad.lam[:, -1].sum(), rel=1e-5)
     assert f_quad < f_mix < f_tri
+
+
+def test_qsma_run_on_mixed_bodies_writes_every_cell(tmp_path):
+    """The whole analysis on mixed bodies, results.json naming both formulations and
+    fields.vtu holding every cell of both blocks of both bodies."""
+    import json
+    import meshio
+    import qsma
+    from qsma.levels import Levels
+    from qsma.results import write_all
+    model = _mixed_sandwich(3)
+    res = qsma.run(model, levels=Levels.log("tip", 1e-5, 1e-3, 4))
+    assert res.success
+    write_all(res, tmp_path / "out", plots=False)
+    vtu = meshio.read(tmp_path / "out" / "fields.vtu")
+    n_cells = sum(len(c.data) for c in vtu.cells)
+    assert n_cells == sum(b.mesh.n_cells for b in model.bodies)
+    assert {c.type for c in vtu.cells} == {"triangle", "quad"}
+    text = json.dumps(json.loads((tmp_path / "out" / "results.json").read_text()))
+    assert "mixed mesh: CPE4" in text and "CPE3" in text
