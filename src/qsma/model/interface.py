@@ -9,7 +9,7 @@ import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
 from ..errors import InputError
-from .mesh import Mesh, boundary_facets
+from .mesh import Mesh, boundary_facets, facet_node_weights
 
 #: Node-to-node pairing: two nodes are the same point when they are closer than this
 #: fraction of the smallest interface facet edge at either node. It is far above the
@@ -292,7 +292,12 @@ def make_pairing(model) -> Pairing:
     normal_sum = np.zeros((b1.mesh.n_nodes, b1.dim))
     np.add.at(normal_sum, facets1.ravel(), np.repeat(weighted / nvf, nvf, axis=0))
     area = np.zeros(b1.mesh.n_nodes)
-    np.add.at(area, facets1.ravel(), np.repeat(np.linalg.norm(weighted, axis=1) / nvf, nvf))
+    if b1.mesh.facet_type in ("line", "triangle", "quad"):     # equal shares (as before)
+        np.add.at(area, facets1.ravel(), np.repeat(np.linalg.norm(weighted, axis=1) / nvf,
+                                                   nvf))
+    else:                        # quadratic facets: positive (HRZ) tributary weights
+        np.add.at(area, facets1.ravel(),
+                  facet_node_weights(b1.mesh.points, facets1, b1.mesh.facet_type).ravel())
     frames = local_frames(normal_sum[nodes1])
     return Pairing(nodes1, nodes2, b1.mesh.points[nodes1].copy(), frames, area[nodes1])
 
@@ -305,6 +310,13 @@ def mortar_pairing(model) -> Pairing:
     """
     from .coupling import mortar_operator
     itf = model.interface
+    for b in (model.body(itf.body1), model.body(itf.body2)):
+        if b.mesh.facet_type not in ("line", "triangle", "quad"):
+            raise InputError(
+                f"body {b.name!r}: the mortar coupling (non-matching interfaces) is "
+                f"implemented for linear facets only, not the {b.mesh.facet_type} facets of "
+                f"{b.mesh.cell_type} cells; mesh the two sides with matching nodes "
+                f"(node-to-node contact supports quadratic cells) or use linear cells")
     sides = [(1, model.body(itf.body1), itf.set1), (2, model.body(itf.body2), itf.set2)]
     if itf.slave is not None:
         order = [0, 1] if itf.slave == itf.body1 else [1, 0]

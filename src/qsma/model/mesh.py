@@ -394,3 +394,92 @@ def unique_rows(rows: np.ndarray):
     inverse[order] = np.cumsum(new) - 1
     first = np.minimum.reduceat(order, starts) if len(rows) else order
     return first, inverse, np.diff(np.append(starts, len(rows)))
+
+
+# --------------------------------------------------------------------------------------
+# tributary weights of facet nodes
+
+#: facet type -> (reference node coordinates, monomial exponents of its shape functions,
+#: reference shape "line" / "tri" / "quad"); node order as in ``CELL_FACETS``
+_FACET_REFERENCE = {
+    "line": ([(-1,), (1,)], [(0,), (1,)], "line"),
+    "line3": ([(-1,), (1,), (0,)], [(0,), (1,), (2,)], "line"),
+    "triangle": ([(0, 0), (1, 0), (0, 1)], [(0, 0), (1, 0), (0, 1)], "tri"),
+    "triangle6": ([(0, 0), (1, 0), (0, 1), (0.5, 0), (0.5, 0.5), (0, 0.5)],
+                  [(0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2)], "tri"),
+    "quad": ([(-1, -1), (1, -1), (1, 1), (-1, 1)], [(0, 0), (1, 0), (0, 1), (1, 1)], "quad"),
+    "quad8": ([(-1, -1), (1, -1), (1, 1), (-1, 1), (0, -1), (1, 0), (0, 1), (-1, 0)],
+              [(0, 0), (1, 0), (0, 1), (1, 1), (2, 0), (0, 2), (2, 1), (1, 2)], "quad"),
+    "quad9": ([(-1, -1), (1, -1), (1, 1), (-1, 1), (0, -1), (1, 0), (0, 1), (-1, 0), (0, 0)],
+              [(0, 0), (1, 0), (0, 1), (1, 1), (2, 0), (0, 2), (2, 1), (1, 2), (2, 2)],
+              "quad"),
+}
+
+
+def _facet_quadrature(shape):
+    """Points and weights on the reference facet: 4-point Gauss per direction; the
+    triangle by the collapsed (Duffy) square, exact to degree 7."""
+    g, w = np.polynomial.legendre.leggauss(4)
+    if shape == "line":
+        return g[:, None], w
+    u, v = (a.ravel() for a in np.meshgrid(g, g, indexing="ij"))
+    wq = np.outer(w, w).ravel()
+    if shape == "quad":
+        return np.column_stack([u, v]), wq
+    r = 0.5 * (1 + u)
+    s = 0.5 * (1 - r) * (1 + v)
+    return np.column_stack([r, s]), wq * 0.25 * (1 - r)
+
+
+def _facet_shape_functions(facet_type):
+    """Shape function values ``(n_qp, n_nodes)`` and reference gradients ``(n_qp,
+    n_nodes, facet_dim)`` at the quadrature points, with the quadrature weights."""
+    nodes, exps, shape = _FACET_REFERENCE[facet_type]
+    nodes, exps = np.asarray(nodes, float), np.asarray(exps)
+    V = np.prod(nodes[:, None, :] ** exps[None, :, :], axis=2)          # (node, monomial)
+    C = np.linalg.inv(V)                                                 # N = m(x) @ C
+    x, w = _facet_quadrature(shape)
+    mono = np.prod(x[:, None, :] ** exps[None, :, :], axis=2)
+    grads = []
+    for k in range(exps.shape[1]):
+        e = exps.copy()
+        coef = e[:, k].astype(float)
+        e[:, k] = np.maximum(e[:, k] - 1, 0)
+        grads.append((coef * np.prod(x[:, None, :] ** e[None, :, :], axis=2)) @ C)
+    return mono @ C, np.stack(grads, axis=-1), w
+
+
+def facet_node_weights(points: np.ndarray, facets: np.ndarray, facet_type: str):
+    """Positive tributary weights (length in 2D, area in 3D) of the nodes of facets.
+
+    Row-sum ("consistent") shares ``int N_a dA`` of quadratic facets are not all
+    positive (quad8: -1/12 of the facet at each corner; triangle6: 0 at the corners),
+    so they cannot serve as the area that turns a nodal contact force into a pressure.
+    These weights are the diagonal (HRZ) lumping of the facet's mass matrix,
+
+    .. math:: w_a = A \\, \\frac{\\int N_a^2 \\, dA}{\\sum_b \\int N_b^2 \\, dA},
+              \\qquad A = \\int dA,
+
+    positive for every facet type, summing to the facet area, and equal to the
+    consistent shares wherever those are positive on straight / flat facets: line
+    ``1/2, 1/2``; line3 ``1/6, 1/6, 2/3``; quad4 (parallelogram) ``1/4`` each; quad9
+    ``1/36`` corners, ``1/9`` midsides, ``4/9`` centre; triangle ``1/3`` each. For
+    quad8 they are ``3/76`` at the corners and ``4/19`` at the midsides (of the facet
+    area, rectangles), for triangle6 ``1/19`` and ``16/57``. Curved facets are
+    integrated iso-parametrically (4 Gauss points per direction).
+
+    Returns
+    -------
+    (n_facets, nodes_per_facet) float array
+    """
+    N, dN, w = _facet_shape_functions(facet_type)
+    x = points[np.asarray(facets, dtype=np.int64)]                     # (f, n, dim)
+    tangents = np.einsum("qnk,fnd->fqdk", dN, x)                       # (f, q, dim, k)
+    if tangents.shape[-1] == 1:
+        jac = np.linalg.norm(tangents[..., 0], axis=-1)
+    else:
+        jac = np.linalg.norm(np.cross(tangents[..., 0], tangents[..., 1]), axis=-1)
+    dA = jac * w                                                       # (f, q)
+    area = dA.sum(axis=1)
+    diag = np.einsum("fq,qn->fn", dA, N * N)
+    return area[:, None] * diag / diag.sum(axis=1, keepdims=True)
