@@ -15,6 +15,7 @@ from qsma.model.generate import structured_mesh
 from qsma.model.io import read_mesh, write_mesh
 from qsma.model.mesh import CellBlock, boundary_facets, mixed_mesh
 from test_fe import check_patch, _distorted_patch
+from test_mesh_io import QUAD_GRID
 
 STEEL = Material(200e9, 0.285, 7800.0)
 A2 = np.array([[1e-3, 2e-4], [-5e-4, 3e-4]])
@@ -211,14 +212,7 @@ $Elements
 $EndElements
 """
 
-INP = """*NODE
-1, 0, 0
-2, 1, 0
-3, 2, 0
-4, 0, 1
-5, 1, 1
-6, 2, 1
-*ELEMENT, TYPE=CPE4I, ELSET=QUADS
+INP = QUAD_GRID.split("*ELEMENT")[0] + """*ELEMENT, TYPE=CPE4I, ELSET=QUADS
 1, 1, 2, 5, 4
 *ELEMENT, TYPE=CPE3, ELSET=TRIS
 2, 2, 3, 6
