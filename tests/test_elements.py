@@ -43,9 +43,13 @@ def test_model_translated_by_one_km_gives_same_operators_and_frequency(make, off
         assert _rel(a1.K, a0.K) < 1e-8
         assert _rel(a1.M, a0.M) < 1e-8
         assert _rel(a1.loads["preload"], a0.loads["preload"]) < 1e-8
-    f0 = linear_modes(m0, A0, make_pairing(m0), n_modes=1).f_hz[0]
-    f1 = linear_modes(m1, A1, make_pairing(m1), n_modes=1).f_hz[0]
+    p0, p1 = make_pairing(m0), make_pairing(m1)
+    f0 = linear_modes(m0, A0, p0, n_modes=1).f_hz[0]
+    f1 = linear_modes(m1, A1, p1, n_modes=1).f_hz[0]
     assert abs(f1 - f0) < 1e-8 * f0
+    # outputs keep the user's coordinates: the pair positions are the moved ones
+    assert np.abs(p1.x - (p0.x + np.asarray(offset))).max() < 1e-9
+    assert np.abs(p1.area - p0.area).max() < 1e-8 * p0.area.max()
 
 
 # ---------------------------------------------------------------- quadratic cells
