@@ -662,7 +662,8 @@ def test_inp_mesh_errors(tmp_path, text, words):
 def test_unsupported_mix_names_the_types(tmp_path):
     """quad + triangle6 do not share a facet type (line / line3): refused, naming both
     (supported mixes: tests/test_mixed.py)."""
-    text = QUAD_GRID.replace("2, 2, 3, 6, 5", "2, 2, 3, 6, 5\n*ELEMENT, TYPE=CPE6\n3, 1, 2, 3, 4, 5, 6")
+    text = QUAD_GRID.replace("2, 2, 3, 6, 5",
+                             "2, 2, 3, 6, 5\n*ELEMENT, TYPE=CPE6\n3, 1, 2, 3, 4, 5, 6")
     message = inp_error(tmp_path, text)
     assert "quad" in message and "triangle6" in message
 

@@ -308,9 +308,10 @@ class FacetIndex:
         Node indices of each boundary facet in the outward orientation of
         ``CELL_FACETS`` (the rows of :func:`boundary_facets`, same order).
     cell : (n_boundary,) int array, read-only
-        The one cell each boundary facet belongs to.
+        The one cell each boundary facet belongs to (counting every cell block).
     local_face : (n_boundary,) int array, read-only
-        Position of the facet in ``CELL_FACETS[mesh.cell_type]`` of its cell.
+        Position of the facet in ``CELL_FACETS`` of its cell's type (mixed meshes:
+        the type of the cell's block).
     """
 
     rows: np.ndarray
