@@ -91,8 +91,10 @@ class AssembledBody:
         return self.element.label if self.element is not None else ""
 
 
-def stiffness_matrix(body: Body, formulation: Formulation | None = None) -> sp.csr_matrix:
-    """Stiffness matrix of ``body`` in qsma DOF order for its formulation."""
+def stiffness_matrix(body: Body, formulation: Formulation | MixedFormulation | None = None
+                     ) -> sp.csr_matrix:
+    """Stiffness matrix of ``body`` in qsma DOF order for its formulation (mixed meshes:
+    the sum of the blocks' matrices, each with its own formulation)."""
     form = resolve_formulations(body.mesh) if formulation is None else formulation
     if body.mesh.is_mixed:
         return _sum_over_blocks(body, lambda b, k: stiffness_matrix(b, form.parts[k]))
