@@ -83,13 +83,18 @@ def test_unsupported_mixes_are_refused(first, other, words):
 
 
 # ---------------------------------------------------------------- assembly
-def test_patch_test_on_distorted_mixed_triangle_quad_mesh():
-    """Uniform strain reproduced exactly: quads and triangles, each with its own
-    scikit-fem basis, assembled into one matrix (and stress of both blocks uniform)."""
+@pytest.mark.parametrize("quads", ["CPE4", "CPE4I"])
+def test_patch_test_on_distorted_mixed_triangle_quad_mesh(quads):
+    """Uniform strain reproduced exactly: quads (full integration or incompatible
+    modes) and triangles, each block with its own element, assembled into one matrix
+    (and the stress of both blocks uniform)."""
     m = _distorted_patch("quad")
-    a = check_patch(split_cells(m, checkerboard(m)), A2)
+    mixed = split_cells(m, checkerboard(m))
+    blocks = [CellBlock("quad", mixed.cells, quads), CellBlock("triangle",
+                                                               mixed.extra_blocks[0].cells)]
+    a = check_patch(mixed_mesh(mixed.points, blocks), A2)
     assert a.M.sum() / 2 == pytest.approx(STEEL.rho, rel=1e-12)        # unit square
-    assert "CPE4" in a.formulation and "CPE3" in a.formulation
+    assert a.formulation.startswith(f"mixed mesh: {quads}:") and "CPE3" in a.formulation
 
 
 @pytest.mark.parametrize("keep", ["quad8", "quad9"])
