@@ -649,8 +649,8 @@ def test_inp_errors_name_file_and_line(tmp_path, text, line, words):
 @pytest.mark.parametrize("text,words", [
     ("** nothing here\n*HEADING\n", "no nodes"),
     ("*NODE\n1, 0, 0\n2, 1, 0\n", "no elements"),
-    (QUAD_GRID.replace("2, 2, 3, 6, 5", "2, 2, 3, 6, 5\n*ELEMENT, TYPE=CPE3\n3, 2, 3, 6"),
-     "mixed meshes are not supported yet"),
+    (QUAD_GRID.replace("2, 2, 3, 6, 5", "2, 2, 3, 6, 5\n*ELEMENT, TYPE=CPE6\n3, 1, 2, 3, 4, 5, 6"),
+     "a mix qsma does not support"),
     (QUAD_GRID.replace("3, 2, 0", "3, 2, 0, 0.5"), "non-zero z"),
     (QUAD_GRID.replace("1, S1", "1, S2"), "not boundary facets"),
     (QUAD_GRID.replace("TYPE=CPE4", "TYPE=S4R"), "no continuum elements"),
@@ -659,10 +659,13 @@ def test_inp_mesh_errors(tmp_path, text, words):
     assert words in inp_error(tmp_path, text)
 
 
-def test_mixed_mesh_names_the_types(tmp_path):
-    text = QUAD_GRID.replace("2, 2, 3, 6, 5", "2, 2, 3, 6, 5\n*ELEMENT, TYPE=CPE3\n3, 2, 3, 6")
+def test_unsupported_mix_names_the_types(tmp_path):
+    """quad + triangle6 do not share a facet type (line / line3): refused, naming both
+    (supported mixes: tests/test_mixed.py)."""
+    text = QUAD_GRID.replace("2, 2, 3, 6, 5",
+                             "2, 2, 3, 6, 5\n*ELEMENT, TYPE=CPE6\n3, 1, 2, 3, 4, 5, 6")
     message = inp_error(tmp_path, text)
-    assert "quad" in message and "triangle" in message
+    assert "quad" in message and "triangle6" in message
 
 
 def test_cell_type_must_match(tmp_path):

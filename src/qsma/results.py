@@ -170,7 +170,7 @@ def write_vtu(res, path, levels=None):
     for b in model.bodies:
         p = b.mesh.points
         points.append(np.column_stack([p, np.zeros(len(p))]) if dim == 2 else p)
-        cells.append(b.mesh.cells + offsets[-1])
+        cells.append([(c.cell_type, c.cells + offsets[-1]) for c in b.mesh.cell_blocks])
         offsets.append(offsets[-1] + len(p))
     pts = np.vstack(points)
     point_data = {"body": np.concatenate([np.full(b.mesh.n_nodes, k, float)
@@ -184,7 +184,7 @@ def write_vtu(res, path, levels=None):
         point_data[f"von_mises_level{k:02d}"] = vm
         for name, v in _interface_point_data(res, k, offsets, len(pts)).items():
             point_data[f"{name}_level{k:02d}"] = v
-    blocks = [(b.mesh.cell_type, c) for b, c in zip(model.bodies, cells)]  # one per body
+    blocks = [block for body in cells for block in body]  # per body, per cell type
     mesh = meshio.Mesh(pts, blocks, point_data=point_data)
     with atomic_path(path) as tmp:
         meshio.write(tmp, mesh, file_format="vtu", binary=True)

@@ -4,7 +4,7 @@ DOFs are node-major: DOF ``dim * node + component`` over the mesh points; scikit
 own numbering (entity by entity for quadratic elements) is mapped to it by
 :func:`qsma.fe.elements.fe_space`. The element formulation of a body (plane strain
 or plane stress with unit thickness in 2D, full integration or incompatible modes) is
-resolved from its mesh by :func:`qsma.fe.formulation.resolve_formulation` and
+resolved from its mesh by :func:`qsma.fe.formulation.resolve_formulations` and
 reported in :attr:`AssembledBody.formulation`. Assembly runs on coordinates relative
 to the body's bounding-box corner, so results do not depend on where the model sits.
 """
@@ -19,9 +19,9 @@ from skfem.helpers import ddot, div, dot, sym_grad
 
 from ..errors import InputError
 from ..model import Body, Mesh
-from ..model.mesh import FACET_CORNERS
-from .elements import fe_space
-from .formulation import Formulation, resolve_formulation
+from ..model.mesh import FACET_CORNERS, facet_index
+from .elements import block_dofs, fe_space, scatter_matrix
+from .formulation import Formulation, MixedFormulation, resolve_formulations
 
 
 def skfem_mesh(mesh: Mesh):
@@ -80,7 +80,7 @@ class AssembledBody:
     loads: dict
     fixed: np.ndarray
     free: np.ndarray
-    element: Formulation | None = None
+    element: Formulation | MixedFormulation | None = None
 
     @property
     def n_dofs(self):
@@ -91,9 +91,13 @@ class AssembledBody:
         return self.element.label if self.element is not None else ""
 
 
-def stiffness_matrix(body: Body, formulation: Formulation | None = None) -> sp.csr_matrix:
-    """Stiffness matrix of ``body`` in qsma DOF order for its formulation."""
-    form = resolve_formulation(body.mesh) if formulation is None else formulation
+def stiffness_matrix(body: Body, formulation: Formulation | MixedFormulation | None = None
+                     ) -> sp.csr_matrix:
+    """Stiffness matrix of ``body`` in qsma DOF order for its formulation (mixed meshes:
+    the sum of the blocks' matrices, each with its own formulation)."""
+    form = resolve_formulations(body.mesh) if formulation is None else formulation
+    if body.mesh.is_mixed:
+        return _sum_over_blocks(body, lambda b, k: stiffness_matrix(b, form.parts[k]))
     lam, mu = plane_lame(body.material, form)
     if form.incompatible:
         from .incompatible import incompatible_stiffness
@@ -106,6 +110,8 @@ def stiffness_matrix(body: Body, formulation: Formulation | None = None) -> sp.c
 def mass_matrix(body: Body) -> sp.csr_matrix:
     """Consistent mass matrix of ``body`` (the displacement interpolation of the cell
     type; incompatible modes carry no mass)."""
+    if body.mesh.is_mixed:
+        return _sum_over_blocks(body, lambda b, k: mass_matrix(b))
     space = fe_space(body.mesh)
     return space.to_qsma_matrix(skfem.asm(_mass_form(body.material.rho), space.basis),
                                 body.n_dofs)
@@ -113,14 +119,29 @@ def mass_matrix(body: Body) -> sp.csr_matrix:
 
 def assemble_body(body: Body) -> AssembledBody:
     """Assemble stiffness, consistent mass and the pressure load patterns of a body,
-    with the formulation :func:`resolve_formulation` gives for its mesh."""
-    form = resolve_formulation(body.mesh)
+    with the formulation :func:`resolve_formulations` gives for its mesh."""
+    form = resolve_formulations(body.mesh)
     K = stiffness_matrix(body, form)
     M = mass_matrix(body)
     loads = {name: body_load(body, name) for name in body.load_names()}
     fixed = body.clamped_dofs()
     free = np.setdiff1d(np.arange(body.n_dofs), fixed)
     return AssembledBody(body, K, M, loads, fixed, free, form)
+
+
+def _block_bodies(body: Body):
+    """``(body of one cell block, its mesh DOFs)`` per block of a mixed mesh."""
+    return [(Body(body.name, m, body.material), block_dofs(nodes, body.dim))
+            for m, nodes in body.mesh.block_meshes()]
+
+
+def _sum_over_blocks(body: Body, matrix) -> sp.csr_matrix:
+    """Mixed mesh: ``sum_b P_b A_b P_b^T`` of the block matrices ``matrix(body_b, b)``
+    (one scikit-fem basis per cell type), renumbered to the mesh DOFs."""
+    total = sp.csr_matrix((body.n_dofs, body.n_dofs))
+    for k, (b, dofs) in enumerate(_block_bodies(body)):
+        total = total + scatter_matrix(matrix(b, k), dofs, body.n_dofs)
+    return total.tocsr()
 
 
 def _facet_indices(m, facets: np.ndarray, what: str) -> np.ndarray:
@@ -139,25 +160,56 @@ def pressure_load(body: Body, facet_set: str, p: float) -> np.ndarray:
     quadrature on the iso-parametric facets. On quadratic facets these forces are not
     all positive (serendipity quad8 facets: corners get -1/12 of the resultant each).
     """
-    space = fe_space(body.mesh)
     rows = body.mesh.facets(facet_set)
-    ncorner = FACET_CORNERS[body.mesh.facet_type]
-    vertex_of = np.full(body.mesh.n_nodes, -1, dtype=np.int64)
+    what = f"body {body.name!r} facet set {facet_set!r}"
+    if body.mesh.is_mixed:
+        return _mixed_pressure(body.mesh, rows, p, what)
+    return _facet_pressure(body.mesh, rows, p, what)
+
+
+def _facet_pressure(mesh: Mesh, rows: np.ndarray, p: float, what: str) -> np.ndarray:
+    """:func:`pressure_load` on facets ``rows`` of a single-type mesh."""
+    space = fe_space(mesh)
+    n_dofs = mesh.dim * mesh.n_nodes
+    ncorner = FACET_CORNERS[mesh.facet_type]
+    vertex_of = np.full(mesh.n_nodes, -1, dtype=np.int64)
     vertex_of[space.vertex_node] = np.arange(len(space.vertex_node))
     corners = vertex_of[rows[:, :ncorner]]
-    what = f"body {body.name!r} facet set {facet_set!r}"
     if np.any(corners < 0):
         raise InputError(f"{what}: facet with nodes {rows[0].tolist()} is not a facet of "
                          f"the mesh")
+    if len(rows) == 0:
+        return np.zeros(n_dofs)
     facets = _facet_indices(space.mesh, corners, what)
-    intorder = _facet_order(body.mesh.cell_type)
+    intorder = _facet_order(mesh.cell_type)
     fb = skfem.FacetBasis(space.mesh, skfem.ElementVector(space.element), facets=facets,
                           intorder=intorder)
 
     @skfem.LinearForm
     def traction(v, w):
         return -p * dot(w.n, v)          # w.n: outward unit normal
-    return space.to_qsma_vector(skfem.asm(traction, fb), body.n_dofs)
+    return space.to_qsma_vector(skfem.asm(traction, fb), n_dofs)
+
+
+def _mixed_pressure(mesh: Mesh, rows: np.ndarray, p: float, what: str) -> np.ndarray:
+    """:func:`pressure_load` on a mixed mesh: each facet integrated with the basis of the
+    cell block that owns it."""
+    index = facet_index(mesh)
+    found = index.find(rows)
+    if np.any(found < 0):
+        bad = rows[np.flatnonzero(found < 0)[0]].tolist()
+        raise InputError(f"{what}: facet with nodes {bad} is not a boundary facet of the mesh")
+    owner = index.cell[found]
+    f = np.zeros(mesh.dim * mesh.n_nodes)
+    start = 0
+    for m, nodes in mesh.block_meshes():
+        mine = (owner >= start) & (owner < start + len(m.cells))
+        start += len(m.cells)
+        if not mine.any():
+            continue
+        local = np.searchsorted(nodes, rows[mine])      # nodes: sorted mesh nodes of m
+        f[block_dofs(nodes, mesh.dim)] += _facet_pressure(m, local, p, what)
+    return f
 
 
 def _facet_order(cell_type):
@@ -184,23 +236,20 @@ def stress_at_nodes(body: Body, u: np.ndarray):
     field; the incompatible modes' strain vanishes at the element centre, where the
     Gauss-point average is taken for parallelogram-shaped cells.
     """
-    form = resolve_formulation(body.mesh)
-    space = fe_space(body.mesh)
-    basis = space.basis
-    lam, mu = plane_lame(body.material, form)
+    form = resolve_formulations(body.mesh)
     dim = body.dim
     # element-centre projection: average the Gauss point stresses per element, then to nodes
-    gu = basis.interpolate(space.from_qsma_vector(u)).grad                     # (dim, dim, nelem, nqp)
-    eps = 0.5 * (gu + np.swapaxes(gu, 0, 1))
-    tr = np.trace(eps, axis1=0, axis2=1)
-    sig = 2 * mu * eps + lam * tr[None, None] * np.eye(dim)[:, :, None, None]
-    sig_el = sig.mean(axis=-1)                         # (dim, dim, nelem)
-    t = body.mesh.cells
     acc = np.zeros((body.mesh.n_nodes, dim, dim))
     cnt = np.zeros(body.mesh.n_nodes)
-    for k in range(t.shape[1]):
-        np.add.at(acc, t[:, k], np.moveaxis(sig_el, -1, 0))
-        np.add.at(cnt, t[:, k], 1.0)
+    parts = form.parts if body.mesh.is_mixed else (form,)
+    for (m, nodes), part in zip(body.mesh.block_meshes(), parts):
+        u_block = u if nodes is None else np.asarray(u)[block_dofs(nodes, dim)]
+        sig_el = _cell_stress(m, body.material, part, u_block)       # (nelem, dim, dim)
+        t = m.cells if nodes is None else nodes[m.cells]
+        for k in range(t.shape[1]):
+            np.add.at(acc, t[:, k], sig_el)
+            np.add.at(cnt, t[:, k], 1.0)
+    lam, mu = plane_lame(body.material, parts[0])
     s = acc / cnt[:, None, None]
     if dim == 2:
         szz = lam * np.trace(s, axis1=1, axis2=2) / (2 * (lam + mu))  # = nu (sxx + syy)
@@ -214,3 +263,15 @@ def stress_at_nodes(body: Body, u: np.ndarray):
     dev = full - np.trace(full, axis1=1, axis2=2)[:, None, None] * np.eye(3) / 3
     vm = np.sqrt(1.5 * np.einsum("nij,nij->n", dev, dev))
     return s, vm
+
+
+def _cell_stress(mesh: Mesh, material, form: Formulation, u: np.ndarray) -> np.ndarray:
+    """Mean over the Gauss points of each cell of the stress of displacement ``u``
+    (single-type mesh): ``(n_cells, dim, dim)``."""
+    space = fe_space(mesh)
+    lam, mu = plane_lame(material, form)
+    gu = space.basis.interpolate(space.from_qsma_vector(u)).grad     # (dim, dim, nelem, nqp)
+    eps = 0.5 * (gu + np.swapaxes(gu, 0, 1))
+    tr = np.trace(eps, axis1=0, axis2=1)
+    sig = 2 * mu * eps + lam * tr[None, None] * np.eye(mesh.dim)[:, :, None, None]
+    return np.moveaxis(sig.mean(axis=-1), -1, 0)

@@ -187,7 +187,11 @@ def _check_vector_numbering(basis, n_scalar, dim):
 
 @functools.lru_cache(maxsize=8)
 def fe_space(mesh) -> FESpace:
-    """The :class:`FESpace` of qsma mesh ``mesh`` (cached; meshes are immutable)."""
+    """The :class:`FESpace` of qsma mesh ``mesh`` (cached; meshes are immutable). One
+    cell type: a mixed mesh has one space per block (:meth:`Mesh.block_meshes`)."""
+    if mesh.is_mixed:
+        raise ValueError("fe_space needs a single-type mesh; assemble a mixed mesh block "
+                         "by block (Mesh.block_meshes)")
     ct = mesh.cell_type
     _, elem_cls, intorder = SKFEM_ELEMENTS[ct]
     origin = local_origin(mesh.points)
@@ -209,3 +213,16 @@ def fe_space(mesh) -> FESpace:
     perm[dim * np.arange(sbasis.N)[:, None] + np.arange(dim)] = \
         dim * node_of[:, None] + np.arange(dim)
     return FESpace(m, basis, elem, perm, node_of[:m.nvertices], origin)
+
+
+def block_dofs(nodes: np.ndarray, dim: int) -> np.ndarray:
+    """Mesh DOFs of the DOFs of a cell block (:meth:`qsma.model.Mesh.block_meshes`):
+    block DOF ``dim * i + c`` is mesh DOF ``dim * nodes[i] + c``."""
+    return (dim * np.asarray(nodes, dtype=np.int64)[:, None] + np.arange(dim)).ravel()
+
+
+def scatter_matrix(A, dofs: np.ndarray, n_dofs: int):
+    """``P A P^T`` for a matrix on block DOFs, ``dofs`` their mesh DOFs (CSR, n_dofs^2)."""
+    import scipy.sparse as sp
+    A = A.tocoo()
+    return sp.csr_matrix((A.data, (dofs[A.row], dofs[A.col])), shape=(n_dofs, n_dofs))

@@ -86,6 +86,50 @@ class Formulation:
         return f"{self.name}: {kin}{family}, {what}, {rule}"
 
 
+@dataclass(frozen=True)
+class MixedFormulation:
+    """The formulations of the cell blocks of a mixed mesh (one per block, in the
+    order of :attr:`qsma.model.Mesh.cell_blocks`), all of one kinematics.
+
+    Attributes
+    ----------
+    parts : tuple of :class:`Formulation`
+    """
+
+    parts: tuple
+
+    def __post_init__(self):
+        kinds = {p.kinematics for p in self.parts}
+        if len(kinds) > 1:
+            raise InputError(
+                f"the cell blocks of one body use different kinematics ("
+                f"{', '.join(p.name + ': ' + p.kinematics for p in self.parts)}); a body "
+                f"is plane strain, plane stress or 3D as a whole: use CPE* (or CPS*) "
+                f"element names for every block")
+
+    @property
+    def kinematics(self) -> str:
+        return self.parts[0].kinematics
+
+    @property
+    def name(self) -> str:
+        """Block names joined, e.g. ``"CPE4I+CPE3"``."""
+        return "+".join(p.name for p in self.parts)
+
+    @property
+    def label(self) -> str:
+        """The labels of the blocks, ``" + "``-joined (what is computed, block by block)."""
+        return "mixed mesh: " + " + ".join(p.label for p in self.parts)
+
+
+def resolve_formulations(mesh):
+    """:func:`resolve_formulation` of a mesh of one or several cell blocks: a
+    :class:`Formulation`, or a :class:`MixedFormulation` for a mixed mesh."""
+    if not getattr(mesh, "is_mixed", False):
+        return resolve_formulation(mesh)
+    return MixedFormulation(tuple(resolve_formulation(m) for m, _ in mesh.block_meshes()))
+
+
 _ABAQUS = re.compile(r"^(CPE|CPS|CAX|CGAX|C3D)(\d+)([A-Z]*)$")
 
 

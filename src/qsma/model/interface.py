@@ -9,7 +9,7 @@ import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
 from ..errors import InputError
-from .mesh import Mesh, boundary_facets
+from .mesh import Mesh, boundary_facets, facet_node_weights
 
 #: Node-to-node pairing: two nodes are the same point when they are closer than this
 #: fraction of the smallest interface facet edge at either node. It is far above the
@@ -252,11 +252,13 @@ def facet_normals(mesh: Mesh, facets: np.ndarray) -> np.ndarray:
 def _owner_centroids(mesh, facets):
     """Centroid of the cell that owns each facet."""
     from .mesh import CELL_FACETS
-    local = CELL_FACETS[mesh.cell_type]
-    nc = len(mesh.cells)
-    allf = np.sort(np.concatenate([mesh.cells[:, list(f)] for f in local]), axis=1)
-    owner = {tuple(k): c % nc for c, k in enumerate(allf.tolist())}
-    cent = mesh.points[mesh.cells].mean(axis=1)
+    owner, cent = {}, []
+    for b in mesh.cell_blocks:                      # mixed meshes: every cell block
+        local, nc, start = CELL_FACETS[b.cell_type], len(b.cells), len(cent)
+        allf = np.sort(np.concatenate([b.cells[:, list(f)] for f in local]), axis=1)
+        owner.update({tuple(k): start + c % nc for c, k in enumerate(allf.tolist())})
+        cent.extend(mesh.points[b.cells].mean(axis=1))
+    cent = np.asarray(cent)
     keys = [tuple(k) for k in np.sort(facets, axis=1).tolist()]
     missing = [k for k in keys if k not in owner]
     if missing:
@@ -307,7 +309,12 @@ def make_pairing(model, interface=None) -> Pairing:
     normal_sum = np.zeros((b1.mesh.n_nodes, b1.dim))
     np.add.at(normal_sum, facets1.ravel(), np.repeat(weighted / nvf, nvf, axis=0))
     area = np.zeros(b1.mesh.n_nodes)
-    np.add.at(area, facets1.ravel(), np.repeat(np.linalg.norm(weighted, axis=1) / nvf, nvf))
+    if b1.mesh.facet_type in ("line", "triangle", "quad"):     # equal shares (as before)
+        np.add.at(area, facets1.ravel(), np.repeat(np.linalg.norm(weighted, axis=1) / nvf,
+                                                   nvf))
+    else:                        # quadratic facets: positive (HRZ) tributary weights
+        np.add.at(area, facets1.ravel(),
+                  facet_node_weights(b1.mesh.points, facets1, b1.mesh.facet_type).ravel())
     _check_opposed(b2, facets2, nodes2, normal_sum[nodes1], itf)
     frames = local_frames(normal_sum[nodes1])
     return Pairing(nodes1, nodes2, b1.mesh.points[nodes1].copy(), frames, area[nodes1])

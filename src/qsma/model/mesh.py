@@ -31,8 +31,28 @@ FACET_CORNERS = {"line": 2, "triangle": 3, "quad": 4,
 
 
 @dataclass(frozen=True, eq=False)
+class CellBlock:
+    """Cells of one type (and one element formulation) in a mixed mesh.
+
+    Attributes
+    ----------
+    cell_type : one of ``CELL_TYPES``
+    cells : (n_cells, nodes_per_cell) int array, meshio node ordering
+    element : element name given by the source file for these cells, or None
+    """
+
+    cell_type: str
+    cells: np.ndarray
+    element: str | None = None
+
+
+#: facet type of the cells that may be mixed in one mesh -> message naming the mix
+MIXABLE = {"line": "triangle + quad", "line3": "triangle6 + quad8 / quad9"}
+
+
+@dataclass(frozen=True, eq=False)
 class Mesh:
-    """A single-cell-type finite element mesh with named sets.
+    """A finite element mesh with named sets: one cell type, or several (mixed).
 
     Parameters
     ----------
@@ -44,6 +64,14 @@ class Mesh:
     cell_sets : name -> cell indices
     element : str or None
         element name given by the source file (e.g. Abaqus 'CPS4', 'C3D8I'); None when the file names no formulation (Gmsh)
+    extra_blocks : tuple of :class:`CellBlock`
+        Mixed meshes: the cells of other types, after ``cells`` (the first block).
+        Cell indices (cell sets, facet owners) count ``cells`` first, then each extra
+        block in order. Every block must have the facet type of the first: 2D
+        ``triangle`` + ``quad`` (line facets) or ``triangle6`` + ``quad8`` / ``quad9``
+        (line3 facets); a conforming mix of quadratic and linear cells, or of 3D cells
+        (hexahedra with wedges or tetrahedra need wedge / pyramid cells) is refused.
+        Use :attr:`cell_blocks` to visit every cell.
     """
 
     points: np.ndarray
@@ -53,6 +81,7 @@ class Mesh:
     facet_sets: dict = field(default_factory=dict)
     cell_sets: dict = field(default_factory=dict)
     element: str | None = None
+    extra_blocks: tuple = ()
 
     def __post_init__(self):
         if self.cell_type not in CELL_TYPES:
@@ -82,10 +111,13 @@ class Mesh:
             f = np.asarray(v, dtype=np.int64).reshape(-1, FACET_TYPES[ftype])
             _index_array(f.ravel(), len(points), f"facet set {k!r}")
             facet_sets[k] = f
-        cell_sets = {k: _index_array(v, len(cells), f"cell set {k!r}", unique=True)
+        extra = tuple(_check_block(b, self.cell_type, len(points)) for b in self.extra_blocks)
+        n_cells = len(cells) + sum(len(b.cells) for b in extra)
+        cell_sets = {k: _index_array(v, n_cells, f"cell set {k!r}", unique=True)
                      for k, v in self.cell_sets.items()}
         for name, value in [("points", points), ("cells", cells), ("node_sets", node_sets),
-                            ("facet_sets", facet_sets), ("cell_sets", cell_sets)]:
+                            ("facet_sets", facet_sets), ("cell_sets", cell_sets),
+                            ("extra_blocks", extra)]:
             object.__setattr__(self, name, value)
         points.flags.writeable = False
         cells.flags.writeable = False
@@ -93,6 +125,32 @@ class Mesh:
     @property
     def dim(self) -> int:
         return CELL_TYPES[self.cell_type][0]
+
+    @property
+    def is_mixed(self) -> bool:
+        """True when the mesh has cells of several blocks (:attr:`extra_blocks`)."""
+        return bool(self.extra_blocks)
+
+    @property
+    def cell_blocks(self) -> tuple:
+        """Every cell block, the first (``cells``, ``cell_type``, ``element``) first."""
+        return (CellBlock(self.cell_type, self.cells, self.element),) + self.extra_blocks
+
+    @property
+    def n_cells(self) -> int:
+        return sum(len(b.cells) for b in self.cell_blocks)
+
+    def block_meshes(self) -> tuple:
+        """One single-type :class:`Mesh` per cell block, on the block's own nodes, and
+        the mesh node of each of its nodes: ``((mesh, nodes), ...)``. A single-type
+        mesh gives itself and ``None`` (all nodes, same numbering). Cached per mesh."""
+        if not self.is_mixed:
+            return ((self, None),)
+        found = _BLOCK_CACHE.get(self)
+        if found is None:
+            found = tuple(_block_mesh(self.points, b) for b in self.cell_blocks)
+            _BLOCK_CACHE[self] = found
+        return found
 
     @property
     def facet_type(self) -> str:
@@ -128,11 +186,69 @@ class Mesh:
         return facets[np.all(inside[facets], axis=1)]
 
     def with_sets(self, node_sets=None, facet_sets=None, cell_sets=None) -> "Mesh":
-        """A new mesh with sets added (existing names are replaced); same ``element``."""
+        """A new mesh with sets added (existing names are replaced); same ``element``
+        and cell blocks."""
         return Mesh(self.points, self.cells, self.cell_type,
                     {**self.node_sets, **(node_sets or {})},
                     {**self.facet_sets, **(facet_sets or {})},
-                    {**self.cell_sets, **(cell_sets or {})}, self.element)
+                    {**self.cell_sets, **(cell_sets or {})}, self.element,
+                    self.extra_blocks)
+
+
+def mixed_mesh(points, blocks, node_sets=None, facet_sets=None, cell_sets=None) -> Mesh:
+    """A mesh of several cell blocks: ``blocks`` a list of :class:`CellBlock` (or
+    ``(cell_type, cells[, element])`` tuples); empty blocks are dropped. One block
+    gives a plain single-type mesh."""
+    blocks = [b if isinstance(b, CellBlock) else CellBlock(*b) for b in blocks]
+    blocks = [b for b in blocks if len(b.cells)] or blocks[:1]
+    if not blocks:
+        raise InputError("a mesh needs at least one cell block")
+    first = blocks[0]
+    return Mesh(points, first.cells, first.cell_type, node_sets or {}, facet_sets or {},
+                cell_sets or {}, first.element, tuple(blocks[1:]))
+
+
+def _check_block(block, first_type, n_points) -> CellBlock:
+    """A validated copy of an extra cell block of a mesh whose first block is
+    ``first_type``."""
+    if not isinstance(block, CellBlock):
+        raise InputError(f"extra_blocks must hold CellBlock objects, got {block!r}")
+    ct = block.cell_type
+    if ct not in CELL_TYPES:
+        raise InputError(f"unsupported cell type {ct!r}; expected one of {sorted(CELL_TYPES)}")
+    ftype, first_ftype = CELL_TYPES[ct][2], CELL_TYPES[first_type][2]
+    if ftype != first_ftype or first_ftype not in MIXABLE:
+        raise InputError(
+            f"{first_type} and {ct} cells cannot be mixed in one body: a mixed mesh must "
+            f"share one facet type, i.e. 2D {MIXABLE['line']} (linear) or "
+            f"{MIXABLE['line3']} (quadratic); 3D mixes (hexahedra with wedges or "
+            f"tetrahedra) and linear with quadratic cells are not supported. Mesh the body "
+            f"with one of these combinations or with a single cell type")
+    if ct == first_type:
+        raise InputError(f"two cell blocks of type {ct}: put them in one block")
+    nv = CELL_TYPES[ct][1]
+    cells = np.ascontiguousarray(block.cells, dtype=np.int64)
+    if cells.ndim != 2 or cells.shape[1] != nv:
+        raise InputError(f"{ct} cells must have shape (n, {nv}), got {cells.shape}")
+    if cells.size and (cells.min() < 0 or cells.max() >= n_points):
+        raise InputError(f"cells refer to node indices outside 0..{n_points - 1}")
+    if block.element is not None and (not isinstance(block.element, str)
+                                      or not block.element.strip()):
+        raise InputError(f"element must be a non-empty name such as 'CPE4I' or None, "
+                         f"got {block.element!r}")
+    cells.flags.writeable = False
+    return CellBlock(ct, cells, block.element)
+
+
+#: mixed mesh -> its block meshes; entries go with their mesh
+_BLOCK_CACHE = weakref.WeakKeyDictionary()
+
+
+def _block_mesh(points, block: CellBlock):
+    """The single-type mesh of one block on its own nodes, and their mesh node numbers."""
+    nodes, local = np.unique(block.cells, return_inverse=True)
+    return (Mesh(points[nodes], local.reshape(block.cells.shape), block.cell_type,
+                 element=block.element), nodes)
 
 
 def _index_array(values, bound, what, unique=False):
@@ -192,9 +308,10 @@ class FacetIndex:
         Node indices of each boundary facet in the outward orientation of
         ``CELL_FACETS`` (the rows of :func:`boundary_facets`, same order).
     cell : (n_boundary,) int array, read-only
-        The one cell each boundary facet belongs to.
+        The one cell each boundary facet belongs to (counting every cell block).
     local_face : (n_boundary,) int array, read-only
-        Position of the facet in ``CELL_FACETS[mesh.cell_type]`` of its cell.
+        Position of the facet in ``CELL_FACETS`` of its cell's type (mixed meshes:
+        the type of the cell's block).
     """
 
     rows: np.ndarray
@@ -243,12 +360,18 @@ def facet_index(mesh: Mesh) -> FacetIndex:
 
 
 def _build_facet_index(mesh: Mesh) -> FacetIndex:
-    local = CELL_FACETS[mesh.cell_type]
-    n = len(mesh.cells)
-    every = np.concatenate([mesh.cells[:, list(f)] for f in local])
+    every, cell, face, start = [], [], [], 0
+    for b in mesh.cell_blocks:          # mixed meshes: one facet type for every block
+        n = len(b.cells)
+        local = CELL_FACETS[b.cell_type]
+        every += [b.cells[:, list(f)] for f in local]
+        cell += [start + np.arange(n)] * len(local)
+        face += [np.full(n, k, dtype=np.int64) for k in range(len(local))]
+        start += n
+    every, cell, face = np.concatenate(every), np.concatenate(cell), np.concatenate(face)
     _, inverse, counts = unique_rows(np.sort(every, axis=1))
     at = np.flatnonzero(counts[inverse] == 1)
-    arrays = every[at], at % n if n else at, at // n if n else at
+    arrays = every[at], cell[at], face[at]
     for a in arrays:
         a.flags.writeable = False
     return FacetIndex(*arrays)
@@ -272,3 +395,92 @@ def unique_rows(rows: np.ndarray):
     inverse[order] = np.cumsum(new) - 1
     first = np.minimum.reduceat(order, starts) if len(rows) else order
     return first, inverse, np.diff(np.append(starts, len(rows)))
+
+
+# --------------------------------------------------------------------------------------
+# tributary weights of facet nodes
+
+#: facet type -> (reference node coordinates, monomial exponents of its shape functions,
+#: reference shape "line" / "tri" / "quad"); node order as in ``CELL_FACETS``
+_FACET_REFERENCE = {
+    "line": ([(-1,), (1,)], [(0,), (1,)], "line"),
+    "line3": ([(-1,), (1,), (0,)], [(0,), (1,), (2,)], "line"),
+    "triangle": ([(0, 0), (1, 0), (0, 1)], [(0, 0), (1, 0), (0, 1)], "tri"),
+    "triangle6": ([(0, 0), (1, 0), (0, 1), (0.5, 0), (0.5, 0.5), (0, 0.5)],
+                  [(0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2)], "tri"),
+    "quad": ([(-1, -1), (1, -1), (1, 1), (-1, 1)], [(0, 0), (1, 0), (0, 1), (1, 1)], "quad"),
+    "quad8": ([(-1, -1), (1, -1), (1, 1), (-1, 1), (0, -1), (1, 0), (0, 1), (-1, 0)],
+              [(0, 0), (1, 0), (0, 1), (1, 1), (2, 0), (0, 2), (2, 1), (1, 2)], "quad"),
+    "quad9": ([(-1, -1), (1, -1), (1, 1), (-1, 1), (0, -1), (1, 0), (0, 1), (-1, 0), (0, 0)],
+              [(0, 0), (1, 0), (0, 1), (1, 1), (2, 0), (0, 2), (2, 1), (1, 2), (2, 2)],
+              "quad"),
+}
+
+
+def _facet_quadrature(shape):
+    """Points and weights on the reference facet: 4-point Gauss per direction; the
+    triangle by the collapsed (Duffy) square, exact to degree 7."""
+    g, w = np.polynomial.legendre.leggauss(4)
+    if shape == "line":
+        return g[:, None], w
+    u, v = (a.ravel() for a in np.meshgrid(g, g, indexing="ij"))
+    wq = np.outer(w, w).ravel()
+    if shape == "quad":
+        return np.column_stack([u, v]), wq
+    r = 0.5 * (1 + u)
+    s = 0.5 * (1 - r) * (1 + v)
+    return np.column_stack([r, s]), wq * 0.25 * (1 - r)
+
+
+def _facet_shape_functions(facet_type):
+    """Shape function values ``(n_qp, n_nodes)`` and reference gradients ``(n_qp,
+    n_nodes, facet_dim)`` at the quadrature points, with the quadrature weights."""
+    nodes, exps, shape = _FACET_REFERENCE[facet_type]
+    nodes, exps = np.asarray(nodes, float), np.asarray(exps)
+    V = np.prod(nodes[:, None, :] ** exps[None, :, :], axis=2)          # (node, monomial)
+    C = np.linalg.inv(V)                                                 # N = m(x) @ C
+    x, w = _facet_quadrature(shape)
+    mono = np.prod(x[:, None, :] ** exps[None, :, :], axis=2)
+    grads = []
+    for k in range(exps.shape[1]):
+        e = exps.copy()
+        coef = e[:, k].astype(float)
+        e[:, k] = np.maximum(e[:, k] - 1, 0)
+        grads.append((coef * np.prod(x[:, None, :] ** e[None, :, :], axis=2)) @ C)
+    return mono @ C, np.stack(grads, axis=-1), w
+
+
+def facet_node_weights(points: np.ndarray, facets: np.ndarray, facet_type: str):
+    """Positive tributary weights (length in 2D, area in 3D) of the nodes of facets.
+
+    Row-sum ("consistent") shares ``int N_a dA`` of quadratic facets are not all
+    positive (quad8: -1/12 of the facet at each corner; triangle6: 0 at the corners),
+    so they cannot serve as the area that turns a nodal contact force into a pressure.
+    These weights are the diagonal (HRZ) lumping of the facet's mass matrix,
+
+    .. math:: w_a = A \\, \\frac{\\int N_a^2 \\, dA}{\\sum_b \\int N_b^2 \\, dA},
+              \\qquad A = \\int dA,
+
+    positive for every facet type, summing to the facet area, and equal to the
+    consistent shares wherever those are positive on straight / flat facets: line
+    ``1/2, 1/2``; line3 ``1/6, 1/6, 2/3``; quad4 (parallelogram) ``1/4`` each; quad9
+    ``1/36`` corners, ``1/9`` midsides, ``4/9`` centre; triangle ``1/3`` each. For
+    quad8 they are ``3/76`` at the corners and ``4/19`` at the midsides (of the facet
+    area, rectangles), for triangle6 ``1/19`` and ``16/57``. Curved facets are
+    integrated iso-parametrically (4 Gauss points per direction).
+
+    Returns
+    -------
+    (n_facets, nodes_per_facet) float array
+    """
+    N, dN, w = _facet_shape_functions(facet_type)
+    x = points[np.asarray(facets, dtype=np.int64)]                     # (f, n, dim)
+    tangents = np.einsum("qnk,fnd->fqdk", dN, x)                       # (f, q, dim, k)
+    if tangents.shape[-1] == 1:
+        jac = np.linalg.norm(tangents[..., 0], axis=-1)
+    else:
+        jac = np.linalg.norm(np.cross(tangents[..., 0], tangents[..., 1]), axis=-1)
+    dA = jac * w                                                       # (f, q)
+    area = dA.sum(axis=1)
+    diag = np.einsum("fq,qn->fn", dA, N * N)
+    return area[:, None] * diag / diag.sum(axis=1, keepdims=True)

@@ -237,17 +237,28 @@ def validate_mesh(mesh: Mesh, *, source: str | None = None, node_ids=None,
     where = f"{source}: " if source else ""
     error = MeshFileError if source else InputError
     node_ids = np.arange(1, mesh.n_nodes + 1) if node_ids is None else np.asarray(node_ids)
-    cell_ids = np.arange(1, len(mesh.cells) + 1) if cell_ids is None else np.asarray(cell_ids)
-    _check_cells(mesh, where, error, cell_ids, node_ids)
+    cell_ids = np.arange(1, mesh.n_cells + 1) if cell_ids is None else np.asarray(cell_ids)
+    start = 0
+    for view in _block_views(mesh):
+        _check_cells(view, where, error, cell_ids[start:start + len(view.cells)], node_ids)
+        start += len(view.cells)
     _check_coincident(mesh, where, error, node_ids)
     used = np.zeros(mesh.n_nodes, dtype=bool)
-    used[mesh.cells.ravel()] = True
+    for b in mesh.cell_blocks:
+        used[b.cells.ravel()] = True
     if not used.all():
         unused = node_ids[~used]
         raise error(f"{where}{unused.size} node(s) are used by no element, e.g. node(s) "
                     f"{', '.join(map(str, unused[:5]))}; such a node has no stiffness and no "
                     f"mass (a singular model): delete these nodes from the mesh (reference "
                     f"points and construction nodes belong in another file)")
+
+
+def _block_views(mesh: Mesh) -> list:
+    """Single-type meshes on all of ``mesh``'s nodes, one per cell block."""
+    if not mesh.is_mixed:
+        return [mesh]
+    return [Mesh(mesh.points, b.cells, b.cell_type) for b in mesh.cell_blocks]
 
 
 def _check_cells(mesh, where, error, cell_ids, node_ids):
@@ -298,20 +309,25 @@ def _check_coincident(mesh, where, error, node_ids):
     points = mesh.points
     if mesh.n_nodes < 2:
         return
-    nc = len(_CORNERS[_NODES[mesh.cell_type][0]]) if mesh.cell_type in _NODES else 2
     with np.errstate(over="ignore", invalid="ignore"):     # absurd coordinates: inf, fine
         diagonal = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
-        spans = np.linalg.norm(points[mesh.cells[:, 1:nc]] - points[mesh.cells[:, :1]],
-                               axis=2).ravel()                    # corner 0 to the others
+        spans = []
+        for b in mesh.cell_blocks:
+            nc = len(_CORNERS[_NODES[b.cell_type][0]]) if b.cell_type in _NODES else 2
+            spans.append(np.linalg.norm(points[b.cells[:, 1:nc]] - points[b.cells[:, :1]],
+                                        axis=2).ravel())          # corner 0 to the others
+        spans = np.concatenate(spans)
     shortest = spans[spans > 0].min(initial=diagonal)
     tol = min(COINCIDENT_NODES * diagonal, 0.01 * shortest)
     pairs = cKDTree(points).query_pairs(tol, output_type="ndarray")
     if not len(pairs):
         return
-    n_cells = len(mesh.cells)
-    incidence = csr_matrix((np.ones(mesh.cells.size), (np.repeat(np.arange(n_cells),
-                            mesh.cells.shape[1]), mesh.cells.ravel())),
-                           shape=(n_cells, mesh.n_nodes)).T.tocsr()
+    rows = np.concatenate([np.repeat(np.arange(len(b.cells)), b.cells.shape[1])
+                           + sum(len(c.cells) for c in mesh.cell_blocks[:k])
+                           for k, b in enumerate(mesh.cell_blocks)])
+    cols = np.concatenate([b.cells.ravel() for b in mesh.cell_blocks])
+    incidence = csr_matrix((np.ones(len(cols)), (rows, cols)),
+                           shape=(mesh.n_cells, mesh.n_nodes)).T.tocsr()
     joined = np.asarray(incidence[pairs[:, 0]].multiply(incidence[pairs[:, 1]])
                         .sum(axis=1)).ravel() > 0
     apart = pairs[~joined]

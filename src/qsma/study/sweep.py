@@ -474,6 +474,9 @@ def _fingerprint(model, options) -> str:
         h.update(np.ascontiguousarray(b.mesh.cells).tobytes())
         h.update(repr((b.mesh.cell_type, b.mesh.element, b.material, b.clamps,
                        b.pressures)).encode())
+        for c in b.mesh.extra_blocks:           # mixed meshes: the other cell blocks
+            h.update(np.ascontiguousarray(c.cells).tobytes())
+            h.update(repr((c.cell_type, c.element)).encode())
     h.update(repr((model.interface, model.tip, model.mu)).encode())
     h.update(repr(sorted(options.as_dict().items())).encode())
     h.update(repr(options.levels).encode())

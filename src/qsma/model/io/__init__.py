@@ -111,6 +111,11 @@ def write_mesh(path, mesh: Mesh, *, gmsh_version: str = "4.1") -> Path:
         raise InputError(f"write_mesh needs a qsma Mesh, got {type(mesh).__name__}")
     if len(mesh.cells) == 0:
         raise InputError(f"cannot write {path}: the mesh has no cells")
+    if mesh.is_mixed:
+        raise InputError(f"cannot write {path}: writing mixed meshes ("
+                         f"{' + '.join(b.cell_type for b in mesh.cell_blocks)}) is not "
+                         f"implemented (reading them is); write each cell type to its own "
+                         f"file or use meshio")
     _write_atomically(path, fmt.format(mesh, gmsh_version))
     return path
 

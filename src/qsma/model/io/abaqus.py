@@ -290,12 +290,13 @@ class _InpReader:
         nodes = _IdLookup(node_ids)
         blocks = [(b.cell_type, _TOPO_DIM[b.cell_type], self._connectivity(b, nodes),
                    _is_continuum(b.abaqus_type)) for b in self.blocks]
-        vtype = _cell_type_of(self.source, blocks, cell_type)
+        vtypes = _cell_type_of(self.source, blocks, cell_type)
         elements = self._element_lookup()
         index = _Elements(blocks)
         elsets = {k: self._element_indices(s, elements) for k, s in self.sets["ELSET"].items()}
-        fm = _FileMesh(self.source, xyz, node_ids, blocks, element=self._element(vtype),
-                       element_ids=[b.ids for b in self.blocks])
+        names = {t: self._element(t) for t in vtypes}
+        fm = _FileMesh(self.source, xyz, node_ids, blocks, element=names[vtypes[0]],
+                       block_elements=names, element_ids=[b.ids for b in self.blocks])
         for s in self.sets["NSET"].values():
             if not s.internal:
                 fm.node_sets[s.name] = [self._node_indices(s, nodes, elsets, index)]
@@ -308,13 +309,13 @@ class _InpReader:
             elif not s.internal:
                 fm.empty_sets[s.name] = "cell"
         for name, rows in self.surfaces.values():
-            self._surface(fm, name, rows, vtype, elements, elsets, index)
+            self._surface(fm, name, rows, vtypes, elements, elsets, index)
         fm.node_surfaces = {s.name for s in self.node_surfaces.values()}
         fm.contact_pairs = [_ContactPair(self._surface_name(slave), self._surface_name(master),
                                          self.friction.get((inter or "").upper()), kind, where)
                             for slave, master, inter, kind, where in self.pairs]
         fm.boundaries = self._boundary_sets(fm, nodes, elsets, index)
-        return fm, vtype
+        return fm, vtypes
 
     def _surface_name(self, name: str) -> str:
         """The defined spelling of a surface name (Abaqus names ignore case)."""
@@ -422,9 +423,9 @@ class _InpReader:
             parts.append(idx)
         return np.unique(np.concatenate(parts))
 
-    def _surface(self, fm, name, rows, vtype, elements, elsets, index: _Elements):
-        """Facets of an element-based surface: ``(element or set, face)`` rows."""
-        faces = _abaqus_faces(vtype)
+    def _surface(self, fm, name, rows, vtypes, elements, elsets, index: _Elements):
+        """Facets of an element-based surface: ``(element or set, face)`` rows (the
+        face numbering of each element's own type in a mixed mesh)."""
         if not rows:
             fm.empty_sets.setdefault(name, "facet")
         for reference, face, where in rows:
@@ -436,21 +437,26 @@ class _InpReader:
             else:
                 members = elsets[self.find_set("ELSET", reference, where).name.upper()]
             by_block = list(index.by_block(members))
-            wrong = [b for b, _ in by_block if fm.blocks[b][0] != vtype or not fm.blocks[b][3]]
+            wrong = [b for b, _ in by_block
+                     if fm.blocks[b][0] not in vtypes or not fm.blocks[b][3]]
             if wrong:
                 raise _inp_error(where, f"surface {name!r} uses faces of "
                                  f"{fm.blocks[wrong[0]][0]} elements", f"a surface is made "
-                                 f"of faces of the {vtype} cells; refer to those")
+                                 f"of faces of the {' and '.join(vtypes)} cells; refer to "
+                                 f"those")
             if face is None:                            # every boundary face
                 fm.free_faces.setdefault(name, []).append(members)
                 continue
-            m = re.fullmatch(r"S(\d)", face.upper())
-            if m is None or not 1 <= int(m.group(1)) <= len(faces):
-                raise _inp_error(where, f"face {face!r} does not exist on {vtype} elements",
-                                 f"use S1..S{len(faces)} (Abaqus face numbering)")
-            local = list(faces[int(m.group(1)) - 1])
-            fm.facet_rows.setdefault(name, []).extend(
-                fm.blocks[b][2][rows][:, local] for b, rows in by_block)
+            for b, rows_b in by_block:
+                vtype = fm.blocks[b][0]
+                faces = _abaqus_faces(vtype)
+                m = re.fullmatch(r"S(\d)", face.upper())
+                if m is None or not 1 <= int(m.group(1)) <= len(faces):
+                    raise _inp_error(where, f"face {face!r} does not exist on {vtype} "
+                                     f"elements", f"use S1..S{len(faces)} (Abaqus face "
+                                     f"numbering)")
+                local = list(faces[int(m.group(1)) - 1])
+                fm.facet_rows.setdefault(name, []).append(fm.blocks[b][2][rows_b][:, local])
 
 
 def _is_continuum(abaqus_type: str) -> bool:

@@ -17,7 +17,8 @@ import numpy as np
 
 from ...errors import InputError, MeshFileError
 from ..validate import validate_mesh
-from ..mesh import CELL_FACETS, CELL_TYPES, FacetIndex, Mesh, facet_index, unique_rows
+from ..mesh import (CELL_FACETS, CELL_TYPES, FACET_TYPES, MIXABLE, CellBlock, FacetIndex,
+                    Mesh, facet_index, mixed_mesh, unique_rows)
 
 _SET_ELEMENT_DIM = {"vertex": 0, "line": 1, "triangle": 2, "quad": 2,
                     "line3": 1, "triangle6": 2, "quad8": 2, "quad9": 2}
@@ -64,6 +65,7 @@ class _FileMesh:
     free_faces: dict = field(default_factory=dict)     # name -> [global element indices]
     empty_sets: dict = field(default_factory=dict)     # name -> "cell" | "facet" | "node"
     element: str | None = None                         # formulation named by the file
+    block_elements: dict = field(default_factory=dict)  # mixed: cell type -> element name
     element_ids: list | None = None    # file ids of the rows of each block (None: unknown)
     contact_pairs: list = field(default_factory=list)  # _ContactPair, in file order
     node_surfaces: set = field(default_factory=set)    # names of node-based surfaces
@@ -97,9 +99,10 @@ class _Elements:
             yield int(b), members[self.block_of[members] == b] - self.offsets[b]
 
 
-def _cell_type_of(source: str, blocks: list, requested: str | None) -> str:
-    """The cell type of a file: the type of the highest-dimensional elements that may be
-    cells (one type only)."""
+def _cell_type_of(source: str, blocks: list, requested: str | None) -> tuple:
+    """The cell types of a file: the types of the highest-dimensional elements that may
+    be cells, in the order of their first block. Several types (a mixed mesh) must share
+    their facet type (:data:`qsma.model.mesh.MIXABLE`)."""
     types = {t: d for t, d, conn, cell in blocks if len(conn) and cell}
     if not types and any(len(conn) for *_, conn, _ in blocks):
         found = sorted({t for t, _, conn, _ in blocks if len(conn)})
@@ -114,24 +117,29 @@ def _cell_type_of(source: str, blocks: list, requested: str | None) -> str:
         raise MeshFileError(f"{source}: the file holds only {', '.join(sorted(types))} "
                             f"elements; a mesh needs 2D (triangle, quad) or 3D (tetra, "
                             f"hexahedron) cells")
-    top = sorted(t for t, d in types.items() if d == dim)
-    if len(top) > 1:
-        raise MeshFileError(f"{source}: mixed meshes are not supported yet: the file holds "
-                            f"{dim}D cells of types {', '.join(top)}; mesh with a single cell "
-                            f"type (e.g. all {top[0]})")
-    vtype = top[0]
-    if vtype not in CELL_TYPES:
-        raise MeshFileError(f"{source}: {vtype} cells are not supported (yet): qsma reads "
-                            f"meshes of one of {', '.join(sorted(CELL_TYPES))}; convert the "
-                            f"mesh to one of them (e.g. Gmsh: Mesh.ElementOrder = 1)")
-    other = sorted(t for t in types if t != vtype and t not in _SET_ELEMENT_DIM)
+    top = list(dict.fromkeys(t for t, d in types.items() if d == dim))
+    for vtype in top:
+        if vtype not in CELL_TYPES:
+            raise MeshFileError(f"{source}: {vtype} cells are not supported (yet): qsma "
+                                f"reads meshes of {', '.join(sorted(CELL_TYPES))}; convert "
+                                f"the mesh to them (e.g. Gmsh: Mesh.ElementOrder = 1, "
+                                f"Mesh.RecombineAll = 1 for hexahedra)")
+    facet_types = {CELL_TYPES[t][2] for t in top}
+    if len(top) > 1 and (len(facet_types) > 1 or not facet_types <= set(MIXABLE)):
+        raise MeshFileError(f"{source}: the file holds {dim}D cells of types "
+                            f"{', '.join(top)}, a mix qsma does not support; mixed meshes "
+                            f"may be 2D {MIXABLE['line']} or {MIXABLE['line3']} (one facet "
+                            f"type). Mesh with a single cell type (e.g. all {top[0]}) or "
+                            f"one of these mixes")
+    other = sorted(t for t in types if t not in top and t not in _SET_ELEMENT_DIM)
     if other:
         raise MeshFileError(f"{source}: {', '.join(other)} elements are not supported beside "
-                            f"the {vtype} cells; remove them or use linear elements")
-    if requested is not None and requested != vtype:
-        raise MeshFileError(f"{source}: the cells are {vtype}, but cell_type={requested!r} "
-                            f"was requested")
-    return vtype
+                            f"the {' and '.join(top)} cells; remove them or use linear "
+                            f"elements")
+    if requested is not None and [requested] != top:
+        raise MeshFileError(f"{source}: the cells are {' and '.join(top)}, but "
+                            f"cell_type={requested!r} was requested")
+    return tuple(top)
 
 
 def _first_appearance(values: np.ndarray) -> np.ndarray:
@@ -150,25 +158,33 @@ def _plane_points(source: str, points: np.ndarray, vtype: str) -> np.ndarray:
     return np.ascontiguousarray(points[:, :2])
 
 
-def _to_mesh(fm: _FileMesh, vtype: str) -> Mesh:
-    """Build the Mesh: cells of ``vtype``, sets split by element dimension, facets
-    matched to boundary facets."""
+def _to_mesh(fm: _FileMesh, vtypes: tuple) -> Mesh:
+    """Build the Mesh: cells of the types ``vtypes`` (several: a mixed mesh, one cell
+    block per type), sets split by element dimension, facets matched to boundary
+    facets."""
     src = fm.source
-    dim = CELL_TYPES[vtype][0]
+    dim = CELL_TYPES[vtypes[0]][0]
     elements = _Elements(fm.blocks)
-    volume = [b for b, (t, _, _, cell) in enumerate(fm.blocks) if t == vtype and cell]
-    rows = np.concatenate([fm.blocks[b][2] for b in volume])
-    where = np.concatenate([np.arange(*elements.offsets[b:b + 2]) for b in volume])
-    # one cell per set of nodes: Gmsh 2.2 repeats an element once per physical group
-    first, inverse, _ = unique_rows(np.sort(rows, axis=1))
-    rank = np.empty(len(first), dtype=np.int64)
-    rank[np.argsort(first)] = np.arange(len(first))
-    cells = rows[np.sort(first)]
     element_cell = np.full(elements.offsets[-1], -1, dtype=np.int64)
-    element_cell[where] = rank[inverse]
-    points = _plane_points(src, fm.points, vtype)
+    cell_blocks, ids, start = [], [], 0
+    for vtype in vtypes:
+        volume = [b for b, (t, _, _, cell) in enumerate(fm.blocks) if t == vtype and cell]
+        rows = np.concatenate([fm.blocks[b][2] for b in volume])
+        where = np.concatenate([np.arange(*elements.offsets[b:b + 2]) for b in volume])
+        # one cell per set of nodes: Gmsh 2.2 repeats an element once per physical group
+        first, inverse, _ = unique_rows(np.sort(rows, axis=1))
+        rank = np.empty(len(first), dtype=np.int64)
+        rank[np.argsort(first)] = np.arange(len(first))
+        element_cell[where] = start + rank[inverse]
+        start += len(first)
+        name = fm.block_elements.get(vtype, fm.element)
+        cell_blocks.append(CellBlock(vtype, rows[np.sort(first)], name))
+        if fm.element_ids is not None:
+            ids.append(np.concatenate([fm.element_ids[b] for b in volume])[np.sort(first)])
+    vtype = " and ".join(vtypes)                   # for the messages
+    points = _plane_points(src, fm.points, vtypes[0])
     try:
-        bare = Mesh(points, cells, vtype)
+        bare = mixed_mesh(points, [CellBlock(b.cell_type, b.cells) for b in cell_blocks])
     except InputError as exc:
         raise MeshFileError(f"{src}: {exc}") from exc
     boundary = facet_index(bare)
@@ -179,7 +195,7 @@ def _to_mesh(fm: _FileMesh, vtype: str) -> Mesh:
     for name, parts in fm.element_sets.items():
         for b, mine in elements.by_block(np.unique(_joined(parts, (0,)))):
             etype, edim, conn, cell = fm.blocks[b]
-            if etype == vtype and cell:
+            if etype in vtypes and cell:
                 cell_sets.setdefault(name, []).append(element_cell[elements.offsets[b] + mine])
             elif edim >= dim:
                 raise MeshFileError(f"{src}: set {name!r} holds {edim}D {etype} elements that "
@@ -198,7 +214,7 @@ def _to_mesh(fm: _FileMesh, vtype: str) -> Mesh:
         on = np.isin(boundary.cell, cells_in)
         facet_rows.setdefault(name, []).append(boundary.rows[on])
 
-    nf = len(CELL_FACETS[vtype][0])
+    nf = FACET_TYPES[bare.facet_type]
     facet_sets = {name: _match_facets(src, name, _joined(parts, (0, nf)), boundary,
                                       fm.labels, bare)
                   for name, parts in facet_rows.items()}
@@ -211,13 +227,13 @@ def _to_mesh(fm: _FileMesh, vtype: str) -> Mesh:
         sets, value = empty[kind]
         sets.setdefault(name, value)
     try:
-        mesh = Mesh(points, cells, vtype, node_sets, facet_sets, cell_sets, fm.element)
+        mesh = mixed_mesh(points, cell_blocks, node_sets, facet_sets, cell_sets)
     except InputError as exc:
         raise MeshFileError(f"{src}: {exc}") from exc
     if fm.element_ids is not None:
-        cell_ids = np.concatenate([fm.element_ids[b] for b in volume])[np.sort(first)]
+        cell_ids = np.concatenate(ids)
     else:       # the file's element numbers are not known: count the cells from 1
-        cell_ids = np.arange(1, len(cells) + 1)
+        cell_ids = np.arange(1, mesh.n_cells + 1)
     validate_mesh(mesh, source=src, node_ids=fm.labels, cell_ids=cell_ids)
     return mesh
 

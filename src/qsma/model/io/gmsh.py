@@ -79,13 +79,13 @@ def _gmsh_file_mesh(path: Path, cell_type: str | None):
     else:
         raise MeshFileError(f"{src}: Gmsh format version {version} is not supported; save "
                             f"the mesh as version 4.1 or 2.2 (Gmsh: Mesh.MshFileVersion)")
-    vtype = _cell_type_of(src, fm.blocks, cell_type)
-    dim = CELL_TYPES[vtype][0]
+    vtypes = _cell_type_of(src, fm.blocks, cell_type)
+    dim = CELL_TYPES[vtypes[0]][0]
     kinds = {dim: "cell", dim - 1: "facet"}
     for name, gdim in dims.items():
         if name not in fm.element_sets:
             fm.empty_sets[name] = kinds.get(gdim, "node")
-    return fm, vtype
+    return fm, vtypes
 
 
 def _gmsh_header(raw: bytes, src: str):
