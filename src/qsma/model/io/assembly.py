@@ -36,13 +36,13 @@ class Assembly:
     ----------
     source : the file
     file_mesh : the reader's raw content (blocks, sets)
-    cell_type : the cell type of the file
+    cell_types : the cell types of the file's cells (several: a mixed mesh)
     cell_sets : names of the cell sets that can be bodies
     """
 
     source: str
     file_mesh: _FileMesh
-    cell_type: str
+    cell_types: tuple
 
     @property
     def cell_sets(self) -> list:
@@ -55,7 +55,7 @@ class Assembly:
         fm = self.file_mesh
         members = np.unique(np.concatenate(fm.element_sets[name])) \
             if fm.element_sets.get(name) else np.zeros(0, np.int64)
-        is_cell = np.concatenate([np.full(len(conn), t == self.cell_type and cell)
+        is_cell = np.concatenate([np.full(len(conn), t in self.cell_types and cell)
                                   for t, _, conn, cell in fm.blocks])
         return members[is_cell[members]]
 
@@ -65,7 +65,7 @@ class Assembly:
         if cells not in fm.element_sets or not self._volume_members(cells).size:
             raise InputError(f"{self.source}: no cell set named {cells!r} (a Gmsh physical "
                              f"group of the mesh dimension or an Abaqus *ELSET of "
-                             f"{self.cell_type} elements); cell sets of the file: "
+                             f"{' or '.join(self.cell_types)} elements); cell sets of the file: "
                              f"{self.cell_sets}")
         return self._mesh_of(self._volume_members(cells), f"cell set {cells!r}")
 
@@ -73,9 +73,12 @@ class Assembly:
         fm = self.file_mesh
         keep_cells = np.zeros(sum(len(c) for _, _, c, _ in fm.blocks), dtype=bool)
         keep_cells[members] = True
-        body = _restrict(fm, keep_cells, self.cell_type)
+        body = _restrict(fm, keep_cells, self.cell_types)
+        held = tuple(t for t in self.cell_types      # the types this body holds
+                     if any(bt == t and cell and len(conn)
+                            for bt, _, conn, cell in body.blocks))
         try:
-            mesh = _to_mesh(body, self.cell_type)
+            mesh = _to_mesh(body, held)
         except MeshFileError as exc:
             raise MeshFileError(f"{exc} (body: {what})") from exc
         return _with_node_surfaces(mesh, fm.node_surfaces)
@@ -89,7 +92,7 @@ class Assembly:
         fm = self.file_mesh
         offsets = np.concatenate([[0], np.cumsum([len(c) for _, _, c, _ in fm.blocks])])
         cells = [(offsets[b] + np.arange(len(conn)), conn) for b, (t, _, conn, cell)
-                 in enumerate(fm.blocks) if t == self.cell_type and cell]
+                 in enumerate(fm.blocks) if t in self.cell_types and cell]
         index = np.concatenate([i for i, _ in cells])
         conn = np.vstack([c for _, c in cells])
         n_nodes = len(fm.points)
@@ -138,11 +141,11 @@ def read_assembly(path, *, cell_type: str | None = None) -> Assembly:
     if read is None:
         raise MeshFileError(f"{path}: unknown mesh file extension {path.suffix!r}; use .msh "
                             f"(Gmsh) or .inp (Abaqus/CalculiX)")
-    fm, vtype = read(path, cell_type)
-    return Assembly(str(path), fm, vtype)
+    fm, vtypes = read(path, cell_type)
+    return Assembly(str(path), fm, tuple(vtypes))
 
 
-def _restrict(fm: _FileMesh, keep_cells: np.ndarray, vtype: str) -> _FileMesh:
+def _restrict(fm: _FileMesh, keep_cells: np.ndarray, vtypes: tuple) -> _FileMesh:
     """``fm`` with only the cells in mask ``keep_cells`` (global element indices), the
     nodes they use, and the lower-dimensional elements and sets on those nodes."""
     used = np.zeros(len(fm.points), dtype=bool)
@@ -155,7 +158,7 @@ def _restrict(fm: _FileMesh, keep_cells: np.ndarray, vtype: str) -> _FileMesh:
     keep_el = np.zeros(offsets[-1], dtype=bool)
     blocks, ids = [], []
     for b, (t, d, conn, cell) in enumerate(fm.blocks):
-        if t == vtype and cell:
+        if t in vtypes and cell:
             mine = keep_cells[offsets[b]:offsets[b + 1]]
         else:          # facet, line and point elements on the body's nodes only
             mine = np.all(used[conn], axis=1) if len(conn) else np.zeros(0, bool)
