@@ -276,14 +276,7 @@ def run_case(prepared, case: Case, options: RunOptions, folder, files=()) -> Cas
     params = case.as_dict()
     status, message = "ok", "all levels converged"
     try:
-        p = prepared
-        if "mu" in params:
-            p = p.with_mu(params["mu"])
-        if "preload" in params:
-            p = p.with_preload_scale(params["preload"])
-        opts = options.replace(**{k: v for k, v in params.items()
-                                  if parameter_kind(k) == "option"})
-        res = run_prepared(p, opts)
+        res = run_prepared(*case_inputs(prepared, params, options))
         write_all(res, folder, plots="plots" in files, vtu="vtu" in files)
         if "rom" in files and res.n_levels:
             from ..rom import export_rom
@@ -299,6 +292,19 @@ def run_case(prepared, case: Case, options: RunOptions, folder, files=()) -> Cas
                   message=message, seconds=seconds, cpu_seconds=time.process_time() - c0)
     atomic_write(done_path(folder), json.dumps(marker, indent=1) + "\n")
     return CaseOutcome(case.index, params, status, message, seconds, str(folder))
+
+
+def case_inputs(prepared, params: dict, options: RunOptions):
+    """``(prepared, options)`` of a case: its friction coefficient and preload scale
+    applied to its group's preparation (nothing recomputed), its run options set."""
+    p = prepared
+    if "mu" in params:
+        p = p.with_mu(params["mu"])
+    if "preload" in params:
+        p = p.with_preload_scale(params["preload"])
+    opts = options.replace(**{k: v for k, v in params.items()
+                              if parameter_kind(k) == "option"})
+    return p, opts
 
 
 def done_path(folder) -> Path:
