@@ -56,7 +56,7 @@ DONE_SUFFIX = ".done.json"
 #: Workers of the default local cluster: one process per core of the 2-core machines
 #: this package is developed on; ``workers=`` or ``--workers`` changes it.
 DEFAULT_WORKERS = 2
-CASE_FILES = ("plots", "vtu", "rom")
+CASE_FILES = ("plots", "vtu", "rom", "report")
 #: Run options a sweep does not vary: the BLAS thread count does not change results,
 #: the condensation backend is fixed when the shared preparation is made.
 NOT_SWEPT = ("blas_threads", "schur_backend")
@@ -277,7 +277,8 @@ def run_case(prepared, case: Case, options: RunOptions, folder, files=()) -> Cas
     status, message = "ok", "all levels converged"
     try:
         res = run_prepared(*case_inputs(prepared, params, options))
-        write_all(res, folder, plots="plots" in files, vtu="vtu" in files)
+        write_all(res, folder, plots="plots" in files, vtu="vtu" in files,
+                  report="report" in files)
         if "rom" in files and res.n_levels:
             from ..rom import export_rom
             export_rom(res, Path(folder).with_name(Path(folder).name + ".rom.json"))
@@ -360,11 +361,13 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
         or a client: that scheduler (the workers must see ``out``).
     workers : int
         Processes of the local cluster.
-    files : iterable of {"plots", "vtu", "rom"}
+    files : iterable of {"plots", "vtu", "rom", "report"}
         Per-case files besides results.json and results.csv (rom: :mod:`qsma.rom`,
-        written beside the case folder as ``case-NNNN.rom.json``).
+        written beside the case folder as ``case-NNNN.rom.json``; report: the case's
+        report.html, :mod:`qsma.report`).
     plots : bool
-        Study figures (frequency and damping versus amplitude per parameter).
+        Study figures (frequency and damping versus amplitude per parameter); the
+        study's report.html is written in any case.
     progress : callable, optional
         ``progress(done, total)`` after each case (skipped ones included).
 
@@ -421,9 +424,15 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
     ordered = tuple(outcomes[c.index] for c in cases)
     table = study_table(cases, ordered, out)
     paths = write_table(table, out)
+    figures = {}
     if plots:
         from .plots import plot_study
-        paths.update(plot_study(table, list(vary), out))
+        figures = plot_study(table, list(vary), out)
+        paths.update(figures)
+    from ..report import REPORT_NAME, write_study_report
+    paths["report"] = write_study_report(list(vary), ordered, table,
+                                         {k[len("plot_"):]: v for k, v in figures.items()},
+                                         out / REPORT_NAME)
     failed = [o for o in ordered if o.status == "failed"]
     bad = [o for o in ordered if o.status != "ok"]
     message = "all cases succeeded" if not bad else (
