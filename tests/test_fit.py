@@ -39,7 +39,7 @@ def measured():
 
 
 def test_fit_recovers_mu_within_its_uncertainty(measured, tmp_path):
-    fr = fit(sandwich_2d(1, mu=0.7), measured, ["mu"], OPTIONS, sigma_f=NOISE_F,
+    fr = qsma.fit(sandwich_2d(1, mu=0.7), measured, ["mu"], OPTIONS, sigma_f=NOISE_F,
              sigma_zeta=NOISE_ZETA, out=tmp_path)
     assert fr.success, fr.message
     mu, sigma = fr.values["mu"], fr.sigma["mu"]
