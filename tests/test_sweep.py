@@ -1,5 +1,6 @@
 """Parameter studies: the grid, sharing of the preparation, equality with separate runs,
-Dask against serial, failures, resumption and the command line."""
+Dask against serial, failures, resumption, the command line, and several modes per
+run (one preparation, one backbone per mode)."""
 from dataclasses import replace
 import json
 import pickle
@@ -266,3 +267,58 @@ def test_cli_names_a_bad_vary(tmp_path, capsys):
     rc = main(["sweep", "--example", "sandwich-2d", "--vary", "mu", "--out", str(tmp_path)])
     assert rc == 2
     assert "expected NAME=VALUES" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------- several modes per run
+
+def test_run_modes_equal_separate_runs_and_write_the_shapes(tmp_path):
+    """Modes 0 and 1 from one preparation equal separate runs of each mode; the VTU
+    holds the tied mode shapes of the results, mass-normalised."""
+    import meshio
+    from qsma.study.modes import run_modes
+    model = sandwich_2d(1)
+    out = run_modes(model, [0, 1], OPTIONS, out=tmp_path, plots=False, vtu=False)
+    assert out.success and set(out.results) == {0, 1}
+    for m in (0, 1):
+        alone = qsma.run(model, OPTIONS, mode=m)
+        res = out.results[m]
+        assert res.mode_index == m
+        for name in COMPARED:
+            assert_close(getattr(res, name), getattr(alone, name), *_tol(name))
+        assert json.loads((tmp_path / f"mode-{m}" / "results.json").read_text())[
+            "mode"]["index"] == m
+    summary = json.loads((tmp_path / "modes.json").read_text())
+    assert [e["mode"] for e in summary["modes"]] == [0, 1]
+    mesh = meshio.read(tmp_path / "modes.vtu")
+    shapes = out.results[0].modes.shapes
+    for k in range(shapes.shape[1]):
+        np.testing.assert_array_equal(mesh.point_data[f"mode_{k:02d}"][:, :2],
+                                      shapes[:, k].reshape(-1, 2))
+    assert out.results[0].modes.f_hz[1] == pytest.approx(out.results[1].f0_hz, rel=1e-12)
+
+
+def test_cli_run_modes_records_a_mode_that_cannot_run(tmp_path, capsys):
+    """Mode 2 of sandwich-2d is axial (no tip deflection): recorded with its message,
+    mode 0 is written, exit code 1."""
+    code = main(["run", "--example", "sandwich-2d", "--modes", "0,2", "--levels",
+                 "tip:log:1e-6:1e-3:3", "--no-plots", "--no-vtu", "--out",
+                 str(tmp_path / "r")])
+    err = capsys.readouterr().err
+    assert code == 1 and "mode 2" in err and "no tip deflection" in err
+    summary = json.loads((tmp_path / "r" / "modes.json").read_text())["modes"]
+    assert [e["success"] for e in summary] == [True, False]
+    assert (tmp_path / "r" / "mode-0" / "results.json").exists()
+    assert not (tmp_path / "r" / "mode-2").exists()
+    assert main(["run", "--example", "sandwich-2d", "--modes", "0,0", "--out",
+                 str(tmp_path / "x")]) == 2
+
+
+def test_cli_modes_out_writes_vtu_and_json(tmp_path, capsys):
+    import meshio
+    assert main(["modes", "--example", "sandwich-2d", "-n", "3", "--json", "--out",
+                 str(tmp_path)]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    written = json.loads((tmp_path / "modes.json").read_text())
+    assert written["f_hz"] == printed["f_hz"] and len(written["f_hz"]) == 3
+    assert sorted(k for k in meshio.read(tmp_path / "modes.vtu").point_data
+                  if k.startswith("mode_")) == ["mode_00", "mode_01", "mode_02"]

@@ -22,6 +22,12 @@ def sweep(model_or_config, vary, options=None, **kwargs):
     return _sweep(model_or_config, vary, options, **kwargs)
 
 
+def fit(model_or_config, measured, params, options=None, **kwargs):
+    """Fit parameters to measured frequency and damping; see :func:`qsma.study.fit`."""
+    from .study import fit as _fit
+    return _fit(model_or_config, measured, params, options, **kwargs)
+
+
 def __getattr__(name):
     """Lazy access to the heavier public names (they import scikit-fem, meshio)."""
     if name == "QSMAResult":
@@ -36,5 +42,5 @@ def __getattr__(name):
     raise AttributeError(f"module 'qsma' has no attribute {name!r}")
 
 
-__all__ = ["run", "sweep", "RunOptions", "Levels", "QSMAResult", "Model", "read_mesh", "write_all",
+__all__ = ["run", "sweep", "fit", "RunOptions", "Levels", "QSMAResult", "Model", "read_mesh", "write_all",
            "__version__"]

@@ -220,7 +220,7 @@ def _interface_point_data(res, k, offsets, n):
     return out
 
 
-def write_all(res, out, plots=True, vtu=True, folder=None):
+def write_all(res, out, plots=True, vtu=True, folder=None, report=None):
     """Write every result file of a run as one run into folder ``out``.
 
     The files are written into a private staging folder, listed with their SHA-256 in
@@ -234,6 +234,7 @@ def write_all(res, out, plots=True, vtu=True, folder=None):
     plots, vtu : also write the PNG figures / the VTU fields
     folder : a :class:`~qsma.rundir.RunFolder` already entered for ``out`` (the CLI
         takes it before computing); ``None`` takes and releases one here
+    report : also write report.html (:mod:`qsma.report`); ``None``: when ``plots``
 
     Returns
     -------
@@ -249,7 +250,7 @@ def write_all(res, out, plots=True, vtu=True, folder=None):
     """
     if folder is None:
         with RunFolder(out) as folder:
-            return write_all(res, out, plots, vtu, folder)
+            return write_all(res, out, plots, vtu, folder, report)
     stage = folder.staging
     paths = {"json": stage / "results.json", "csv": stage / "results.csv"}
     try:
@@ -257,10 +258,15 @@ def write_all(res, out, plots=True, vtu=True, folder=None):
         if vtu and res.n_levels:
             paths["vtu"] = stage / "fields.vtu"
             write_vtu(res, paths["vtu"])
+        figures = None
         if plots and res.n_levels:
             from .plots import write_plots
-            paths.update(write_plots(res, stage))
+            figures = write_plots(res, stage)
+            paths.update(figures)
         write_json(res, paths["json"])
+        if plots if report is None else report:
+            from .report import REPORT_NAME, write_report
+            paths["report"] = write_report(res, stage / REPORT_NAME, figures)
     except OSError as exc:
         raise write_error(exc, folder.path) from exc
     folder.commit()

@@ -1,7 +1,9 @@
-"""``qsma modes``: natural frequencies of the assembly with interface pairs tied."""
+"""``qsma modes``: natural frequencies of the assembly with interface pairs tied; and
+``qsma run --modes 0,1,2`` (:func:`execute_modes`): one backbone per mode."""
 from __future__ import annotations
 
 import json
+import sys
 
 import numpy as np
 
@@ -17,6 +19,9 @@ def add_arguments(p):
                    help="pairs tied: all, none, or those closed after the preload")
     p.add_argument("-n", "--n-modes", type=int, default=6, help="number of modes")
     p.add_argument("--json", action="store_true", help='print {"f_hz": [...]} as JSON')
+    p.add_argument("--out", metavar="DIR",
+                   help="also write DIR/modes.vtu (mode shapes mode_00, ...) and "
+                        "DIR/modes.json (frequencies)")
 
 
 def execute(args) -> int:
@@ -35,6 +40,8 @@ def execute(args) -> int:
     else:
         tied = _closed_after_preload(model, assembled, pairing)
     modes = linear_modes(model, assembled, pairing, tied=tied, n_modes=args.n_modes)
+    if args.out:
+        _write(model, modes, args.tie, int(tied.sum()), args.out)
     if args.json:
         print(json.dumps({"f_hz": modes.f_hz.tolist(), "tied_pairs": int(tied.sum())}))
     else:
@@ -49,3 +56,46 @@ def _closed_after_preload(model, assembled, pairing):
     _, _, pre = preload(model, assembled, pairing)
     from ..contact import OPEN
     return pre.status != OPEN
+
+
+def _write(model, modes, tie, n_tied, out):
+    """modes.vtu and modes.json in folder ``out`` (created)."""
+    from pathlib import Path
+    from ..results import atomic_write
+    from ..study.modes import MODES_JSON, MODES_VTU, write_modes_vtu
+    out = Path(out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"--out {str(out)!r} cannot be created ({exc.strerror}); choose "
+                         f"another folder") from None
+    write_modes_vtu(model, modes, out / MODES_VTU)
+    atomic_write(out / MODES_JSON, json.dumps(dict(
+        model=model.name, tie=tie, tied_pairs=n_tied, f_hz=modes.f_hz.tolist()),
+        indent=1) + "\n")
+
+
+def execute_modes(args) -> int:
+    from ..study.modes import parse_modes, run_modes
+    from .run import CLI_OPTIONS, parse_levels_spec
+    if args.mode is not None:
+        raise InputError("give either --mode K or --modes K1,K2,... (not both)")
+    modes = parse_modes(args.modes)
+    model, options = load_model(args)
+    options = options.replace(**{key: getattr(args, key) for key in CLI_OPTIONS
+                                 if key != "mode"},
+                              levels=None if args.levels is None
+                              else parse_levels_spec(args.levels))
+    out = run_modes(model, modes, options, out=args.out, plots=not args.no_plots,
+                    vtu=not args.no_vtu)
+    for e in out.summary:
+        line = (f"mode {e['mode']}: f0 = {e['f0_hz']:.3f} Hz, {e['message']}"
+                if e["f0_hz"] is not None else f"mode {e['mode']}: {e['message']}")
+        if e["success"]:
+            if not args.quiet:
+                print(line)
+        else:
+            print(f"qsma: warning: {line}", file=sys.stderr)
+    if not args.quiet:
+        print("results: " + ", ".join(str(p) for p in out.paths.values()))
+    return 0 if out.success else 1

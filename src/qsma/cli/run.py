@@ -20,6 +20,9 @@ def add_arguments(p):
                    help="result folder, replaced as a whole by this run's files (created "
                         "if needed; refused while another run writes to it)")
     p.add_argument("--mode", type=int, help="mode index of the tied structure (default 0)")
+    p.add_argument("--modes", metavar="LIST",
+                   help="several modes, e.g. 0,1,2: one result folder per mode in "
+                        "OUT/mode-K, OUT/modes.json and OUT/modes.vtu (docs/results.md)")
     p.add_argument("--method", help="contact solver (default from the config or 'basket')")
     p.add_argument("--tol", type=float, help="contact solver tolerance")
     p.add_argument("--levels", metavar="SPEC",
@@ -44,6 +47,9 @@ def add_arguments(p):
 
 def execute(args) -> int:
     from ..rundir import RunFolder
+    if args.modes is not None:
+        from .modes import execute_modes
+        return execute_modes(args)
 
     with RunFolder(args.out) as folder:          # locked and checked before computing
         res, paths, options = _run_into(args, folder)

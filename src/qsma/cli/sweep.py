@@ -31,7 +31,7 @@ def add_arguments(p):
     p.add_argument("--method", help="contact solver of every case")
     p.add_argument("--case-files", default="", metavar="KINDS",
                    help="per-case files besides results.json/csv: plots, vtu, rom "
-                        "(rom.json: a fitted modal Iwan model)")
+                        "(rom.json: a fitted modal Iwan model), report (report.html)")
     p.add_argument("--no-plots", action="store_true", help="skip the study figures")
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
 

@@ -60,3 +60,35 @@ def plot_study(table, parameters, out) -> dict:
         safe = p.replace(":", "_")
         paths[f"plot_{p}"] = plot_parameter(table, p, others, Path(out) / f"sweep_{safe}.png")
     return paths
+
+
+def plot_fit(fr, path, start_prediction=None):
+    """Measured frequency and damping (markers) against the fitted run's curves and,
+    dashed, the interpolated values of the start point."""
+    fig, (a1, a2) = _figure(2, 1, figsize=(6.5, 7), sharex=True)
+    m, res = fr.measured, fr.result
+    amp = np.abs(np.asarray(getattr(res, m.kind), float))
+    fitted = ", ".join(f"{k} = {v:.4g}" for k, v in fr.values.items())
+    a1.semilogx(amp, res.f_hz, "-", lw=1.4, label=f"fitted ({fitted})")
+    a2.loglog(amp, np.maximum(res.zeta, 1e-12), "-", lw=1.4)
+    if start_prediction is not None:
+        start = ", ".join(f"{k} = {v:.4g}" for k, v in fr.start.items())
+        a1.semilogx(m.amplitude, start_prediction["f_hz"], "--", color="0.5", lw=1,
+                    label=f"start ({start})")
+        a2.loglog(m.amplitude, start_prediction["zeta"], "--", color="0.5", lw=1)
+    a1.semilogx(m.amplitude, m.f_hz, "ko", ms=4, mfc="none", label="measured")
+    a2.loglog(m.amplitude, m.zeta, "ko", ms=4, mfc="none")
+    a1.set_ylabel("secant frequency [Hz]")
+    a2.set_ylabel(r"damping ratio $\zeta$")
+    a2.set_xlabel("peak tip deflection [m]" if m.kind == "tip"
+                  else "peak modal amplitude q [kg$^{1/2}$ m]")
+    lo, hi = m.amplitude.min(), m.amplitude.max()
+    a2.set_xlim(lo / 2, hi * 2)
+    z = m.zeta[np.isfinite(m.zeta)]
+    if z.size:
+        a2.set_ylim(z.min() / 5, z.max() * 5)
+    a1.set_title("Fit: " + ("converged" if fr.success else "NOT determined / converged"))
+    for a in (a1, a2):
+        a.grid(True, which="both", alpha=0.3)
+    a1.legend(fontsize=7)
+    return _save(fig, path)

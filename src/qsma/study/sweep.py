@@ -56,7 +56,7 @@ DONE_SUFFIX = ".done.json"
 #: Workers of the default local cluster: one process per core of the 2-core machines
 #: this package is developed on; ``workers=`` or ``--workers`` changes it.
 DEFAULT_WORKERS = 2
-CASE_FILES = ("plots", "vtu", "rom")
+CASE_FILES = ("plots", "vtu", "rom", "report")
 #: Run options a sweep does not vary: the BLAS thread count does not change results,
 #: the condensation backend is fixed when the shared preparation is made.
 NOT_SWEPT = ("blas_threads", "schur_backend")
@@ -276,15 +276,9 @@ def run_case(prepared, case: Case, options: RunOptions, folder, files=()) -> Cas
     params = case.as_dict()
     status, message = "ok", "all levels converged"
     try:
-        p = prepared
-        if "mu" in params:
-            p = p.with_mu(params["mu"])
-        if "preload" in params:
-            p = p.with_preload_scale(params["preload"])
-        opts = options.replace(**{k: v for k, v in params.items()
-                                  if parameter_kind(k) == "option"})
-        res = run_prepared(p, opts)
-        write_all(res, folder, plots="plots" in files, vtu="vtu" in files)
+        res = run_prepared(*case_inputs(prepared, params, options))
+        write_all(res, folder, plots="plots" in files, vtu="vtu" in files,
+                  report="report" in files)
         if "rom" in files and res.n_levels:
             from ..rom import export_rom
             export_rom(res, Path(folder).with_name(Path(folder).name + ".rom.json"))
@@ -299,6 +293,19 @@ def run_case(prepared, case: Case, options: RunOptions, folder, files=()) -> Cas
                   message=message, seconds=seconds, cpu_seconds=time.process_time() - c0)
     atomic_write(done_path(folder), json.dumps(marker, indent=1) + "\n")
     return CaseOutcome(case.index, params, status, message, seconds, str(folder))
+
+
+def case_inputs(prepared, params: dict, options: RunOptions):
+    """``(prepared, options)`` of a case: its friction coefficient and preload scale
+    applied to its group's preparation (nothing recomputed), its run options set."""
+    p = prepared
+    if "mu" in params:
+        p = p.with_mu(params["mu"])
+    if "preload" in params:
+        p = p.with_preload_scale(params["preload"])
+    opts = options.replace(**{k: v for k, v in params.items()
+                              if parameter_kind(k) == "option"})
+    return p, opts
 
 
 def done_path(folder) -> Path:
@@ -354,11 +361,13 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
         or a client: that scheduler (the workers must see ``out``).
     workers : int
         Processes of the local cluster.
-    files : iterable of {"plots", "vtu", "rom"}
+    files : iterable of {"plots", "vtu", "rom", "report"}
         Per-case files besides results.json and results.csv (rom: :mod:`qsma.rom`,
-        written beside the case folder as ``case-NNNN.rom.json``).
+        written beside the case folder as ``case-NNNN.rom.json``; report: the case's
+        report.html, :mod:`qsma.report`).
     plots : bool
-        Study figures (frequency and damping versus amplitude per parameter).
+        Study figures (frequency and damping versus amplitude per parameter); the
+        study's report.html is written in any case.
     progress : callable, optional
         ``progress(done, total)`` after each case (skipped ones included).
 
@@ -415,9 +424,15 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
     ordered = tuple(outcomes[c.index] for c in cases)
     table = study_table(cases, ordered, out)
     paths = write_table(table, out)
+    figures = {}
     if plots:
         from .plots import plot_study
-        paths.update(plot_study(table, list(vary), out))
+        figures = plot_study(table, list(vary), out)
+        paths.update(figures)
+    from ..report import REPORT_NAME, write_study_report
+    paths["report"] = write_study_report(list(vary), ordered, table,
+                                         {k[len("plot_"):]: v for k, v in figures.items()},
+                                         out / REPORT_NAME)
     failed = [o for o in ordered if o.status == "failed"]
     bad = [o for o in ordered if o.status != "ok"]
     message = "all cases succeeded" if not bad else (
