@@ -492,7 +492,9 @@ def _fingerprint(model, options) -> str:
         for c in b.mesh.extra_blocks:           # mixed meshes: the other cell blocks
             h.update(np.ascontiguousarray(c.cells).tobytes())
             h.update(repr((c.cell_type, c.element)).encode())
-    h.update(repr((model.interface, model.tip, model.mu)).encode())
+    # two bodies: the bytes of earlier versions (studies still resume); several: all
+    interfaces = model.interface if model.interface is not None else model.interface_list
+    h.update(repr((interfaces, model.tip, model.mu)).encode())
     h.update(repr(sorted(options.as_dict().items())).encode())
     h.update(repr(options.levels).encode())
     return h.hexdigest()
