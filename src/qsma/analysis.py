@@ -31,6 +31,7 @@ from .levels import spec_levels
 from .modal import linear_modes, probe_vector
 from .model import make_pairing
 from .options import RunOptions
+from .rigid import held_by_joint, elastic_probe
 from .result import (FAILURE_FLAGS, LEVEL_FIELDS, DirectLoop, LevelStates,  # noqa: F401
                      QSMAResult, load_factors as _load_factors)
 
@@ -293,6 +294,8 @@ def preload(model, assembled, pairing, *, method="basket", opts=None, schur_back
         problem = ContactProblem(reduced.K, model.mu, dim=model.dim)
     with clock.stage("contact"):
         pre, _ = _solve(problem, reduced, 0.0, None, method, opts or {}, "preload")
+    if pre.success:
+        pre = held_by_joint(reduced, pre, _load_factors(reduced, 0.0), "the preload")
     if not pre.success:
         raise AnalysisError(f"the preload contact solve failed: {pre.message} "
                             f"(residual {pre.residual:.2e})", partial=pre)
@@ -336,22 +339,25 @@ def _mode(model, assembled, pairing, closed, opts, clock):
     with clock.stage("modal"):
         nm = max(6, mode + 1) if opts.n_modes is None else opts.n_modes
         modes = linear_modes(model, assembled, pairing, tied=closed, n_modes=nm)
-        if mode >= len(modes.omega):
-            raise InputError(f"mode index {mode} is beyond the {len(modes.omega)} computed "
-                             f"modes (0..{len(modes.omega) - 1}); raise n_modes")
-        phi = modes.shapes[:, mode].copy()
-        ltip = probe_vector(model)
+        n_el = len(modes.omega) - modes.n_rigid
+        if mode >= n_el:
+            raise InputError(f"mode index {mode} is beyond the {n_el} computed elastic "
+                             f"modes (0..{n_el - 1}); raise n_modes")
+        phi = modes.shapes[:, modes.n_rigid + mode].copy()
+        raw = probe_vector(model)
+        ltip = elastic_probe(raw, model, assembled)     # free-free: centre-of-mass frame
         phi_tip = float(ltip @ phi)
         if phi_tip < 0:
             phi, phi_tip = -phi, -phi_tip
-        probe_nodes = ltip != 0
+        probe_nodes = raw != 0
         rms = float(np.sqrt(np.mean(phi[probe_nodes] ** 2)))
         if abs(phi_tip) < 1e-6 * rms or rms == 0:
-            raise InputError(f"mode {mode} ({modes.f_hz[mode]:.4g} Hz) has no tip deflection "
+            f_mode = modes.f_hz[modes.n_rigid + mode]
+            raise InputError(f"mode {mode} ({f_mode:.4g} Hz) has no tip deflection "
                              f"along the probe direction (|phi_tip| = {abs(phi_tip):.2e}, "
                              f"RMS of the mode at the tip nodes {rms:.2e}); choose a mode "
                              f"that moves the tip: the load levels are scaled by it")
-    return modes, phi, phi_tip, float(modes.omega[mode]), ltip
+    return modes, phi, phi_tip, float(modes.omega[modes.n_rigid + mode]), ltip
 
 
 def _run(model, pairing, opts, progress, clock, prepared=None):
@@ -509,6 +515,8 @@ class _Solver:
     def __call__(self, alpha, state, where):
         res, self.zone = _solve(self.problem, self.reduced, alpha, state, self.method,
                                 self.opts, where, self.zone)
+        if res.success:
+            res = held_by_joint(self.reduced, res, _load_factors(self.reduced, alpha), where)
         return res
 
 
