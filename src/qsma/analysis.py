@@ -31,7 +31,7 @@ from .levels import spec_levels
 from .modal import linear_modes, probe_vector
 from .model import make_pairing
 from .options import RunOptions
-from .rigid import held_by_joint, elastic_probe
+from .rigid import elastic_probe, held_by_joint, support_share
 from .result import (FAILURE_FLAGS, LEVEL_FIELDS, DirectLoop, LevelStates,  # noqa: F401
                      QSMAResult, load_factors as _load_factors)
 
@@ -341,8 +341,9 @@ def _mode(model, assembled, pairing, closed, opts, clock):
         modes = linear_modes(model, assembled, pairing, tied=closed, n_modes=nm)
         n_el = len(modes.omega) - modes.n_rigid
         if mode >= n_el:
-            raise InputError(f"mode index {mode} is beyond the {n_el} computed elastic "
-                             f"modes (0..{n_el - 1}); raise n_modes")
+            raise InputError(f"mode index {mode} is beyond the {n_el} computed modes "
+                             f"(0..{n_el - 1}, elastic modes: rigid-body modes are not "
+                             f"counted); raise n_modes")
         phi = modes.shapes[:, modes.n_rigid + mode].copy()
         raw = probe_vector(model)
         ltip = elastic_probe(raw, model, assembled)     # free-free: centre-of-mass frame
@@ -436,7 +437,7 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
                         n_pairs=pairing.n_pairs, mu=model.mu, dim=model.dim,
                         n_closed_after_preload=int(closed.sum()),
                         elements={a.body.name: a.formulation for a in assembled},
-                        coupling=pairing.coupling),
+                        coupling=pairing.coupling, **_rigid_info(reduced, modes, pos, grid, user)),
         mode_index=opts.mode, omega0=omega0, phi_tip=phi_tip,
         alpha=al, tip_lin=al * phi_tip / omega0 ** 2, q=q, tip=tip,
         q_neg=q_neg, asymmetry=(q + q_neg) / q,
@@ -468,6 +469,17 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
                     negative_ramp_levels=int(neg.n)),
         timings_s=timings, direct_loop=loop,
         gross_slip_level=gross[0] if gross else None)
+
+
+def _rigid_info(reduced, modes, pos, grid, user):
+    """Rigid-body freedom of the run for model_info (docs/theory.md section 10): the
+    rigid modes skipped (``mode`` counts elastic modes), the bodies held only by the
+    joint and the largest share of their load held by the regularising spring."""
+    share = [support_share(reduced, pos.d[g], _load_factors(reduced, grid[g]))
+             for g in user] if getattr(reduced, "ghost", None) is not None else []
+    return dict(rigid_modes=int(modes.n_rigid), mode_counts="elastic modes",
+                held_by_joint=[b.name for b in reduced.bodies if b.rigid is not None],
+                joint_spring_share_max=float(max(share, default=0.0)))
 
 
 class _Response:
