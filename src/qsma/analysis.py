@@ -31,7 +31,9 @@ from .levels import spec_levels
 from .modal import linear_modes, probe_vector
 from .model import make_pairing
 from .options import RunOptions
-from .rigid import elastic_probe, held_by_joint, support_share
+from .model.bolt import bolt_functionals, with_bolt_loads
+from .pretension import lock
+from .rigid import ANCHOR_ROUNDS, anchored, elastic_probe, held_by_joint, support_share
 from .result import (FAILURE_FLAGS, LEVEL_FIELDS, DirectLoop, LevelStates,  # noqa: F401
                      QSMAResult, load_factors as _load_factors)
 
@@ -294,11 +296,20 @@ def preload(model, assembled, pairing, *, method="basket", opts=None, schur_back
         problem = ContactProblem(reduced.K, model.mu, dim=model.dim)
     with clock.stage("contact"):
         pre, _ = _solve(problem, reduced, 0.0, None, method, opts or {}, "preload")
+        for _ in range(ANCHOR_ROUNDS if getattr(reduced, "ghost", None) else 0):
+            if not pre.success:                    # docs/theory.md section 10
+                break
+            reduced = anchored(reduced, pre.d)
+            pre, _ = _solve(problem, reduced, 0.0, None, method, opts or {}, "preload")
     if pre.success:
         pre = held_by_joint(reduced, pre, _load_factors(reduced, 0.0), "the preload")
     if not pre.success:
         raise AnalysisError(f"the preload contact solve failed: {pre.message} "
                             f"(residual {pre.residual:.2e})", partial=pre)
+    if getattr(model, "bolts", ()):
+        with clock.stage("condensation"):                 # bolts locked from here on
+            reduced = lock(reduced, model.bolts, pre.d)
+            problem = ContactProblem(reduced.K, model.mu, dim=model.dim)
     if np.all(pre.status == OPEN):
         raise AnalysisError("the preload leaves no interface pair in contact: the bodies "
                             "separate, and tied modes of a disconnected assembly would be "
@@ -311,9 +322,12 @@ def _condense(model, assembled, pairing, schur_backend, clock):
     """The two-body reduced model with the 'preload' pattern (static condensation)."""
     i1 = model.body_index(model.interface.body1)
     i2 = model.body_index(model.interface.body2)
+    bolts = getattr(model, "bolts", ())
     with clock.stage("condensation"):
-        return reduce_two_bodies(assembled[i1], assembled[i2], pairing,
-                                 backend=schur_backend)
+        reduced = reduce_two_bodies(assembled[i1], assembled[i2], pairing,
+                                    patterns=("preload",) + tuple(b.pattern for b in bolts),
+                                    backend=schur_backend)
+        return bolt_functionals(model, reduced, (i1, i2)) if bolts else reduced
 
 
 def _assemble(model, clock, keep=None):
@@ -330,6 +344,8 @@ def _assemble(model, clock, keep=None):
                                      f"'preload' (the default) or remove the pressure")
                 if not np.all(np.isfinite(F)):
                     raise InputError(f"load {name!r} of body {a.body.name!r} is not finite")
+        if getattr(model, "bolts", ()):
+            assembled = with_bolt_loads(model, assembled)
     return assembled
 
 

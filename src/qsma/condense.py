@@ -258,8 +258,11 @@ class ReducedModel:
         loads = tuple(np.column_stack([L, F]) for L, F in zip(self.loads, (F1, F2)))
         Fc = tuple(np.column_stack([fc, b.condensed_load(F)])
                    for fc, b, F in zip(self.Fc, self.bodies, (F1, F2)))
-        new = replace(self, W=_welded(self.bodies, self.S_cho, Fc, self.P, self.slave,
-                                      self.gauge is not None),
+        w_new = _welded(self.bodies, self.S_cho, tuple(f[:, -1:] for f in Fc), self.P,
+                        self.slave, self.gauge is not None)
+        # the existing columns are kept as they are (the preload was solved with them;
+        # the ghost spring's anchor lives in the 'preload' column, qsma.rigid.anchored)
+        new = replace(self, W=np.column_stack([self.W, w_new]),
                       patterns=self.patterns + (name,), loads=loads, Fc=Fc, functionals={})
         return new.with_functionals(self.definitions)
 

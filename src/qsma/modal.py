@@ -148,7 +148,11 @@ def linear_modes(model, assembled, pairing, tied=None, n_modes=6) -> Modes:
     T = tie_transform(model, assembled, pairing, tied)
     n_free = assembly_free_motions(model, assembled)
     check_n_modes(n_modes, T.shape[1])
-    K = (T.T @ stacked([a.K for a in assembled]) @ T).tocsc()
+    K = stacked([a.K for a in assembled])
+    if getattr(model, "bolts", ()):
+        from .model.bolt import bolt_stiffness
+        K = K + bolt_stiffness(model)                  # the bolts locked after preload
+    K = (T.T @ K @ T).tocsc()
     M = (T.T @ stacked([a.M for a in assembled]) @ T).tocsc()
     k = min(n_modes + n_free, T.shape[1] - 2)
     shift = free_shift(K, M) if n_free else 0.0
