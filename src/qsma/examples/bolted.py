@@ -34,3 +34,18 @@ def lap_2d_bolted(refine: int = 1, mu: float | None = None, free: str = "none",
                 BOLT_2D["stiffness"])
     return replace(m, bodies=bodies, bolts=(bolt,),
                    name=f"lap-2d-bolted (refine={refine}, free={free})")
+
+#: Bolt of the bolted 3D lap joint: the lap_3d bolt force, an M8 shank (50 mm^2)
+#: through the 10 mm grip.
+BOLT_3D = dict(pretension=8000.0, stiffness=200e9 * 50e-6 / 0.010)
+
+
+def lap_3d_bolted(refine: int = 1, mu: float | None = None):
+    """:func:`qsma.examples.lap_3d` (both plates clamped at their far ends) with a bolt
+    between the two 10 mm x 10 mm washer patches instead of the pressure patches."""
+    from .lap import lap_3d
+    m = lap_3d(refine, mu)
+    bodies = tuple(replace(b, pressures=()) for b in m.bodies)
+    bolt = Bolt("bolt", "bottom", "bolt", "top", "bolt", BOLT_3D["pretension"],
+                BOLT_3D["stiffness"])
+    return replace(m, bodies=bodies, bolts=(bolt,), name=f"lap-3d-bolted (refine={refine})")
