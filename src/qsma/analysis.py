@@ -203,12 +203,15 @@ class Prepared:
 
 
 def _scaled_preload(model, factor):
-    """``model`` with every pressure of the 'preload' pattern multiplied by ``factor``."""
+    """``model`` with every pressure of the 'preload' pattern and every bolt's
+    pretension multiplied by ``factor``."""
     from .model import Pressure
     bodies = tuple(replace(b, pressures=tuple(
         Pressure(p.set, p.p * factor, p.load) if p.load == "preload" else p
         for p in b.pressures)) for b in model.bodies)
-    return replace(model, bodies=bodies)
+    bolts = tuple(replace(b, pretension=b.pretension * factor)
+                  for b in getattr(model, "bolts", ()))      # part of 'preload' too
+    return replace(model, bodies=bodies, bolts=bolts)
 
 
 def _unpickle_prepared(model, pairing, assembled, schur_backend, mu, scale):
@@ -453,7 +456,8 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
                         n_pairs=pairing.n_pairs, mu=model.mu, dim=model.dim,
                         n_closed_after_preload=int(closed.sum()),
                         elements={a.body.name: a.formulation for a in assembled},
-                        coupling=pairing.coupling, **_rigid_info(reduced, modes, pos, grid, user)),
+                        coupling=pairing.coupling,
+                        **_rigid_info(reduced, modes, pos, grid, user)),
         mode_index=opts.mode, omega0=omega0, phi_tip=phi_tip,
         alpha=al, tip_lin=al * phi_tip / omega0 ** 2, q=q, tip=tip,
         q_neg=q_neg, asymmetry=(q + q_neg) / q,

@@ -177,8 +177,9 @@ def linear_modes(model, assembled, pairing, tied=None, n_modes=6) -> Modes:
 
 #: Shift of the free-free eigenproblem, ``K + s M`` factorised with
 #: ``s = FREE_SHIFT_RTOL * max(diag K / diag M)`` (the largest element frequency
-#: squared): positive definite, with condition number ~ 1 / FREE_SHIFT_RTOL, far from
-#: the first elastic eigenvalue of a slender structure (~1e-7 of it, Brake-Reuss beam).
+#: squared): positive definite, with condition number ~ 1 / FREE_SHIFT_RTOL. Any
+#: s > 0 keeps the order (rigid modes at distance s from -s, elastic ones beyond);
+#: on lap-2d-free (refine 1) s = 3.5e-3 w_1^2.
 FREE_SHIFT_RTOL = 1e-9
 
 
