@@ -121,3 +121,24 @@ def test_bolt_naming_an_unknown_body():
     bad = dataclasses.replace(m.bolts[0], body_b="lid")
     with pytest.raises(InputError, match="bolt 'bolt' names body 'lid'"):
         dataclasses.replace(m, bolts=(bad,))
+
+
+def test_bolt_pretension_loads_like_the_patch_it_replaces():
+    """The washer coupling spreads the pretension as a uniform traction: the bolted
+    sandwich-2d has the preload of the pressure-patch sandwich (same nodal loads)."""
+    from qsma.examples import sandwich_2d, sandwich_2d_bolted
+    _, _, pre_p = _preload(sandwich_2d(1))
+    _, _, pre_b = _preload(sandwich_2d_bolted(1))
+    scale = np.abs(pre_p.lam).max()
+    np.testing.assert_array_equal(pre_b.status, pre_p.status)
+    np.testing.assert_allclose(pre_b.lam, pre_p.lam, rtol=0, atol=1e-9 * scale)
+
+
+def test_preload_scale_scales_the_pretension():
+    """A sweep's preload scale multiplies the bolt pretension with the pressures."""
+    p = prepare(lap_2d_bolted(1, free="all")).with_preload_scale(2.0)
+    red, _, pre = p.preloaded(RunOptions(), _Timer())
+    assert p.model.bolts[0].pretension == 2 * BOLT_2D["pretension"]
+    assert red.bolt_forces(pre.d, load_factors(red, 0.0))[0] == pytest.approx(
+        2 * BOLT_2D["pretension"], rel=1e-14)
+    assert pre.lam[:, -1].sum() == pytest.approx(2 * BOLT_2D["pretension"], rel=1e-10)

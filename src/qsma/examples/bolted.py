@@ -49,3 +49,18 @@ def lap_3d_bolted(refine: int = 1, mu: float | None = None):
     bolt = Bolt("bolt", "bottom", "bolt", "top", "bolt", BOLT_3D["pretension"],
                 BOLT_3D["stiffness"])
     return replace(m, bodies=bodies, bolts=(bolt,), name=f"lap-3d-bolted (refine={refine})")
+
+
+def sandwich_2d_bolted(refine: int = 1, mu: float | None = None):
+    """:func:`qsma.examples.sandwich_2d` with a bolt between its two bolt patches
+    instead of the pressures: pretension = the patches' resultant (17.554 MPa x
+    6.35 mm = 111.47 kN per m), locked stiffness ``E w / L`` of a shank as wide as the
+    patch through the 12.7 mm grip (1.0e11 N/m per m)."""
+    from .sandwich import SANDWICH_2D, sandwich_2d
+    s = SANDWICH_2D
+    m = sandwich_2d(refine, mu)
+    bodies = tuple(replace(b, pressures=()) for b in m.bodies)
+    bolt = Bolt("bolt", m.bodies[0].name, "bolt", m.bodies[1].name, "bolt",
+                s["p_bolt"] * s["w_bolt"], s["E"] * s["w_bolt"] / (2 * s["h"]))
+    return replace(m, bodies=bodies, bolts=(bolt,),
+                   name=f"sandwich-2d-bolted (refine={refine})")
