@@ -142,3 +142,21 @@ def test_preload_scale_scales_the_pretension():
     assert red.bolt_forces(pre.d, load_factors(red, 0.0))[0] == pytest.approx(
         2 * BOLT_2D["pretension"], rel=1e-14)
     assert pre.lam[:, -1].sum() == pytest.approx(2 * BOLT_2D["pretension"], rel=1e-10)
+
+
+@pytest.mark.parametrize("free", [("top",), ("bottom", "top")])
+def test_mortar_interface_held_only_by_the_bolt(free):
+    """Non-matching meshes (dual mortar coupling; 23 top elements against 30 in the
+    overlap): the contact pressures still sum to the bolt tension, for the top plate
+    free and for the free-free stack (gauge and spring through the projection)."""
+    from qsma.examples import lap_2d
+    m = lap_2d(1, top_overlap_elements=23)
+    bodies = tuple(dataclasses.replace(b, pressures=(),
+                                       clamps=() if b.name in free else b.clamps)
+                   for b in m.bodies)
+    bolt = Bolt("bolt", "bottom", "bolt", "top", "bolt", BOLT_2D["pretension"],
+                BOLT_2D["stiffness"])
+    p, red, pre = _preload(dataclasses.replace(m, bodies=bodies, bolts=(bolt,)))
+    assert p.pairing.coupling == "mortar"
+    assert red.ghost is not None and (red.gauge is not None) == (len(free) == 2)
+    assert pre.lam[:, -1].sum() == pytest.approx(BOLT_2D["pretension"], rel=1e-10)
