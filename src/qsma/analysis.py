@@ -33,6 +33,9 @@ from .model import make_pairing
 from .multibody import (MultiPairing, body_order, multi_pairing, pair_gaps, pair_mu,
                         reduce_model, warn_closed_gaps)
 from .options import RunOptions
+from .model.bolt import bolt_functionals, with_bolt_loads
+from .pretension import lock
+from .rigid import ANCHOR_ROUNDS, anchored, elastic_probe, held_by_joint, support_share
 from .result import (FAILURE_FLAGS, LEVEL_FIELDS, DirectLoop, LevelStates,  # noqa: F401
                      QSMAResult, load_factors as _load_factors)
 
@@ -213,12 +216,15 @@ class Prepared:
 
 
 def _scaled_preload(model, factor):
-    """``model`` with every pressure of the 'preload' pattern multiplied by ``factor``."""
+    """``model`` with every pressure of the 'preload' pattern and every bolt's
+    pretension multiplied by ``factor``."""
     from .model import Pressure
     bodies = tuple(replace(b, pressures=tuple(
         Pressure(p.set, p.p * factor, p.load) if p.load == "preload" else p
         for p in b.pressures)) for b in model.bodies)
-    return replace(model, bodies=bodies)
+    bolts = tuple(replace(b, pretension=b.pretension * factor)
+                  for b in getattr(model, "bolts", ()))      # part of 'preload' too
+    return replace(model, bodies=bodies, bolts=bolts)
 
 
 def _unpickle_prepared(model, pairing, assembled, schur_backend, mu, scale):
@@ -298,9 +304,20 @@ def preload(model, assembled, pairing, *, method="basket", opts=None, schur_back
                                  gap0=pair_gaps(model, pairing, GAP_REPORT_RTOL))
     with clock.stage("contact"):
         pre, _ = _solve(problem, reduced, 0.0, None, method, opts or {}, "preload")
+        for _ in range(ANCHOR_ROUNDS if getattr(reduced, "ghost", None) else 0):
+            if not pre.success:                    # docs/theory.md section 10
+                break
+            reduced = anchored(reduced, pre.d)
+            pre, _ = _solve(problem, reduced, 0.0, None, method, opts or {}, "preload")
+    if pre.success:
+        pre = held_by_joint(reduced, pre, _load_factors(reduced, 0.0), "the preload")
     if not pre.success:
         raise AnalysisError(f"the preload contact solve failed: {pre.message} "
                             f"(residual {pre.residual:.2e})", partial=pre)
+    if getattr(model, "bolts", ()):
+        with clock.stage("condensation"):                 # bolts locked from here on
+            reduced = lock(reduced, model.bolts, pre.d)
+            problem = ContactProblem(reduced.K, model.mu, dim=model.dim)
     if np.all(pre.status == OPEN):
         raise AnalysisError("the preload leaves no interface pair in contact: the bodies "
                             "separate, and tied modes of a disconnected assembly would be "
@@ -310,14 +327,22 @@ def preload(model, assembled, pairing, *, method="basket", opts=None, schur_back
 
 
 def _condense(model, assembled, pairing, schur_backend, clock):
-    """The reduced model with the 'preload' pattern (static condensation): two bodies,
-    or every body and interface (:func:`qsma.multibody.reduce_model`)."""
+    """The reduced model with the 'preload' pattern (static condensation): two bodies
+    (with their bolts' patterns), or every body and interface
+    (:func:`qsma.multibody.reduce_model`)."""
+    bolts = getattr(model, "bolts", ())
     with clock.stage("condensation"):
         if isinstance(pairing, MultiPairing):
+            if bolts:
+                raise InputError("bolts are supported between two bodies with one interface "
+                                 "only; a model with several interfaces cannot carry them yet "
+                                 "(model them as pressure patches)")
             return reduce_model(model, assembled, pairing, backend=schur_backend)
         i1, i2 = body_order(model, pairing)
-        return reduce_two_bodies(assembled[i1], assembled[i2], pairing,
-                                 backend=schur_backend)
+        reduced = reduce_two_bodies(assembled[i1], assembled[i2], pairing,
+                                    patterns=("preload",) + tuple(b.pattern for b in bolts),
+                                    backend=schur_backend)
+        return bolt_functionals(model, reduced, (i1, i2)) if bolts else reduced
 
 
 def _assemble(model, clock, keep=None):
@@ -334,6 +359,8 @@ def _assemble(model, clock, keep=None):
                                      f"'preload' (the default) or remove the pressure")
                 if not np.all(np.isfinite(F)):
                     raise InputError(f"load {name!r} of body {a.body.name!r} is not finite")
+        if getattr(model, "bolts", ()):
+            assembled = with_bolt_loads(model, assembled)
     return assembled
 
 
@@ -343,22 +370,26 @@ def _mode(model, assembled, pairing, closed, opts, clock):
     with clock.stage("modal"):
         nm = max(6, mode + 1) if opts.n_modes is None else opts.n_modes
         modes = linear_modes(model, assembled, pairing, tied=closed, n_modes=nm)
-        if mode >= len(modes.omega):
-            raise InputError(f"mode index {mode} is beyond the {len(modes.omega)} computed "
-                             f"modes (0..{len(modes.omega) - 1}); raise n_modes")
-        phi = modes.shapes[:, mode].copy()
-        ltip = probe_vector(model)
+        n_el = len(modes.omega) - modes.n_rigid
+        if mode >= n_el:
+            raise InputError(f"mode index {mode} is beyond the {n_el} computed modes "
+                             f"(0..{n_el - 1}, elastic modes: rigid-body modes are not "
+                             f"counted); raise n_modes")
+        phi = modes.shapes[:, modes.n_rigid + mode].copy()
+        raw = probe_vector(model)
+        ltip = elastic_probe(raw, model, assembled)     # free-free: centre-of-mass frame
         phi_tip = float(ltip @ phi)
         if phi_tip < 0:
             phi, phi_tip = -phi, -phi_tip
-        probe_nodes = ltip != 0
+        probe_nodes = raw != 0
         rms = float(np.sqrt(np.mean(phi[probe_nodes] ** 2)))
         if abs(phi_tip) < 1e-6 * rms or rms == 0:
-            raise InputError(f"mode {mode} ({modes.f_hz[mode]:.4g} Hz) has no tip deflection "
+            f_mode = modes.f_hz[modes.n_rigid + mode]
+            raise InputError(f"mode {mode} ({f_mode:.4g} Hz) has no tip deflection "
                              f"along the probe direction (|phi_tip| = {abs(phi_tip):.2e}, "
                              f"RMS of the mode at the tip nodes {rms:.2e}); choose a mode "
                              f"that moves the tip: the load levels are scaled by it")
-    return modes, phi, phi_tip, float(modes.omega[mode]), ltip
+    return modes, phi, phi_tip, float(modes.omega[modes.n_rigid + mode]), ltip
 
 
 def _run(model, pairing, opts, progress, clock, prepared=None):
@@ -437,7 +468,8 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
                         mu=_mu_info(model), n_interfaces=len(model.interface_list),
                         n_closed_after_preload=int(closed.sum()),
                         elements={a.body.name: a.formulation for a in assembled},
-                        coupling=pairing.coupling),
+                        coupling=pairing.coupling,
+                        **_rigid_info(reduced, modes, pos, grid, user)),
         mode_index=opts.mode, omega0=omega0, phi_tip=phi_tip,
         alpha=al, tip_lin=al * phi_tip / omega0 ** 2, q=q, tip=tip,
         q_neg=q_neg, asymmetry=(q + q_neg) / q,
@@ -477,6 +509,17 @@ def _mu_info(model):
     if all(i.mu is None for i in itfs):
         return model.mu
     return [model.mu if i.mu is None else i.mu for i in itfs]
+
+
+def _rigid_info(reduced, modes, pos, grid, user):
+    """Rigid-body freedom of the run for model_info (docs/theory.md section 10): the
+    rigid modes skipped (``mode`` counts elastic modes), the bodies held only by the
+    joint and the largest share of their load held by the regularising spring."""
+    share = [support_share(reduced, pos.d[g], _load_factors(reduced, grid[g]))
+             for g in user] if getattr(reduced, "ghost", None) is not None else []
+    return dict(rigid_modes=int(modes.n_rigid), mode_counts="elastic modes",
+                held_by_joint=[b.name for b in reduced.bodies if b.rigid is not None],
+                joint_spring_share_max=float(max(share, default=0.0)))
 
 
 class _Response:
@@ -524,6 +567,8 @@ class _Solver:
     def __call__(self, alpha, state, where):
         res, self.zone = _solve(self.problem, self.reduced, alpha, state, self.method,
                                 self.opts, where, self.zone)
+        if res.success:
+            res = held_by_joint(self.reduced, res, _load_factors(self.reduced, alpha), where)
         return res
 
 

@@ -50,6 +50,7 @@ class CondensedBody:
     solve_EE: object
     K_EC: object
     timings: dict = None
+    rigid: np.ndarray = None     # orthonormal free rigid motions on C (local), or None
 
     def condensed_load(self, F: np.ndarray) -> np.ndarray:
         """``Fc = R^T (F_C - K_CE K_EE^-1 F_E)`` for full-length load(s) ``F``."""
@@ -132,10 +133,14 @@ def check_constrained(assembled):
 
 
 def condense_body(assembled, nodes, frames, backend="auto") -> CondensedBody:
-    """Condense one assembled body onto the interface ``nodes`` (pair order, frames)."""
+    """Condense one assembled body onto the interface ``nodes`` (pair order, frames).
+
+    A body whose clamps leave rigid motions free is held through the interface: its
+    ``Kc`` is singular along them; ``rigid`` holds their basis on the interface DOFs
+    (:func:`qsma.rigid.interface_basis`; docs/theory.md section 10)."""
+    from .rigid import interface_basis
     body = assembled.body
     dim = body.dim
-    check_constrained(assembled)
     C = (dim * nodes[:, None] + np.arange(dim)[None, :]).ravel()
     fixed = np.zeros(body.n_dofs, dtype=bool)
     fixed[assembled.fixed] = True
@@ -149,15 +154,17 @@ def condense_body(assembled, nodes, frames, backend="auto") -> CondensedBody:
     try:
         Kc_glob, solve = schur_complement(Kf, np.searchsorted(free, C), backend=backend)
     except InputError as exc:
-        raise InputError(f"body {body.name!r}: {exc}") from exc
+        raise InputError(f"body {body.name!r}: {exc}; a body without clamps must be held "
+                         f"by its interface nodes (not all on one line in 3D)") from exc
     t0 = time.perf_counter()
     E = free[solve.E]
     K_EC = K[E][:, C].tocsc()
     R = pair_rotation(frames)
     Kc = np.asarray(R.T @ (R.T @ Kc_glob).T)          # R^T Kc R, Kc_glob symmetric
     Kc = 0.5 * (Kc + Kc.T)
+    rigid = interface_basis(assembled, C, R)
     timings = dict(solve.timings, rotation=time.perf_counter() - t0, backend=solve.backend)
-    return CondensedBody(body.name, body.n_dofs, C, E, R, Kc, solve, K_EC, timings)
+    return CondensedBody(body.name, body.n_dofs, C, E, R, Kc, solve, K_EC, timings, rigid)
 
 
 @dataclass(frozen=True, eq=False)
@@ -182,6 +189,9 @@ class ReducedModel:
     P : None, or the dense (n, n_master dofs) projection, slave local frames from
         master global components
     slave : 0 or 1, index of the slave body in ``bodies`` (0 for node-to-node)
+    ghost : None, or the :class:`qsma.rigid.Ghost` spring added to ``K`` along the
+        relative rigid motions of bodies held only by the joint (``S`` then carries
+        the gauge of a free-free assembly, docs/theory.md section 10)
     """
 
     K: np.ndarray
@@ -196,6 +206,8 @@ class ReducedModel:
     definitions: dict
     P: np.ndarray | None = None
     slave: int = 0
+    ghost: object = None          # qsma.rigid.Ghost: K holds its spring, or None
+    gauge: np.ndarray | None = None   # rigid motions of a free-free assembly in S
 
     @property
     def n_pairs(self):
@@ -246,7 +258,11 @@ class ReducedModel:
         loads = tuple(np.column_stack([L, F]) for L, F in zip(self.loads, (F1, F2)))
         Fc = tuple(np.column_stack([fc, b.condensed_load(F)])
                    for fc, b, F in zip(self.Fc, self.bodies, (F1, F2)))
-        new = replace(self, W=_welded(self.bodies, self.S_cho, Fc, self.P, self.slave),
+        w_new = _welded(self.bodies, self.S_cho, tuple(f[:, -1:] for f in Fc), self.P,
+                        self.slave, self.gauge is not None)
+        # the existing columns are kept as they are (the preload was solved with them;
+        # the ghost spring's anchor lives in the 'preload' column, qsma.rigid.anchored)
+        new = replace(self, W=np.column_stack([self.W, w_new]),
                       patterns=self.patterns + (name,), loads=loads, Fc=Fc, functionals={})
         return new.with_functionals(self.definitions)
 
@@ -259,9 +275,13 @@ class ReducedModel:
         return replace(self, functionals=funcs, definitions={**self.definitions, **definitions})
 
 
-def _welded(bodies, S_cho, Fc, P=None, slave=0):
+def _welded(bodies, S_cho, Fc, P=None, slave=0, gauged=False):
     """``W``: node-to-node ``Kc_2 S^-1 Fc_1 - Kc_1 S^-1 Fc_2``; projection
-    ``sigma (Kc_s P S^-1 (P^T Fc_s + Fc_m) - Fc_s)``."""
+    ``sigma (Kc_s P S^-1 (P^T Fc_s + Fc_m) - Fc_s)``. With the gauge of a free-free
+    assembly in ``S`` (``gauged``) only ``S^-1`` of the self-equilibrated sum is exact:
+    node-to-node then ``Kc_2 S^-1 (Fc_1 + Fc_2) - Fc_2``."""
+    if P is None and gauged:
+        return bodies[1].Kc @ sla.cho_solve(S_cho, Fc[0] + Fc[1]) - Fc[1]
     if P is None:
         Kc1, Kc2 = bodies[0].Kc, bodies[1].Kc
         return Kc2 @ sla.cho_solve(S_cho, Fc[0]) - Kc1 @ sla.cho_solve(S_cho, Fc[1])
@@ -293,9 +313,10 @@ def _functional(rm, l1, l2):
     return c_d, c_a
 
 
-def _factor_S(S):
+def _factor_S(S, Z=None):
+    from .rigid import regularised_S
     try:
-        return sla.cho_factor(S)
+        return sla.cho_factor(regularised_S(S, Z))
     except np.linalg.LinAlgError as exc:
         raise InputError("the condensed stiffness of the welded pair (Kc_1 + Kc_2, or "
                          "Kc_m + P^T Kc_s P) is not positive definite: the two bodies "
@@ -311,7 +332,7 @@ def projection_matrix(pairing, R_slave) -> np.ndarray:
     return np.asarray((R_slave.T @ N).todense())
 
 
-def combine(slave, master, P):
+def combine(slave, master, P, Z=None):
     r"""Relative-displacement stiffness of a slave body coupled to a master body by the
     projection ``P``, and the factor of the welded pair's stiffness.
 
@@ -324,7 +345,7 @@ def combine(slave, master, P):
     Only ``S`` (SPD when the welded pair is held) is factorised; for ``P = I`` this is
     ``Kc_s S^-1 Kc_m`` of the node-to-node formula (which the node coupling uses as is).
     """
-    S_cho = _factor_S(master.Kc + P.T @ slave.Kc @ P)
+    S_cho = _factor_S(master.Kc + P.T @ slave.Kc @ P, Z)
     KP = slave.Kc @ P
     K = slave.Kc - KP @ sla.cho_solve(S_cho, KP.T)
     return 0.5 * (K + K.T), S_cho
@@ -347,11 +368,14 @@ def reduce_two_bodies(assembled1, assembled2, pairing, patterns=("preload",),
         b1 = condense_body(assembled1, pairing.nodes1, pairing.frames, backend)
         b2 = condense_body(assembled2, pairing.nodes2, pairing.frames, backend)
         Fc = (b1.condensed_load(loads[0]), b2.condensed_load(loads[1]))
-        S_cho = _factor_S(b1.Kc + b2.Kc)
+        Z = _gauge(asm, (b1, b2), 0, loads)
+        S_cho = _factor_S(b1.Kc + b2.Kc, Z)
         K = b1.Kc @ sla.cho_solve(S_cho, b2.Kc)
         K = 0.5 * (K + K.T)
-        W = _welded((b1, b2), S_cho, Fc)
-        return ReducedModel(K, W, tuple(patterns), (b1, b2), loads, S_cho, Fc, dim, {}, {})
+        W = _welded((b1, b2), S_cho, Fc, gauged=Z is not None)
+        K, g = _ghost(K, [None if b1.rigid is None else -b1.rigid, b2.rigid])
+        return ReducedModel(K, W, tuple(patterns), (b1, b2), loads, S_cho, Fc, dim, {}, {},
+                            ghost=g, gauge=Z)
     s = pairing.slave - 1
     m = 1 - s
     nodes = (pairing.nodes1, pairing.nodes2)
@@ -360,8 +384,28 @@ def reduce_two_bodies(assembled1, assembled2, pairing, patterns=("preload",),
     bm = condense_body(asm[m], nodes[m], eye, backend)
     P = projection_matrix(pairing, bs.R)
     sigma = 1.0 if s == 1 else -1.0
-    K, S_cho = combine(bs, bm, P)
     bodies = (bs, bm) if s == 0 else (bm, bs)
     Fc = tuple(b.condensed_load(L) for b, L in zip(bodies, loads))
+    Z = _gauge(asm, bodies, m, loads)
+    K, S_cho = combine(bs, bm, P, Z)
     W = _welded(bodies, S_cho, Fc, P, s)
-    return ReducedModel(K, W, tuple(patterns), bodies, loads, S_cho, Fc, dim, {}, {}, P, s)
+    K, g = _ghost(K, [None if bs.rigid is None else sigma * bs.rigid,
+                      None if bm.rigid is None else -sigma * (P @ bm.rigid)])
+    return ReducedModel(K, W, tuple(patterns), bodies, loads, S_cho, Fc, dim, {}, {}, P, s,
+                        ghost=g, gauge=Z)
+
+
+def _gauge(asm, bodies, index, loads):
+    """Rigid motions of a free-free assembly on the unknowns of ``S`` (or None), its
+    loads checked to be self-equilibrated (:func:`qsma.rigid.assembly_gauge`)."""
+    from .rigid import assembly_gauge
+    return assembly_gauge(asm, bodies, index, loads)
+
+
+def _ghost(K, images):
+    """``(K + k N N^T, Ghost)`` along the relative rigid motions, or ``(K, None)``."""
+    from .rigid import ghost
+    g = ghost(K, images)
+    if g is None:
+        return K, None
+    return K + g.k * (g.N @ g.N.T), g

@@ -40,12 +40,14 @@ class Modes:
     """Natural frequencies and mass-normalised shapes (stacked DOFs of all bodies).
 
     ``shapes[:, k]`` is mode k over the DOF vector of all bodies (``model.dof_offsets``);
-    ``tied`` is the mask of tied pairs used.
+    ``tied`` is the mask of tied pairs used; the first ``n_rigid`` modes are the rigid
+    motions of an assembly that no clamp holds (frequency ~0), the elastic modes follow.
     """
 
     omega: np.ndarray
     shapes: np.ndarray
     tied: np.ndarray
+    n_rigid: int = 0
 
     @property
     def f_hz(self):
@@ -105,30 +107,74 @@ def linear_modes(model, assembled, pairing, tied=None, n_modes=6) -> Modes:
     """First ``n_modes`` modes with the pairs in mask ``tied`` tied (default: all).
 
     Solves ``(T^T K T - w^2 T^T M T) phi_r = 0`` by shift-invert Lanczos about 0;
-    shapes are mass-normalised (``phi^T M phi = 1``).
+    shapes are mass-normalised (``phi^T M phi = 1``). An assembly that no clamp holds
+    (free-free, :func:`qsma.rigid.assembly_free_motions` motions free) is shifted to
+    ``-s`` (:data:`FREE_SHIFT_RTOL`); its rigid modes come first (``Modes.n_rigid``)
+    and ``n_modes`` elastic modes follow them.
     """
     if tied is None:
         tied = np.ones(pairing.n_pairs, dtype=bool)
     tied = np.asarray(tied, dtype=bool)
     if tied.shape != (pairing.n_pairs,):
         raise InputError(f"tied mask must have {pairing.n_pairs} entries, got {tied.shape}")
+    from .rigid import assembly_free_motions
     T = tie_transform(model, assembled, pairing, tied)
+    n_free = assembly_free_motions(model, assembled)
     check_n_modes(n_modes, T.shape[1])
-    K = (T.T @ stacked([a.K for a in assembled]) @ T).tocsc()
+    K = stacked([a.K for a in assembled])
+    if getattr(model, "bolts", ()):
+        from .model.bolt import bolt_stiffness
+        K = K + bolt_stiffness(model)                  # the bolts locked after preload
+    K = (T.T @ K @ T).tocsc()
     M = (T.T @ stacked([a.M for a in assembled]) @ T).tocsc()
-    k = n_modes
-    solve = _factor(K, model, assembled, T)
+    k = min(n_modes + n_free, T.shape[1] - 2)
+    shift = free_shift(K, M) if n_free else 0.0
+    solve = _factor((K + shift * M).tocsc() if n_free else K, model, assembled, T)
     op = spla.LinearOperator(K.shape, matvec=solve, matmat=solve, dtype=float)
     try:
-        lam, vec = spla.eigsh(K, k=k, M=M, sigma=0.0, which="LM", OPinv=op)
+        lam, vec = spla.eigsh(K, k=k, M=M, sigma=-shift, which="LM", OPinv=op)
     except spla.ArpackNoConvergence as exc:
         raise AnalysisError(f"eigen solver did not converge ({len(exc.eigenvalues)} of {k} "
                             f"modes found)", partial=exc) from exc
     order = np.argsort(lam)
     lam, vec = lam[order], vec[:, order]
-    _check_rigid(lam, model, assembled, T, vec)
+    if n_free:
+        _check_free_rigid(lam, model, assembled, T, vec, n_free)
+    else:
+        _check_rigid(lam, model, assembled, T, vec)
     vec /= np.sqrt(np.einsum("ik,ik->k", vec, M @ vec))
-    return Modes(np.sqrt(np.maximum(lam, 0.0)), T @ vec, tied.copy())
+    omega = np.sqrt(np.maximum(lam, 0.0))
+    omega[:n_free] = 0.0
+    return Modes(omega, T @ vec, tied.copy(), n_free)
+
+
+#: Shift of the free-free eigenproblem, ``K + s M`` factorised with
+#: ``s = FREE_SHIFT_RTOL * max(diag K / diag M)`` (the largest element frequency
+#: squared): positive definite, with condition number ~ 1 / FREE_SHIFT_RTOL. Any
+#: s > 0 keeps the order (rigid modes at distance s from -s, elastic ones beyond);
+#: on lap-2d-free (refine 1) s = 3.5e-3 w_1^2.
+FREE_SHIFT_RTOL = 1e-9
+
+
+def free_shift(K, M) -> float:
+    """The shift ``s`` of :data:`FREE_SHIFT_RTOL`."""
+    dk, dm = K.diagonal(), M.diagonal()
+    return FREE_SHIFT_RTOL * float(np.max(dk[dm > 0] / dm[dm > 0]))
+
+
+def _check_free_rigid(lam, model, assembled, T, vec, n_free):
+    """The first ``n_free`` modes of a free-free assembly must be rigid motions and the
+    next one elastic; otherwise a body is not held by the joint (a mechanism)."""
+    parts = [nonrigid_part(model, assembled, T @ vec[:, j]) for j in range(len(lam))]
+    rigid = int(np.sum(np.array(parts) < RIGID_TOL))
+    if rigid > n_free or not all(p < RIGID_TOL for p in parts[:n_free]):
+        from .rigid import rigid_modes_message
+        j = n_free if rigid > n_free else int(np.argmax(parts[:n_free]))
+        full = T @ vec[:, j]
+        off = model.dof_offsets()
+        share = [np.linalg.norm(full[off[k]:off[k + 1]]) for k in range(len(assembled))]
+        worst = assembled[int(np.argmax(share))].body.name
+        raise InputError(rigid_modes_message(lam[j], rigid, n_free, worst))
 
 
 def check_n_modes(n_modes, n_free=None):

@@ -11,4 +11,6 @@ from .io import read_mesh, write_mesh  # noqa: E402
 from .mesh import FacetIndex, facet_index  # noqa: E402
 from .validate import validate_mesh  # noqa: E402
 
-__all__ += ["read_mesh", "write_mesh", "FacetIndex", "facet_index", "validate_mesh"]
+from .bolt import Bolt  # noqa: E402
+
+__all__ += ["Bolt", "read_mesh", "write_mesh", "FacetIndex", "facet_index", "validate_mesh"]

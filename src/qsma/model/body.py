@@ -163,6 +163,7 @@ class Model:
     name: str = "model"
     extra: dict = field(default_factory=dict)
     interfaces: tuple = ()
+    bolts: tuple = ()                 # qsma.model.bolt.Bolt, pretensioned then locked
 
     def __post_init__(self):
         object.__setattr__(self, "bodies", tuple(self.bodies))
@@ -189,6 +190,20 @@ class Model:
         check_interfaces(self)
         if self.tip is not None:
             self._check_probe(self.tip)
+        self._check_bolts(names)
+
+    def _check_bolts(self, names):
+        """Bolt ends on bodies of the model, unique bolt names."""
+        object.__setattr__(self, "bolts", tuple(self.bolts))
+        seen = set()
+        for b in self.bolts:
+            for end in (b.body_a, b.body_b):
+                if end not in names:
+                    raise InputError(f"bolt {b.name!r} names body {end!r}, which is not "
+                                     f"in the model (bodies: {names})")
+            if b.name in seen:
+                raise InputError(f"bolt names must be unique: {b.name!r} twice")
+            seen.add(b.name)
 
     @property
     def interface_list(self) -> tuple:
