@@ -55,8 +55,7 @@ def test_model_translated_by_one_km_gives_same_operators_and_frequency(make, off
 # ---------------------------------------------------------------- quadratic cells
 from qsma.model import Body, Clamp, Material, Mesh, Pressure, boundary_facets  # noqa: E402
 from qsma.model.generate import structured_mesh  # noqa: E402
-from test_fe import check_patch, _distorted_patch  # noqa: E402
-from test_fe3d import _distorted  # noqa: E402
+from helpers import check_patch, distorted_3d, distorted_patch  # noqa: E402
 
 STEEL = Material(200e9, 0.285, 7800.0)
 A2 = np.array([[1e-3, 2e-4], [-5e-4, 3e-4]])
@@ -86,7 +85,7 @@ def _perturb_interior(mesh: Mesh, amp, seed=1) -> Mesh:
 
 def _quadratic_patch(cell_type):
     if cell_type in ("triangle6", "tetra10"):
-        lin = _distorted_patch("triangle") if cell_type == "triangle6" else _distorted("tetra")
+        lin = distorted_patch("triangle") if cell_type == "triangle6" else distorted_3d("tetra")
         return _perturb_interior(quadratic_simplices(lin), 0.01)
     dim = 2 if cell_type.startswith("quad") else 3
     xs = np.linspace(0, 1, 4)
@@ -198,7 +197,7 @@ def _global(mesh, Ke):
                          shape=(n, n))
 
 
-@pytest.mark.parametrize("mesh", [_distorted_patch("quad"), _distorted("hexahedron")],
+@pytest.mark.parametrize("mesh", [distorted_patch("quad"), distorted_3d("hexahedron")],
                          ids=["quad", "hexahedron"])
 def test_hand_assembly_without_modes_equals_scikit_fem(mesh):
     """The hand-written element loop with the modes switched off is scikit-fem's Q1."""
@@ -221,20 +220,20 @@ def _interior_error(K, mesh, A):
 
 
 @pytest.mark.parametrize("element, mesh, A", [
-    ("CPE4I", _distorted_patch("quad"), A2), ("C3D8I", _distorted("hexahedron"), A3)])
+    ("CPE4I", distorted_patch("quad"), A2), ("C3D8I", distorted_3d("hexahedron"), A3)])
 def test_incompatible_patch_on_distorted_mesh(element, mesh, A):
     a = check_patch(dataclasses.replace(mesh, element=element), A)
     assert "incompatible modes" in a.formulation
 
 
 def test_plane_stress_incompatible_patch_on_distorted_mesh():
-    mesh = dataclasses.replace(_distorted_patch("quad"), element="CPS4I")
+    mesh = dataclasses.replace(distorted_patch("quad"), element="CPS4I")
     a = assemble_body(Body("p", mesh, STEEL))
     assert _interior_error(a.K, mesh, A2) < 1e-12
     assert a.formulation.startswith("CPS4I: plane stress")
 
 
-@pytest.mark.parametrize("mesh", [_distorted_patch("quad"), _distorted("hexahedron")],
+@pytest.mark.parametrize("mesh", [distorted_patch("quad"), distorted_3d("hexahedron")],
                          ids=["quad", "hexahedron"])
 def test_wilson_element_without_taylor_correction_fails_the_patch_test(mesh):
     """The reason for Taylor's correction: with the local Jacobian in the mode gradients,
@@ -284,7 +283,7 @@ def test_formulation_resolved_from_mesh_element(cell_type, element, label):
     dim = 3 if cell_type in ("hexahedron", "tetra10", "hexahedron20") else 2
     m = _quadratic_patch(cell_type) if cell_type in ("quad8", "triangle6", "tetra10",
                                                      "hexahedron20") else \
-        (_distorted_patch("quad") if dim == 2 else _distorted("hexahedron"))
+        (distorted_patch("quad") if dim == 2 else distorted_3d("hexahedron"))
     form = resolve_formulation(dataclasses.replace(m, element=element))
     assert form.label.startswith(label)
 
@@ -295,8 +294,8 @@ def test_formulation_resolved_from_mesh_element(cell_type, element, label):
     ("quad", "CPE8", "disagree"), ("quad", "C3D8", "does not fit"),
     ("quad", "S4R", "not an element"), ("quad8", "CPE8I", "CPE4I/CPS4I/C3D8I only")])
 def test_unimplemented_formulations_are_refused_not_replaced(cell_type, element, words):
-    m = _quadratic_patch(cell_type) if cell_type == "quad8" else _distorted_patch("quad") \
-        if cell_type == "quad" else _distorted("hexahedron")
+    m = _quadratic_patch(cell_type) if cell_type == "quad8" else distorted_patch("quad") \
+        if cell_type == "quad" else distorted_3d("hexahedron")
     with pytest.raises(InputError, match=words):
         assemble_body(Body("b", dataclasses.replace(m, element=element), STEEL))
 
@@ -307,7 +306,7 @@ import re  # noqa: E402
 import shutil  # noqa: E402
 import subprocess  # noqa: E402
 
-from test_fe3d import HEX_TO_TETS  # noqa: E402
+from helpers import HEX_TO_TETS  # noqa: E402
 
 needs_ccx = pytest.mark.skipif(shutil.which("ccx") is None,
                                reason="CalculiX (ccx) not installed "
@@ -441,7 +440,7 @@ def test_boundary_facets_and_normals_of_quadratic_cells(cell_type):
 
 def test_with_sets_keeps_the_element_name():
     """Adding sets must not silently drop the formulation the source file named."""
-    m = dataclasses.replace(_distorted_patch("quad"), element="CPS4I")
+    m = dataclasses.replace(distorted_patch("quad"), element="CPS4I")
     assert m.with_sets(node_sets={"a": [0]}).element == "CPS4I"
     assert "plane stress" in assemble_body(Body("b", m.with_sets(), STEEL)).formulation
 

@@ -3,49 +3,14 @@ import numpy as np
 import pytest
 import scipy.sparse.linalg as spla
 
-from qsma.fe import assemble_body, stress_at_nodes
-from qsma.model import Body, Clamp, Material, Mesh, Pressure, boundary_facets
+from qsma.fe import assemble_body
+from qsma.model import Body, Clamp, Pressure
 from qsma.model.generate import structured_mesh
-
-STEEL = Material(200e9, 0.285, 7800.0)
-
-
-def _distorted_patch(cell_type):
-    xs = np.linspace(0, 1, 5)
-    m = structured_mesh(xs, xs)
-    p = m.points.copy()
-    rng = np.random.default_rng(0)
-    inner = (p[:, 0] > 0) & (p[:, 0] < 1) & (p[:, 1] > 0) & (p[:, 1] < 1)
-    p[inner] += rng.uniform(-0.08, 0.08, size=(inner.sum(), 2))
-    if cell_type == "quad":
-        return Mesh(p, m.cells, "quad")
-    tri = np.concatenate([m.cells[:, [0, 1, 2]], m.cells[:, [0, 2, 3]]])
-    return Mesh(p, tri, "triangle")
-
-
-def check_patch(mesh, A):
-    """Impose ``u = A x`` on the boundary of ``mesh``: the interior must reproduce it to
-    round-off and the stress must be the uniform ``C : sym(A)``."""
-    dim = mesh.dim
-    a = assemble_body(Body("patch", mesh, STEEL))
-    u = (mesh.points @ A.T).ravel()
-    bnd = np.unique(boundary_facets(mesh))
-    B = (dim * bnd[:, None] + np.arange(dim)).ravel()
-    I = np.setdiff1d(np.arange(a.n_dofs), B)
-    K = a.K.tocsr()
-    uI = spla.spsolve(K[I][:, I].tocsc(), -K[I][:, B] @ u[B])
-    assert np.abs(uI - u[I]).max() < 1e-12 * np.abs(u).max()
-    sig, _ = stress_at_nodes(a.body, u)
-    lam, mu = STEEL.lame
-    eps = 0.5 * (A + A.T)
-    exact = 2 * mu * eps + lam * np.trace(eps) * np.eye(dim)
-    assert np.abs(sig - exact).max() < 1e-9 * np.abs(exact).max()
-    return a
-
+from helpers import STEEL, check_patch, distorted_patch
 
 @pytest.mark.parametrize("cell_type", ["quad", "triangle"])
 def test_patch_uniform_stress_reproduced_on_distorted_mesh(cell_type):
-    check_patch(_distorted_patch(cell_type), np.array([[1e-3, 2e-4], [-5e-4, 3e-4]]))
+    check_patch(distorted_patch(cell_type), np.array([[1e-3, 2e-4], [-5e-4, 3e-4]]))
 
 
 def _cantilever(n_thick, L=0.2, h=0.00625):
@@ -117,7 +82,7 @@ def test_elasticity_form_equals_scikit_fem_model():
     import skfem
     from skfem.models.elasticity import linear_elasticity
     from qsma.fe.assembly import _basis, _elasticity_form
-    mesh = _distorted_patch("quad")
+    mesh = distorted_patch("quad")
     _, basis = _basis(mesh)
     lam, mu = STEEL.lame
     K_ref = skfem.asm(linear_elasticity(lam, mu), basis)

@@ -3,35 +3,15 @@ import numpy as np
 import pytest
 import scipy.sparse.linalg as spla
 
-from qsma.fe import assemble_body, stress_at_nodes
-from qsma.model import Body, Clamp, Material, Mesh, boundary_facets
+from qsma.fe import assemble_body
+from qsma.model import Body, Clamp
 from qsma.model.generate import structured_mesh
-from test_fe import check_patch
-
-STEEL = Material(200e9, 0.285, 7800.0)
-# Kuhn split along the 0-6 diagonal: conforming between neighbouring hexahedra
-HEX_TO_TETS = [(0, 1, 2, 6), (0, 2, 3, 6), (0, 3, 7, 6), (0, 7, 4, 6), (0, 4, 5, 6), (0, 5, 1, 6)]
-
-
-def _distorted(cell_type):
-    xs = np.linspace(0, 1, 4)
-    m = structured_mesh(xs, xs, xs)
-    p = m.points.copy()
-    inner = np.all((p > 0) & (p < 1), axis=1)
-    p[inner] += np.random.default_rng(0).uniform(-0.08, 0.08, size=(inner.sum(), 3))
-    if cell_type == "hexahedron":
-        return Mesh(p, m.cells, "hexahedron")
-    tets = np.concatenate([m.cells[:, list(t)] for t in HEX_TO_TETS])
-    q = p[tets]
-    vol = np.einsum("ij,ij->i", np.cross(q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]), q[:, 3] - q[:, 0])
-    tets[vol < 0] = tets[vol < 0][:, [0, 2, 1, 3]]
-    return Mesh(p, tets, "tetra")
-
+from helpers import STEEL, check_patch, distorted_3d
 
 @pytest.mark.parametrize("cell_type", ["hexahedron", "tetra"])
 def test_patch_3d(cell_type):
     A = np.array([[1e-3, 2e-4, 0.0], [-5e-4, 3e-4, 1e-4], [2e-4, 0.0, -1e-4]])
-    a = check_patch(_distorted(cell_type), A)
+    a = check_patch(distorted_3d(cell_type), A)
     assert a.M.sum() / 3 == pytest.approx(STEEL.rho, rel=1e-12)     # unit cube mass
 
 

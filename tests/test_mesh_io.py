@@ -16,6 +16,7 @@ from qsma.examples import sandwich_2d
 from qsma.model.generate import structured_mesh
 from qsma.model.io import MESH_FORMATS, read_mesh, write_mesh
 from qsma.model.mesh import Mesh, boundary_facets
+from helpers import QUAD_GRID
 
 DATA = Path(__file__).parent / "data"
 #: (file name, gmsh_version) of every format and version written
@@ -281,31 +282,6 @@ def test_inp_nodes_blocks_generate_comments_lower_case(tmp_path):
     assert {k: v.tolist() for k, v in m.node_sets.items()} == \
         {"first": [0, 1], "gen": [1, 3, 5], "Ref": [0, 1, 4], "on_second": [1, 2, 4, 5]}
     assert {k: v.tolist() for k, v in m.cell_sets.items()} == {"plate": [0, 1], "Second": [1]}
-
-
-QUAD_GRID = """\
-*NODE
-1, 0, 0
-2, 1, 0
-3, 2, 0
-4, 0, 1
-5, 1, 1
-6, 2, 1
-*ELEMENT, TYPE=CPE4, ELSET=ALL
-1, 1, 2, 5, 4
-2, 2, 3, 6, 5
-*ELSET, ELSET=_first, INTERNAL
-1
-*SURFACE, TYPE=ELEMENT, NAME=s1
-1, S1
-*SURFACE, NAME=s2
-2, S2
-*Surface, type=element, name=s3
-_first, s3
-*SURFACE, NAME=s4
-_FIRST, S4
-"""
-
 
 def test_inp_surfaces_s1_to_s4_on_cpe4(tmp_path):
     m = read_mesh(write_text(tmp_path, "grid.inp", QUAD_GRID))

@@ -14,8 +14,7 @@ from qsma.model import Body, Clamp, Material, Mesh, Pressure, make_pairing
 from qsma.model.generate import structured_mesh
 from qsma.model.io import read_mesh, write_mesh
 from qsma.model.mesh import CellBlock, boundary_facets, mixed_mesh
-from test_fe import check_patch, _distorted_patch
-from test_mesh_io import QUAD_GRID
+from helpers import QUAD_GRID, check_patch, distorted_patch
 
 STEEL = Material(200e9, 0.285, 7800.0)
 A2 = np.array([[1e-3, 2e-4], [-5e-4, 3e-4]])
@@ -88,7 +87,7 @@ def test_patch_test_on_distorted_mixed_triangle_quad_mesh(quads):
     """Uniform strain reproduced exactly: quads (full integration or incompatible
     modes) and triangles, each block with its own element, assembled into one matrix
     (and the stress of both blocks uniform)."""
-    m = _distorted_patch("quad")
+    m = distorted_patch("quad")
     mixed = split_cells(m, checkerboard(m))
     blocks = [CellBlock("quad", mixed.cells, quads), CellBlock("triangle",
                                                                mixed.extra_blocks[0].cells)]
@@ -251,7 +250,7 @@ def test_gmsh41_file_with_quads_and_triangles(tmp_path):
 
 def test_gmsh22_file_written_by_meshio_with_quads_and_triangles(tmp_path):
     import meshio
-    m = _distorted_patch("quad")
+    m = distorted_patch("quad")
     mixed = split_cells(m, checkerboard(m))
     left = mixed.boundary_facets_where(lambda p: p[:, 0] < 1e-12)
     blocks = [(b.cell_type, b.cells) for b in mixed.cell_blocks] + [("line", left)]

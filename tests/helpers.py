@@ -1,0 +1,91 @@
+"""Helpers shared by several test modules (tests import this module, never each
+other): patch tests, distorted meshes, a small Abaqus deck."""
+import numpy as np
+import scipy.sparse.linalg as spla
+
+from qsma.fe import assemble_body, stress_at_nodes
+from qsma.model import Body, Material, Mesh, boundary_facets
+from qsma.model.generate import structured_mesh
+
+STEEL = Material(200e9, 0.285, 7800.0)
+
+
+def distorted_patch(cell_type):
+    """A 4 x 4 unit-square patch of quads (or triangles) with its interior nodes moved
+    at random (seeded)."""
+    xs = np.linspace(0, 1, 5)
+    m = structured_mesh(xs, xs)
+    p = m.points.copy()
+    rng = np.random.default_rng(0)
+    inner = (p[:, 0] > 0) & (p[:, 0] < 1) & (p[:, 1] > 0) & (p[:, 1] < 1)
+    p[inner] += rng.uniform(-0.08, 0.08, size=(inner.sum(), 2))
+    if cell_type == "quad":
+        return Mesh(p, m.cells, "quad")
+    tri = np.concatenate([m.cells[:, [0, 1, 2]], m.cells[:, [0, 2, 3]]])
+    return Mesh(p, tri, "triangle")
+
+
+def check_patch(mesh, A):
+    """Impose ``u = A x`` on the boundary of ``mesh``: the interior must reproduce it to
+    round-off and the stress must be the uniform ``C : sym(A)``."""
+    dim = mesh.dim
+    a = assemble_body(Body("patch", mesh, STEEL))
+    u = (mesh.points @ A.T).ravel()
+    bnd = np.unique(boundary_facets(mesh))
+    B = (dim * bnd[:, None] + np.arange(dim)).ravel()
+    I = np.setdiff1d(np.arange(a.n_dofs), B)
+    K = a.K.tocsr()
+    uI = spla.spsolve(K[I][:, I].tocsc(), -K[I][:, B] @ u[B])
+    assert np.abs(uI - u[I]).max() < 1e-12 * np.abs(u).max()
+    sig, _ = stress_at_nodes(a.body, u)
+    lam, mu = STEEL.lame
+    eps = 0.5 * (A + A.T)
+    exact = 2 * mu * eps + lam * np.trace(eps) * np.eye(dim)
+    assert np.abs(sig - exact).max() < 1e-9 * np.abs(exact).max()
+    return a
+
+
+# Kuhn split along the 0-6 diagonal: conforming between neighbouring hexahedra
+HEX_TO_TETS = [(0, 1, 2, 6), (0, 2, 3, 6), (0, 3, 7, 6), (0, 7, 4, 6), (0, 4, 5, 6), (0, 5, 1, 6)]
+
+
+def distorted_3d(cell_type):
+    """A 3 x 3 x 3 unit-cube patch of hexahedra (or tetrahedra) with its interior nodes
+    moved at random (seeded)."""
+    xs = np.linspace(0, 1, 4)
+    m = structured_mesh(xs, xs, xs)
+    p = m.points.copy()
+    inner = np.all((p > 0) & (p < 1), axis=1)
+    p[inner] += np.random.default_rng(0).uniform(-0.08, 0.08, size=(inner.sum(), 3))
+    if cell_type == "hexahedron":
+        return Mesh(p, m.cells, "hexahedron")
+    tets = np.concatenate([m.cells[:, list(t)] for t in HEX_TO_TETS])
+    q = p[tets]
+    vol = np.einsum("ij,ij->i", np.cross(q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]), q[:, 3] - q[:, 0])
+    tets[vol < 0] = tets[vol < 0][:, [0, 2, 1, 3]]
+    return Mesh(p, tets, "tetra")
+
+
+#: Two CPE4 elements with the four surface spellings of Abaqus (S1-S4)
+QUAD_GRID = """\
+*NODE
+1, 0, 0
+2, 1, 0
+3, 2, 0
+4, 0, 1
+5, 1, 1
+6, 2, 1
+*ELEMENT, TYPE=CPE4, ELSET=ALL
+1, 1, 2, 5, 4
+2, 2, 3, 6, 5
+*ELSET, ELSET=_first, INTERNAL
+1
+*SURFACE, TYPE=ELEMENT, NAME=s1
+1, S1
+*SURFACE, NAME=s2
+2, S2
+*Surface, type=element, name=s3
+_first, s3
+*SURFACE, NAME=s4
+_FIRST, S4
+"""
