@@ -9,7 +9,7 @@ import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
 from ..errors import InputError
-from .mesh import Mesh, boundary_facets, facet_node_weights
+from .mesh import Mesh, facet_index, facet_node_weights
 
 #: Node-to-node pairing: two nodes are the same point when they are closer than this
 #: fraction of the smallest interface facet edge at either node. It is far above the
@@ -379,8 +379,8 @@ def mortar_pairing(model, interface=None) -> Pairing:
 
 
 def _check_boundary(mesh, facets, body, name):
-    bf = {tuple(sorted(f)) for f in boundary_facets(mesh).tolist()}
-    inner = [f for f in facets.tolist() if tuple(sorted(f)) not in bf]
+    """Every facet of the interface set must be a boundary facet of its body."""
+    inner = facets[facet_index(mesh).find(facets) < 0].tolist()
     if inner:
         raise InputError(f"body {body!r}: facet set {name!r} contains {len(inner)} facet(s) "
                          f"not on the boundary of this body, e.g. nodes {inner[0]}; is the "
