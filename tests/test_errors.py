@@ -55,6 +55,25 @@ def test_interface_set_on_wrong_body():
                                                             "interface")))
 
 
+def test_interface_set_inside_its_body_is_refused():
+    """A facet set that runs through the inside of a body (two cells share each facet)
+    cannot be a contact surface: the message names the body, the set and a facet."""
+    m = sandwich_2d(1)
+    bottom = m.bodies[m.body_index("bottom")]
+    cells = bottom.mesh.cells
+    shared = {}
+    for c in cells.tolist():
+        for a, b in zip(c, c[1:] + c[:1]):
+            shared.setdefault(frozenset((a, b)), []).append(c)
+    inner = np.array([sorted(k) for k, v in shared.items() if len(v) == 2][:3])
+    body = dataclasses.replace(bottom, mesh=bottom.mesh.with_sets(
+        facet_sets={"interface": np.vstack([bottom.mesh.facet_sets["interface"], inner])}))
+    bodies = tuple(body if b.name == "bottom" else b for b in m.bodies)
+    with pytest.raises(InputError, match=r"body 'bottom': facet set 'interface' contains "
+                                         r"3 facet\(s\) not on the boundary"):
+        qsma.run(dataclasses.replace(m, bodies=bodies))
+
+
 @pytest.mark.parametrize("clamps", [(), (Clamp("clamp", (0,)),)])
 def test_body_held_only_through_the_joint_is_accepted(clamps):
     """Issue 12: a body whose clamps leave rigid motions free is held by the joint; the

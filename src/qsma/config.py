@@ -125,8 +125,37 @@ def _body_mesh(path, cells, files):
 
 
 def parse_config(data, base=Path("."), where="config") -> RunConfig:
-    """A :class:`RunConfig` from the parsed TOML ``data`` (mesh paths relative to
-    ``base``); ``where`` names the source in messages."""
+    """A :class:`RunConfig` from a parsed TOML table.
+
+    Parameters
+    ----------
+    data : dict
+        The parsed file: ``[[bodies]]`` (mesh file, material, clamps, pressures, or
+        ``cells`` to take a body out of a file holding several), one ``[interface]`` or
+        a list ``[[interfaces]]`` (each with its own ``mu`` if wanted), ``[tip]``,
+        ``[analysis]`` (the fields of :class:`qsma.options.RunOptions`) and ``[levels]``.
+    base : pathlib.Path
+        Folder that relative mesh paths start from (the configuration file's).
+    where : str
+        Name of the source in error messages.
+
+    Returns
+    -------
+    RunConfig
+        The model and the run options.
+
+    Raises
+    ------
+    InputError
+        An unknown key, a missing or ill-typed value, a mesh that cannot be read; the
+        message names the table and key.
+
+    Examples
+    --------
+    >>> import tomllib
+    >>> cfg = parse_config(tomllib.loads(open("examples/sandwich-2d.toml").read()),
+    ...                    base=Path("examples"))                     # doctest: +SKIP
+    """
     _check(data, "", where)
     bodies = []
     files = {}
