@@ -479,9 +479,18 @@ def test_serendipity_faces_open_their_corner_pairs_under_a_preload(cell_type,
     whole preload (measured: 20 of 20 corner pairs open, tied f1 0.2 % below tying
     them too). 9-node faces (shares 1/36, 1/9, 4/9) keep every pair closed."""
     from qsma.analysis import preload
+    import warnings
+    from qsma.errors import QuadraticFacetWarning
     model = _pressed_blocks(cell_type)
     A = [assemble_body(b) for b in model.bodies]
-    pairing = make_pairing(model)
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        pairing = make_pairing(model)
+    said = [w for w in seen if issubclass(w.category, QuadraticFacetWarning)]
+    assert len(said) == (1 if corners_open else 0)       # the user is told, once
+    if said:
+        assert "corner pairs" in str(said[0].message) and "hexahedron27" in \
+            str(said[0].message)
     _, _, pre = preload(model, A, pairing)
     step = 0.1 / 4
     on_grid = lambda v: np.abs(v / step - np.round(v / step)) < 1e-6

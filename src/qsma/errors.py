@@ -46,5 +46,11 @@ class InterfaceGapWarning(QSMAWarning):
     """Mortar surfaces that do not touch in the mesh were taken as touching."""
 
 
+class QuadraticFacetWarning(QSMAWarning):
+    """An interface on serendipity quad8 facets (hexahedron20 cells): a uniform pressure
+    needs the corner pairs to pull, so they open under a preload (docs/theory.md,
+    section 5, "Pairs on quadratic faces")."""
+
+
 class NearlyIncompressibleWarning(QSMAWarning):
     """Poisson's ratio close to 0.5: displacement elements lock (too stiff)."""

@@ -3,12 +3,13 @@ the local frames of the contact points."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+import warnings
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
-from ..errors import InputError
+from ..errors import InputError, QuadraticFacetWarning
 from .mesh import Mesh, facet_index, facet_node_weights
 
 #: Node-to-node pairing: two nodes are the same point when they are closer than this
@@ -304,6 +305,7 @@ def make_pairing(model, interface=None) -> Pairing:
             return mortar_pairing(model, itf)
         raise InputError(match.message(itf.set1, itf.set2, (b1.name, b2.name)))
     nodes1, nodes2 = match.nodes1, match.nodes2
+    _warn_quad8(itf, b1, b2)
     weighted = facet_normals(b1.mesh, facets1)          # outward normal x facet area
     nvf = facets1.shape[1]
     normal_sum = np.zeros((b1.mesh.n_nodes, b1.dim))
@@ -376,6 +378,18 @@ def mortar_pairing(model, interface=None) -> Pairing:
         return Pairing(nodes[0], nodes[1], sb.mesh.points[op.slave_nodes].copy(),
                        local_frames(normals), op.area, "mortar", k, op.P, op.gap)
     raise error
+
+
+def _warn_quad8(itf, *bodies):
+    """Say so when an interface lies on quad8 facets, whose corner pairs cannot carry
+    their (negative) consistent share of a uniform pressure."""
+    on = [b.name for b in bodies if b.mesh.facet_type == "quad8"]
+    if on:
+        warnings.warn(QuadraticFacetWarning(
+            f"interface {itf.label}: body {on[0]!r} meets it with quad8 facets "
+            f"(hexahedron20 cells); the corner pairs of such facets open under a uniform "
+            f"pressure and the midside pairs carry the load. Prefer hexahedron27 or "
+            f"incompatible-mode hexahedra (C3D8I) at contact surfaces"), stacklevel=3)
 
 
 def _check_boundary(mesh, facets, body, name):
