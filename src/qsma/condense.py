@@ -303,6 +303,26 @@ def _factor_S(S):
                          ) from exc
 
 
+def minus_gram(A, S_cho, B) -> np.ndarray:
+    r"""``A - B S^{-1} B^T`` for a symmetric ``A`` and ``S = U^T U`` (``S_cho`` from
+    :func:`scipy.linalg.cho_factor`), as ``A - Y^T Y`` with ``Y = U^{-T} B^T``.
+
+    One triangular solve and one symmetric rank-k product (BLAS ``trsm`` and
+    ``syrk``, ``n^3 / 3`` flops each for square ``B``) replace the general solve and
+    product of ``B S^{-1} B^T`` (``2 n^3`` and more). The node-to-node combination
+    ``K = Kc_1 S^{-1} Kc_2`` with ``S = Kc_1 + Kc_2`` is ``Kc_1 - Kc_1 S^{-1} Kc_1``
+    (``Kc_2 = S - Kc_1``), so it is ``minus_gram(Kc_1, S_cho, Kc_1)``, or the same with
+    ``Kc_2``; the softer body is taken, whose round-off ``eps |Kc_j|`` is the smaller
+    one in the difference. The result is exactly symmetric."""
+    c, lower = S_cho
+    Y = sla.solve_triangular(c, np.asarray(B, dtype=float).T, lower=lower,
+                             trans=0 if lower else 1, check_finite=False)
+    G = sla.blas.dsyrk(1.0, Y, trans=1, lower=0)    # upper triangle of Y^T Y
+    G = np.triu(G) + np.triu(G, 1).T
+    K = A - G
+    return 0.5 * (K + K.T)
+
+
 def projection_matrix(pairing, R_slave) -> np.ndarray:
     """Dense ``P`` over DOFs: ``(P u_m)`` in the slave's local frames from master global
     components, ``P = R_s^T (N kron I_dim)`` with ``N`` the pairing's projection."""
@@ -325,9 +345,7 @@ def combine(slave, master, P):
     ``Kc_s S^-1 Kc_m`` of the node-to-node formula (which the node coupling uses as is).
     """
     S_cho = _factor_S(master.Kc + P.T @ slave.Kc @ P)
-    KP = slave.Kc @ P
-    K = slave.Kc - KP @ sla.cho_solve(S_cho, KP.T)
-    return 0.5 * (K + K.T), S_cho
+    return minus_gram(slave.Kc, S_cho, slave.Kc @ P), S_cho
 
 
 def reduce_two_bodies(assembled1, assembled2, pairing, patterns=("preload",),
@@ -348,8 +366,8 @@ def reduce_two_bodies(assembled1, assembled2, pairing, patterns=("preload",),
         b2 = condense_body(assembled2, pairing.nodes2, pairing.frames, backend)
         Fc = (b1.condensed_load(loads[0]), b2.condensed_load(loads[1]))
         S_cho = _factor_S(b1.Kc + b2.Kc)
-        K = b1.Kc @ sla.cho_solve(S_cho, b2.Kc)
-        K = 0.5 * (K + K.T)
+        soft = min((b1.Kc, b2.Kc), key=lambda Kc: np.trace(Kc))
+        K = minus_gram(soft, S_cho, soft)           # = Kc_1 S^-1 Kc_2
         W = _welded((b1, b2), S_cho, Fc)
         return ReducedModel(K, W, tuple(patterns), (b1, b2), loads, S_cho, Fc, dim, {}, {})
     s = pairing.slave - 1
