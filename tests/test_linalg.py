@@ -168,3 +168,20 @@ def test_solver_rejects_wrong_shapes():
         with pytest.raises(InputError, match="right-hand side must have shape"):
             solver(b)
     assert "EESolver(n=75, backend='splu'" in repr(solver)
+
+
+@pytest.mark.parametrize("backend", ["auto", "metis_superlu", "superlu_schur"])
+def test_spd_solver_solves_and_refuses_a_singular_matrix(backend):
+    """``spd_solver`` (tied-mode shift-invert) whatever the ordering: residual at
+    round-off on the sandwich beam, InputError on a matrix with a null vector."""
+    K, _ = PROBLEMS["elasticity"]
+    solve = linalg.spd_solver(K, backend=backend)
+    b = np.random.default_rng(2).normal(size=(K.shape[0], 3))
+    x = solve(b)
+    scale = abs(K).max() * np.abs(x).max()
+    assert np.abs(K @ x - b).max() <= 1e-12 * scale
+    np.testing.assert_allclose(solve(b[:, 0]), x[:, 0], rtol=0, atol=1e-12 * np.abs(x).max())
+    lap = laplacian_2d(8, 7, shift=0.0)
+    neumann = lap - sp.diags(np.asarray(lap.sum(axis=1)).ravel())   # constants: null space
+    with pytest.raises(InputError, match="singular or not positive definite"):
+        linalg.spd_solver(neumann.tocsr(), backend=backend)

@@ -234,11 +234,11 @@ def _blocks(K, C, E):
 # ----------------------------------------------------------------------------------
 # SuperLU (scipy only)
 
-def _superlu(A):
+def _superlu(A, ordering="MMD_AT_PLUS_A"):
     """LU of the SPD matrix ``A`` without row pivoting (symmetric fill-reducing
-    ordering, MMD on A + A^T), and its smallest pivot ratio."""
+    ordering ``ordering``, by default MMD on A + A^T), and its smallest pivot ratio."""
     try:
-        lu = spla.splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+        lu = spla.splu(A.tocsc(), permc_spec=ordering, diag_pivot_thresh=0.0,
                        options={"SymmetricMode": True})
     except RuntimeError as exc:      # "Factor is exactly singular"
         return None, -np.inf, exc
@@ -612,9 +612,10 @@ def _pardiso_solver(ee):
 def spd_solver(A, *, backend="auto"):
     """``solve(b) = A^-1 b`` for a sparse symmetric positive definite ``A``: PARDISO
     (nested dissection) when ``pypardiso`` is installed and ``backend`` is ``"auto"`` or
-    ``"pardiso"``, SuperLU (MMD ordering, no pivoting) otherwise. Used for the
-    shift-invert of the tied eigenproblem. Raises :class:`InputError` if ``A`` is
-    singular or not positive definite."""
+    ``"pardiso"``; else SuperLU without pivoting, on ``A`` ordered by METIS nested
+    dissection when ``pymetis`` is installed (``"auto"`` or ``"metis_superlu"``), by
+    SuperLU's MMD otherwise. Used for the shift-invert of the tied eigenproblem. Raises
+    :class:`InputError` if ``A`` is singular or not positive definite."""
     A = sp.csr_matrix(A)
     use_pardiso = backend in ("auto", "pardiso") and SCHUR_BACKENDS["pardiso"].available
     if use_pardiso:
@@ -624,8 +625,20 @@ def spd_solver(A, *, backend="auto"):
         except InputError as exc:
             raise InputError(f"matrix is singular or not positive definite ({exc})") from exc
         return _pardiso_solver(f)
-    lu, ratio, exc = _superlu(A)
+    use_metis = (backend in ("auto", "metis_superlu")
+                 and SCHUR_BACKENDS["metis_superlu"].available)
+    p = nested_dissection(A) if use_metis else None
+    lu, ratio, exc = _superlu(A if p is None else A[p][:, p],
+                              ordering="MMD_AT_PLUS_A" if p is None else "NATURAL")
     if lu is None or ratio <= PIVOT_RATIO_MIN:
         raise InputError(f"matrix is singular or not positive definite "
                          f"(smallest pivot ratio {ratio:.3g})") from exc
-    return _superlu_solver(lu)
+    solve = _superlu_solver(lu)
+    if p is None:
+        return solve
+
+    def permuted(b):
+        x = np.empty_like(b, dtype=float)
+        x[p] = solve(np.asarray(b, dtype=float)[p])
+        return x
+    return permuted
