@@ -185,3 +185,18 @@ def test_spd_solver_solves_and_refuses_a_singular_matrix(backend):
     neumann = lap - sp.diags(np.asarray(lap.sum(axis=1)).ravel())   # constants: null space
     with pytest.raises(InputError, match="singular or not positive definite"):
         linalg.spd_solver(neumann.tocsr(), backend=backend)
+
+
+def test_peak_memory_sees_a_large_allocation():
+    """The peak resident memory reported for results.json rises by what a 160 MiB
+    array touches (Linux VmHWM, reset first; elsewhere ru_maxrss, never lower)."""
+    from qsma import _resources
+    _resources.reset_peak()
+    before = _resources.peak_memory_mb()
+    if before is None:
+        pytest.skip("peak memory is not reported on this platform (Windows)")
+    block = np.ones(20 * 2**20)                   # 160 MiB, written so it is resident
+    after = _resources.peak_memory_mb()
+    assert after - before >= 150 * (block[-1] == 1.0)
+    snap = _resources.snapshot()
+    assert snap["peak_memory_mb"] >= after - 0.1 and snap["cpu_s"] > 0
