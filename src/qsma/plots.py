@@ -9,18 +9,29 @@ from .masing import masing_loop
 from .rundir import atomic_path
 
 
-def _figure(nrows=1, ncols=1, figsize=None, **kw):
-    """A figure on the Agg canvas, independent of pyplot and of the user's backend."""
+#: Figure margins in inches (left, right, bottom, top): room for the tick labels, the
+#: axis labels and the title. Fixed margins draw a figure once, where
+#: ``bbox_inches="tight"`` or a layout engine draw it twice (a third of the plotting time).
+MARGINS_IN = (0.95, 0.25, 0.65, 0.4)
+
+
+def _figure(nrows=1, ncols=1, figsize=(6, 4.5), hspace=0.2, wspace=0.2, **kw):
+    """A figure on the Agg canvas, independent of pyplot and of the user's backend, with
+    the margins :data:`MARGINS_IN`."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     fig = Figure(figsize=figsize)
     FigureCanvasAgg(fig)
+    width, height = figsize
+    left, right, bottom, top = MARGINS_IN
+    fig.subplots_adjust(left=left / width, right=1 - right / width, bottom=bottom / height,
+                        top=1 - top / height, hspace=hspace, wspace=wspace)
     return fig, fig.subplots(nrows, ncols, **kw)
 
 
 def _save(fig, path):
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=120, bbox_inches="tight", format="png")
+        fig.savefig(tmp, dpi=120, format="png")
     return Path(path)
 
 
@@ -101,7 +112,7 @@ ZETA_LINEAR = 1e-6
 def plot_damping_frequency(res, path):
     """Secant frequency and damping ratio versus peak tip velocity: the values used
     (filled), Masing's and the loops' where they differ, hardening levels marked."""
-    fig, (a1, a2) = _figure(2, 1, figsize=(6, 6.5), sharex=True)
+    fig, (a1, a2) = _figure(2, 1, figsize=(6, 6.5), hspace=0.08, sharex=True)
     v = np.abs(res.tip_velocity)
     loop = res.dissipation_method == "loop"
     hard = np.array(["hardening" in f or "masing_on_hardening" in f for f in res.flags])
@@ -136,7 +147,7 @@ def plot_interface(res, path, levels=None):
     levels = sorted({0, n // 2, (3 * n) // 4, n - 1}) if levels is None else levels
     p = res.pairing
     x = p.x[:, 0]
-    fig, axes = _figure(3, 1, figsize=(7, 8), sharex=True)
+    fig, axes = _figure(3, 1, figsize=(7, 8), hspace=0.1, sharex=True)
     pre = res.preload.lam
     axes[0].plot(x, pre[:, -1] / p.area / 1e6, "k--", lw=1, label="preload")
     for k in levels:
@@ -166,7 +177,8 @@ def plot_interface_map(res, path, levels=None):
     p = res.pairing
     t1, t2 = p.frames[0, 0], p.frames[0, 1]
     u, v = p.x @ t1, p.x @ t2
-    fig, axes = _figure(3, len(levels), figsize=(4.2 * len(levels), 6.5), squeeze=False)
+    fig, axes = _figure(3, len(levels), figsize=(4.2 * len(levels), 6.5), hspace=0.3,
+                         wspace=0.45, squeeze=False)
     states = ListedColormap(["tab:blue", "tab:orange", "lightgray"])
     pmax = max(res.states.lam[k][:, -1].max() for k in levels) / p.area.max() / 1e6
     for j, k in enumerate(levels):
