@@ -170,7 +170,9 @@ def schur_complement(K, C, *, backend: str = "auto"):
     t0 = time.perf_counter()
     parts = SCHUR_BACKENDS[name].function(K, C, E)
     _check_pivots(parts.min_pivot_ratio, name)
-    Kc = 0.5 * (parts.Kc + parts.Kc.T)
+    Kc = np.array(parts.Kc, dtype=float)          # symmetrised in place: ``(Kc + Kc^T) / 2``
+    Kc += Kc.T
+    Kc *= 0.5
     if not np.all(np.isfinite(Kc)):
         raise AnalysisError(f"Schur complement ({name}) has NaN/Inf entries", partial=Kc)
     timings = {**parts.timings, "total": time.perf_counter() - t0}
@@ -377,7 +379,10 @@ def _schur_metis_superlu(K, C, E) -> SchurParts:
     if not ratio > PIVOT_RATIO_MIN:
         return SchurParts(np.zeros((nC, nC)), None, ratio, {})
     L_CE = lu.L.tocsc()[nE:, :nE]
-    Kc = K[C][:, C].toarray() - _low_rank_sum(L_CE, d)
+    Kc = _low_rank_sum(L_CE, d)
+    del L_CE
+    Kc *= -1.0
+    Kc += K[C][:, C].toarray()
     t3 = time.perf_counter()
     return SchurParts(Kc, _bordered_solver(lu, p, nC), ratio,
                       {"ordering": t1 - t0, "factorization": t2 - t1, "schur": t3 - t2})
