@@ -2,6 +2,7 @@
 
 Usage: python benchmarks/bench_scale.py [--refine 1 2] [--repeat 3 1] [--json out.json]
                                         [--method basket] [--schur-backend auto]
+       python benchmarks/bench_scale.py --tables r1.json r2.json   (reprint saved rows)
 
 Per refinement, ``qsma.run`` is called ``--repeat`` times (one number per refinement,
 the last one repeated) and every stage of results.json ``timings_s`` is measured three
@@ -126,7 +127,17 @@ def main():
     ap.add_argument("--method", default=None, help="contact method (default: qsma's)")
     ap.add_argument("--schur-backend", default=None)
     ap.add_argument("--json", default=None, help="also write every number to this file")
+    ap.add_argument("--tables", nargs="+", default=None,
+                    help="print the tables of rows saved by --json (runs done separately, "
+                         "e.g. the large refinement alone in the background)")
     args = ap.parse_args()
+    if args.tables:
+        rows = []
+        for path in args.tables:
+            with open(path) as f:
+                rows += json.load(f)
+        print_tables(sorted(rows, key=lambda r: r["n_dofs"]))
+        return
     options = {k: v for k, v in (("method", args.method),
                                  ("schur_backend", args.schur_backend)) if v is not None}
     print("sandwich-3d; per stage: wall s / CPU s (median of the runs)", flush=True)
