@@ -15,6 +15,11 @@ the numbers are in ``docs/schur.md``):
     Intel MKL PARDISO through ``pypardiso``'s ``mkl_rt``: nested-dissection
     ordering and the Schur complement computed during the factorisation
     (``iparm(36) = 1``), plus a plain Cholesky of ``K_EE`` for the solver.
+``"metis_superlu"``
+    METIS nested dissection of ``K_EE`` (``pymetis``) and one SuperLU factorisation of
+    the bordered matrix ``[[K_EE, 0], [K_CE, I]]`` in that order, without pivoting:
+    ``Kc = K_CC - L_CE D L_CE^T`` by blocked BLAS products, and the same factor solves
+    with ``K_EE`` (the default without PARDISO).
 ``"cholmod"``
     CHOLMOD (supernodal Cholesky, from the ``cvxopt`` wheel) of ``K`` ordered
     ``[E by AMD, C last]``: ``K = L L^T`` with ``Kc = L_CC L_CC^T``.
