@@ -149,23 +149,3 @@ def test_batched_assembly_equals_scikit_fem_forms(cell_type, monkeypatch):
                        skfem.asm(_mass_form(STEEL.rho), basis))):
         assert abs(mine - ref).max() <= 1e-14 * abs(ref).max()
 
-
-def test_translated_copy_of_a_body_reuses_its_matrices():
-    """A body that differs from the previous one by a translation gets a copy of its K and
-    M (equal to a fresh assembly to round-off); a moved node or another material makes a
-    fresh assembly."""
-    from qsma.fe import assembly
-    mesh = _distorted_patch("quad")
-    first = assemble_body(Body("a", mesh, STEEL))
-    shifted = Mesh(mesh.points + [3.0, -7.0], mesh.cells, "quad")
-    second = assemble_body(Body("b", shifted, STEEL))
-    assert second.K is not first.K and abs(second.K - first.K).max() == 0
-    fresh = assembly.stiffness_matrix(Body("b", shifted, STEEL))
-    assert abs(fresh - second.K).max() <= 1e-13 * abs(fresh).max()
-    moved = mesh.points.copy()
-    moved[12] += 0.01
-    other = assemble_body(Body("c", Mesh(moved, mesh.cells, "quad"), STEEL))
-    assert abs(other.K - first.K).max() > 1e-6 * abs(first.K).max()
-    soft = Material(100e9, 0.285, 7800.0)
-    assert abs(assemble_body(Body("d", mesh, soft)).K - 0.5 * first.K).max() <= \
-        1e-13 * abs(first.K).max()

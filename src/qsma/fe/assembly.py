@@ -186,42 +186,12 @@ def assemble_body(body: Body) -> AssembledBody:
     """Assemble stiffness, consistent mass and the pressure load patterns of a body,
     with the formulation :func:`resolve_formulation` gives for its mesh."""
     form = resolve_formulation(body.mesh)
-    K, M = _operators(body, form)
+    K = stiffness_matrix(body, form)
+    M = mass_matrix(body)
     loads = {name: body_load(body, name) for name in body.load_names()}
     fixed = body.clamped_dofs()
     free = np.setdiff1d(np.arange(body.n_dofs), fixed)
     return AssembledBody(body, K, M, loads, fixed, free, form)
-
-
-#: Relative distance (to the body size) under which two node sets are the same shape.
-SAME_SHAPE_TOL = 1e-12
-
-#: The last assembled body: shape key -> (relative points, weak references to K, M).
-_LAST_OPERATORS: dict = {}
-
-
-def _operators(body: Body, form: Formulation):
-    """``(K, M)`` of ``body``, copied from the previous body when that one has the same
-    cells, material and formulation and nodes that differ by a translation only (two
-    identical halves of a joint): assembly runs on coordinates relative to the bounding
-    box corner, so the matrices agree to round-off. Only weak references are kept, so no
-    matrix outlives the body that owns it."""
-    import weakref
-    mesh = body.mesh
-    rel = mesh.points - mesh.points.min(axis=0)
-    key = (mesh.cell_type, mesh.cells.shape, hash(mesh.cells.tobytes()), body.material,
-           form)
-    hit = _LAST_OPERATORS.get(key)
-    if hit is not None and hit[0].shape == rel.shape:
-        size = max(float(np.abs(rel).max()), np.finfo(float).tiny)
-        K, M = hit[1](), hit[2]()
-        if (K is not None and M is not None
-                and np.abs(hit[0] - rel).max() <= SAME_SHAPE_TOL * size):
-            return K.copy(), M.copy()
-    K, M = stiffness_matrix(body, form), mass_matrix(body)
-    _LAST_OPERATORS.clear()
-    _LAST_OPERATORS[key] = (rel, weakref.ref(K), weakref.ref(M))
-    return K, M
 
 
 def _facet_indices(m, facets: np.ndarray, what: str) -> np.ndarray:
