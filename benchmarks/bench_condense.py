@@ -1,19 +1,27 @@
 """Time the static condensation of sandwich-2d per stage and refinement level.
 
 Usage: python benchmarks/bench_condense.py [--refine 1 2 4 8] [--repeat 5]
+       python benchmarks/bench_condense.py --combine 1000 3000 [--repeat 3]
 
 Prints, per refinement: DOFs per body, interface DOFs, the Schur backend chosen
 by "auto", and the median over ``--repeat`` runs of the factorisation, the Schur
 complement, the rotation into pair frames (both bodies added) and the two-body
 combination (K = Kc1 S^-1 Kc2, welded forces).
+
+``--combine N ...`` times only the dense two-body combination on random SPD
+matrices of size N: the direct ``Kc1 (Kc1 + Kc2)^-1 Kc2`` (Cholesky solve and
+product) against ``qsma.condense.minus_gram`` (``Kc1 - Y^T Y``, trsm + syrk), both
+after the same Cholesky factorisation, median CPU and wall seconds over
+``--repeat`` runs and the relative difference of the results.
 """
 import argparse
 import statistics
 import time
 
 import numpy as np
+import scipy.linalg as sla
 
-from qsma.condense import reduce_two_bodies
+from qsma.condense import minus_gram, reduce_two_bodies
 from qsma.examples import sandwich_2d
 from qsma.fe import assemble_body
 from qsma.model import make_pairing
@@ -41,11 +49,44 @@ def measure(refine, repeat):
                 **med)
 
 
+def _timed(f):
+    t0, c0 = time.perf_counter(), time.process_time()
+    out = f()
+    return out, time.perf_counter() - t0, time.process_time() - c0
+
+
+def measure_combination(n, repeat):
+    rng = np.random.default_rng(0)
+    B1, B2 = rng.normal(size=(n, n)), rng.normal(size=(n, n))
+    Kc1, Kc2 = B1 @ B1.T / n + np.eye(n), B2 @ B2.T / n + np.eye(n)
+    S_cho = sla.cho_factor(Kc1 + Kc2)
+
+    def direct():
+        K = Kc1 @ sla.cho_solve(S_cho, Kc2)
+        return 0.5 * (K + K.T)
+    runs = [(_timed(direct), _timed(lambda: minus_gram(Kc1, S_cho, Kc1)))
+            for _ in range(repeat)]
+    (K_direct, *_), (K_gram, *_) = runs[-1]
+    diff = np.abs(K_direct - K_gram).max() / np.abs(K_direct).max()
+    med = lambda i, j: statistics.median(r[i][j] for r in runs)
+    return med(0, 1), med(0, 2), med(1, 1), med(1, 2), diff
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--refine", type=int, nargs="+", default=[1, 2, 4, 8])
     ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--combine", type=int, nargs="+", default=None)
     args = ap.parse_args()
+    if args.combine:
+        print("| n | direct wall [s] | direct CPU [s] | Kc - Y^T Y wall [s] | "
+              "Kc - Y^T Y CPU [s] | CPU ratio | rel. diff |")
+        print("|---|---|---|---|---|---|---|")
+        for n in args.combine:
+            dw, dc, gw, gc, diff = measure_combination(n, args.repeat)
+            print(f"| {n} | {dw:.3f} | {dc:.3f} | {gw:.3f} | {gc:.3f} | {dc / gc:.2f} | "
+                  f"{diff:.1e} |", flush=True)
+        return
     cols = ["factorization", "schur", "rotation", "combination", "total"]
     print(f"| refine | DOFs/body | interface DOFs | backend | "
           + " | ".join(f"{c} [s]" for c in cols) + " |")

@@ -7,7 +7,9 @@ Cases: ``2d-R`` is the bottom beam of sandwich-2d at refine R (free DOFs, C = it
 interface DOFs); ``3d-R`` is a clamped hexahedral block of the 3D sandwich size (63 x 5
 x 17 nodes at R = 1, every element split R x R x R) condensed onto its face y = h for
 x >= L - 0.0508. Per case and backend: the median wall time of ``--repeat`` calls of
-``schur_complement`` (after one warm-up call on a small case), and the peak resident
+``schur_complement`` (after one warm-up call on a small case), the median CPU time of
+the process over the same calls (all threads: the fair measure on a shared machine),
+and the peak resident
 memory above the level before the call (Linux ``VmHWM`` after resetting it through
 ``/proc/self/clear_refs``; it counts the C libraries' allocations, which tracemalloc
 does not see). A backend whose first call exceeds ``--max-seconds`` is run once and
@@ -55,16 +57,16 @@ def _status_kb(key):
 
 
 def measured_call(K, C, backend):
-    """(seconds, peak memory above the start [MB], Kc) of one call."""
+    """(wall seconds, peak memory above the start [MB], Kc, CPU seconds) of one call."""
     with open("/proc/self/clear_refs", "w") as f:
         f.write("5")                                  # reset VmHWM to the current RSS
     rss0 = _status_kb("VmRSS")
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     Kc, solver = schur_complement(K, C, backend=backend)
-    seconds = time.perf_counter() - t0
+    seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
     peak = _status_kb("VmHWM") - rss0
     del solver
-    return seconds, peak / 1024, Kc
+    return seconds, peak / 1024, Kc, cpu
 
 
 def main():
@@ -79,16 +81,16 @@ def main():
     for b in args.backends:                           # warm-up: load libraries, threads
         schur_complement(K, C, backend=b)
     slow = set()
-    print("| case | DOFs | interface DOFs | backend | time [s] (median) | runs | "
-          "peak memory [MB] | Kc rel. diff |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| case | DOFs | interface DOFs | backend | time [s] (median) | CPU [s] (median) "
+          "| runs | peak memory [MB] | Kc rel. diff |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for case in args.cases:
         dim, refine = case.split("-")
         K, C = (case_2d if dim == "2d" else case_3d)(int(refine))
         ref = None
         for b in args.backends:
             if (dim, b) in slow:
-                print(f"| {case} | {K.shape[0]} | {len(C)} | {b} | skipped | 0 | | |",
+                print(f"| {case} | {K.shape[0]} | {len(C)} | {b} | skipped | | 0 | | |",
                       flush=True)
                 continue
             runs = [measured_call(K, C, b)]
@@ -100,7 +102,8 @@ def main():
             ref = Kc if ref is None else ref
             diff = np.abs(Kc - ref).max() / np.abs(ref).max()
             print(f"| {case} | {K.shape[0]} | {len(C)} | {b} | "
-                  f"{statistics.median(r[0] for r in runs):.3f} | {len(runs)} | "
+                  f"{statistics.median(r[0] for r in runs):.3f} | "
+                  f"{statistics.median(r[3] for r in runs):.3f} | {len(runs)} | "
                   f"{max(r[1] for r in runs):.0f} | {diff:.1e} |", flush=True)
             del runs, Kc
 

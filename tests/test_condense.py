@@ -195,3 +195,39 @@ def test_functionals_and_recovery_exact_with_a_nonmatching_interface(slave):
         free[a_.fixed] = False
         scale = np.abs(lam_glob).max()
         assert np.abs((r - expect).ravel()[free]).max() < 1e-8 * scale
+
+
+def _random_spd(n, scale, rng):
+    B = rng.normal(size=(n, n))
+    return scale * (B @ B.T / n + 0.1 * np.eye(n))
+
+
+@pytest.mark.parametrize("ratio", [1.0, 1e-6])
+def test_cholesky_combination_equals_the_direct_formula(ratio):
+    """K = Kc_1 (Kc_1 + Kc_2)^-1 Kc_2 written as Kc - Y^T Y agrees with the direct
+    product to round-off, also for bodies of very different stiffness."""
+    import scipy.linalg as sla
+    from qsma.condense import minus_gram
+    rng = np.random.default_rng(4)
+    Kc1, Kc2 = _random_spd(60, 1.0, rng), _random_spd(60, ratio, rng)
+    S_cho = sla.cho_factor(Kc1 + Kc2)
+    direct = Kc1 @ sla.cho_solve(S_cho, Kc2)
+    direct = 0.5 * (direct + direct.T)
+    soft = Kc2 if ratio < 1 else Kc1
+    K = minus_gram(soft, S_cho, soft)
+    np.testing.assert_array_equal(K, K.T)
+    assert np.abs(K - direct).max() <= 1e-12 * np.abs(direct).max()
+    # a rectangular coupling (mortar form A - B S^-1 B^T)
+    B = rng.normal(size=(40, 60))
+    ref = Kc1[:40, :40] - B @ sla.cho_solve(S_cho, B.T)
+    got = minus_gram(Kc1[:40, :40], S_cho, B)
+    assert np.abs(got - ref).max() <= 1e-12 * np.abs(ref).max()
+
+
+def test_reduced_stiffness_equals_the_direct_formula(setup):
+    import scipy.linalg as sla
+    m, A, p, rm = setup
+    Kc1, Kc2 = rm.bodies[0].Kc, rm.bodies[1].Kc
+    direct = Kc1 @ sla.cho_solve(sla.cho_factor(Kc1 + Kc2), Kc2)
+    direct = 0.5 * (direct + direct.T)
+    assert np.abs(rm.K - direct).max() <= 1e-12 * np.abs(direct).max()

@@ -88,3 +88,29 @@ def test_elasticity_form_equals_scikit_fem_model():
     K_ref = skfem.asm(linear_elasticity(lam, mu), basis)
     K = skfem.asm(_elasticity_form(lam, mu), basis)
     assert abs(K - K_ref).max() <= 1e-14 * abs(K_ref).max()
+
+
+@pytest.mark.parametrize("cell_type", ["quad", "triangle", "hexahedron"])
+def test_batched_assembly_equals_scikit_fem_forms(cell_type, monkeypatch):
+    """The vectorised element matrices (qsma.fe.assembly.elasticity_matrix and
+    consistent_mass) equal scikit-fem's form assembly, also when the elements are
+    split into several batches."""
+    import skfem
+    from qsma.fe import assembly
+    from qsma.fe.assembly import _basis, _elasticity_form, _mass_form
+    if cell_type == "hexahedron":
+        xs = np.linspace(0, 1, 4)
+        mesh = structured_mesh(xs, xs[:3], xs)
+        p = mesh.points + np.random.default_rng(1).uniform(-0.05, 0.05, mesh.points.shape)
+        mesh = Mesh(p, mesh.cells, "hexahedron")
+    else:
+        mesh = _distorted_patch(cell_type)
+    _, basis = _basis(mesh)
+    lam, mu = STEEL.lame
+    monkeypatch.setattr(assembly, "ASSEMBLY_BATCH", 5)
+    for mine, ref in ((assembly.elasticity_matrix(basis, lam, mu),
+                       skfem.asm(_elasticity_form(lam, mu), basis)),
+                      (assembly.consistent_mass(basis, STEEL.rho),
+                       skfem.asm(_mass_form(STEEL.rho), basis))):
+        assert abs(mine - ref).max() <= 1e-14 * abs(ref).max()
+

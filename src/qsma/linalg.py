@@ -15,6 +15,11 @@ the numbers are in ``docs/schur.md``):
     Intel MKL PARDISO through ``pypardiso``'s ``mkl_rt``: nested-dissection
     ordering and the Schur complement computed during the factorisation
     (``iparm(36) = 1``), plus a plain Cholesky of ``K_EE`` for the solver.
+``"metis_superlu"``
+    METIS nested dissection of ``K_EE`` (``pymetis``) and one SuperLU factorisation of
+    the bordered matrix ``[[K_EE, 0], [K_CE, I]]`` in that order, without pivoting:
+    ``Kc = K_CC - L_CE D L_CE^T`` by blocked BLAS products, and the same factor solves
+    with ``K_EE`` (the default without PARDISO).
 ``"cholmod"``
     CHOLMOD (supernodal Cholesky, from the ``cvxopt`` wheel) of ``K`` ordered
     ``[E by AMD, C last]``: ``K = L L^T`` with ``Kc = L_CC L_CC^T``.
@@ -63,7 +68,7 @@ SPLU_BLOCK_BYTES = 128 * 2**20
 SCHUR_BACKENDS: dict = {}
 
 #: Order in which ``backend="auto"`` tries the backends (fastest first, docs/schur.md).
-AUTO_ORDER = ("pardiso", "cholmod", "superlu_schur", "splu")
+AUTO_ORDER = ("pardiso", "metis_superlu", "cholmod", "superlu_schur", "splu")
 
 
 @dataclass(frozen=True)
@@ -170,7 +175,9 @@ def schur_complement(K, C, *, backend: str = "auto"):
     t0 = time.perf_counter()
     parts = SCHUR_BACKENDS[name].function(K, C, E)
     _check_pivots(parts.min_pivot_ratio, name)
-    Kc = 0.5 * (parts.Kc + parts.Kc.T)
+    Kc = np.array(parts.Kc, dtype=float)          # symmetrised in place: ``(Kc + Kc^T) / 2``
+    Kc += Kc.T
+    Kc *= 0.5
     if not np.all(np.isfinite(Kc)):
         raise AnalysisError(f"Schur complement ({name}) has NaN/Inf entries", partial=Kc)
     timings = {**parts.timings, "total": time.perf_counter() - t0}
@@ -234,11 +241,11 @@ def _blocks(K, C, E):
 # ----------------------------------------------------------------------------------
 # SuperLU (scipy only)
 
-def _superlu(A):
+def _superlu(A, ordering="MMD_AT_PLUS_A"):
     """LU of the SPD matrix ``A`` without row pivoting (symmetric fill-reducing
-    ordering, MMD on A + A^T), and its smallest pivot ratio."""
+    ordering ``ordering``, by default MMD on A + A^T), and its smallest pivot ratio."""
     try:
-        lu = spla.splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+        lu = spla.splu(A.tocsc(), permc_spec=ordering, diag_pivot_thresh=0.0,
                        options={"SymmetricMode": True})
     except RuntimeError as exc:      # "Factor is exactly singular"
         return None, -np.inf, exc
@@ -317,6 +324,110 @@ def _superlu_trailing_schur(Kp, nE):
     S = U.T @ (U / np.diag(U)[:, None])
     pos = pc[nE:] - nE                            # C-local i sits at trailing pos[i]
     return S[np.ix_(pos, pos)]
+
+
+# ----------------------------------------------------------------------------------
+# METIS nested dissection + SuperLU, one factorisation (numpy/scipy + pymetis)
+
+#: Columns of ``L_CE`` per dense block of the Schur update in ``"metis_superlu"``.
+SCHUR_UPDATE_COLUMNS = 256
+
+
+def nested_dissection(A) -> np.ndarray:
+    """Fill-reducing permutation of the symmetric sparse ``A`` by METIS nested
+    dissection (``pymetis``): ``A[p][:, p]`` factorises with little fill."""
+    import pymetis
+    G = sp.csr_matrix(A, copy=True)
+    G.setdiag(0)
+    G.eliminate_zeros()
+    G.sort_indices()
+    if G.nnz == 0:
+        return np.arange(A.shape[0])
+    perm, _ = pymetis.nested_dissection(pymetis.CSRAdjacency(G.indptr, G.indices))
+    return np.asarray(perm, dtype=np.int64)
+
+
+@register_backend("metis_superlu", requires="pymetis")
+def _schur_metis_superlu(K, C, E) -> SchurParts:
+    r"""One SuperLU factorisation gives both ``Kc`` and the solver.
+
+    With ``p`` the METIS ordering of ``K_EE`` (``A = K_EE[p][:, p]``, ``B = K_CE[:, p]``),
+    SuperLU factorises, in that order and without pivoting, the block lower triangular
+
+    .. math:: M = \begin{bmatrix} A & 0 \\ B & I \end{bmatrix}
+              = \begin{bmatrix} L & 0 \\ L_{CE} & I \end{bmatrix}
+                \begin{bmatrix} D L^T & 0 \\ 0 & I \end{bmatrix},
+              \qquad L_{CE} = B L^{-T} D^{-1},
+
+    so the C columns are never updated (no dense |C| x |C| factorisation) and
+    ``Kc = K_CC - L_CE D L_CE^T``, summed in dense blocks of
+    :data:`SCHUR_UPDATE_COLUMNS` columns of ``L_CE`` over the rows they touch.
+    ``M [x; y] = [b; 0]`` gives ``x = A^-1 b``: the same factor is the solver."""
+    t0 = time.perf_counter()
+    nE, nC = len(E), len(C)
+    K_EE = K[E][:, E]
+    p = nested_dissection(K_EE)
+    A = K_EE[p][:, p]
+    M = sp.bmat([[A, None], [K[C][:, E[p]], sp.identity(nC)]], format="csc")
+    t1 = time.perf_counter()
+    try:
+        lu = spla.splu(M, permc_spec="NATURAL", diag_pivot_thresh=0.0,
+                       options={"SymmetricMode": True})
+    except RuntimeError:             # "Factor is exactly singular"
+        return SchurParts(np.zeros((nC, nC)), None, -np.inf, {})
+    identity = np.arange(nE + nC)
+    if not (np.array_equal(lu.perm_r, identity) and np.array_equal(lu.perm_c, identity)):
+        return _schur_superlu_partial(K, C, E)   # SuperLU reordered or pivoted
+    d = lu.U.diagonal()[:nE]
+    ratio = float(np.min(d / A.diagonal()))
+    t2 = time.perf_counter()
+    if not ratio > PIVOT_RATIO_MIN:
+        return SchurParts(np.zeros((nC, nC)), None, ratio, {})
+    L_CE = lu.L.tocsc()[nE:, :nE]
+    Kc = _low_rank_sum(L_CE, d)
+    del L_CE
+    Kc *= -1.0
+    Kc += K[C][:, C].toarray()
+    t3 = time.perf_counter()
+    return SchurParts(Kc, _bordered_solver(lu, p, nC), ratio,
+                      {"ordering": t1 - t0, "factorization": t2 - t1, "schur": t3 - t2})
+
+
+def _low_rank_sum(L_CE, d):
+    r"""``L_CE diag(d) L_CE^T`` (dense, d > 0) in blocks of columns, each block a dense
+    product over the rows it touches: the nested-dissection order keeps the early
+    blocks (subdomains) on few rows, only the last (separators) touch all of C."""
+    L_CE = sp.csc_matrix(L_CE)
+    nC, nE = L_CE.shape
+    ptr, rows_of = L_CE.indptr, L_CE.indices
+    scaled = L_CE.data * np.repeat(np.sqrt(d), np.diff(ptr))
+    col = np.repeat(np.arange(nE), np.diff(ptr))
+    out = np.zeros((nC, nC))
+    for j in range(0, nE, SCHUR_UPDATE_COLUMNS):
+        a, b = ptr[j], ptr[min(j + SCHUR_UPDATE_COLUMNS, nE)]
+        if a == b:
+            continue
+        rows, local = np.unique(rows_of[a:b], return_inverse=True)
+        D = np.zeros((len(rows), min(SCHUR_UPDATE_COLUMNS, nE - j)))
+        D[local, col[a:b] - j] = scaled[a:b]
+        if len(rows) == nC:
+            out += D @ D.T
+        else:
+            out[np.ix_(rows, rows)] += D @ D.T
+    return out
+
+
+def _bordered_solver(lu, p, nC):
+    """``K_EE^-1 b`` from the LU of ``[[A, 0], [B, I]]``, ``A = K_EE[p][:, p]``."""
+    nE = len(p)
+
+    def solve(b):
+        rhs = np.zeros((nE + nC,) + b.shape[1:], order="F")
+        rhs[:nE] = b[p]
+        x = np.empty_like(b)
+        x[p] = lu.solve(rhs)[:nE]
+        return x
+    return solve
 
 
 # ----------------------------------------------------------------------------------
@@ -511,9 +622,10 @@ def _pardiso_solver(ee):
 def spd_solver(A, *, backend="auto"):
     """``solve(b) = A^-1 b`` for a sparse symmetric positive definite ``A``: PARDISO
     (nested dissection) when ``pypardiso`` is installed and ``backend`` is ``"auto"`` or
-    ``"pardiso"``, SuperLU (MMD ordering, no pivoting) otherwise. Used for the
-    shift-invert of the tied eigenproblem. Raises :class:`InputError` if ``A`` is
-    singular or not positive definite."""
+    ``"pardiso"``; else SuperLU without pivoting, on ``A`` ordered by METIS nested
+    dissection when ``pymetis`` is installed (``"auto"`` or ``"metis_superlu"``), by
+    SuperLU's MMD otherwise. Used for the shift-invert of the tied eigenproblem. Raises
+    :class:`InputError` if ``A`` is singular or not positive definite."""
     A = sp.csr_matrix(A)
     use_pardiso = backend in ("auto", "pardiso") and SCHUR_BACKENDS["pardiso"].available
     if use_pardiso:
@@ -523,8 +635,20 @@ def spd_solver(A, *, backend="auto"):
         except InputError as exc:
             raise InputError(f"matrix is singular or not positive definite ({exc})") from exc
         return _pardiso_solver(f)
-    lu, ratio, exc = _superlu(A)
+    use_metis = (backend in ("auto", "metis_superlu")
+                 and SCHUR_BACKENDS["metis_superlu"].available)
+    p = nested_dissection(A) if use_metis else None
+    lu, ratio, exc = _superlu(A if p is None else A[p][:, p],
+                              ordering="MMD_AT_PLUS_A" if p is None else "NATURAL")
     if lu is None or ratio <= PIVOT_RATIO_MIN:
         raise InputError(f"matrix is singular or not positive definite "
                          f"(smallest pivot ratio {ratio:.3g})") from exc
-    return _superlu_solver(lu)
+    solve = _superlu_solver(lu)
+    if p is None:
+        return solve
+
+    def permuted(b):
+        x = np.empty_like(b, dtype=float)
+        x[p] = solve(np.asarray(b, dtype=float)[p])
+        return x
+    return permuted

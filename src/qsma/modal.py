@@ -217,7 +217,9 @@ def _free_memory():
 
 
 def _factor(K, model, assembled, T):
-    """Factorised tied stiffness (PARDISO if installed, else SuperLU; qsma.linalg)."""
+    """Factorised tied stiffness (:func:`qsma.linalg.spd_solver`: PARDISO if installed,
+    else SuperLU on the METIS nested-dissection ordering, or on SuperLU's MMD where
+    pymetis is missing)."""
     from .linalg import spd_solver
     try:
         return spd_solver(K)

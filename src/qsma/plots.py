@@ -9,27 +9,66 @@ from .masing import masing_loop
 from .rundir import atomic_path
 
 
-def _figure(nrows=1, ncols=1, figsize=None, **kw):
-    """A figure on the Agg canvas, independent of pyplot and of the user's backend."""
+#: Figure margins in inches (left, right, bottom, top): room for the tick labels, the
+#: axis labels and the title. Fixed margins draw a figure once, where
+#: ``bbox_inches="tight"`` or a layout engine draw it twice (a third of the plotting time).
+MARGINS_IN = (0.95, 0.25, 0.65, 0.4)
+
+
+def _figure(nrows=1, ncols=1, figsize=(6, 4.5), hspace=0.2, wspace=0.2, **kw):
+    """A figure on the Agg canvas, independent of pyplot and of the user's backend, with
+    the margins :data:`MARGINS_IN`."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     fig = Figure(figsize=figsize)
     FigureCanvasAgg(fig)
+    width, height = figsize
+    left, right, bottom, top = MARGINS_IN
+    fig.subplots_adjust(left=left / width, right=1 - right / width, bottom=bottom / height,
+                        top=1 - top / height, hspace=hspace, wspace=wspace)
     return fig, fig.subplots(nrows, ncols, **kw)
 
 
 def _save(fig, path):
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=120, bbox_inches="tight", format="png")
+        fig.savefig(tmp, dpi=120, format="png")
     return Path(path)
+
+
+_SUPERSCRIPT = str.maketrans("0123456789-", "\u2070\u00b9\u00b2\u00b3\u2074\u2075\u2076"
+                             "\u2077\u2078\u2079\u207b")
+
+
+def power_label(x, pos=None) -> str:
+    """Tick label of a logarithmic axis in plain Unicode: ``10`` with a superscript
+    exponent at powers of ten (``1e-05`` -> 10⁻⁵, with a real minus sign for negative
+    values), three significant digits elsewhere. It reads like matplotlib's default
+    ``10^{k}`` labels without the mathtext parser, which took most of the drawing time."""
+    if x == 0:
+        return "0"
+    k = np.log10(abs(x))
+    if abs(k - round(k)) > 1e-9:
+        return f"{x:.3g}".replace("-", "\u2212")
+    sign = "\u2212" if x < 0 else ""
+    return f"{sign}10{str(int(round(k))).translate(_SUPERSCRIPT)}"
+
+
+def _plain_log_ticks(*axes):
+    """Major tick labels of the log/symlog axes of ``axes`` by :func:`power_label`."""
+    from matplotlib.ticker import FuncFormatter
+    for ax in axes:
+        for axis in (ax.xaxis, ax.yaxis):
+            if axis.get_scale() in ("log", "symlog"):
+                axis.set_major_formatter(FuncFormatter(power_label))
 
 
 def plot_backbone(res, path):
     fig, ax = _figure(figsize=(6, 4.5))
     ax.loglog(res.q, res.alpha, "o-", ms=3, label="QSMA backbone")
     ax.loglog(res.q, res.q * res.omega0 ** 2, "--", lw=1, label="linear (tied)")
-    ax.set_xlabel("modal amplitude q [kg$^{1/2}$ m]")
-    ax.set_ylabel(r"modal force $\alpha$ [N/kg$^{1/2}$]")
+    ax.set_xlabel("modal amplitude q [\u221akg m]")
+    ax.set_ylabel("modal force \u03b1 [N/\u221akg]")
+    _plain_log_ticks(ax)
     ax.set_title(f"Backbone, mode {res.mode_index} (f0 = {res.f0_hz:.2f} Hz)")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend()
@@ -56,8 +95,8 @@ def plot_loops(res, path):
                  f"{dl.dissipation_masing:.3g})" if dl.success
                  else "direct loop (not closed: a contact solve failed)")
         ax.plot(dl.q, dl.alpha - k0 * dl.q, "k.", ms=3, label=label)
-    ax.set_xlabel("modal amplitude q [kg$^{1/2}$ m]")
-    ax.set_ylabel(r"$\alpha - \omega_0^2 q$ [N/kg$^{1/2}$]")
+    ax.set_xlabel("modal amplitude q [\u221akg m]")
+    ax.set_ylabel("\u03b1 \u2212 \u03c9\u2080\u00b2 q [N/\u221akg]")
     ax.ticklabel_format(style="sci", scilimits=(-3, 3))
     ax.set_title("Hysteresis loops")
     ax.grid(True, alpha=0.3)
@@ -73,7 +112,7 @@ ZETA_LINEAR = 1e-6
 def plot_damping_frequency(res, path):
     """Secant frequency and damping ratio versus peak tip velocity: the values used
     (filled), Masing's and the loops' where they differ, hardening levels marked."""
-    fig, (a1, a2) = _figure(2, 1, figsize=(6, 6.5), sharex=True)
+    fig, (a1, a2) = _figure(2, 1, figsize=(6, 6.5), hspace=0.08, sharex=True)
     v = np.abs(res.tip_velocity)
     loop = res.dissipation_method == "loop"
     hard = np.array(["hardening" in f or "masing_on_hardening" in f for f in res.flags])
@@ -93,7 +132,8 @@ def plot_damping_frequency(res, path):
     shown = np.concatenate([res.zeta, res.zeta_masing if loop.any() else []])
     lowest = np.nanmin(shown) if np.isfinite(shown).any() else 0.0
     a2.set_ylim(bottom=min(-ZETA_LINEAR, 3 * lowest))
-    a2.set_ylabel(r"damping ratio $\zeta$ [-]")
+    a2.set_ylabel("damping ratio \u03b6 [-]")
+    _plain_log_ticks(a1, a2)
     a2.set_xlabel("peak tip velocity [m/s]")
     for a in (a1, a2):
         a.grid(True, which="both", alpha=0.3)
@@ -107,7 +147,7 @@ def plot_interface(res, path, levels=None):
     levels = sorted({0, n // 2, (3 * n) // 4, n - 1}) if levels is None else levels
     p = res.pairing
     x = p.x[:, 0]
-    fig, axes = _figure(3, 1, figsize=(7, 8), sharex=True)
+    fig, axes = _figure(3, 1, figsize=(7, 8), hspace=0.1, sharex=True)
     pre = res.preload.lam
     axes[0].plot(x, pre[:, -1] / p.area / 1e6, "k--", lw=1, label="preload")
     for k in levels:
@@ -138,8 +178,8 @@ def plot_interface_map(res, path, levels=None):
     p = res.pairing
     t1, t2 = p.frames[0, 0], p.frames[0, 1]
     u, v = p.x @ t1, p.x @ t2
-    fig, axes = _figure(3, len(levels), figsize=(4.2 * len(levels), 6.5), squeeze=False,
-                        sharex=True, sharey=True)
+    fig, axes = _figure(3, len(levels), figsize=(4.2 * len(levels), 6.5), hspace=0.3,
+                        wspace=0.45, squeeze=False, sharex=True, sharey=True)
     states = ListedColormap(["tab:blue", "tab:orange", "lightgray"])
     pmax = max(res.states.lam[k][:, -1].max() for k in levels) / p.area.max() / 1e6
     for j, k in enumerate(levels):

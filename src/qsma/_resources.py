@@ -1,0 +1,73 @@
+"""Resources used by this process: peak resident memory and CPU time.
+
+The peak resident set size (RSS) counts every allocation that touched physical
+memory, including those of the C and Fortran libraries (SuperLU, BLAS, METIS), which
+:mod:`tracemalloc` does not see. Sources, by platform:
+
+* Linux: ``VmHWM`` of ``/proc/self/status`` (kB), which :func:`reset_peak` can lower
+  to the current RSS (``/proc/self/clear_refs``), so a stage can be measured alone;
+* other POSIX systems: ``resource.getrusage(RUSAGE_SELF).ru_maxrss`` (bytes on macOS,
+  kB elsewhere); it never decreases;
+* Windows: ``None`` (not measured).
+"""
+from __future__ import annotations
+
+import sys
+import time
+
+_MB = 2.0**20
+
+
+def _status_kb(key):
+    """A ``kB`` field of ``/proc/self/status`` (``None`` if unreadable)."""
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith(key + ":"):
+                    return int(line.split()[1])
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+def peak_memory_mb() -> float | None:
+    """Peak resident memory of this process in MiB since its start (or since the last
+    :func:`reset_peak`), ``None`` where the platform does not report it."""
+    kb = _status_kb("VmHWM")
+    if kb is not None:
+        return kb / 1024.0
+    try:
+        import resource
+    except ImportError:                     # Windows
+        return None
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return peak / _MB if sys.platform == "darwin" else peak / 1024.0
+
+
+def current_memory_mb() -> float | None:
+    """Current resident memory in MiB (Linux only, else ``None``)."""
+    kb = _status_kb("VmRSS")
+    return None if kb is None else kb / 1024.0
+
+
+def reset_peak() -> bool:
+    """Lower the peak (Linux ``VmHWM``) to the current resident memory, so that the
+    next :func:`peak_memory_mb` covers what follows. Returns whether it worked."""
+    try:
+        with open("/proc/self/clear_refs", "w") as f:
+            f.write("5")
+        return True
+    except OSError:
+        return False
+
+
+def snapshot() -> dict:
+    """``{"peak_memory_mb": ..., "cpu_s": ...}``: peak resident memory (MiB, rounded
+    to 0.1, or ``None``) and the CPU time of the process so far (user + system, all
+    threads, in seconds)."""
+    peak = peak_memory_mb()
+    return {"peak_memory_mb": None if peak is None else round(peak, 1),
+            "cpu_s": round(time.process_time(), 3)}
+
+
+__all__ = ["peak_memory_mb", "current_memory_mb", "reset_peak", "snapshot"]
