@@ -46,14 +46,18 @@ def _overlaps(boxes):
     return bad
 
 
-def _tick_boxes(axis, renderer):
-    labels = [t for t in axis.get_ticklabels() if t.get_visible() and t.get_text()]
+def _drawn_ticklabels(axis):
+    """The tick labels matplotlib draws: visible, non-empty, inside the view interval
+    (the locator also returns ticks beyond the limits, which are not drawn)."""
     lo, hi = sorted(axis.get_view_interval())
-    # only the ticks matplotlib actually draws (inside the view interval)
-    locs = axis.get_ticklocs()
-    shown = [t for t, x in zip(labels, locs) if lo - 1e-12 * abs(hi - lo) <= x
-             <= hi + 1e-12 * abs(hi - lo)] if len(locs) == len(labels) else labels
-    return [t.get_window_extent(renderer) for t in shown]
+    slack = 1e-9 * abs(hi - lo)
+    return [t for t in axis.get_ticklabels() if t.get_visible() and t.get_text()
+            and lo - slack <= (t.get_position()[0] if axis.axis_name == "x"
+                               else t.get_position()[1]) <= hi + slack]
+
+
+def _tick_boxes(axis, renderer):
+    return [t.get_window_extent(renderer) for t in _drawn_ticklabels(axis)]
 
 
 def _check_figure(name, fig):
@@ -74,6 +78,16 @@ def _check_figure(name, fig):
                               for t in axis.get_ticklabels())
             if shows_ticks and not UNIT.search(label):   # (shared axes show them once)
                 problems.append(f"{name}: {which} axis label {label!r} has no [unit]")
+        page = fig.bbox
+        texts = [ax.xaxis.label, ax.yaxis.label, ax.title] + \
+            _drawn_ticklabels(ax.xaxis) + _drawn_ticklabels(ax.yaxis)
+        for t in texts:
+            if not t.get_text():
+                continue
+            box = t.get_window_extent(renderer)
+            if (box.x0 < page.x0 - 1 or box.x1 > page.x1 + 1 or box.y0 < page.y0 - 1
+                    or box.y1 > page.y1 + 1):
+                problems.append(f"{name}: text {t.get_text()!r} is cut by the page edge")
         x0, x1 = sorted(ax.get_xlim())
         y0, y1 = sorted(ax.get_ylim())
         for line in ax.get_lines():
