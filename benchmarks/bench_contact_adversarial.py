@@ -1,10 +1,14 @@
 """Adversarial sweep: random contact problems, every method, invalid successes counted.
 
 Usage: python benchmarks/bench_contact_adversarial.py [--problems 200] [--seed 0]
-                                                      [--max-pairs 2000] [--levels 4]
-                                                      [--nodal-max-pairs 30]
+                                                      [--min-pairs 1] [--max-pairs 2000]
+                                                      [--levels 4] [--nodal-max-pairs 30]
+                                                      [--methods basket active_set ...]
+                                                      [--seconds S]
 
-Each problem: dim 2 or 3; ``n`` pairs log-uniform in [1, max-pairs]; target
+Problem ``k`` of seed ``s`` is drawn from its own generator ``default_rng([s, k])``
+(so a problem can be re-run alone, and tiers of sizes run in separate processes).
+Each problem: dim 2 or 3; ``n`` pairs log-uniform in [min-pairs, max-pairs]; target
 cond(K) log-uniform in [1, 1e10]; mu uniform in [0, 2]; initial gaps zero for half
 of the problems, else uniform in +-1e-3 of the displacement scale; a warm-started
 sequence of ``--levels`` welded forces ``lam_w = base + (k / levels) * swing`` (normal
@@ -35,9 +39,10 @@ from qsma.contact import FORCE_TOL, METHODS, ContactProblem, solve
 INDEPENDENT_TOL = 1e-5
 
 
-def random_problem(rng, max_pairs):
+def random_problem(rng, max_pairs, min_pairs=1):
     dim = int(rng.choice([2, 3]))
-    n = int(np.clip(round(np.exp(rng.uniform(0, np.log(max_pairs)))), 1, max_pairs))
+    n = int(np.clip(round(np.exp(rng.uniform(np.log(min_pairs), np.log(max_pairs)))),
+                    min_pairs, max_pairs))
     cond = 10 ** rng.uniform(0, 10)
     N = n * dim
     if N <= 900:
@@ -116,25 +121,28 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--problems", type=int, default=200)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--min-pairs", type=int, default=1)
     ap.add_argument("--max-pairs", type=int, default=2000)
+    ap.add_argument("--methods", nargs="*", default=None, help="default: every method")
     ap.add_argument("--levels", type=int, default=4)
     ap.add_argument("--nodal-max-pairs", type=int, default=30)
     ap.add_argument("--seconds", type=float, default=None,
                     help="stop drawing new problems after this many seconds")
     args = ap.parse_args()
-    rng = np.random.default_rng(args.seed)
+    methods = sorted(args.methods or METHODS)
     keys = ("levels", "solved", "failed", "invalid", "crash", "fallback", "nit", "time")
-    stats = {m: dict.fromkeys(keys, 0) for m in METHODS}
-    by_cond = {m: {} for m in METHODS}
+    stats = {m: dict.fromkeys(keys, 0) for m in methods}
+    by_cond = {m: {} for m in methods}
     t_start = time.perf_counter()
     done = 0
     for k in range(args.problems):
         if args.seconds is not None and time.perf_counter() - t_start > args.seconds:
             break
         done += 1
-        problem, W, cond = random_problem(rng, args.max_pairs)
+        rng = np.random.default_rng([args.seed, k])
+        problem, W, cond = random_problem(rng, args.max_pairs, args.min_pairs)
         loads = load_sequence(rng, problem, W, args.levels)
-        for method in sorted(METHODS):
+        for method in methods:
             if method == "nodal_gs" and problem.n_pairs > args.nodal_max_pairs:
                 continue
             s, state = stats[method], None
@@ -170,7 +178,7 @@ def main():
                     break                        # a ramp stops at its first failure
         if (k + 1) % 20 == 0:
             print(f"... {k + 1} problems, {time.perf_counter() - t_start:.0f} s", flush=True)
-    print(f"\n{done} problems (seed {args.seed}, max pairs {args.max_pairs}, "
+    print(f"\n{done} problems (seed {args.seed}, pairs {args.min_pairs}-{args.max_pairs}, "
           f"{args.levels} levels), {time.perf_counter() - t_start:.0f} s\n")
     print("| method | levels | solved | failed | invalid successes | crashes | fallbacks "
           "| iterations | time [s] |")
