@@ -4,7 +4,7 @@ Usage: python benchmarks/bench_contact_adversarial.py [--problems 200] [--seed 0
                                                       [--min-pairs 1] [--max-pairs 2000]
                                                       [--levels 4] [--nodal-max-pairs 30]
                                                       [--methods basket active_set ...]
-                                                      [--seconds S]
+                                                      [--seconds S] [--start 0]
 
 Problem ``k`` of seed ``s`` is drawn from its own generator ``default_rng([s, k])``
 (so a problem can be re-run alone, and tiers of sizes run in separate processes).
@@ -120,6 +120,7 @@ def independent_residual(problem, W, u0, lam_w, lam, d_prev):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--problems", type=int, default=200)
+    ap.add_argument("--start", type=int, default=0, help="index of the first problem")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--min-pairs", type=int, default=1)
     ap.add_argument("--max-pairs", type=int, default=2000)
@@ -135,7 +136,7 @@ def main():
     by_cond = {m: {} for m in methods}
     t_start = time.perf_counter()
     done = 0
-    for k in range(args.problems):
+    for k in range(args.start, args.start + args.problems):
         if args.seconds is not None and time.perf_counter() - t_start > args.seconds:
             break
         done += 1
@@ -176,8 +177,8 @@ def main():
                     decade = int(np.log10(cond))
                     by_cond[method][decade] = by_cond[method].get(decade, 0) + 1
                     break                        # a ramp stops at its first failure
-        if (k + 1) % 20 == 0:
-            print(f"... {k + 1} problems, {time.perf_counter() - t_start:.0f} s", flush=True)
+        if done % 20 == 0:
+            print(f"... {done} problems, {time.perf_counter() - t_start:.0f} s", flush=True)
     print(f"\n{done} problems (seed {args.seed}, pairs {args.min_pairs}-{args.max_pairs}, "
           f"{args.levels} levels), {time.perf_counter() - t_start:.0f} s\n")
     print("| method | levels | solved | failed | invalid successes | crashes | fallbacks "
