@@ -134,6 +134,7 @@ def main():
     keys = ("levels", "solved", "failed", "invalid", "crash", "fallback", "nit", "time")
     stats = {m: dict.fromkeys(keys, 0) for m in methods}
     by_cond = {m: {} for m in methods}
+    level_times = {m: [] for m in methods}
     t_start = time.perf_counter()
     done = 0
     for k in range(args.start, args.start + args.problems):
@@ -160,6 +161,7 @@ def main():
                     print(f"CRASH problem {k} {method}: {type(err).__name__}: {err}")
                     break
                 s["time"] += time.perf_counter() - t
+                level_times[method].append(time.perf_counter() - t)
                 s["nit"] += r.nit
                 s["fallback"] += r.fallback is not None
                 d_prev = np.zeros_like(lam_w) if state is None else state.d
@@ -182,11 +184,13 @@ def main():
     print(f"\n{done} problems (seed {args.seed}, pairs {args.min_pairs}-{args.max_pairs}, "
           f"{args.levels} levels), {time.perf_counter() - t_start:.0f} s\n")
     print("| method | levels | solved | failed | invalid successes | crashes | fallbacks "
-          "| iterations | time [s] |")
-    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+          "| iterations | time [s] | median / max level [s] |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for m, s in stats.items():
+        times = level_times[m] or [0.0]
         print(f"| {m} | {s['levels']} | {s['solved']} | {s['failed']} | {s['invalid']} "
-              f"| {s['crash']} | {s['fallback']} | {s['nit']} | {s['time']:.1f} |")
+              f"| {s['crash']} | {s['fallback']} | {s['nit']} | {s['time']:.1f} "
+              f"| {np.median(times):.3f} / {max(times):.2f} |")
     print("\nfailures by decade of cond(K):", {m: dict(sorted(v.items()))
                                                 for m, v in by_cond.items()})
 
