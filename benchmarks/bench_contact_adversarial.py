@@ -29,6 +29,7 @@ check above ``FORCE_TOL``. The goal is zero. An exception other than
 only on problems of at most ``--nodal-max-pairs`` pairs, capped at 2000 sweeps.
 """
 import argparse
+import signal
 import time
 import warnings
 
@@ -128,7 +129,7 @@ def main():
     ap.add_argument("--levels", type=int, default=4)
     ap.add_argument("--nodal-max-pairs", type=int, default=30)
     ap.add_argument("--seconds", type=float, default=None,
-                    help="stop drawing new problems after this many seconds")
+                    help="stop drawing new problems after this many seconds (or on SIGTERM)")
     args = ap.parse_args()
     methods = sorted(args.methods or METHODS)
     keys = ("levels", "solved", "failed", "invalid", "crash", "fallback", "nit", "time")
@@ -137,8 +138,10 @@ def main():
     level_times = {m: [] for m in methods}
     t_start = time.perf_counter()
     done = 0
+    stop = []
+    signal.signal(signal.SIGTERM, lambda *_: stop.append(True))   # finish the problem, report
     for k in range(args.start, args.start + args.problems):
-        if args.seconds is not None and time.perf_counter() - t_start > args.seconds:
+        if stop or (args.seconds is not None and time.perf_counter() - t_start > args.seconds):
             break
         done += 1
         rng = np.random.default_rng([args.seed, k])
@@ -181,7 +184,8 @@ def main():
                     break                        # a ramp stops at its first failure
         if done % 20 == 0:
             print(f"... {done} problems, {time.perf_counter() - t_start:.0f} s", flush=True)
-    print(f"\n{done} problems (seed {args.seed}, pairs {args.min_pairs}-{args.max_pairs}, "
+    print(f"\n{done} problems (indices {args.start}-{args.start + done - 1}, seed {args.seed}, "
+          f"pairs {args.min_pairs}-{args.max_pairs}, "
           f"{args.levels} levels), {time.perf_counter() - t_start:.0f} s\n")
     print("| method | levels | solved | failed | invalid successes | crashes | fallbacks "
           "| iterations | time [s] | median / max level [s] |")
