@@ -1,10 +1,14 @@
 """Adversarial sweep: random contact problems, every method, invalid successes counted.
 
 Usage: python benchmarks/bench_contact_adversarial.py [--problems 200] [--seed 0]
-                                                      [--max-pairs 2000] [--levels 4]
-                                                      [--nodal-max-pairs 30]
+                                                      [--min-pairs 1] [--max-pairs 2000]
+                                                      [--levels 4] [--nodal-max-pairs 30]
+                                                      [--methods basket active_set ...]
+                                                      [--seconds S] [--start 0]
 
-Each problem: dim 2 or 3; ``n`` pairs log-uniform in [1, max-pairs]; target
+Problem ``k`` of seed ``s`` is drawn from its own generator ``default_rng([s, k])``
+(so a problem can be re-run alone, and tiers of sizes run in separate processes).
+Each problem: dim 2 or 3; ``n`` pairs log-uniform in [min-pairs, max-pairs]; target
 cond(K) log-uniform in [1, 1e10]; mu uniform in [0, 2]; initial gaps zero for half
 of the problems, else uniform in +-1e-3 of the displacement scale; a warm-started
 sequence of ``--levels`` welded forces ``lam_w = base + (k / levels) * swing`` (normal
@@ -25,6 +29,7 @@ check above ``FORCE_TOL``. The goal is zero. An exception other than
 only on problems of at most ``--nodal-max-pairs`` pairs, capped at 2000 sweeps.
 """
 import argparse
+import signal
 import time
 import warnings
 
@@ -35,9 +40,10 @@ from qsma.contact import FORCE_TOL, METHODS, ContactProblem, solve
 INDEPENDENT_TOL = 1e-5
 
 
-def random_problem(rng, max_pairs):
+def random_problem(rng, max_pairs, min_pairs=1):
     dim = int(rng.choice([2, 3]))
-    n = int(np.clip(round(np.exp(rng.uniform(0, np.log(max_pairs)))), 1, max_pairs))
+    n = int(np.clip(round(np.exp(rng.uniform(np.log(min_pairs), np.log(max_pairs)))),
+                    min_pairs, max_pairs))
     cond = 10 ** rng.uniform(0, 10)
     N = n * dim
     if N <= 900:
@@ -115,26 +121,33 @@ def independent_residual(problem, W, u0, lam_w, lam, d_prev):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--problems", type=int, default=200)
+    ap.add_argument("--start", type=int, default=0, help="index of the first problem")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--min-pairs", type=int, default=1)
     ap.add_argument("--max-pairs", type=int, default=2000)
+    ap.add_argument("--methods", nargs="*", default=None, help="default: every method")
     ap.add_argument("--levels", type=int, default=4)
     ap.add_argument("--nodal-max-pairs", type=int, default=30)
     ap.add_argument("--seconds", type=float, default=None,
-                    help="stop drawing new problems after this many seconds")
+                    help="stop drawing new problems after this many seconds (or on SIGTERM)")
     args = ap.parse_args()
-    rng = np.random.default_rng(args.seed)
+    methods = sorted(args.methods or METHODS)
     keys = ("levels", "solved", "failed", "invalid", "crash", "fallback", "nit", "time")
-    stats = {m: dict.fromkeys(keys, 0) for m in METHODS}
-    by_cond = {m: {} for m in METHODS}
+    stats = {m: dict.fromkeys(keys, 0) for m in methods}
+    by_cond = {m: {} for m in methods}
+    level_times = {m: [] for m in methods}
     t_start = time.perf_counter()
     done = 0
-    for k in range(args.problems):
-        if args.seconds is not None and time.perf_counter() - t_start > args.seconds:
+    stop = []
+    signal.signal(signal.SIGTERM, lambda *_: stop.append(True))   # finish the problem, report
+    for k in range(args.start, args.start + args.problems):
+        if stop or (args.seconds is not None and time.perf_counter() - t_start > args.seconds):
             break
         done += 1
-        problem, W, cond = random_problem(rng, args.max_pairs)
+        rng = np.random.default_rng([args.seed, k])
+        problem, W, cond = random_problem(rng, args.max_pairs, args.min_pairs)
         loads = load_sequence(rng, problem, W, args.levels)
-        for method in sorted(METHODS):
+        for method in methods:
             if method == "nodal_gs" and problem.n_pairs > args.nodal_max_pairs:
                 continue
             s, state = stats[method], None
@@ -151,6 +164,7 @@ def main():
                     print(f"CRASH problem {k} {method}: {type(err).__name__}: {err}")
                     break
                 s["time"] += time.perf_counter() - t
+                level_times[method].append(time.perf_counter() - t)
                 s["nit"] += r.nit
                 s["fallback"] += r.fallback is not None
                 d_prev = np.zeros_like(lam_w) if state is None else state.d
@@ -168,16 +182,19 @@ def main():
                     decade = int(np.log10(cond))
                     by_cond[method][decade] = by_cond[method].get(decade, 0) + 1
                     break                        # a ramp stops at its first failure
-        if (k + 1) % 20 == 0:
-            print(f"... {k + 1} problems, {time.perf_counter() - t_start:.0f} s", flush=True)
-    print(f"\n{done} problems (seed {args.seed}, max pairs {args.max_pairs}, "
+        if done % 20 == 0:
+            print(f"... {done} problems, {time.perf_counter() - t_start:.0f} s", flush=True)
+    print(f"\n{done} problems (indices {args.start}-{args.start + done - 1}, seed {args.seed}, "
+          f"pairs {args.min_pairs}-{args.max_pairs}, "
           f"{args.levels} levels), {time.perf_counter() - t_start:.0f} s\n")
     print("| method | levels | solved | failed | invalid successes | crashes | fallbacks "
-          "| iterations | time [s] |")
-    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+          "| iterations | time [s] | median / max level [s] |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for m, s in stats.items():
+        times = level_times[m] or [0.0]
         print(f"| {m} | {s['levels']} | {s['solved']} | {s['failed']} | {s['invalid']} "
-              f"| {s['crash']} | {s['fallback']} | {s['nit']} | {s['time']:.1f} |")
+              f"| {s['crash']} | {s['fallback']} | {s['nit']} | {s['time']:.1f} "
+              f"| {np.median(times):.3f} / {max(times):.2f} |")
     print("\nfailures by decade of cond(K):", {m: dict(sorted(v.items()))
                                                 for m, v in by_cond.items()})
 

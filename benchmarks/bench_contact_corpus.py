@@ -1,11 +1,13 @@
 """Every contact method on the third-party corpus (Siconos test problems).
 
 Usage: python benchmarks/bench_contact_corpus.py [--extra FILE ...] [--nodal-maxiter 2000]
-                                                 [--repeat 3]
+                                                 [--repeat 3] [--methods ...] [--only-extra]
 
 Problems: tests/data/contact/siconos/*.dat (see the README there) plus any
 ``--extra`` Siconos ``.dat`` files (e.g. ``fc2d_granularflowonwall_00667_00000.dat``
-from a Siconos checkout). Each is converted to ``ContactProblem(K = W^-1, mu)``,
+from a Siconos checkout; FCLIB global ``.hdf5`` files such as
+``Spheres-i099-356-679.hdf5`` are condensed by ``read_fclib_global`` and need h5py).
+Each is converted to ``ContactProblem(K = W^-1, mu)``,
 ``lam_w = -K q`` and solved from the reference state by every method. Printed per
 method and problem: success, iterations, fallback, median time over ``--repeat``
 runs, the residual (new), the force check, the legacy residual, and an independent
@@ -23,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from qsma.contact import METHODS, solve
-from qsma.contact.external import read_siconos_dat, stiffness_form
+from qsma.contact.external import read_fclib_global, read_siconos_dat, stiffness_form
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests" / "contact"))
@@ -35,18 +37,23 @@ def main():
     ap.add_argument("--extra", nargs="*", default=[])
     ap.add_argument("--nodal-maxiter", type=int, default=2000)
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--methods", nargs="*", default=None, help="default: every method")
+    ap.add_argument("--only-extra", action="store_true", help="skip the files of the tests")
     args = ap.parse_args()
-    files = sorted((ROOT / "tests" / "data" / "contact" / "siconos").glob("*.dat"))
+    methods = sorted(args.methods or METHODS)
+    files = [] if args.only_extra else sorted(
+        (ROOT / "tests" / "data" / "contact" / "siconos").glob("*.dat"))
     files += [Path(f) for f in args.extra]
     print("| problem | pairs | dim | cond(K) | method | success | nit | fallback | time [s] "
           "| residual | force check | legacy | independent |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
-    totals = {m: [0, 0, 0, 0.0] for m in METHODS}      # solved, invalid, fallbacks, time
+    totals = {m: [0, 0, 0, 0.0] for m in methods}      # solved, invalid, fallbacks, time
     for path in files:
-        delassus = read_siconos_dat(path)
+        read = read_fclib_global if path.suffix == ".hdf5" else read_siconos_dat
+        delassus = read(path)
         problem, lam_w = stiffness_form(delassus, MAX_ASYMMETRY)
         cond = np.linalg.cond(problem.K)
-        for method in sorted(METHODS):
+        for method in methods:
             maxiter = args.nodal_maxiter if method == "nodal_gs" else None
             times = []
             for _ in range(args.repeat if method != "nodal_gs" else 1):

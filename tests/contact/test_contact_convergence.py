@@ -1,12 +1,14 @@
 """Convergence, failure paths and the public residual."""
+import itertools
 import warnings
 
 import numpy as np
 import pytest
 
-from qsma.contact import (METHODS, ContactProblem, ContactState, Iterate, residual,
-                          residual_components, solve)
+from qsma.contact import (METHODS, OPEN, SLIPPING, STUCK, ContactProblem, ContactState, Iterate,
+                          residual, residual_components, solve)
 from qsma.contact import registry
+from qsma.contact.linear import basket_system, solve_partitioned
 from qsma.errors import ContactConvergenceWarning
 
 
@@ -147,3 +149,50 @@ def test_tighter_and_looser_tolerances_are_honoured(method):
             warnings.simplefilter("error", ContactConvergenceWarning)
             r = solve(problem, lam_w, method=method, tol=tol, **options)
         assert r.success and r.residual <= tol
+
+
+def two_pair_cycle_problem():
+    """A level of the adversarial sweep (bench_contact_adversarial.py, seed 21,
+    problem 456, level 3): 2D, 2 pairs, cond(K) = 4.8e7, mu = 1.17, both pairs open
+    before. Its only solution has pair 0 open and pair 1 slipping; the basket's
+    tabu search used to move only the pair that failed its check and went back and
+    forth between two seen configurations for 200 block steps."""
+    K = np.array([[2695747.542231221, 221965.8498229164, 8919269.09511267, 6412304.506412802],
+                  [221965.8498229164, 97171.74710131309, 543468.6831451105, 373631.71843940316],
+                  [8919269.09511267, 543468.6831451105, 29979476.329462938, 21594754.083743073],
+                  [6412304.506412802, 373631.71843940316, 21594754.083743073,
+                   15558749.420591185]])
+    problem = ContactProblem(K, 1.1677567760157264,
+                             gap0=[-7.2044385050836590e-11, -1.1315808542836871e-11])
+    lam_w = np.array([[0.07746123282413464, -0.22396485058652615],
+                      [-0.05281716847093776, -0.0029949647723697126]])
+    previous = ContactState(np.array([[0.0010571917736716162, 0.0009676392828481705],
+                                      [-0.006310269921177116, 0.008299393579086612]]),
+                            np.array([[0.0, 4.547473508864641e-13], [0.0, 0.0]]),
+                            np.array([OPEN, OPEN]))
+    return problem, lam_w, previous
+
+
+def enumerate_2d_solutions(problem, lam_w, previous, tol=1e-9):
+    """Every combination of (stuck, slip +, slip -, open) per pair, solved with the
+    states held and kept if its residual is below ``tol``: the statuses found."""
+    n, found = problem.n_pairs, []
+    for combo in itertools.product(range(4), repeat=n):
+        combo = np.array(combo)
+        status = np.where(combo == 3, OPEN, np.where(combo == 0, STUCK, SLIPPING))
+        direction = np.where(combo == 2, -1.0, 1.0)[:, None]
+        R, b, free, known = basket_system(problem, lam_w.ravel(), status, direction, np.zeros(n),
+                                          previous.d, problem.kappa)
+        d = solve_partitioned(R, b, free, known).reshape(n, 2)
+        lam = (problem.K @ d.ravel() + lam_w.ravel()).reshape(n, 2)
+        if residual(problem, lam_w, d, lam, previous) <= tol:
+            found.append(tuple(status))
+    return found
+
+
+def test_tabu_search_also_moves_pairs_that_passed_their_check():
+    problem, lam_w, previous = two_pair_cycle_problem()
+    assert enumerate_2d_solutions(problem, lam_w, previous) == [(OPEN, SLIPPING)]
+    r = solve(problem, lam_w, previous, method="basket", fallback=False)
+    assert r.success, r.message
+    assert tuple(r.status) == (OPEN, SLIPPING)

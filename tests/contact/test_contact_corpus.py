@@ -1,13 +1,16 @@
 """Third-party problems (Siconos test data, see tests/data/contact/README.md) with
 every method, judged by an independent residual in the Delassus (flexibility) form."""
-from pathlib import Path
+import sys
+import types
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from qsma.contact import METHODS, FORCE_TOL, solve
-from qsma.contact.external import read_siconos_dat, stiffness_form
+from qsma.contact.external import read_fclib_global, read_siconos_dat, stiffness_form
+from qsma.errors import InputError
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "contact" / "siconos"
 FILES = sorted(DATA.glob("*.dat"))
@@ -81,3 +84,69 @@ def test_nodal_gs_solves_the_single_coupled_3d_contact_in_one_sweep():
     r = solve(problem, lam_w, method="nodal_gs")
     assert r.success and r.nit == 1 and r.P[0] > 0
     assert delassus_residual(delassus, problem, r.lam) <= 1e-12
+
+
+class _FakeGroup(dict):
+    """Enough of an h5py group for read_fclib_global: ``g["a/b"]`` and ``g["x"][()]``."""
+
+    def __getitem__(self, key):
+        node = self
+        for part in key.split("/"):
+            node = dict.__getitem__(node, part)
+        return node
+
+
+def _csparse(matrix, compressed):
+    """An FCLIB sparse matrix group: triplet (nz >= 0) or compressed columns (nz = -1)."""
+    m, n = matrix.shape
+    rows, cols = np.nonzero(matrix.T)[::-1] if compressed else np.nonzero(matrix)
+    if compressed:
+        order = np.lexsort((rows, cols))
+        rows, cols = rows[order], cols[order]
+        p = np.searchsorted(cols, np.arange(n + 1))
+        nz = -1
+    else:
+        p, nz = cols, len(rows)
+    return _FakeGroup(m=np.array([m]), n=np.array([n]), nz=np.array([nz]), i=rows, p=p,
+                      x=matrix[rows, cols])
+
+
+@pytest.mark.parametrize("compressed", [False, True])
+def test_fclib_global_problem_is_condensed_to_the_local_form(monkeypatch, compressed):
+    """M v = H r + f, u = H^T v + w  ->  u = W r + q with W = H^T M^-1 H,
+    q = H^T M^-1 f + w (normal first per contact, as the Siconos .dat files)."""
+    rng = np.random.default_rng(3)
+    n, nc = 12, 3
+    M = np.diag(rng.uniform(1, 2, n))
+    H = rng.normal(size=(n, 3 * nc)) * (rng.random((n, 3 * nc)) < 0.6)
+    f, w, mu = rng.normal(size=n), rng.normal(size=3 * nc), np.full(nc, 0.4)
+    root = _FakeGroup(fclib_global=_FakeGroup(
+        M=_csparse(M, compressed), H=_csparse(H, compressed), spacedim=np.array([3]),
+        vectors=_FakeGroup(f=f, w=w, mu=mu)))
+
+    class FakeFile:
+        def __init__(self, path, mode):
+            pass
+
+        def __enter__(self):
+            return root
+
+        def __exit__(self, *exc):
+            return False
+
+    monkeypatch.setitem(sys.modules, "h5py", types.SimpleNamespace(File=FakeFile))
+    delassus = read_fclib_global("problem.hdf5")
+    W = H.T @ np.linalg.solve(M, H)
+    np.testing.assert_allclose(delassus.W, W, rtol=1e-13, atol=1e-13)
+    np.testing.assert_allclose(delassus.q, H.T @ np.linalg.solve(M, f) + w, rtol=1e-13,
+                               atol=1e-13)
+    r = rng.normal(size=3 * nc)                          # the definitions agree
+    v = np.linalg.solve(M, H @ r + f)
+    np.testing.assert_allclose(delassus.W @ r + delassus.q, H.T @ v + w, rtol=1e-12, atol=1e-12)
+    assert delassus.dim == 3 and list(delassus.mu) == [0.4] * nc
+
+
+def test_fclib_reader_names_the_missing_h5py(monkeypatch):
+    monkeypatch.setitem(sys.modules, "h5py", None)       # import h5py raises ImportError
+    with pytest.raises(InputError, match="pip install h5py"):
+        read_fclib_global("problem.hdf5")

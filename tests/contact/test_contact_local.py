@@ -4,8 +4,8 @@ import itertools
 import numpy as np
 import pytest
 
-from qsma.contact import METHODS, SLIPPING, ContactProblem, solve
-from qsma.contact.local import _trig_f, pair_solution, solve_pair
+from qsma.contact import METHODS, OPEN, SLIPPING, STUCK, ContactProblem, solve
+from qsma.contact.local import _trig_f, pair_solution, solve_pair, solve_pairs
 
 
 def random_spd(rng, n, cond):
@@ -166,3 +166,37 @@ class _no_check:
 
     def __exit__(self, *exc):
         return self._w.__exit__(*exc)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_batch_solve_matches_the_one_pair_solve(dim):
+    """solve_pairs (numpy, all pairs at once) finds, per state, the smallest violation
+    and the least violated slip direction of solve_pair's candidates, pair by pair."""
+    rng = np.random.default_rng(101 + dim)
+    pairs = [one_pair(rng, dim) for _ in range(500)]
+    A, r, t_prev, g0, mu = (np.array([p[j] for p in pairs]) for j in range(5))
+    found = solve_pairs(A, r, t_prev, g0, mu)
+    slips_seen = 0
+    for k, pair in enumerate(pairs):
+        candidates = solve_pair(*pair)
+        for state in (STUCK, SLIPPING, OPEN):
+            own = [c.violation for c in candidates if c.state == state]
+            expected = min(own) if own else np.inf
+            assert found.violation[k, state] == pytest.approx(expected, rel=1e-9, abs=1e-12)
+        slips = sorted((c for c in candidates if c.state == SLIPPING), key=lambda c: c.violation)
+        assert found.has_slip[k] == bool(slips)
+        if slips:
+            slips_seen += 1
+            np.testing.assert_allclose(found.direction[k], slips[0].s, atol=1e-9)
+    assert slips_seen > 100                      # the slipping branch was exercised
+
+
+def test_batch_solve_of_a_degenerate_quartic_uses_the_scalar_path():
+    """An isotropic, uncoupled 3D pair: f(t) has no degree-2 terms (the quartic drops
+    to lower degree); the slip direction is then exactly opposite to the trial shear."""
+    A = np.eye(3)[None] * 2.0
+    r = np.array([[3.0, 4.0, 1.0]])                  # Q0 = (3, 4), P0 = 1, mu = 0.5
+    found = solve_pairs(A, r, np.zeros((1, 2)), np.zeros(1), np.array([0.5]))
+    assert found.has_slip[0]
+    np.testing.assert_allclose(found.direction[0], [-0.6, -0.8], atol=1e-12)
+    assert found.violation[0, SLIPPING] == 0.0

@@ -21,6 +21,12 @@ after reordering each contact's components to the qsma order ``(t, n)`` /
 round-off of the file); the problems whose ``W`` is only positive
 semi-definite or not symmetric have no stiffness form here.
 
+FCLIB global problems (``.hdf5``, group ``fclib_global``: ``M v = H r + f``,
+``u = H^T v + w``, the Siconos convention) become the same local form with
+``W = H^T M^-1 H``, ``q = H^T M^-1 f + w`` (:func:`read_fclib_global`; needs
+``h5py``, which qsma does not depend on: only the corpus benchmark reads
+these files, and only a diagonal ``M`` is supported).
+
 Only the reader of the format is here (written from the layout of the files,
 no Siconos code): dense (storage ``0``), sparse block (``1``) and
 CSparse-printed sparse (``2``) matrices. The sparse print has 6 significant digits, so those files
@@ -86,6 +92,58 @@ def read_siconos_dat(path):
     q = np.array(rest[:n], dtype=float)
     mu = np.array(rest[n:n + nc], dtype=float)
     return DelassusProblem(W, q, mu, dim)
+
+
+def read_fclib_global(path):
+    r"""Read an FCLIB global problem (``.hdf5``) and condense it to the local form.
+
+    The file holds ``M`` (``n x n``), ``H`` (``n x d n_c``), ``f``, ``w``, ``mu``
+    of ``M v = H r + f``, ``u = H^T v + w`` (CSparse triplet or compressed-column
+    storage, normal component first per contact). With ``M`` diagonal,
+
+    .. math:: u = W r + q, \qquad W = H^T M^{-1} H, \quad q = H^T M^{-1} f + w .
+
+    Returns
+    -------
+    DelassusProblem
+
+    Raises
+    ------
+    InputError
+        ``h5py`` not installed, no ``fclib_global`` group, or ``M`` not diagonal.
+    """
+    try:
+        import h5py
+    except ImportError:
+        raise InputError("reading FCLIB .hdf5 files needs h5py: pip install h5py") from None
+    with h5py.File(path, "r") as f:
+        if "fclib_global" not in f:
+            raise InputError(f"{path}: no 'fclib_global' group (only global FCLIB problems "
+                             "are read)")
+        g = f["fclib_global"]
+        M, H = _fclib_matrix(g["M"]), _fclib_matrix(g["H"])
+        force, w = g["vectors/f"][()], g["vectors/w"][()]
+        mu, dim = g["vectors/mu"][()], int(g["spacedim"][0])
+    if (M - np.diag(np.diag(M))).any():
+        raise InputError(f"{path}: M is not diagonal; only diagonal mass matrices are read")
+    HM = H.T / np.diag(M)
+    return DelassusProblem(HM @ H, HM @ force + w, np.asarray(mu, float), dim)
+
+
+def _fclib_matrix(group):
+    """Dense matrix of an FCLIB sparse matrix (``nz >= 0`` triplet, ``nz = -1``
+    compressed columns)."""
+    m, n, nz = int(group["m"][0]), int(group["n"][0]), int(group["nz"][0])
+    i, p, x = group["i"][()], group["p"][()], group["x"][()]
+    out = np.zeros((m, n))
+    if nz >= 0:
+        np.add.at(out, (i[:nz], p[:nz]), x[:nz])
+    elif nz == -1:
+        cols = np.repeat(np.arange(n), np.diff(p[:n + 1]))
+        np.add.at(out, (i[:len(cols)], cols), x[:len(cols)])
+    else:
+        raise InputError(f"FCLIB matrix storage nz={nz} (compressed rows) is not supported")
+    return out
 
 
 def _read_sparse_block(tokens, n):

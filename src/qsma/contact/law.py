@@ -12,7 +12,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .local import solve_pair
+from .local import solve_pairs
 from .state import OPEN, SLIPPING, STUCK
 
 
@@ -206,7 +206,8 @@ def local_states(problem, d, lam, d_prev, threshold, pairs):
 
     With the other pairs held, pair ``i`` sees ``lam_i = K_ii d_i + r_i``,
     ``r_i = lam_i - K_ii d_i``; its exact candidates (stuck, open, every
-    slipping direction) come from :func:`qsma.contact.local.solve_pair`.
+    slipping direction) come from :func:`qsma.contact.local.solve_pairs`
+    (all pairs at once, the batch form of :func:`qsma.contact.local.solve_pair`).
 
     Parameters
     ----------
@@ -222,24 +223,19 @@ def local_states(problem, d, lam, d_prev, threshold, pairs):
         ``direction`` is that of the first valid slipping candidate (else of
         the least violated one, else the current ``-Q/|Q|``).
     """
+    pairs = np.asarray(pairs, dtype=int)
     threshold = np.broadcast_to(np.asarray(threshold, dtype=float), (len(pairs),))
-    m = problem.dim - 1
-    valid = np.zeros((len(pairs), 3), bool)
-    direction = np.zeros((len(pairs), m))
-    for k, i in enumerate(pairs):
-        A = problem.diagonal_blocks[i]
-        r = lam[i] - A @ d[i]
-        candidates = solve_pair(A, r, d_prev[i, :-1], float(problem.gap0[i]),
-                                float(problem.mu[i]))
-        for c in candidates:
-            valid[k, c.state] |= c.violation <= threshold[k]
-        slips = sorted((c for c in candidates if c.state == SLIPPING),
-                       key=lambda c: c.violation)
-        if slips:
-            direction[k] = slips[0].s
-        else:
-            q_norm = np.linalg.norm(lam[i, :-1])
-            direction[k] = -lam[i, :-1] / q_norm if q_norm > 0 else np.eye(m)[0]
+    A = problem.diagonal_blocks[pairs]
+    r = lam[pairs] - np.einsum("kij,kj->ki", A, d[pairs])
+    found = solve_pairs(A, r, d_prev[pairs, :-1], problem.gap0[pairs], problem.mu[pairs])
+    valid = found.violation <= threshold[:, None]
+    Q = lam[pairs, :-1]
+    q_norm = row_norm(Q)
+    fallback = np.zeros_like(Q)
+    fallback[:, 0] = 1.0
+    fallback = np.where((q_norm > 0)[:, None], -Q / np.where(q_norm > 0, q_norm, 1.0)[:, None],
+                        fallback)
+    direction = np.where(found.has_slip[:, None], found.direction, fallback)
     return LocalStates(valid, direction)
 
 

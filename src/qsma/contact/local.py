@@ -238,3 +238,143 @@ def _polish(fourier, t):
             break
         t -= step
     return t
+
+
+class PairViolations(NamedTuple):
+    """What :func:`solve_pairs` finds for ``k`` pairs at once.
+
+    ``violation`` (k, 3): per state (``STUCK``, ``SLIPPING``, ``OPEN`` columns)
+    the smallest violation of a candidate of that state (force units; ``inf``:
+    no slipping candidate); ``direction`` (k, m): the slip direction of the
+    least violated slipping candidate (zeros where there is none);
+    ``has_slip`` (k,) whether there is one.
+    """
+
+    violation: np.ndarray
+    direction: np.ndarray
+    has_slip: np.ndarray
+
+
+def solve_pairs(A, r, t_prev, g0, mu):
+    """:func:`solve_pair` for ``k`` independent pairs at once, in numpy arrays.
+
+    Same candidates and violations as :func:`solve_pair` (stuck
+    ``max(-P, |Q| - mu P)``, open ``-A_nn w``, slipping ``-P`` with ``rho > 0``),
+    reduced to the least violated candidate of each state; the 3D slip
+    directions are the unit-circle roots of each pair's quartic, found by
+    batched eigenvalues of the companion matrices (pairs whose quartic drops a
+    degree go through :func:`solve_pair`).
+
+    Parameters
+    ----------
+    A : (k, dim, dim) SPD blocks
+    r : (k, dim)
+    t_prev : (k, dim-1)
+    g0, mu : (k,)
+
+    Returns
+    -------
+    PairViolations
+    """
+    A, r, t_prev = (np.asarray(a, float) for a in (A, r, t_prev))
+    g0, mu = np.asarray(g0, float), np.asarray(mu, float)
+    k, dim = r.shape
+    m = dim - 1
+    violation = np.full((k, 3), np.inf)
+    d_stuck = np.concatenate([t_prev, -g0[:, None]], axis=1)
+    lam = np.einsum("kij,kj->ki", A, d_stuck) + r
+    Q0, P0 = lam[:, :m], lam[:, m]
+    violation[:, STUCK] = np.maximum(np.maximum(-P0, np.linalg.norm(Q0, axis=1) - mu * P0), 0.0)
+    d_open = -np.linalg.solve(A, r[:, :, None])[:, :, 0]
+    violation[:, OPEN] = np.maximum(-A[:, m, m] * (d_open[:, m] + g0), 0.0)
+    directions = (np.broadcast_to(np.array([[1.0], [-1.0]]), (k, 2, 1)) if m == 1
+                  else _slip_directions_3d_batch(A, Q0, P0, mu))
+    slip_violation = _slip_violations(A, Q0, P0, mu, directions)
+    best = np.argmin(slip_violation, axis=1) if directions.shape[1] else np.zeros(k, int)
+    has_slip = (np.isfinite(slip_violation).any(axis=1) if directions.shape[1]
+                else np.zeros(k, bool))
+    direction = np.zeros((k, m))
+    if directions.shape[1]:
+        chosen = directions[np.arange(k), best]
+        direction[has_slip] = chosen[has_slip]
+        violation[has_slip, SLIPPING] = slip_violation[has_slip, best[has_slip]]
+    return PairViolations(violation, direction, has_slip)
+
+
+def _slip_violations(A, Q0, P0, mu, directions):
+    """``-P`` (clipped at 0) of each candidate direction ``(k, c, m)`` with ``rho > 0``
+    and the slip equation met (:func:`_slip_length`); ``inf`` elsewhere (NaN
+    directions are no candidates)."""
+    m = Q0.shape[1]
+    Att, b = A[:, :m, :m], A[:, m, :m]
+    s = directions
+    bs = np.einsum("km,kcm->kc", b, s)
+    Ms = np.einsum("kij,kcj->kci", Att, s) + mu[:, None, None] * bs[:, :, None] * s
+    g = -(Q0[:, None, :] + (mu * P0)[:, None, None] * s)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        denom = np.sum(Ms * Ms, axis=2)
+        rho = np.sum(Ms * g, axis=2) / denom
+        scale = np.maximum(np.linalg.norm(g, axis=2), np.abs(rho) * np.sqrt(denom))
+        misfit = np.linalg.norm(rho[:, :, None] * Ms - g, axis=2)
+        ok = (denom > 0) & (misfit <= SLIP_MISFIT * scale) & (rho > 0)
+        # d = (t_prev + rho s, -g0): P = P0 + rho b.s (the stuck trial plus the slip)
+        P = P0[:, None] + rho * bs
+    return np.where(ok, np.maximum(-P, 0.0), np.inf)
+
+
+def _slip_directions_3d_batch(A, Q0, P0, mu):
+    """Unit slip directions of 3D pairs, ``(k, 4, 2)`` with NaN rows where a pair has
+    fewer than four (see :func:`_slip_directions_3d`, of which this is the batch)."""
+    k = len(mu)
+    theta = 2 * np.pi * np.arange(8) / 8
+    s = np.stack([np.cos(theta), np.sin(theta)], axis=-1)                  # (8, 2)
+    As = np.einsum("kij,tj->kti", A[:, :2, :2], s)
+    bs = s @ A[:, 2, :2].T                                                 # (8, k)
+    Ms = As + mu[:, None, None] * bs.T[:, :, None] * s[None]
+    g = -(Q0[:, None, :] + (mu * P0)[:, None, None] * s[None])
+    c = np.fft.fft(Ms[..., 0] * g[..., 1] - Ms[..., 1] * g[..., 0], axis=1) / 8
+    coeffs = np.stack([c[:, 2], c[:, 1], c[:, 0], c[:, -1], c[:, -2]], axis=1)
+    size = np.max(np.abs(coeffs), axis=1)
+    out = np.full((k, 4, 2), np.nan)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        regular = (size > 0) & (np.abs(coeffs[:, 0]) >= DEGREE_DROP * size)
+    for i in np.flatnonzero(~regular & (size > 0)):                      # degree drops
+        found = _slip_directions_3d(A[i], Q0[i], P0[i], mu[i])
+        if found:
+            out[i, :len(found)] = found
+    idx = np.flatnonzero(regular)
+    if idx.size == 0:
+        return out
+    p = coeffs[idx] / coeffs[idx, :1]
+    companion = np.zeros((idx.size, 4, 4), complex)
+    companion[:, 0, :] = -p[:, 1:]
+    companion[:, [1, 2, 3], [0, 1, 2]] = 1.0
+    z = np.linalg.eigvals(companion)                                       # (n, 4)
+    fourier = np.stack([c[idx, 0].real, 2 * c[idx, 1].real, -2 * c[idx, 1].imag,
+                        2 * c[idx, 2].real, -2 * c[idx, 2].imag], axis=1)
+    t = _polish_batch(fourier, np.angle(z))
+    dirs = np.stack([np.cos(t), np.sin(t)], axis=-1)                       # (n, 4, 2)
+    keep = np.abs(np.abs(z) - 1.0) <= CIRCLE_TOL
+    for j in range(1, 4):                                                  # one root once
+        for i in range(j):
+            same = np.abs(dirs[:, j] - dirs[:, i]).sum(axis=1) <= SAME_DIRECTION
+            keep[:, j] &= ~(same & keep[:, i])
+    out[idx] = np.where(keep[:, :, None], dirs, np.nan)
+    return out
+
+
+def _polish_batch(fourier, t):
+    """:func:`_polish` for arrays of angles ``(n, 4)``: each root stops where the
+    scalar version would (zero ``f`` or ``f'``, or a step above 1e-3)."""
+    a0, a1, b1, a2, b2 = (fourier[:, j, None] for j in range(5))
+    t = t.copy()
+    active = np.ones(t.shape, bool)
+    for _ in range(POLISH_STEPS):
+        c1, s1, c2, s2 = np.cos(t), np.sin(t), np.cos(2 * t), np.sin(2 * t)
+        f = a0 + a1 * c1 + b1 * s1 + a2 * c2 + b2 * s2
+        df = -a1 * s1 + b1 * c1 - 2 * a2 * s2 + 2 * b2 * c2
+        with np.errstate(invalid="ignore", divide="ignore"):
+            step = f / df
+        active &= (f != 0.0) & (df != 0.0) & (np.abs(step) <= 1e-3)
+        t = np.where(active, t - np.where(active, step, 0.0), t)
+    return t
