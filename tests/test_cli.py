@@ -1,6 +1,7 @@
 """The command line, end to end in temporary folders."""
 import csv
 import json
+import sys
 
 import meshio
 import numpy as np
@@ -46,6 +47,9 @@ def test_results_json_schema(run_dir):
                                       "contact", "hysteresis", "postprocess", "total"}
     assert len(levels["flags"]) == 51 and set(levels["dissipation_method"]) == {"masing"}
     assert set(data["solver"]) >= {"method", "tol"}
+    if sys.platform.startswith("linux"):           # VmHWM: this process's peak RSS
+        assert data["resources"]["peak_memory_mb"] > 50     # numpy + scipy alone
+    assert data["resources"]["cpu_s"] > 0
     assert data["qsma_version"]
     assert data["direct_loop"]["dissipation"] > 0
 

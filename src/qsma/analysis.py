@@ -32,6 +32,7 @@ from .modal import linear_modes, probe_vector
 from .model import make_pairing
 from .multibody import (MultiPairing, body_order, multi_pairing, pair_gaps, pair_mu,
                         reduce_model, warn_closed_gaps)
+from . import _resources
 from .options import RunOptions
 from .model.bolt import bolt_functionals, with_bolt_loads
 from .pretension import lock
@@ -499,7 +500,7 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
                     dissipation=opts.dissipation, dissipation_rtol=opts.dissipation_rtol,
                     backbone_points=int(pos.n), loop_solves=int(hyst["n_solves"]),
                     negative_ramp_levels=int(neg.n)),
-        timings_s=timings, direct_loop=loop,
+        timings_s=timings, resources=_resources.snapshot(), direct_loop=loop,
         gross_slip_level=gross[0] if gross else None)
 
 

@@ -115,6 +115,9 @@ class QSMAResult:
     options: RunOptions
     solver: dict[str, object]
     timings_s: dict[str, float]
+    #: process peak resident memory (MiB, None where not reported) and CPU seconds at
+    #: the end of the run (:func:`qsma._resources.snapshot`)
+    resources: dict[str, float | None] = None
     direct_loop: DirectLoop | None = None
     gross_slip_level: int | None = None
     version: str = __version__

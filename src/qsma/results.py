@@ -98,6 +98,7 @@ def results_dict(res) -> dict:
         "levels": _level_columns(res),
         "gross_slip_level": res.gross_slip_level,
         "timings_s": res.timings_s,
+        "resources": res.resources or {},
         "solver": res.solver,
         "options": res.options.as_dict(),
     }
