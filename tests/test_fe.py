@@ -4,7 +4,7 @@ import pytest
 import scipy.sparse.linalg as spla
 
 from qsma.fe import assemble_body
-from qsma.model import Body, Clamp, Pressure
+from qsma.model import Body, Clamp, Mesh, Pressure
 from qsma.model.generate import structured_mesh
 from helpers import STEEL, check_patch, distorted_patch
 
@@ -104,7 +104,7 @@ def test_batched_assembly_equals_scikit_fem_forms(cell_type, monkeypatch):
         p = mesh.points + np.random.default_rng(1).uniform(-0.05, 0.05, mesh.points.shape)
         mesh = Mesh(p, mesh.cells, "hexahedron")
     else:
-        mesh = _distorted_patch(cell_type)
+        mesh = distorted_patch(cell_type)
     _, basis = _basis(mesh)
     lam, mu = STEEL.lame
     monkeypatch.setattr(assembly, "ASSEMBLY_BATCH", 5)

@@ -160,9 +160,12 @@ from qsma.multibody import MultiPairing, multi_pairing  # noqa: E402
 def test_two_body_run_through_the_general_code_equals_the_two_body_run(coupling,
                                                                        monkeypatch):
     """sandwich-2d through MultiPairing / reduce_bodies / the general tie transform gives
-    the two-body answers: f0, q and f to 1e-10 relative, zeta to 1e-10 absolute
-    (measured: f0 9e-12, q 3e-11, f 7e-12, zeta 2e-12 node-to-node; 3e-14, 1e-13,
-    3e-14, 1e-14 mortar); the pair states are the same."""
+    the two-body answers: f0 and q to 5e-10 relative, f to 1e-10 relative, zeta to
+    1e-10 absolute (measured: f0 1.1e-10, q 2.3e-10, f 1e-12, zeta 6e-13 node-to-node
+    since the tied modes are factorised in METIS order, 9e-12 and 3e-11 for f0 and q
+    before: the two paths eliminate the tied DOFs differently and factorise matrices of
+    condition ~3e6, so the mode shape differs at round-off times the condition; 3e-14,
+    1e-13, 3e-14, 1e-14 mortar); the pair states are the same."""
     m = sandwich_2d(1)
     m = dataclasses.replace(m, interface=dataclasses.replace(m.interface, coupling=coupling))
     levels = qsma.Levels.log("tip", 1e-6, 1e-4, 6)
@@ -171,8 +174,8 @@ def test_two_body_run_through_the_general_code_equals_the_two_body_run(coupling,
     general = qsma.run(m, levels=levels)
     assert isinstance(general.pairing, MultiPairing)
     assert two.success and general.success
-    assert general.f0_hz == pytest.approx(two.f0_hz, rel=1e-10)
-    assert np.allclose(general.q, two.q, rtol=1e-10, atol=0)
+    assert general.f0_hz == pytest.approx(two.f0_hz, rel=5e-10)
+    assert np.allclose(general.q, two.q, rtol=5e-10, atol=0)
     assert np.allclose(general.f_hz, two.f_hz, rtol=1e-10, atol=0)
     assert np.abs(general.zeta - two.zeta).max() < 1e-10
     assert np.array_equal(general.states.status, two.states.status)

@@ -63,6 +63,18 @@ def _plain_log_ticks(*axes):
 
 
 def plot_backbone(res, path):
+    """The modal backbone: modal force alpha versus modal amplitude q (log-log), with
+    the tied linear line ``alpha = omega0^2 q`` that it leaves where the joint slips.
+
+    Parameters
+    ----------
+    res : :class:`qsma.result.QSMAResult`
+    path : PNG file to write (atomically)
+
+    Returns
+    -------
+    pathlib.Path
+    """
     fig, ax = _figure(figsize=(6, 4.5))
     ax.loglog(res.q, res.alpha, "o-", ms=3, label="QSMA backbone")
     ax.loglog(res.q, res.q * res.omega0 ** 2, "--", lw=1, label="linear (tied)")
@@ -143,6 +155,19 @@ def plot_damping_frequency(res, path):
 
 
 def plot_interface(res, path, levels=None):
+    """2D: contact pressure and shear along the interface (preload and chosen levels)
+    and the pair states, pressures as ``lam / area`` in MPa.
+
+    Parameters
+    ----------
+    res : :class:`qsma.result.QSMAResult` of a 2D model
+    path : PNG file to write (atomically)
+    levels : level indices; default the first, middle, three-quarter and last level
+
+    Returns
+    -------
+    pathlib.Path
+    """
     n = res.n_levels
     levels = sorted({0, n // 2, (3 * n) // 4, n - 1}) if levels is None else levels
     p = res.pairing
@@ -204,6 +229,14 @@ def plot_interface_map(res, path, levels=None):
 
 
 def write_plots(res, out) -> dict:
+    """Every figure of a run into folder ``out``: backbone.png, loops.png,
+    damping_frequency.png and interface.png (2D) or interface_map.png (3D).
+
+    Returns
+    -------
+    dict
+        figure name -> path written.
+    """
     out = Path(out)
     paths = {
         "backbone": plot_backbone(res, out / "backbone.png"),
