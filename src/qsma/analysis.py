@@ -23,7 +23,8 @@ from .condense import reduce_two_bodies
 from .contact import DEFAULT_TOL, ContactProblem, ContactState, OPEN, SLIPPING, STUCK
 from .contact import solve as contact_solve
 from .contact.zone import solve_in_zone, zone_from_state
-from .errors import AnalysisError, ContactConvergenceWarning, InputError, InterfaceGapWarning
+from .errors import (AnalysisError, ContactConvergenceWarning, InputError,
+                     InterfaceGapWarning, QSMAWarning)
 from .fe import assemble_body
 from .hysteresis import SECANT_RTOL, compute_loop, masing_checks, masing_estimate
 from .masing import loop_area
@@ -110,9 +111,31 @@ def run(model, options: RunOptions | None = None, *, progress=None, **overrides)
     except TypeError as exc:
         raise InputError(f"qsma.run: {exc}; valid options: "
                          f"{sorted(RunOptions.__dataclass_fields__)}") from None
-    clock, pairing, limit = _start(model, opts)
-    with threads_limited(limit):
-        return _run(model, pairing, opts, progress, clock)
+    with _kept_warnings() as kept:
+        clock, pairing, limit = _start(model, opts)
+        with threads_limited(limit):
+            res = _run(model, pairing, opts, progress, clock)
+    return replace(res, warnings=tuple(kept))
+
+
+@contextmanager
+def _kept_warnings():
+    """Collect the messages of qsma's own warnings (:class:`qsma.errors.QSMAWarning`)
+    raised inside the block into the yielded list, for the result (report.html shows
+    them), and pass every warning on to the caller's filters as if not caught."""
+    kept, caught = [], []
+    try:
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            try:
+                yield kept
+            finally:
+                caught = list(seen)
+    finally:                          # also when the run raises: nothing is swallowed
+        for w in caught:
+            if issubclass(w.category, QSMAWarning) and str(w.message) not in kept:
+                kept.append(str(w.message))
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
 
 
 def _start(model, opts):
@@ -271,8 +294,10 @@ def run_prepared(prepared: Prepared, options: RunOptions | None = None, *, progr
     model, pairing = prepared.model, prepared.pairing
     limit = threads_for(pairing.n_pairs * model.dim) if opts.blas_threads == "auto" \
         else opts.blas_threads
-    with threads_limited(limit):
-        return _run(model, pairing, opts, progress, clock, prepared)
+    with _kept_warnings() as kept:
+        with threads_limited(limit):
+            res = _run(model, pairing, opts, progress, clock, prepared)
+    return replace(res, warnings=tuple(kept))
 
 
 #: Mortar surfaces closer than this fraction of the interface size count as coincident

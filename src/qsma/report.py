@@ -168,6 +168,7 @@ def run_warnings(res) -> list:
     dl = res.direct_loop
     if dl is not None and not dl.success:
         out.append(f"direct loop: {dl.message}")
+    out.extend(f"warning: {w}" for w in res.warnings)
     return out
 
 

@@ -119,6 +119,9 @@ class QSMAResult:
     #: the end of the run (:func:`qsma._resources.snapshot`)
     resources: dict[str, float | None] = None
     direct_loop: DirectLoop | None = None
+    #: messages of qsma's own warnings raised during the run (e.g. mortar gaps taken as
+    #: initial gaps, quad8 interface facets), each once
+    warnings: tuple[str, ...] = ()
     gross_slip_level: int | None = None
     version: str = __version__
 

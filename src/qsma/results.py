@@ -99,6 +99,7 @@ def results_dict(res) -> dict:
         "gross_slip_level": res.gross_slip_level,
         "timings_s": res.timings_s,
         "resources": res.resources or {},
+        "warnings": list(res.warnings),
         "solver": res.solver,
         "options": res.options.as_dict(),
     }
