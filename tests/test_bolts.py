@@ -160,3 +160,19 @@ def test_mortar_interface_held_only_by_the_bolt(free):
     assert p.pairing.coupling == "mortar"
     assert red.ghost is not None and (red.gauge is not None) == (len(free) == 2)
     assert pre.lam[:, -1].sum() == pytest.approx(BOLT_2D["pretension"], rel=1e-10)
+
+
+def test_interface_friction_is_kept_after_the_bolts_lock():
+    """The friction coefficient given on the interface (not the model) governs every
+    level after the bolts lock: the run equals the one with the same value on the model
+    (to round-off), and differs from the run with the model's other value (a review
+    found the locked problem rebuilt with the model's mu)."""
+    levels = qsma.Levels.log("tip", 1e-6, 1e-4, 4)
+    base = lap_2d_bolted(1, mu=0.1, free="top")
+    on_itf = dataclasses.replace(base, interface=dataclasses.replace(base.interface, mu=0.5))
+    a = qsma.run(on_itf, levels=levels)
+    b = qsma.run(lap_2d_bolted(1, mu=0.5, free="top"), levels=levels)
+    c = qsma.run(base, levels=levels)
+    assert a.success and b.success and c.success
+    assert np.abs(a.zeta - b.zeta).max() < 1e-10
+    assert np.abs(a.zeta - c.zeta).max() > 1e-5        # mu 0.1 slips much earlier

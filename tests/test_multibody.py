@@ -348,3 +348,15 @@ def test_prepared_stack_survives_pickling_with_its_interface_mus():
     assert a.success and b.success and b.model_info["mu"] == [0.6, 0.3]
     assert b.f0_hz == pytest.approx(a.f0_hz, rel=1e-10)
     assert np.allclose(b.q, a.q, rtol=1e-10)
+
+
+def test_body_held_only_through_interfaces_is_refused_with_several_interfaces():
+    """Bodies held only by the joint are supported between two bodies with one
+    interface; given as a list of interfaces they are refused by name with the fix
+    (before: a Cholesky failure deep in the contact solver)."""
+    from qsma.examples import lap_2d_cantilever
+    m = lap_2d_cantilever(1)
+    listed = dataclasses.replace(m, interface=None, interfaces=(m.interface,))
+    with pytest.raises(InputError, match="body 'top' is held only through its interfaces"
+                                         ".*Fix: clamp 'top'"):
+        qsma.run(listed, levels=qsma.Levels.log("tip", 1e-6, 1e-5, 2))

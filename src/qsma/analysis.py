@@ -326,8 +326,7 @@ def preload(model, assembled, pairing, *, method="basket", opts=None, schur_back
     if reduced is None:
         reduced = _condense(model, assembled, pairing, schur_backend, clock)
     with clock.stage("condensation"):
-        problem = ContactProblem(reduced.K, pair_mu(model, pairing), dim=model.dim,
-                                 gap0=pair_gaps(model, pairing, GAP_REPORT_RTOL))
+        problem = _contact_problem(model, pairing, reduced.K)
     with clock.stage("contact"):
         pre, _ = _solve(problem, reduced, 0.0, None, method, opts or {}, "preload")
         for _ in range(ANCHOR_ROUNDS if getattr(reduced, "ghost", None) else 0):
@@ -343,13 +342,20 @@ def preload(model, assembled, pairing, *, method="basket", opts=None, schur_back
     if getattr(model, "bolts", ()):
         with clock.stage("condensation"):                 # bolts locked from here on
             reduced = lock(reduced, model.bolts, pre.d)
-            problem = ContactProblem(reduced.K, model.mu, dim=model.dim)
+            problem = _contact_problem(model, pairing, reduced.K)   # same mu, gaps
     if np.all(pre.status == OPEN):
         raise AnalysisError("the preload leaves no interface pair in contact: the bodies "
                             "separate, and tied modes of a disconnected assembly would be "
                             "meaningless. Check the sign and location of the bolt pressure.",
                             partial=pre)
     return reduced, problem, pre
+
+
+def _contact_problem(model, pairing, K):
+    """The contact problem of stiffness ``K`` with the friction coefficient and the
+    initial gap of every pair (each interface's own mu, mortar gaps)."""
+    return ContactProblem(K, pair_mu(model, pairing), dim=model.dim,
+                          gap0=pair_gaps(model, pairing, GAP_REPORT_RTOL))
 
 
 def _condense(model, assembled, pairing, schur_backend, clock):
@@ -363,7 +369,17 @@ def _condense(model, assembled, pairing, schur_backend, clock):
                 raise InputError("bolts are supported between two bodies with one interface "
                                  "only; a model with several interfaces cannot carry them yet "
                                  "(model them as pressure patches)")
-            return reduce_model(model, assembled, pairing, backend=schur_backend)
+            reduced = reduce_model(model, assembled, pairing, backend=schur_backend)
+            free = [b.name for b, cb in zip(model.bodies, reduced.bodies)
+                    if cb.rigid is not None]
+            if free:
+                raise InputError(
+                    f"body {free[0]!r} is held only through its interfaces (it has "
+                    f"rigid-body freedom without clamps): with several interfaces this "
+                    f"is not supported yet (only two bodies with one interface are). "
+                    f"Fix: clamp {free[0]!r} where the real structure is supported, or "
+                    f"model the joint as two bodies with one interface")
+            return reduced
         i1, i2 = body_order(model, pairing)
         reduced = reduce_two_bodies(assembled[i1], assembled[i2], pairing,
                                     patterns=("preload",) + tuple(b.pattern for b in bolts),
