@@ -102,36 +102,6 @@ def rigid_body_modes(points: np.ndarray) -> np.ndarray:
 CLAMP_RANK_TOL = float(np.sqrt(np.finfo(float).eps))
 
 
-def check_constrained(assembled):
-    """Raise :class:`InputError` naming the body if its clamps leave a rigid-body motion
-    free (its stiffness would be singular: no unique static answer).
-
-    The rigid motions are taken with rotations scaled by the body's size, so the test
-    is the same in any unit system (see :data:`CLAMP_RANK_TOL`)."""
-    body = assembled.body
-    modes = rigid_body_modes(body.mesh.points)
-    dim = body.dim
-    size = np.abs(modes[:, dim:]).max() if len(modes) else 0.0
-    if size > 0:
-        modes[:, dim:] /= size                      # rotations as motions of size 1
-    at_clamps = modes[assembled.fixed]
-    s = np.linalg.svd(at_clamps, compute_uv=False) if len(at_clamps) else np.zeros(0)
-    rank = int(np.sum(s > CLAMP_RANK_TOL * max(s.max(initial=0.0), 1.0)))
-    if rank < modes.shape[1]:
-        _, _, vt = np.linalg.svd(at_clamps) if len(at_clamps) else (None, None,
-                                                                     np.eye(modes.shape[1]))
-        free = vt[-1]
-        names = (["translation x", "translation y", "rotation z"] if body.dim == 2 else
-                 ["translation x", "translation y", "translation z", "rotation x",
-                  "rotation y", "rotation z"])
-        motion = ", ".join(f"{c:+.2f} {n}" for c, n in zip(free, names) if abs(c) > 1e-6)
-        raise InputError(
-            f"body {body.name!r} is not held against rigid-body motion by its Dirichlet "
-            f"conditions ({len(assembled.fixed)} DOFs clamped; free motion: {motion}). "
-            f"Each body needs clamps that stop all {modes.shape[1]} rigid-body motions "
-            f"on its own: add or extend a clamp set.")
-
-
 def condense_body(assembled, nodes, frames, backend="auto") -> CondensedBody:
     """Condense one assembled body onto the interface ``nodes`` (pair order, frames).
 
