@@ -230,12 +230,12 @@ class Prepared:
                                       clock=clock, reduced=self.reduced)
         return self.cache[key]
 
-    def mode(self, closed, opts, clock):
+    def mode(self, closed, opts, clock, reduced=None):
         """:func:`_mode` cached by the mask of closed pairs, the mode and ``n_modes``."""
         key = ("mode", np.asarray(closed, bool).tobytes(), opts.mode, opts.n_modes)
         if key not in self.cache:
             self.cache[key] = _mode(self.model, self.assembled, self.pairing, closed, opts,
-                                    clock)
+                                    clock, reduced)
         return self.cache[key]
 
 
@@ -406,12 +406,15 @@ def _assemble(model, clock, keep=None):
     return assembled
 
 
-def _mode(model, assembled, pairing, closed, opts, clock):
-    """The loaded mode: ``(modes, phi, phi_tip, omega0, ltip)``, tip deflection positive."""
+def _mode(model, assembled, pairing, closed, opts, clock, reduced=None):
+    """The loaded mode: ``(modes, phi, phi_tip, omega0, ltip)``, tip deflection positive.
+    ``reduced``: the condensed model of the preload, whose factors the shift-invert of
+    the tied modes reuses (:func:`qsma.modal.linear_modes`)."""
     mode = opts.mode
     with clock.stage("modal"):
         nm = max(6, mode + 1) if opts.n_modes is None else opts.n_modes
-        modes = linear_modes(model, assembled, pairing, tied=closed, n_modes=nm)
+        modes = linear_modes(model, assembled, pairing, tied=closed, n_modes=nm,
+                             reduced=reduced)
         n_el = len(modes.omega) - modes.n_rigid
         if mode >= n_el:
             raise InputError(f"mode index {mode} is beyond the {n_el} computed modes "
@@ -444,12 +447,12 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
                                         clock=clock)
         closed = pre.status != OPEN
         modes, phi, phi_tip, omega0, ltip = _mode(model, assembled, pairing, closed, opts,
-                                                  clock)
+                                                  clock, reduced)
     else:
         assembled = prepared.assembled
         reduced, problem, pre = prepared.preloaded(opts, clock)
         closed = pre.status != OPEN
-        modes, phi, phi_tip, omega0, ltip = prepared.mode(closed, opts, clock)
+        modes, phi, phi_tip, omega0, ltip = prepared.mode(closed, opts, clock, reduced)
 
     with clock.stage("condensation"):
         off = model.dof_offsets()

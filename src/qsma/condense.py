@@ -405,3 +405,84 @@ def _ghost(K, images):
     if g is None:
         return K, None
     return K + g.k * (g.N @ g.N.T), g
+
+
+@dataclass(frozen=True, eq=False)
+class TiedSolver:
+    r"""Static solve of the assembly with the pairs of a mask tied and the others free
+    (no contact force), through the condensed bodies of a two-body reduced model: the
+    bodies' ``K_EE`` factors of the condensation and dense interface algebra, no
+    factorisation of the whole assembly (docs/theory.md, tied modes).
+
+    For full loads ``F_j`` per body, with ``Fc_j`` their condensed loads and ``w`` the
+    welded contact force (:func:`_welded`, all pairs tied), the relative displacement
+    ``d`` is zero on the tied pairs and makes the contact force vanish on the free ones
+    (DOFs ``G``):
+
+    .. math:: K_{GG}\, d_G = -w_G, \qquad d_{\bar G} = 0,
+
+    with ``K`` the relative-displacement stiffness of the bodies alone (without the
+    regularising spring of a body held by the joint, without locked bolts). The
+    interface displacements follow from ``d`` as in
+    :meth:`ReducedModel.interface_displacements`, the full fields from the recovery
+    ``u_E = K_EE^-1 (F_E - K_EC u_C)``. Exact: the same equations as the assembled
+    tied stiffness, solved by blocks. A free-free assembly (gauged ``S``) needs
+    self-equilibrated loads; the rigid part of the answer is then arbitrary.
+
+    Attributes
+    ----------
+    reduced : the two-body :class:`ReducedModel`
+    G : free (open) DOFs of the relative displacement, contact-point-major
+    KGG_cho : Cholesky factor of ``K_GG`` (None when every pair is tied)
+    """
+
+    reduced: ReducedModel
+    G: np.ndarray
+    KGG_cho: object
+
+    def __call__(self, F1, F2):
+        """Full displacement vectors ``(u_1, u_2)`` of the bodies under ``F_1, F_2``."""
+        rm = self.reduced
+        Fc = tuple(b.condensed_load(F)[:, None] for b, F in zip(rm.bodies, (F1, F2)))
+        d = np.zeros(rm.K.shape[0])
+        if len(self.G):
+            w = _welded(rm.bodies, rm.S_cho, Fc, rm.P, rm.slave, rm.gauge is not None)
+            d[self.G] = -sla.cho_solve(self.KGG_cho, w[self.G, 0])
+        u1, u2 = _released_interface(rm, d, tuple(f[:, 0] for f in Fc))
+        return tuple(b.recover(u, F) for b, u, F in zip(rm.bodies, (u1, u2), (F1, F2)))
+
+
+def tied_solver(reduced, tied) -> TiedSolver | None:
+    """The :class:`TiedSolver` of ``reduced`` (a :class:`ReducedModel`, or a model with
+    locked bolts whose ``base`` is one) with the contact points in mask ``tied`` tied;
+    None where ``K_GG`` is not positive definite (the tied pairs do not hold the bodies
+    together: a mechanism, left to the caller's full solve to diagnose)."""
+    rm = getattr(reduced, "base", reduced)
+    if not isinstance(rm, ReducedModel):
+        return None
+    K = rm.K
+    if rm.ghost is not None:                     # the bodies' own stiffness
+        K = K - rm.ghost.k * (rm.ghost.N @ rm.ghost.N.T)
+    tied = np.asarray(tied, dtype=bool)
+    G = np.flatnonzero(np.repeat(~tied, rm.dim))
+    if not len(G):
+        return TiedSolver(rm, G, None)
+    try:
+        cho = sla.cho_factor(K[np.ix_(G, G)])
+    except np.linalg.LinAlgError:
+        return None
+    return TiedSolver(rm, G, cho)
+
+
+def _released_interface(rm, d, Fc):
+    """Interface displacements of both bodies for the relative displacement ``d`` and
+    condensed loads ``Fc`` (vectors), the formula of
+    :meth:`ReducedModel.interface_displacements`."""
+    if rm.P is None:
+        u1 = sla.cho_solve(rm.S_cho, Fc[0] + Fc[1] - rm.bodies[1].Kc @ d)
+        return u1, u1 + d
+    s, m, P = rm.slave, 1 - rm.slave, rm.P
+    um = sla.cho_solve(rm.S_cho, P.T @ (Fc[s] - rm.sigma * (rm.bodies[s].Kc @ d)) + Fc[m])
+    us = P @ um + rm.sigma * d
+    return (us, um) if s == 0 else (um, us)
+

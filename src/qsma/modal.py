@@ -7,7 +7,7 @@ eliminated, ``u_slave = sum_k P_ik u_master_k`` per component.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import os
 
@@ -103,14 +103,21 @@ def _mpc_transform(model, assembled, pairing, tied):
     return general(model, assembled, MultiPairing((coupling,), (model.interface,)), tied)
 
 
-def linear_modes(model, assembled, pairing, tied=None, n_modes=6) -> Modes:
+def linear_modes(model, assembled, pairing, tied=None, n_modes=6, reduced=None) -> Modes:
     """First ``n_modes`` modes with the pairs in mask ``tied`` tied (default: all).
 
     Solves ``(T^T K T - w^2 T^T M T) phi_r = 0`` by shift-invert Lanczos about 0;
     shapes are mass-normalised (``phi^T M phi = 1``). An assembly that no clamp holds
-    (free-free, :func:`qsma.rigid.assembly_free_motions` motions free) is shifted to
-    ``-s`` (:data:`FREE_SHIFT_RTOL`); its rigid modes come first (``Modes.n_rigid``)
-    and ``n_modes`` elastic modes follow them.
+    (free-free, :func:`qsma.rigid.assembly_free_motions` motions free) has its rigid
+    modes first (``Modes.n_rigid``) and ``n_modes`` elastic modes follow them.
+
+    ``reduced``: the condensed two-body model of the run (:mod:`qsma.condense`, bolts
+    locked or not). Where given and it covers the case (:func:`substructured_inverse`),
+    ``(T^T K T)^-1`` is applied through its per-body ``K_EE`` factors and the dense
+    interface matrices, and a free-free assembly's rigid motions are projected out of
+    the operator (:class:`SubstructuredInverse`); otherwise, and without it, the tied
+    stiffness is factorised (:func:`_factor`), a free-free one shifted to ``-s``
+    (:data:`FREE_SHIFT_RTOL`). Both give the same modes to round-off.
     """
     if tied is None:
         tied = np.ones(pairing.n_pairs, dtype=bool)
@@ -121,23 +128,20 @@ def linear_modes(model, assembled, pairing, tied=None, n_modes=6) -> Modes:
     T = tie_transform(model, assembled, pairing, tied)
     n_free = assembly_free_motions(model, assembled)
     check_n_modes(n_modes, T.shape[1])
+    M = (T.T @ stacked([a.M for a in assembled]) @ T).tocsc()
+    inverse = None if reduced is None else substructured_inverse(
+        model, assembled, pairing, tied, reduced, T, M)
+    if inverse is not None:
+        return _substructured_modes(inverse, M, T, tied, n_modes, model, assembled)
     K = stacked([a.K for a in assembled])
     if getattr(model, "bolts", ()):
         from .model.bolt import bolt_stiffness
         K = K + bolt_stiffness(model)                  # the bolts locked after preload
     K = (T.T @ K @ T).tocsc()
-    M = (T.T @ stacked([a.M for a in assembled]) @ T).tocsc()
     k = min(n_modes + n_free, T.shape[1] - 2)
     shift = free_shift(K, M) if n_free else 0.0
     solve = _factor((K + shift * M).tocsc() if n_free else K, model, assembled, T)
-    op = spla.LinearOperator(K.shape, matvec=solve, matmat=solve, dtype=float)
-    try:
-        lam, vec = spla.eigsh(K, k=k, M=M, sigma=-shift, which="LM", OPinv=op)
-    except spla.ArpackNoConvergence as exc:
-        raise AnalysisError(f"eigen solver did not converge ({len(exc.eigenvalues)} of {k} "
-                            f"modes found)", partial=exc) from exc
-    order = np.argsort(lam)
-    lam, vec = lam[order], vec[:, order]
+    lam, vec = _lanczos(K, k, M, -shift, solve, solve)
     if n_free:
         _check_free_rigid(lam, model, assembled, T, vec, n_free)
     else:
@@ -146,6 +150,20 @@ def linear_modes(model, assembled, pairing, tied=None, n_modes=6) -> Modes:
     omega = np.sqrt(np.maximum(lam, 0.0))
     omega[:n_free] = 0.0
     return Modes(omega, T @ vec, tied.copy(), n_free)
+
+
+def _lanczos(A, k, M, sigma, matvec, matmat):
+    """The ``k`` eigenpairs of ``(A, M)`` nearest ``sigma`` by shift-invert Lanczos
+    (ARPACK) with ``(A - sigma M)^-1`` applied by ``matvec`` / ``matmat``, in
+    increasing order."""
+    op = spla.LinearOperator(M.shape, matvec=matvec, matmat=matmat, dtype=float)
+    try:
+        lam, vec = spla.eigsh(A, k=k, M=M, sigma=sigma, which="LM", OPinv=op)
+    except spla.ArpackNoConvergence as exc:
+        raise AnalysisError(f"eigen solver did not converge ({len(exc.eigenvalues)} of {k} "
+                            f"modes found)", partial=exc) from exc
+    order = np.argsort(lam)
+    return lam[order], vec[:, order]
 
 
 #: Shift of the free-free eigenproblem, ``K + s M`` factorised with
@@ -289,3 +307,130 @@ def probe_vector(model) -> np.ndarray:
         raise InputError(f"the tip probe sets {list(model.tip.sets)} hold no node: name "
                          f"sets with at least one node")
     return l / n
+
+
+# ----------------------------------------------------------------------------------
+# Shift-invert through the condensation's factors (one factorisation per body)
+
+@dataclass(frozen=True, eq=False)
+class SubstructuredInverse:
+    r"""``x = (T^T K T)^{-1} b`` on the unknowns of :func:`tie_transform` without
+    factorising the tied stiffness: the load ``f`` with ``f[rows] = b`` (elsewhere 0)
+    satisfies ``T^T f = b`` (row ``rows[j]`` of ``T`` is ``e_j``), the static solve
+    with the pairs tied is done by :class:`qsma.condense.TiedSolver` (per-body
+    ``K_EE`` factors, dense interface algebra) and ``x = u[rows]`` (``u = T x``).
+
+    Locked bolts add ``B k B^T`` (``B = T^T c``, one column per bolt) to the tied
+    stiffness; they enter by the Woodbury identity with ``Y = K_0^{-1} B``:
+
+    .. math:: (K_0 + B k B^T)^{-1} b = x_0 - Y (k^{-1} + B^T Y)^{-1} B^T x_0,
+              \qquad x_0 = K_0^{-1} b .
+
+    A free-free assembly (rigid motions ``Z``, ``T^T K T Z = 0``) is solved on the
+    M-orthogonal complement of ``Z``: ``Pi K^+ Pi^T`` with
+    ``Pi = I - Z (Z^T M Z)^{-1} Z^T M``, so the load is self-equilibrated before the
+    solve and the rigid part removed after it; the rigid modes are ``Z`` itself
+    (eigenvalue 0) and the Lanczos iteration sees only the elastic ones.
+    """
+
+    solver: object
+    rows: np.ndarray
+    offsets: np.ndarray
+    order: tuple
+    Z: np.ndarray | None = None
+    MZ: np.ndarray | None = None
+    gram: np.ndarray | None = None      # Z^T M Z
+    B: np.ndarray | None = None
+    Y: np.ndarray | None = None
+    capacitance: np.ndarray | None = None
+
+    def __call__(self, b):
+        b = np.asarray(b, dtype=float)
+        if b.ndim == 2:
+            return np.column_stack([self(col) for col in b.T]) if b.shape[1] else b.copy()
+        x = self.unbolted(b)
+        if self.B is not None:
+            x = x - self.Y @ np.linalg.solve(self.capacitance, self.B.T @ x)
+        return x
+
+    def unbolted(self, b):
+        """``K_0^{-1} b`` (``Pi K_0^+ Pi^T b`` for a free-free assembly)."""
+        if self.Z is not None:
+            b = b - self.MZ @ np.linalg.solve(self.gram, self.Z.T @ b)
+        f = np.zeros(self.offsets[-1])
+        f[self.rows] = b
+        off, (i1, i2) = self.offsets, self.order
+        u1, u2 = self.solver(f[off[i1]:off[i1 + 1]], f[off[i2]:off[i2 + 1]])
+        u = np.zeros(off[-1])
+        u[off[i1]:off[i1 + 1]] = u1
+        u[off[i2]:off[i2 + 1]] = u2
+        x = u[self.rows]
+        if self.Z is not None:
+            x = x - self.Z @ np.linalg.solve(self.gram, self.MZ.T @ x)
+        return x
+
+
+def substructured_inverse(model, assembled, pairing, tied, reduced, T, M):
+    """The :class:`SubstructuredInverse` of the tied assembly, or None where it does not
+    apply: several interfaces (:mod:`qsma.multibody`), a ``T`` without an identity row
+    per unknown, free-free rigid motions that ``T`` does not reproduce, or tied pairs
+    that do not hold the bodies together (the full factorisation then reports it)."""
+    from .condense import tied_solver
+    from .multibody import MultiPairing, body_order
+    from .rigid import assembly_motions
+    if isinstance(pairing, MultiPairing):
+        return None
+    rows = identity_rows(T)
+    solver = None if rows is None else tied_solver(reduced, tied)
+    if solver is None:
+        return None
+    inv = SubstructuredInverse(solver, rows, np.asarray(model.dof_offsets()),
+                               tuple(body_order(model, pairing)))
+    Z_full = assembly_motions(model, assembled)
+    if Z_full.shape[1]:
+        Z = Z_full[rows]
+        if np.abs(T @ Z - Z_full).max() > RIGID_TOL * np.abs(Z_full).max():
+            return None
+        MZ = M @ Z
+        inv = replace(inv, Z=Z, MZ=MZ, gram=Z.T @ MZ)
+    if getattr(model, "bolts", ()):
+        from .model.bolt import bolt_vectors
+        B = np.column_stack([T.T @ np.concatenate(bolt_vectors(model, b))
+                             for b in model.bolts])
+        Y = np.column_stack([inv.unbolted(c) for c in B.T])
+        k = np.array([b.stiffness for b in model.bolts])
+        inv = replace(inv, B=B, Y=Y, capacitance=np.diag(1 / k) + B.T @ Y)
+    return inv
+
+
+def identity_rows(T) -> np.ndarray | None:
+    """Per column ``j`` of ``T``, a row equal to ``e_j`` (a DOF that is the unknown
+    itself), or None if some column has none."""
+    T = sp.csr_matrix(T)
+    one = (np.diff(T.indptr) == 1)
+    first = T.indptr[:-1]
+    single = np.flatnonzero(one)
+    single = single[T.data[first[single]] == 1.0]
+    rows = np.full(T.shape[1], -1)
+    cols = T.indices[first[single]]
+    rows[cols[::-1]] = single[::-1]                 # the first such row per column
+    return None if np.any(rows < 0) else rows
+
+
+def _substructured_modes(inverse, M, T, tied, n_modes, model, assembled):
+    """:func:`linear_modes` with :class:`SubstructuredInverse` (sigma = 0; the rigid
+    modes of a free-free assembly are its motions ``Z``, M-orthonormalised)."""
+    n = M.shape[0]
+    n_free = 0 if inverse.Z is None else inverse.Z.shape[1]
+    k = min(n_modes, n - 2 - n_free)
+    shape_only = spla.LinearOperator(M.shape, matvec=lambda x: x, dtype=float)
+    lam, vec = _lanczos(shape_only, k, M, 0.0, inverse, inverse)
+    _check_rigid(lam, model, assembled, T, vec)
+    vec /= np.sqrt(np.einsum("ik,ik->k", vec, M @ vec))
+    omega = np.sqrt(np.maximum(lam, 0.0))
+    if n_free:
+        L = np.linalg.cholesky(inverse.gram)
+        rigid = np.linalg.solve(L, inverse.Z.T).T        # Z L^-T: M-orthonormal
+        vec = np.column_stack([rigid, vec])
+        omega = np.concatenate([np.zeros(n_free), omega])
+    return Modes(omega, T @ vec, tied.copy(), n_free)

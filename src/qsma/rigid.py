@@ -68,11 +68,18 @@ def describe(motion: np.ndarray, dim: int) -> str:
 def assembly_free_motions(model, assembled) -> int:
     """Number of rigid motions of the whole (welded) assembly left free by the union of
     all clamps: 0 for a structure clamped somewhere, 3 (2D) or 6 (3D) free-free."""
+    return assembly_motions(model, assembled).shape[1]
+
+
+def assembly_motions(model, assembled) -> np.ndarray:
+    """The rigid motions of the whole (welded) assembly left free by the union of all
+    clamps (:func:`free_motions` over the stacked DOFs of ``model.dof_offsets()``):
+    ``(n_dofs, r)``, ``r = 0`` for a structure clamped somewhere."""
     off = model.dof_offsets()
     points = np.vstack([b.mesh.points for b in model.bodies])
     fixed = np.concatenate([off[k] + a.fixed for k, a in enumerate(assembled)]) \
         if assembled else np.zeros(0, int)
-    return free_motions(points, fixed).shape[1]
+    return free_motions(points, fixed)
 
 
 def interface_basis(assembled, C: np.ndarray, R) -> np.ndarray | None:
