@@ -25,7 +25,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from .errors import InputError
-from .linalg import schur_complement
+from .linalg import mirror_triangle, schur_complement, symmetrised
 
 
 @dataclass(frozen=True, eq=False)
@@ -130,8 +130,9 @@ def condense_body(assembled, nodes, frames, backend="auto") -> CondensedBody:
     E = free[solve.E]
     K_EC = K[E][:, C].tocsc()
     R = pair_rotation(frames)
-    Kc = np.asarray(R.T @ (R.T @ Kc_glob).T)          # R^T Kc R, Kc_glob symmetric
-    Kc = 0.5 * (Kc + Kc.T)
+    Kc = np.asarray(R.T @ Kc_glob)
+    del Kc_glob
+    Kc = symmetrised(np.ascontiguousarray(R.T @ Kc.T))  # R^T Kc R, Kc_glob symmetric
     rigid = interface_basis(assembled, C, R)
     timings = dict(solve.timings, rotation=time.perf_counter() - t0, backend=solve.backend)
     return CondensedBody(body.name, body.n_dofs, C, E, R, Kc, solve, K_EC, timings, rigid)
@@ -286,7 +287,7 @@ def _functional(rm, l1, l2):
 def _factor_S(S, Z=None):
     from .rigid import regularised_S
     try:
-        return sla.cho_factor(regularised_S(S, Z))
+        return sla.cho_factor(regularised_S(S, Z), overwrite_a=True)  # S: a temporary
     except np.linalg.LinAlgError as exc:
         raise InputError("the condensed stiffness of the welded pair (Kc_1 + Kc_2, or "
                          "Kc_m + P^T Kc_s P) is not positive definite: the two bodies "
@@ -309,9 +310,13 @@ def minus_gram(A, S_cho, B) -> np.ndarray:
     Y = sla.solve_triangular(c, np.asarray(B, dtype=float).T, lower=lower,
                              trans=0 if lower else 1, check_finite=False)
     G = sla.blas.dsyrk(1.0, Y, trans=1, lower=0)    # upper triangle of Y^T Y
-    G = np.triu(G) + np.triu(G, 1).T
-    K = A - G
-    return 0.5 * (K + K.T)
+    del Y
+    if G.flags.f_contiguous:                         # BLAS order: its C view, lower
+        G = mirror_triangle(G.T, "lower")
+    else:
+        G = mirror_triangle(G, "upper")
+    np.subtract(A, G, out=G)                         # in place: no further n x n copy
+    return symmetrised(G)
 
 
 def projection_matrix(pairing, R_slave) -> np.ndarray:
