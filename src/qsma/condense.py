@@ -465,15 +465,16 @@ def tied_solver(reduced, tied) -> TiedSolver | None:
     rm = getattr(reduced, "base", reduced)
     if not isinstance(rm, ReducedModel):
         return None
-    K = rm.K
-    if rm.ghost is not None:                     # the bodies' own stiffness
-        K = K - rm.ghost.k * (rm.ghost.N @ rm.ghost.N.T)
     tied = np.asarray(tied, dtype=bool)
     G = np.flatnonzero(np.repeat(~tied, rm.dim))
     if not len(G):
         return TiedSolver(rm, G, None)
+    K_GG = rm.K[np.ix_(G, G)]
+    if rm.ghost is not None:                     # the bodies' own stiffness
+        N_G = rm.ghost.N[G]
+        K_GG -= rm.ghost.k * (N_G @ N_G.T)
     try:
-        cho = sla.cho_factor(K[np.ix_(G, G)])
+        cho = sla.cho_factor(K_GG, overwrite_a=True)
     except np.linalg.LinAlgError:
         return None
     return TiedSolver(rm, G, cho)
