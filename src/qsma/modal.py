@@ -331,6 +331,16 @@ class SubstructuredInverse:
     ``Pi = I - Z (Z^T M Z)^{-1} Z^T M``, so the load is self-equilibrated before the
     solve and the rigid part removed after it; the rigid modes are ``Z`` itself
     (eigenvalue 0) and the Lanczos iteration sees only the elastic ones.
+
+    Attributes
+    ----------
+    solver : :class:`qsma.condense.TiedSolver` of the closed pairs
+    rows : per unknown, the row of ``T`` (stacked DOF) that is that unknown
+    offsets, order : ``model.dof_offsets()`` and the model indices of the interface's
+        body 1 and body 2
+    Z, MZ, gram : free-free: rigid motions on the unknowns, ``M Z`` and ``Z^T M Z``
+    B, Y, capacitance : bolts: ``T^T c`` per bolt, ``K_0^{-1} B`` and
+        ``k^{-1} + B^T Y``
     """
 
     solver: object
