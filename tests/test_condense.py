@@ -231,3 +231,25 @@ def test_reduced_stiffness_equals_the_direct_formula(setup):
     direct = Kc1 @ sla.cho_solve(sla.cho_factor(Kc1 + Kc2), Kc2)
     direct = 0.5 * (direct + direct.T)
     assert np.abs(rm.K - direct).max() <= 1e-12 * np.abs(direct).max()
+
+
+@pytest.mark.parametrize("fraction", [1.0, 0.4])
+def test_tied_solver_equals_the_sparse_solve_of_the_tied_assembly(setup, fraction):
+    """TiedSolver (condensed bodies, open pairs released on the dense interface) gives
+    the displacement of the assembled tied structure under a random load, with every
+    pair tied and with 40 % of them (the rest free). Measured: 1.6e-10 of the largest
+    displacement with every pair tied, 3.2e-10 with 26 of 65 tied: round-off of the
+    two solvers on this stiffness
+    (the sparse direct solve against the condensed one)."""
+    from qsma.condense import tied_solver
+    m, A, p, red = setup
+    rng = np.random.default_rng(7)
+    tied = rng.random(p.n_pairs) < fraction
+    T = tie_transform(m, A, p, tied)
+    K = (T.T @ stacked([a.K for a in A]) @ T).tocsc()
+    f = rng.standard_normal(T.shape[0])
+    x = spla.spsolve(K, T.T @ f)
+    off = m.dof_offsets()
+    u1, u2 = tied_solver(red, tied)(f[off[0]:off[1]], f[off[1]:off[2]])
+    u = np.concatenate([u1, u2])
+    assert np.abs(u - T @ x).max() < 1e-9 * np.abs(T @ x).max()
