@@ -239,8 +239,7 @@ def test_tied_solver_equals_the_sparse_solve_of_the_tied_assembly(setup, fractio
     the displacement of the assembled tied structure under a random load, with every
     pair tied and with 40 % of them (the rest free). Measured: 1.6e-10 of the largest
     displacement with every pair tied, 3.2e-10 with 26 of 65 tied: round-off of the
-    two solvers on this stiffness
-    (the sparse direct solve against the condensed one)."""
+    two solvers (sparse direct against condensed) on this stiffness."""
     from qsma.condense import tied_solver
     m, A, p, red = setup
     rng = np.random.default_rng(7)
