@@ -118,3 +118,23 @@ def test_locking_warning_is_printed(tmp_path, capsys):
     assert captured.err.count("qsma: warning: Poisson's ratio nu = 0.49 is close to 0.5") == 1
     assert "incompatible-mode element" in captured.err
     assert json.loads(captured.out)["f_hz"][0] > 0
+
+
+def test_run_process_leaves_with_its_exit_code_and_all_its_output(tmp_path):
+    """``qsma run`` as a process ends by ``os._exit`` after the run (no interpreter
+    teardown): the exit code is the run's, stdout and stderr are complete (flushed
+    before leaving), the result folder is whole; bad input still exits 2."""
+    import subprocess
+    out = tmp_path / "run"
+    proc = subprocess.run([sys.executable, "-m", "qsma", "run", "--example", "sandwich-2d",
+                           "--levels", "tip:log:1e-6:1e-4:3", "--no-plots", "--no-vtu",
+                           "--out", str(out)], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    last = proc.stdout.rstrip().splitlines()[-1]
+    assert last.startswith("results: ") and last.endswith("manifest.json")
+    assert json.loads((out / "results.json").read_text())["success"] is True
+    bad = subprocess.run([sys.executable, "-m", "qsma", "run", "--example", "sandwich-2d",
+                          "--levels", "tip:nonsense", "--out", str(tmp_path / "bad")],
+                         capture_output=True, text=True)
+    assert bad.returncode == 2
+    assert "--levels 'tip:nonsense'" in bad.stderr
