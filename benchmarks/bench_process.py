@@ -42,7 +42,6 @@ def _child(example, out):
 
     import matplotlib.backends.backend_agg  # noqa: F401  (what the figures import)
     import matplotlib.figure  # noqa: F401
-    import meshio  # noqa: F401
     import qsma.cli  # noqa: F401
     from qsma.analysis import run
     from qsma.examples import EXAMPLES
