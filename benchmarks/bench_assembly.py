@@ -51,6 +51,15 @@ def _quads(nx, ny):
     return structured_mesh(np.linspace(0, 2.0, nx + 1), np.linspace(0, 1.0, ny + 1))
 
 
+def _incompatible_box(n):
+    """A box of n x (n - 1) x n hexahedra with incompatible modes (C3D8I)."""
+    import dataclasses
+    import numpy as np
+    from qsma.model.generate import structured_mesh
+    xs = np.linspace(0.0, 1.0, n + 1)
+    return dataclasses.replace(structured_mesh(xs, xs[:n], xs), element="C3D8I")
+
+
 def _sandwich3d(refine):
     from qsma.examples import EXAMPLES
     return EXAMPLES["sandwich-3d"](refine=refine).bodies[0].mesh
@@ -62,6 +71,7 @@ CASES = {
     "hex20-box-14": lambda: _box(14, "hexahedron20"),
     "tet4-delaunay-30": lambda: _delaunay_tets(30),
     "quad4-300x150": lambda: _quads(300, 150),
+    "hex8-C3D8I-box-32": lambda: _incompatible_box(32),
 }
 
 

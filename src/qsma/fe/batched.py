@@ -215,15 +215,23 @@ def elasticity_blocks(quad: CellQuadrature, lam, mu):
     ne, nb, d = quad.n_elements, quad.nodes.shape[1], quad.dim
     out = np.empty((ne, nb * d, nb * d))
     for cut, G, dx in quad.batches():
-        n = G.shape[0]
-        B = G.reshape(n, -1, nb * d)                             # (n, nq, (a i))
-        T = np.matmul(B.transpose(0, 2, 1) * dx[:, None, :], B)  # sum_q dx g_ai g_bk
-        T5 = T.reshape(n, nb, d, nb, d)
-        gg = np.einsum("eaibi->eab", T5)                         # sum_q dx g_a . g_b
-        K = lam * T5 + mu * T5.transpose(0, 1, 4, 3, 2)
-        K += mu * gg[:, :, None, :, None] * np.eye(d)[None, None, :, None, :]
-        out[cut] = K.reshape(n, nb * d, nb * d)
+        out[cut] = isotropic_blocks(G, dx, lam, mu)
     return out
+
+
+def isotropic_blocks(G, dx, lam, mu):
+    """``(ne, nf d, nf d)`` element matrices of isotropic elasticity from the physical
+    gradients ``G`` ``(ne, nq, nf, d)`` of ``nf`` functions and the weights ``dx``
+    ``(ne, nq)``: with ``T_(a i)(b k) = sum_q dx g_ai g_bk`` (one batched product),
+    ``K = lam T + mu T_(a k)(b i) + mu (sum_i T_(a i)(b i)) delta_ik``."""
+    ne, _, nf, d = G.shape
+    B = G.reshape(ne, -1, nf * d)                                # (ne, nq, (a i))
+    T = np.matmul(B.transpose(0, 2, 1) * dx[:, None, :], B)
+    T5 = T.reshape(ne, nf, d, nf, d)
+    gg = np.einsum("eaibi->eab", T5)                             # sum_q dx g_a . g_b
+    K = lam * T5 + mu * T5.transpose(0, 1, 4, 3, 2)
+    K += mu * gg[:, :, None, :, None] * np.eye(d)[None, None, :, None, :]
+    return K.reshape(ne, nf * d, nf * d)
 
 
 def scalar_mass_blocks(quad: CellQuadrature, rho):
