@@ -138,3 +138,24 @@ def test_run_process_leaves_with_its_exit_code_and_all_its_output(tmp_path):
                          capture_output=True, text=True)
     assert bad.returncode == 2
     assert "--levels 'tip:nonsense'" in bad.stderr
+
+
+def test_busy_folder_names_the_owner_that_is_still_writing_its_name(tmp_path):
+    """Two runs started together: the second may find the lock taken before the first
+    wrote its pid into the lock file; it waits for the name instead of calling the
+    owner unknown (tests/test_adversarial.py saw that race)."""
+    import fcntl
+    import os
+    import threading
+    from qsma.errors import OutputFolderBusy
+    from qsma.rundir import RunFolder
+    fd = os.open(tmp_path / ".out.qsma-lock", os.O_RDWR | os.O_CREAT, 0o666)
+    fcntl.flock(fd, fcntl.LOCK_EX)
+    info = json.dumps({"pid": 4242, "host": "elsewhere", "run_id": "r1"}).encode()
+    threading.Timer(0.05, os.pwrite, (fd, info, 0)).start()
+    try:
+        with pytest.raises(OutputFolderBusy, match="pid 4242 on elsewhere"):
+            with RunFolder(tmp_path / "out"):
+                pass
+    finally:
+        os.close(fd)
