@@ -215,23 +215,31 @@ def elasticity_blocks(quad: CellQuadrature, lam, mu):
     ne, nb, d = quad.n_elements, quad.nodes.shape[1], quad.dim
     out = np.empty((ne, nb * d, nb * d))
     for cut, G, dx in quad.batches():
-        out[cut] = isotropic_blocks(G, dx, lam, mu)
+        isotropic_blocks(G, dx, lam, mu, out=out[cut])
     return out
 
 
-def isotropic_blocks(G, dx, lam, mu):
+def isotropic_blocks(G, dx, lam, mu, out=None):
     """``(ne, nf d, nf d)`` element matrices of isotropic elasticity from the physical
     gradients ``G`` ``(ne, nq, nf, d)`` of ``nf`` functions and the weights ``dx``
     ``(ne, nq)``: with ``T_(a i)(b k) = sum_q dx g_ai g_bk`` (one batched product),
-    ``K = lam T + mu T_(a k)(b i) + mu (sum_i T_(a i)(b i)) delta_ik``."""
+    ``K = lam T + mu T_(a k)(b i) + mu (sum_i T_(a i)(b i)) delta_ik``; written into
+    ``out`` when given (no temporaries of the matrices' size but ``T``)."""
     ne, _, nf, d = G.shape
     B = G.reshape(ne, -1, nf * d)                                # (ne, nq, (a i))
     T = np.matmul(B.transpose(0, 2, 1) * dx[:, None, :], B)
     T5 = T.reshape(ne, nf, d, nf, d)
     gg = np.einsum("eaibi->eab", T5)                             # sum_q dx g_a . g_b
-    K = lam * T5 + mu * T5.transpose(0, 1, 4, 3, 2)
-    K += mu * gg[:, :, None, :, None] * np.eye(d)[None, None, :, None, :]
-    return K.reshape(ne, nf * d, nf * d)
+    if out is None:
+        out = np.empty((ne, nf * d, nf * d))
+    K = out.reshape(ne, nf, d, nf, d)
+    np.multiply(T5, lam, out=K)
+    T5 *= mu
+    K += T5.transpose(0, 1, 4, 3, 2)
+    gg *= mu
+    for i in range(d):
+        K[:, :, i, :, i] += gg
+    return out
 
 
 def scalar_mass_blocks(quad: CellQuadrature, rho):
