@@ -118,3 +118,44 @@ def test_locking_warning_is_printed(tmp_path, capsys):
     assert captured.err.count("qsma: warning: Poisson's ratio nu = 0.49 is close to 0.5") == 1
     assert "incompatible-mode element" in captured.err
     assert json.loads(captured.out)["f_hz"][0] > 0
+
+
+def test_run_process_leaves_with_its_exit_code_and_all_its_output(tmp_path):
+    """``qsma run`` as a process ends by ``os._exit`` after the run (no interpreter
+    teardown): the exit code is the run's, stdout and stderr are complete (flushed
+    before leaving), the result folder is whole; bad input still exits 2."""
+    import subprocess
+    out = tmp_path / "run"
+    proc = subprocess.run([sys.executable, "-m", "qsma", "run", "--example", "sandwich-2d",
+                           "--levels", "tip:log:1e-6:1e-4:3", "--no-plots", "--no-vtu",
+                           "--out", str(out)], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    last = proc.stdout.rstrip().splitlines()[-1]
+    assert last.startswith("results: ") and last.endswith("manifest.json")
+    assert json.loads((out / "results.json").read_text())["success"] is True
+    bad = subprocess.run([sys.executable, "-m", "qsma", "run", "--example", "sandwich-2d",
+                          "--levels", "tip:nonsense", "--out", str(tmp_path / "bad")],
+                         capture_output=True, text=True)
+    assert bad.returncode == 2
+    assert "--levels 'tip:nonsense'" in bad.stderr
+
+
+def test_busy_folder_names_the_owner_that_is_still_writing_its_name(tmp_path):
+    """Two runs started together: the second may find the lock taken before the first
+    wrote its pid into the lock file; it waits for the name instead of calling the
+    owner unknown (tests/test_adversarial.py saw that race)."""
+    import fcntl
+    import os
+    import threading
+    from qsma.errors import OutputFolderBusy
+    from qsma.rundir import RunFolder
+    fd = os.open(tmp_path / ".out.qsma-lock", os.O_RDWR | os.O_CREAT, 0o666)
+    fcntl.flock(fd, fcntl.LOCK_EX)
+    info = json.dumps({"pid": 4242, "host": "elsewhere", "run_id": "r1"}).encode()
+    threading.Timer(0.05, os.pwrite, (fd, info, 0)).start()
+    try:
+        with pytest.raises(OutputFolderBusy, match="pid 4242 on elsewhere"):
+            with RunFolder(tmp_path / "out"):
+                pass
+    finally:
+        os.close(fd)

@@ -131,3 +131,22 @@ def test_checker_sees_crowded_ticks_and_missing_units():
     problems = _check_figure("crowded", fig)
     assert any("overlapping x tick labels" in p for p in problems)
     assert any("has no [unit]" in p for p in problems)
+
+
+def test_log_axes_have_a_1_2_5_minor_grid(results, tmp_path, monkeypatch):
+    """Minor ticks of the logarithmic axes only at 2 and 5 times a power of ten (what
+    keeps the figures cheap to draw, docs/performance.md), and some of them drawn."""
+    figures = _capture(results["sandwich-2d"], tmp_path, monkeypatch)
+    seen = 0
+    for fig in figures.values():
+        fig.canvas.draw()
+        for ax in fig.axes:
+            for axis in (ax.xaxis, ax.yaxis):
+                if axis.get_scale() != "log":
+                    continue
+                lo, hi = sorted(axis.get_view_interval())
+                ticks = [t for t in axis.get_minorticklocs() if lo <= t <= hi]
+                mantissa = np.round(np.asarray(ticks) / 10.0 ** np.floor(np.log10(ticks)), 9)
+                assert set(mantissa) <= {2.0, 5.0}, (fig, mantissa)
+                seen += len(ticks)
+    assert seen >= 4

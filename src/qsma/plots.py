@@ -15,23 +15,30 @@ from .rundir import atomic_path
 MARGINS_IN = (0.95, 0.25, 0.65, 0.4)
 
 
-def _figure(nrows=1, ncols=1, figsize=(6, 4.5), hspace=0.2, wspace=0.2, **kw):
+def _figure(nrows=1, ncols=1, figsize=(6, 4.5), hspace=0.2, wspace=0.2,
+            margins=MARGINS_IN, **kw):
     """A figure on the Agg canvas, independent of pyplot and of the user's backend, with
-    the margins :data:`MARGINS_IN`."""
+    the ``margins`` in inches (left, right, bottom, top; default :data:`MARGINS_IN`)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     fig = Figure(figsize=figsize)
     FigureCanvasAgg(fig)
     width, height = figsize
-    left, right, bottom, top = MARGINS_IN
+    left, right, bottom, top = margins
     fig.subplots_adjust(left=left / width, right=1 - right / width, bottom=bottom / height,
                         top=1 - top / height, hspace=hspace, wspace=wspace)
     return fig, fig.subplots(nrows, ncols, **kw)
 
 
+#: zlib level of the PNG files: 1 writes them 15-20 % larger than the default 6 in a
+#: fifth less time (benchmarks/bench_process.py, docs/performance.md).
+PNG_COMPRESSION = 1
+
+
 def _save(fig, path):
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=120, format="png")
+        fig.savefig(tmp, dpi=120, format="png",
+                    pil_kwargs={"compress_level": PNG_COMPRESSION})
     return Path(path)
 
 
@@ -53,13 +60,22 @@ def power_label(x, pos=None) -> str:
     return f"{sign}10{str(int(round(k))).translate(_SUPERSCRIPT)}"
 
 
+#: Minor ticks (and grid lines) of a logarithmic axis at 2 and 5 times each power of
+#: ten: the 1-2-5 grid of engineering charts. Matplotlib's default of eight per decade
+#: builds four times as many tick artists, the largest part of drawing a log axis.
+LOG_MINOR_SUBS = (2.0, 5.0)
+
+
 def _plain_log_ticks(*axes):
-    """Major tick labels of the log/symlog axes of ``axes`` by :func:`power_label`."""
-    from matplotlib.ticker import FuncFormatter
+    """Major tick labels of the log/symlog axes of ``axes`` by :func:`power_label`,
+    minor ticks at :data:`LOG_MINOR_SUBS` on the log axes."""
+    from matplotlib.ticker import FuncFormatter, LogLocator
     for ax in axes:
         for axis in (ax.xaxis, ax.yaxis):
             if axis.get_scale() in ("log", "symlog"):
                 axis.set_major_formatter(FuncFormatter(power_label))
+            if axis.get_scale() == "log":
+                axis.set_minor_locator(LogLocator(subs=LOG_MINOR_SUBS))
 
 
 def plot_backbone(res, path):

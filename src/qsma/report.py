@@ -71,9 +71,16 @@ def _figure_html(png: bytes, caption: str) -> str:
             f"<figcaption>{escape(caption)}</figcaption></figure>")
 
 
+#: Margins of the mesh figure in inches (left, right, bottom, top): the legend sits in
+#: the right margin. Fixed margins draw the figure once, where ``bbox_inches="tight"``
+#: drew it twice.
+MESH_MARGINS_IN = {2: (0.6, 2.6, 0.35, 0.5), 3: (0.1, 3.2, 0.1, 0.4)}
+
+
 def _png(fig) -> bytes:
+    from .plots import PNG_COMPRESSION
     buf = io.BytesIO()
-    fig.savefig(buf, dpi=100, bbox_inches="tight", format="png")
+    fig.savefig(buf, dpi=100, format="png", pil_kwargs={"compress_level": PNG_COMPRESSION})
     return buf.getvalue()
 
 
@@ -94,7 +101,8 @@ def mesh_figure(res) -> bytes:
     status = res.preload.status
     if model.dim == 2:
         from matplotlib.collections import PolyCollection
-        fig, (whole, ax) = _figure(2, 1, figsize=(8, 4.2),
+        fig, (whole, ax) = _figure(2, 1, figsize=(9.5, 3.9), hspace=0.45,
+                                   margins=MESH_MARGINS_IN[2],
                                    gridspec_kw=dict(height_ratios=(1, 3)))
         for axis in (whole, ax):
             for k, b in enumerate(model.bodies):
@@ -112,7 +120,7 @@ def mesh_figure(res) -> bytes:
         ax.set_ylim(lo[1] - pad, hi[1] + pad)
         whole.set_title("whole model", fontsize=9)
     else:
-        fig = _figure(figsize=(8, 4))[0]
+        fig = _figure(figsize=(7.5, 3.9), margins=MESH_MARGINS_IN[3])[0]
         fig.clf()
         ax = fig.add_subplot(projection="3d")
         for k, b in enumerate(model.bodies):
@@ -128,7 +136,8 @@ def mesh_figure(res) -> bytes:
                        label=f"interface pair, {label} after preload ({int(sel.sum())})")
     fig.suptitle(f"{model.name}: {model.n_nodes} nodes, {p.n_pairs} interface pairs",
                  fontsize=10)
-    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    ax.legend(fontsize=7, loc="upper right", bbox_to_anchor=(0.995, 0.88),
+              bbox_transform=fig.transFigure)       # in the right margin
     return _png(fig)
 
 

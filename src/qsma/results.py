@@ -166,8 +166,6 @@ def write_vtu(res, path, levels=None):
     path : file to write (``.vtu``)
     levels : level indices to write; default the first, middle and last level.
     """
-    import meshio
-
     model = res.model
     if levels is None:
         levels = sorted({0, res.n_levels // 2, res.n_levels - 1}) if res.n_levels else []
@@ -191,9 +189,56 @@ def write_vtu(res, path, levels=None):
         for name, v in _interface_point_data(res, k, offsets, len(pts)).items():
             point_data[f"{name}_level{k:02d}"] = v
     blocks = [block for body in cells for block in body]  # per body, per cell type
-    mesh = meshio.Mesh(pts, blocks, point_data=point_data)
     with atomic_path(path) as tmp:
-        meshio.write(tmp, mesh, file_format="vtu", binary=True)
+        Path(tmp).write_text(vtu_text(pts, blocks, point_data), encoding="ascii")
+
+
+#: VTK cell type numbers of the meshio cell types (the node order of both is VTK's).
+VTK_CELL_TYPES = {"triangle": 5, "quad": 9, "tetra": 10, "hexahedron": 12, "triangle6": 22,
+                  "quad8": 23, "tetra10": 24, "hexahedron20": 25, "quad9": 28,
+                  "hexahedron27": 29}
+
+
+def _vtu_array(values, name=None, components=None) -> str:
+    """One ``<DataArray>`` of a VTU file: little-endian values, zlib-compressed as one
+    block, base64-encoded after the VTK header ``[blocks = 1, block size, last block
+    size, compressed size]`` (``UInt64``)."""
+    import base64
+    import zlib
+    kind = {"f": "Float", "i": "Int", "u": "UInt"}[values.dtype.kind]
+    raw = np.ascontiguousarray(values, dtype=values.dtype.newbyteorder("<")).tobytes()
+    packed = zlib.compress(raw, 1)
+    header = np.array([1, len(raw), len(raw), len(packed)], dtype="<u8").tobytes()
+    attrs = f' type="{kind}{8 * values.dtype.itemsize}"'
+    attrs += f' Name="{name}"' if name else ""
+    attrs += f' NumberOfComponents="{components}"' if components else ""
+    data = base64.b64encode(header).decode() + base64.b64encode(packed).decode()
+    return f'<DataArray{attrs} format="binary">{data}</DataArray>'
+
+
+def vtu_text(points, blocks, point_data) -> str:
+    """A VTK XML unstructured grid (``.vtu``) of ``points`` ``(n, 3)``, cell ``blocks``
+    (``(meshio cell type, cells)``, written in that order) and ``point_data`` (name ->
+    ``(n,)`` or ``(n, k)`` array): binary, zlib-compressed, readable by ParaView and
+    ``meshio.read``."""
+    connectivity = np.concatenate([c.ravel() for _, c in blocks]).astype(np.int64)
+    sizes = np.concatenate([np.full(len(c), c.shape[1]) for _, c in blocks])
+    types = np.concatenate([np.full(len(c), VTK_CELL_TYPES[t]) for t, c in blocks])
+    fields = "\n".join(_vtu_array(np.asarray(v, dtype=float), name,
+                                   None if np.ndim(v) == 1 else np.shape(v)[1])
+                       for name, v in point_data.items())
+    return (
+        '<?xml version="1.0"?>\n<VTKFile type="UnstructuredGrid" version="1.0" '
+        'byte_order="LittleEndian" header_type="UInt64" '
+        'compressor="vtkZLibDataCompressor">\n<UnstructuredGrid>\n'
+        f'<Piece NumberOfPoints="{len(points)}" NumberOfCells="{len(sizes)}">\n'
+        f'<Points>\n{_vtu_array(np.asarray(points, dtype=float), components=3)}\n'
+        '</Points>\n<Cells>\n'
+        f'{_vtu_array(connectivity, "connectivity")}\n'
+        f'{_vtu_array(np.cumsum(sizes).astype(np.int64), "offsets")}\n'
+        f'{_vtu_array(types.astype(np.uint8), "types")}\n</Cells>\n'
+        f'<PointData>\n{fields}\n</PointData>\n</Piece>\n</UnstructuredGrid>\n'
+        '</VTKFile>\n')
 
 
 def _stack_fields(res, k):

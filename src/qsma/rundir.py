@@ -201,7 +201,7 @@ class RunFolder:
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
-                owner = _read_owner(fd)
+                owner = _wait_for_owner(fd)
                 os.close(fd)
                 raise OutputFolderBusy(
                     f"output folder {str(self.path)!r} is in use by another qsma run "
@@ -409,12 +409,27 @@ def _digest(path: Path, sync=True) -> dict:
     return {"bytes": size, "sha256": h.hexdigest()}
 
 
+def _wait_for_owner(fd, tries=40, pause_s=0.005) -> str:
+    """The lock owner's description; a run that has just taken the lock writes it
+    right after (``_lock``), so an empty file is read again for up to 0.2 s before the
+    owner is called unknown (two runs started at the same moment)."""
+    for _ in range(tries - 1):
+        owner = _read_owner(fd)
+        if owner != UNKNOWN_OWNER:
+            return owner
+        time.sleep(pause_s)
+    return _read_owner(fd)
+
+
+UNKNOWN_OWNER = "owner unknown"
+
+
 def _read_owner(fd) -> str:
     try:
         info = json.loads(os.pread(fd, 4096, 0).decode())
         return f"pid {info['pid']} on {info['host']}, run {info['run_id']}"
     except (OSError, ValueError, KeyError, TypeError):
-        return "owner unknown"
+        return UNKNOWN_OWNER
 
 
 def _umask_bits():

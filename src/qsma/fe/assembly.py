@@ -20,6 +20,7 @@ from skfem.helpers import ddot, div, dot, sym_grad
 from ..errors import InputError
 from ..model import Body, Mesh
 from ..model.mesh import FACET_CORNERS, facet_index
+from . import batched
 from .elements import block_dofs, fe_space, scatter_matrix
 from .formulation import Formulation, MixedFormulation, resolve_formulations
 
@@ -49,8 +50,8 @@ def plane_lame(material, formulation: Formulation):
 def _elasticity_form(lam, mu):
     """Isotropic elasticity, ``sigma : eps(v)`` with ``sigma = 2 mu eps + lam tr(eps) I``,
     written as ``lam div(u) div(v) + 2 mu eps(u) : eps(v)``: the same matrix as
-    ``skfem.models.elasticity.linear_elasticity`` (1e-15, tests/test_fe.py), assembled
-    3x faster (no stress tensor with an identity built per basis pair)."""
+    ``skfem.models.elasticity.linear_elasticity`` (1e-15, tests/test_fe.py); the
+    reference of the batched assembly (:mod:`qsma.fe.batched`) in the tests."""
     @skfem.BilinearForm
     def form(u, v, w):
         return lam * div(u) * div(v) + 2.0 * mu * ddot(sym_grad(u), sym_grad(v))
@@ -58,6 +59,7 @@ def _elasticity_form(lam, mu):
 
 
 def _mass_form(rho):
+    """Consistent mass ``rho u . v`` (the reference of :func:`qsma.fe.batched.mass`)."""
     @skfem.BilinearForm
     def form(u, v, w):
         return rho * dot(u, v)
@@ -102,80 +104,7 @@ def stiffness_matrix(body: Body, formulation: Formulation | MixedFormulation | N
     if form.incompatible:
         from .incompatible import incompatible_stiffness
         return incompatible_stiffness(body.mesh, lam, mu)
-    space = fe_space(body.mesh)
-    return space.to_qsma_matrix(elasticity_matrix(space.basis, lam, mu), body.n_dofs)
-
-
-#: Elements per batch of the vectorised assembly (bounds its temporary arrays).
-ASSEMBLY_BATCH = 4096
-
-
-def elasticity_matrix(basis, lam, mu) -> sp.csr_matrix:
-    r"""Isotropic elasticity matrix on a scikit-fem vector ``basis`` (its numbering),
-    the same as ``skfem.asm(_elasticity_form(lam, mu), basis)`` to round-off
-    (tests/test_fe.py) and about 8x faster for hexahedra: the element matrices
-
-    .. math:: K^e_{ij} = \sum_q w_q \left[\lambda\, \operatorname{tr}\varepsilon_i
-              \operatorname{tr}\varepsilon_j + 2\mu\, \varepsilon_i : \varepsilon_j
-              \right], \qquad \varepsilon_i = \operatorname{sym} \nabla \phi_i ,
-
-    are batched matrix products over the elements instead of one Python-level form
-    evaluation per pair ``(i, j)`` of basis functions."""
-    def element_block(fields, dx):
-        grad = np.stack([f.grad for f in fields])           # (nb, d, d, ne, nq)
-        nb, d = grad.shape[:2]
-        eps = 0.5 * (grad + np.swapaxes(grad, 1, 2))
-        tr = np.trace(grad, axis1=1, axis2=2)                # (nb, ne, nq)
-        Ke = np.zeros((dx.shape[0], nb, nb))
-        for q in range(dx.shape[1]):
-            A = eps[..., q].reshape(nb, d * d, -1).transpose(2, 0, 1)     # (ne, nb, d*d)
-            t = tr[:, :, q].T                                              # (ne, nb)
-            w = dx[:, q, None]
-            Ke += 2.0 * mu * (A * w[:, :, None]) @ A.transpose(0, 2, 1)
-            Ke += lam * (t * w)[:, :, None] * t[:, None, :]
-        return Ke
-    return _batched_matrix(basis, element_block)
-
-
-def consistent_mass(basis, rho) -> sp.csr_matrix:
-    r"""Consistent mass ``M^e_ij = rho sum_q w_q phi_i . phi_j`` on a scikit-fem vector
-    ``basis``, the same as ``skfem.asm(_mass_form(rho), basis)`` to round-off."""
-    def element_block(fields, dx):
-        val = np.stack([f.value for f in fields])            # (nb, d, ne, nq)
-        return rho * np.einsum("ikeq,jkeq,eq->eij", val, val, dx, optimize=True)
-    return _batched_matrix(basis, element_block)
-
-
-def _batched_matrix(basis, element_block):
-    """Sum the element matrices ``element_block(fields, dx) -> (ne, nb, nb)`` of
-    batches of :data:`ASSEMBLY_BATCH` elements into a sparse matrix."""
-    n_el = basis.dx.shape[0]
-    blocks = []
-    for start in range(0, n_el, ASSEMBLY_BATCH):
-        cut = slice(start, min(start + ASSEMBLY_BATCH, n_el))
-        fields = [_ElementField(phi[0], cut) for phi in basis.basis]
-        blocks.append(element_block(fields, basis.dx[cut]))
-    Ke = np.concatenate(blocks)
-    dofs = basis.element_dofs.T                                # (ne, nb)
-    rows = np.broadcast_to(dofs[:, :, None], Ke.shape).ravel()
-    cols = np.broadcast_to(dofs[:, None, :], Ke.shape).ravel()
-    return sp.coo_matrix((Ke.ravel(), (rows, cols)), shape=(basis.N, basis.N)).tocsr()
-
-
-@dataclass(frozen=True)
-class _ElementField:
-    """Value and gradient of one basis function on a batch of elements."""
-
-    field: object
-    cut: slice
-
-    @property
-    def value(self):
-        return np.asarray(self.field)[..., self.cut, :]
-
-    @property
-    def grad(self):
-        return self.field.grad[..., self.cut, :]
+    return batched.stiffness(body.mesh, lam, mu)
 
 
 def mass_matrix(body: Body) -> sp.csr_matrix:
@@ -183,9 +112,7 @@ def mass_matrix(body: Body) -> sp.csr_matrix:
     type; incompatible modes carry no mass)."""
     if body.mesh.is_mixed:
         return _sum_over_blocks(body, lambda b, k: mass_matrix(b))
-    space = fe_space(body.mesh)
-    return space.to_qsma_matrix(consistent_mass(space.basis, body.material.rho),
-                                body.n_dofs)
+    return batched.mass(body.mesh, body.material.rho)
 
 
 def assemble_body(body: Body) -> AssembledBody:
@@ -339,10 +266,13 @@ def stress_at_nodes(body: Body, u: np.ndarray):
 def _cell_stress(mesh: Mesh, material, form: Formulation, u: np.ndarray) -> np.ndarray:
     """Mean over the Gauss points of each cell of the stress of displacement ``u``
     (single-type mesh): ``(n_cells, dim, dim)``."""
-    space = fe_space(mesh)
     lam, mu = plane_lame(material, form)
-    gu = space.basis.interpolate(space.from_qsma_vector(u)).grad     # (dim, dim, nelem, nqp)
-    eps = 0.5 * (gu + np.swapaxes(gu, 0, 1))
-    tr = np.trace(eps, axis1=0, axis2=1)
-    sig = 2 * mu * eps + lam * tr[None, None] * np.eye(mesh.dim)[:, :, None, None]
-    return np.moveaxis(sig.mean(axis=-1), -1, 0)
+    quad = batched.cell_quadrature(mesh)
+    U = np.asarray(u).reshape(-1, mesh.dim)[quad.nodes]             # (ne, nb, dim)
+    sig = np.empty((quad.n_elements, mesh.dim, mesh.dim))
+    for cut, G, _ in quad.batches():
+        gu = np.einsum("eak,eqai->eqki", U[cut], G).mean(axis=1)     # mean over Gauss points
+        eps = 0.5 * (gu + np.swapaxes(gu, 1, 2))
+        tr = np.trace(eps, axis1=1, axis2=2)
+        sig[cut] = 2 * mu * eps + lam * tr[:, None, None] * np.eye(mesh.dim)
+    return sig

@@ -107,24 +107,33 @@ def build_skfem_mesh(points: np.ndarray, cells: np.ndarray, cell_type: str):
 
 @dataclass(frozen=True, eq=False)
 class FESpace:
-    """scikit-fem mesh and vector basis of a qsma mesh, with the DOF permutation.
+    """scikit-fem mesh and element of a qsma mesh, with the DOF permutation.
 
     Attributes
     ----------
     mesh : scikit-fem mesh on coordinates relative to ``origin``
-    basis : vector :class:`skfem.Basis` (quadrature of ``SKFEM_ELEMENTS``)
     element : scalar scikit-fem element
     perm : ``perm[skfem_dof] = dim * node + component``; ``None`` when identical
     vertex_node : qsma node of each scikit-fem vertex
     origin : the assembly origin in the user's coordinates
+    dof_node : qsma node of each scalar scikit-fem DOF
+    intorder : quadrature order (``SKFEM_ELEMENTS``)
     """
 
     mesh: object
-    basis: object
     element: object
     perm: np.ndarray | None
     vertex_node: np.ndarray
     origin: np.ndarray
+    dof_node: np.ndarray
+    intorder: int
+
+    @functools.cached_property
+    def basis(self):
+        """Vector :class:`skfem.Basis` on every element (built when first asked for:
+        the matrices are assembled without it, :mod:`qsma.fe.batched`)."""
+        return skfem.Basis(self.mesh, skfem.ElementVector(self.element),
+                           intorder=self.intorder)
 
     def to_qsma_matrix(self, A, n_dofs):
         """``P A P^T``: a scikit-fem matrix renumbered to qsma DOFs (CSR)."""
@@ -198,21 +207,24 @@ def fe_space(mesh) -> FESpace:
     points = mesh.points - origin
     m = build_skfem_mesh(points, mesh.cells, ct)
     elem = elem_cls()
-    basis = skfem.Basis(m, skfem.ElementVector(elem), intorder=intorder)
     dim, n = mesh.dim, mesh.n_nodes
+    # the vector numbering dim * scalar DOF + component, checked on one element
+    probe = skfem.Basis(m, skfem.ElementVector(elem), intorder=1, elements=np.array([0]),
+                        disable_doflocs=True)
     if ct in ("triangle", "quad", "tetra", "hexahedron"):
         expected = dim * np.arange(n)[None, :] + np.arange(dim)[:, None]
-        if not np.array_equal(basis.nodal_dofs, expected):
+        if not np.array_equal(probe.nodal_dofs, expected):
             raise RuntimeError("unexpected scikit-fem DOF ordering")  # guards our convention
-        return FESpace(m, basis, elem, None, np.arange(m.nvertices), origin)
+        return FESpace(m, elem, None, np.arange(m.nvertices), origin, np.arange(n),
+                       intorder)
     span = float(np.linalg.norm(np.ptp(points, axis=0))) if n else 1.0
     sbasis = skfem.Basis(m, elem, intorder=1)
     node_of = _scalar_dof_nodes(sbasis, mesh.cells, points, 1e-9 * span)
-    _check_vector_numbering(basis, sbasis.N, dim)
-    perm = np.empty(basis.N, dtype=np.int64)
+    _check_vector_numbering(probe, sbasis.N, dim)
+    perm = np.empty(probe.N, dtype=np.int64)
     perm[dim * np.arange(sbasis.N)[:, None] + np.arange(dim)] = \
         dim * node_of[:, None] + np.arange(dim)
-    return FESpace(m, basis, elem, perm, node_of[:m.nvertices], origin)
+    return FESpace(m, elem, perm, node_of[:m.nvertices], origin, node_of, intorder)
 
 
 def block_dofs(nodes: np.ndarray, dim: int) -> np.ndarray:

@@ -30,8 +30,8 @@ from __future__ import annotations
 import functools
 
 import numpy as np
-import scipy.sparse as sp
 
+from .batched import block_pattern, isotropic_blocks, sum_into_csr
 from .elements import local_origin
 
 _GAUSS = np.array([-1.0, 1.0]) / np.sqrt(3.0)      # 2-point Gauss-Legendre, weights 1
@@ -111,13 +111,7 @@ def element_stiffness(X, lam, mu, modes=True, taylor=True, condensed=True):
         else:
             GP = np.einsum("qmj,eqji->eqmi", dP, Jinv)
         G = np.concatenate([G, GP], axis=2)
-    wd = detJ                                                 # Gauss weights are 1
-    nf = G.shape[2]
-    K = lam * np.einsum("eq,eqai,eqbk->eaibk", wd, G, G)
-    K += mu * np.einsum("eq,eqak,eqbi->eaibk", wd, G, G)
-    gg = np.einsum("eq,eqaj,eqbj->eab", wd, G, G)
-    K += mu * gg[:, :, None, :, None] * np.eye(dim)[None, None, :, None, :]
-    K = K.reshape(ne, nf * dim, nf * dim)
+    K = isotropic_blocks(G, detJ, lam, mu)                    # Gauss weights are 1
     if not modes or not condensed:
         return K
     nu = na * dim
@@ -128,27 +122,17 @@ def element_stiffness(X, lam, mu, modes=True, taylor=True, condensed=True):
 @functools.lru_cache(maxsize=8)
 def _cached(mesh, lam, mu):
     X_all = mesh.points - local_origin(mesh.points)
-    dim = mesh.dim
-    cells = mesh.cells
-    nd = cells.shape[1] * dim
-    dofs = (dim * cells[:, :, None] + np.arange(dim)).reshape(len(cells), nd)
-    rows, cols, vals = [], [], []
+    dim, cells = mesh.dim, mesh.cells
+    na = cells.shape[1]
     chunk = 4096
-    for s in range(0, len(cells), chunk):
-        c = cells[s:s + chunk]
-        Ke = element_stiffness(X_all[c], lam, mu)
-        d = dofs[s:s + chunk]
-        rows.append(np.repeat(d, nd, axis=1).ravel())
-        cols.append(np.tile(d, (1, nd)).ravel())
-        vals.append(Ke.ravel())
-    n = dim * mesh.n_nodes
-    K = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                      shape=(n, n))
-    K.sum_duplicates()
-    return K
+    Ke = np.concatenate([element_stiffness(X_all[cells[s:s + chunk]], lam, mu)
+                         for s in range(0, len(cells), chunk)])
+    K5 = Ke.reshape(len(cells), na, dim, na, dim)          # node-major element DOFs
+    return sum_into_csr(lambda i, k: K5[:, :, i, :, k], block_pattern(cells, mesh.n_nodes),
+                        dim)
 
 
-def incompatible_stiffness(mesh, lam, mu) -> sp.csr_matrix:
+def incompatible_stiffness(mesh, lam, mu) -> "scipy.sparse.csr_matrix":
     """Global condensed stiffness of a quad / hexahedron mesh with incompatible modes,
     in qsma DOF order (``dim * node + component``), on coordinates relative to the
     bounding-box corner (:func:`qsma.fe.elements.local_origin`). Cached per mesh."""
