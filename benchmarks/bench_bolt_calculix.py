@@ -216,7 +216,7 @@ def compare(refine, penalty, mu=None, folder=None, tension=TENSION):
     return dict(refine=refine, penalty=penalty, pairs=len(f_q), q=q, c=c,
                 peak_cstr=peak_cstr, closed_q=int((pre.status != OPEN).sum()),
                 slip_q=int((pre.status == SLIPPING).sum()),
-                closed_c=int((f_c > 1e-6 * np.abs(f_c).max()).sum()),
+                closed_c=int((cstr[:, 1] > 0).sum()),
                 max_diff=float(np.abs(f_q - f_c).max() / f_q.max()),
                 t_qsma=t_q, t_ccx=t_c)
 
