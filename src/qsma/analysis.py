@@ -364,12 +364,10 @@ def _condense(model, assembled, pairing, schur_backend, clock):
     (:func:`qsma.multibody.reduce_model`)."""
     bolts = getattr(model, "bolts", ())
     with clock.stage("condensation"):
+        patterns = ("preload",) + tuple(b.pattern for b in bolts)
         if isinstance(pairing, MultiPairing):
-            if bolts:
-                raise InputError("bolts are supported between two bodies with one interface "
-                                 "only; a model with several interfaces cannot carry them yet "
-                                 "(model them as pressure patches)")
-            reduced = reduce_model(model, assembled, pairing, backend=schur_backend)
+            reduced = reduce_model(model, assembled, pairing, backend=schur_backend,
+                                   patterns=patterns)
             free = [b.name for b, cb in zip(model.bodies, reduced.bodies)
                     if cb.rigid is not None]
             if free:
@@ -379,12 +377,12 @@ def _condense(model, assembled, pairing, schur_backend, clock):
                     f"is not supported yet (only two bodies with one interface are). "
                     f"Fix: clamp {free[0]!r} where the real structure is supported, or "
                     f"model the joint as two bodies with one interface")
-            return reduced
-        i1, i2 = body_order(model, pairing)
-        reduced = reduce_two_bodies(assembled[i1], assembled[i2], pairing,
-                                    patterns=("preload",) + tuple(b.pattern for b in bolts),
-                                    backend=schur_backend)
-        return bolt_functionals(model, reduced, (i1, i2)) if bolts else reduced
+        else:
+            i1, i2 = body_order(model, pairing)
+            reduced = reduce_two_bodies(assembled[i1], assembled[i2], pairing,
+                                        patterns=patterns, backend=schur_backend)
+        order = body_order(model, pairing)
+        return bolt_functionals(model, reduced, order) if bolts else reduced
 
 
 def _assemble(model, clock, keep=None):

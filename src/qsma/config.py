@@ -14,7 +14,7 @@ except ModuleNotFoundError:  # Python 3.10
 from .errors import InputError
 from .levels import Levels, spec_levels
 from .options import RunOptions
-from .model import Body, Clamp, Interface, Material, Model, Pressure, Probe
+from .model import Body, Clamp, Interface, Material, Model, Pressure, Probe, Spring
 
 _NUM = (int, float)
 # section -> {key: (types, required)}
@@ -25,8 +25,9 @@ SCHEMA = {
     "bodies": {"name": (str, True), "mesh": (str, True), "cells": (str, False),
                "E": (_NUM, True),
                "nu": (_NUM, True), "rho": (_NUM, True), "clamps": (list, False),
-               "pressures": (list, False)},
+               "pressures": (list, False), "springs": (list, False)},
     "clamps": {"set": (str, True), "components": (list, False)},
+    "springs": {"set": (str, True), "stiffness": (list, True)},
     "pressures": {"set": (str, True), "p": (_NUM, True), "load": (str, False)},
     "interface": {"body1": (str, True), "set1": (str, True), "body2": (str, True),
                   "set2": (str, True), "mu": (_NUM, True), "tol": (_NUM, False),
@@ -130,7 +131,8 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
     Parameters
     ----------
     data : dict
-        The parsed file: ``[[bodies]]`` (mesh file, material, clamps, pressures, or
+        The parsed file: ``[[bodies]]`` (mesh file, material, clamps, pressures,
+        grounded springs ``springs = [{set = ..., stiffness = [kx, ky(, kz)]}]``, or
         ``cells`` to take a body out of a file holding several), one ``[interface]`` or
         a list ``[[interfaces]]`` (each with its own ``mu`` if wanted), ``[tip]``,
         ``[analysis]`` (the fields of :class:`qsma.options.RunOptions`) and ``[levels]``.
@@ -168,13 +170,15 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
         pressures = tuple(Pressure(p["set"], p["p"], p.get("load", "preload"))
                           for p in (_check(p, "pressures", f"{w}.pressures") for p in
                                     b.get("pressures", [])))
+        spring_tables = [_check(t, "springs", f"{w}.springs") for t in b.get("springs", [])]
         if "\x00" in b["mesh"] or not b["mesh"].strip():
             raise InputError(f"{w}: mesh path {b['mesh']!r} is empty or contains a NUL "
                              f"character; give the mesh file name")
         try:
             mat = Material(b["E"], b["nu"], b["rho"])
+            springs = tuple(Spring(t["set"], tuple(t["stiffness"])) for t in spring_tables)
             mesh = _body_mesh(base / b["mesh"], b.get("cells"), files)
-            bodies.append(Body(b["name"], mesh, mat, clamps, pressures))
+            bodies.append(Body(b["name"], mesh, mat, clamps, pressures, springs))
         except InputError as exc:
             raise InputError(f"{w} ({b['name']!r}): {exc}") from exc
     tip = _check(data["tip"], "tip", f"{where}: tip")

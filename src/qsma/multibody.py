@@ -354,10 +354,12 @@ def pair_mu(model, pairing) -> np.ndarray | float:
                            for c, i in zip(pairing.couplings, pairing.interfaces)])
 
 
-def reduce_model(model, assembled, pairing, backend="auto") -> MultiReducedModel:
-    """:func:`reduce_bodies` of a model and its :class:`MultiPairing`."""
-    return reduce_bodies(assembled, list(pairing.couplings), backend=backend,
-                         names=[b.name for b in model.bodies])
+def reduce_model(model, assembled, pairing, backend="auto",
+                 patterns=("preload",)) -> MultiReducedModel:
+    """:func:`reduce_bodies` of a model and its :class:`MultiPairing` (``patterns``:
+    the load patterns to condense, e.g. the bolts' unit tensions besides 'preload')."""
+    return reduce_bodies(assembled, list(pairing.couplings), patterns=patterns,
+                         backend=backend, names=[b.name for b in model.bodies])
 
 
 def body_order(model, pairing) -> list:

@@ -91,8 +91,9 @@ class LockedModel:
         c_d, c_a = self.functionals[name]
         return float(c_d @ np.asarray(d).ravel() + c_a @ np.asarray(a, dtype=float))
 
-    def add_pattern(self, name, F1, F2) -> "LockedModel":
-        return lock(self.base.add_pattern(name, F1, F2), self.bolts, self.d_pre)
+    def add_pattern(self, name, *loads) -> "LockedModel":
+        """One more load pattern (a full load per body of ``base``), bolts locked."""
+        return lock(self.base.add_pattern(name, *loads), self.bolts, self.d_pre)
 
     def with_functionals(self, definitions: dict) -> "LockedModel":
         return lock(self.base.with_functionals(definitions), self.bolts, self.d_pre)

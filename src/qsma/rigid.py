@@ -60,6 +60,13 @@ def free_motions(points: np.ndarray, fixed: np.ndarray) -> np.ndarray:
     return modes @ vt[rank:].T
 
 
+def held(assembled) -> np.ndarray:
+    """DOFs of an assembled body that hold it against rigid motion: the clamped ones
+    and those on a grounded spring of nonzero stiffness (:mod:`qsma.model.spring`)."""
+    from .model.spring import held_dofs
+    return np.union1d(assembled.fixed, held_dofs(assembled.body)).astype(np.int64)
+
+
 def describe(motion: np.ndarray, dim: int) -> str:
     """A rigid motion's coefficients in words ("+1.00 rotation z")."""
     return ", ".join(f"{c:+.2f} {n}" for c, n in zip(motion, _NAMES[dim]) if abs(c) > 1e-6)
@@ -77,7 +84,7 @@ def assembly_motions(model, assembled) -> np.ndarray:
     ``(n_dofs, r)``, ``r = 0`` for a structure clamped somewhere."""
     off = model.dof_offsets()
     points = np.vstack([b.mesh.points for b in model.bodies])
-    fixed = np.concatenate([off[k] + a.fixed for k, a in enumerate(assembled)]) \
+    fixed = np.concatenate([off[k] + held(a) for k, a in enumerate(assembled)]) \
         if assembled else np.zeros(0, int)
     return free_motions(points, fixed)
 
@@ -89,7 +96,7 @@ def interface_basis(assembled, C: np.ndarray, R) -> np.ndarray | None:
     Raises :class:`InputError` naming the body if a free motion does not move the
     interface (then nothing can hold it: its ``K_EE`` would be singular)."""
     body = assembled.body
-    free = free_motions(body.mesh.points, assembled.fixed)
+    free = free_motions(body.mesh.points, held(assembled))
     if free.shape[1] == 0:
         return None
     B, r = np.linalg.qr(np.asarray(R.T @ free[C]))
@@ -123,7 +130,7 @@ def assembly_gauge(assembled, bodies, index, loads=None) -> np.ndarray | None:
     (columns), which must then be self-equilibrated (else :class:`InputError`)."""
     points = np.vstack([a.body.mesh.points for a in assembled])
     starts = np.cumsum([0] + [a.n_dofs for a in assembled])
-    fixed = np.concatenate([s + a.fixed for s, a in zip(starts, assembled)])
+    fixed = np.concatenate([s + held(a) for s, a in zip(starts, assembled)])
     free = free_motions(points, fixed)
     if free.shape[1] == 0:
         return None
@@ -251,7 +258,7 @@ def elastic_probe(l, model, assembled):
     where a clamp holds the assembly."""
     off = model.dof_offsets()
     points = np.vstack([b.mesh.points for b in model.bodies])
-    fixed = np.concatenate([off[k] + a.fixed for k, a in enumerate(assembled)])
+    fixed = np.concatenate([off[k] + held(a) for k, a in enumerate(assembled)])
     R = free_motions(points, fixed)
     if R.shape[1] == 0:
         return l

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import numpy as np
+
 from ..model import Bolt
 from .lap import LAP_2D, lap_2d
 
@@ -64,3 +66,64 @@ def sandwich_2d_bolted(refine: int = 1, mu: float | None = None):
                 s["p_bolt"] * s["w_bolt"], s["E"] * s["w_bolt"] / (2 * s["h"]))
     return replace(m, bodies=bodies, bolts=(bolt,),
                    name=f"sandwich-2d-bolted (refine={refine})")
+
+
+
+#: The bolted square stack (SI units): two steel plates 2 A x 2 A of thicknesses
+#: t_bottom and t_top, one bolt on the axis x = z = 0 with a square washer a x a on
+#: each outer face, pretension N0 and the stiffness of an M8 shank (50 mm^2) through
+#: the 8 mm grip. Elements A / (n_plane refine) in the plane, n_thick refine through
+#: each plate.
+STACK_3D = dict(A=0.015, t_bottom=0.005, t_top=0.003, a_washer=0.010, pretension=8000.0,
+                stiffness=200e9 * 50e-6 / 0.008, E=200e9, nu=0.3, rho=7850.0, mu=0.6,
+                n_plane=6, n_thick=2)
+
+
+def stack_3d_bolted(refine: int = 1, mu: float | None = None):
+    """A bolted square stack of two plates, for the preload compared with CalculiX
+    (docs/validation.md, benchmarks/bench_bolt_calculix.py).
+
+    The bottom plate is held by three of its outer-face corners, statically
+    determinate (3-2-1: ``(-A, 0, -A)`` in x, y, z; ``(A, 0, -A)`` in y, z;
+    ``(-A, 0, A)`` in y), so these supports carry no load under the pretension (it
+    is self-equilibrated). The top plate is held only by the joint, so the contact
+    force equals the bolt force. The plates differ in thickness so that the
+    interface slips a little under the preload (friction matters).
+    """
+    from ..model import Body, Clamp, Interface, Material, Model
+    from ..model.generate import structured_mesh
+    from .lap import _check_refine
+    _check_refine(refine)
+    s = STACK_3D
+    A, h = s["A"], s["a_washer"] / 2
+    eps = 1e-9 * A
+    plane = np.linspace(-A, A, 2 * s["n_plane"] * refine + 1)
+    steel = Material(s["E"], s["nu"], s["rho"])
+    bodies = []
+    for name, y0, t in (("bottom", 0.0, s["t_bottom"]),
+                        ("top", s["t_bottom"], s["t_top"])):
+        mesh = structured_mesh(plane, np.linspace(y0, y0 + t, s["n_thick"] * refine + 1),
+                               plane)
+        y_if, y_out = (y0 + t, y0) if name == "bottom" else (y0, y0 + t)
+        on = lambda y: (lambda p: np.abs(p[:, 1] - y) < eps)
+        facet_sets = {
+            "interface": mesh.boundary_facets_where(on(y_if)),
+            "washer": mesh.boundary_facets_where(
+                lambda q: on(y_out)(q) & (np.abs(q[:, 0]) < h + eps)
+                & (np.abs(q[:, 2]) < h + eps))}
+        node_sets, clamps = {}, []
+        if name == "bottom":
+            corner = lambda x, z: np.flatnonzero(
+                (np.abs(mesh.points - (x, y_out, z)) < eps).all(axis=1))
+            node_sets = {"support_xyz": corner(-A, -A), "support_yz": corner(A, -A),
+                         "support_y": corner(-A, A)}
+            clamps = [Clamp("support_xyz"), Clamp("support_yz", (1, 2)),
+                      Clamp("support_y", (1,))]
+        mesh = mesh.with_sets(node_sets=node_sets, facet_sets=facet_sets)
+        bodies.append(Body(name, mesh, steel, clamps=tuple(clamps)))
+    bolt = Bolt("bolt", "bottom", "washer", "top", "washer", s["pretension"],
+                s["stiffness"])
+    return Model(bodies=tuple(bodies),
+                 interface=Interface("bottom", "interface", "top", "interface"),
+                 bolts=(bolt,), mu=s["mu"] if mu is None else mu,
+                 name=f"stack-3d-bolted (refine={refine})")

@@ -120,6 +120,9 @@ def assemble_body(body: Body) -> AssembledBody:
     with the formulation :func:`resolve_formulations` gives for its mesh."""
     form = resolve_formulations(body.mesh)
     K = stiffness_matrix(body, form)
+    if body.springs:                        # grounded springs (qsma.model.spring)
+        from ..model.spring import spring_matrix
+        K = (K + spring_matrix(body)).tocsr()
     M = mass_matrix(body)
     loads = {name: body_load(body, name) for name in body.load_names()}
     fixed = body.clamped_dofs()

@@ -11,8 +11,9 @@ from .mesh import FacetIndex, facet_index  # noqa: E402
 from .validate import validate_mesh  # noqa: E402
 
 from .bolt import Bolt  # noqa: E402
+from .spring import Spring  # noqa: E402
 
-__all__ += ["Bolt", "read_mesh", "write_mesh", "FacetIndex", "facet_index", "validate_mesh"]
+__all__ += ["Bolt", "Spring", "read_mesh", "write_mesh", "FacetIndex", "facet_index", "validate_mesh"]
 
 
 def __getattr__(name):

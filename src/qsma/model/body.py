@@ -87,17 +87,22 @@ class Pressure:
 
 @dataclass(frozen=True, eq=False)
 class Body:
-    """One elastic body: mesh, material, clamps and pressure loads."""
+    """One elastic body: mesh, material, clamps, pressure loads and grounded springs
+    (:class:`qsma.model.spring.Spring`)."""
 
     name: str
     mesh: Mesh
     material: Material
     clamps: tuple = ()
     pressures: tuple = ()
+    springs: tuple = ()
 
     def __post_init__(self):
         object.__setattr__(self, "clamps", tuple(self.clamps))
         object.__setattr__(self, "pressures", tuple(self.pressures))
+        object.__setattr__(self, "springs", tuple(self.springs))
+        from .spring import check_springs
+        check_springs(self)
         names = self.mesh.set_names()
         for c in self.clamps:
             if c.set not in names:

@@ -489,12 +489,16 @@ def _fingerprint(model, options) -> str:
         h.update(np.ascontiguousarray(b.mesh.cells).tobytes())
         h.update(repr((b.mesh.cell_type, b.mesh.element, b.material, b.clamps,
                        b.pressures)).encode())
+        if b.springs:                           # (absent: the bytes of earlier versions)
+            h.update(repr(b.springs).encode())
         for c in b.mesh.extra_blocks:           # mixed meshes: the other cell blocks
             h.update(np.ascontiguousarray(c.cells).tobytes())
             h.update(repr((c.cell_type, c.element)).encode())
     # two bodies: the bytes of earlier versions (studies still resume); several: all
     interfaces = model.interface if model.interface is not None else model.interface_list
     h.update(repr((interfaces, model.tip, model.mu)).encode())
+    if model.bolts:
+        h.update(repr(model.bolts).encode())
     h.update(repr(sorted(options.as_dict().items())).encode())
     h.update(repr(options.levels).encode())
     return h.hexdigest()
