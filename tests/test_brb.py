@@ -70,7 +70,7 @@ def test_washers_are_the_annuli_around_the_three_bolt_axes():
 
 
 def test_bolt_numbers_follow_their_sources():
-    """Pretension = mean of the measured 12002, 12075, 12670 N [P]; k = E A / L of a
+    """Pretension = mean of the 12002, 12075, 12670 N of [P]; k = E A / L of a
     5/16 in shank through the 28.575 mm grip (E = 200 GPa, an assumption)."""
     assert brb_pretension() == pytest.approx(12249.0, abs=1e-9)
     area = math.pi * (0.3125 * 0.0254) ** 2 / 4

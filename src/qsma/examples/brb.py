@@ -14,9 +14,10 @@ Sources
     model for the dynamics of jointed structures", Mech. Syst. Signal Process. 192
     (2023) 110210; its code ``tmd-lab/microslip-rough-contact``
     (``EPMC_SIMS/main_epmc.m``: E = 192.31 GPa and nu = 0.3 of 304L, density
-    7784.3 kg/m^3, measured bolt preloads 12002, 12075, 12670 N) and
-    ``tmd-lab/tmdsimpy`` (``examples/structures/brb_epmc.py``: the same preloads and
-    E, simulated tied-state frequencies 168.5026, 580.4082, 1177.6498 Hz).
+    7784.3 kg/m^3, the three bolt preloads 12002, 12075, 12670 N, whose origin
+    the file does not state) and ``tmd-lab/tmdsimpy``
+    (``examples/structures/brb_epmc.py``: the same preloads and E, simulated
+    tied-state frequencies 168.5026, 580.4082, 1177.6498 Hz).
 
 Geometry [G] (x along the beam, y the bolt axis through the thickness, z across
 the width; origin at the centre of the joint on the interface):
@@ -45,7 +46,7 @@ Modelling choices (each an approximation named in docs/validation.md):
 * ``mu = 0.6``: *assumption*. [P] uses mu = 0.03 at the asperity level of a rough
   contact law, which is not a Coulomb coefficient of a flat interface; 0.6 is the
   coefficient of qsma's other steel examples;
-* every bolt gets the mean of the three measured preloads, as [P] does;
+* every bolt gets the mean of the three preloads of [P], as [P] does;
 * the 0.8 g accelerometer of [P] is not modelled.
 """
 from __future__ import annotations
@@ -74,7 +75,7 @@ BRB = dict(
     t_washer=_IN / 16,            # [G] washer thickness
     d_bolt=5 / 16 * _IN,          # [G] shank diameter
     E=192.31e9, nu=0.3, rho=7784.3,       # [P] 304L
-    preloads=(12002.0, 12075.0, 12670.0),  # [P] measured, N; every bolt gets the mean
+    preloads=(12002.0, 12075.0, 12670.0),  # [P] per bolt, N; every bolt gets the mean
     E_bolt=200e9,                 # assumption (steel of the tutorial's bolts [G])
     mu=0.6,                       # assumption (see the module docstring)
 )
@@ -90,7 +91,7 @@ BRB_MESH = dict(n_outer=10, n_lap=16, n_half=2, n_width=4)
 
 
 def brb_pretension() -> float:
-    """Pretension of every bolt: the mean of the three measured preloads [P], N."""
+    """Pretension of every bolt: the mean of the three preloads of [P], N."""
     return float(np.mean(BRB["preloads"]))
 
 
