@@ -47,7 +47,9 @@ Modelling choices (each an approximation named in docs/validation.md):
   contact law, which is not a Coulomb coefficient of a flat interface; 0.6 is the
   coefficient of qsma's other steel examples;
 * every bolt gets the mean of the three preloads of [P], as [P] does;
-* the 0.8 g accelerometer of [P] is not modelled.
+* the bolts, nuts and washers have no mass (28 g a set by [G]'s dimensions; the
+  lap is an antinode of the first bending mode: docs/validation.md estimates the
+  effect) and the 0.8 g accelerometer of [P] is not modelled.
 """
 from __future__ import annotations
 
