@@ -1,0 +1,221 @@
+r"""The Brake-Reuss beam (BRB): two stainless steel beams joined by a three-bolt lap
+joint, tested free-free (docs/validation.md, section "The Brake-Reuss beam").
+
+Every number below carries its source; the numbers no public source gave us are
+marked *assumption* with the reason.
+
+Sources
+-------
+[G] N. N. Balaji, "An Abaqus-MATLAB tutorial for jointed systems", public repository
+    ``Nidish96/Abaqus4Joints``: ``assets/parts/HALFBEAM.py`` (half-beam geometry,
+    holes, washer partition), ``assets/parts/NUTWASHERBOLT_516.py`` (5/16 in bolt, nut
+    and washer), ``docs/abqtut.org`` (the tutorial: 3 bolts, 12 kN each, free-free).
+[P] J. H. Porter and M. R. W. Brake, "Towards a predictive, physics-based friction
+    model for the dynamics of jointed structures", Mech. Syst. Signal Process. 192
+    (2023) 110210; its code ``tmd-lab/microslip-rough-contact``
+    (``EPMC_SIMS/main_epmc.m``: E = 192.31 GPa and nu = 0.3 of 304L, density
+    7784.3 kg/m^3, the three bolt preloads 12002, 12075, 12670 N, whose origin
+    the file does not state) and ``tmd-lab/tmdsimpy``
+    (``examples/structures/brb_epmc.py``: the same preloads and E, simulated
+    tied-state frequencies 168.5026, 580.4082, 1177.6498 Hz).
+
+Geometry [G] (x along the beam, y the bolt axis through the thickness, z across
+the width; origin at the centre of the joint on the interface):
+
+* each half beam is 420 mm long (x from -360 to +60 mm for the left one), 25.4 mm
+  thick and 25.4 mm wide, halved to 12.7 mm over the last 120 mm (the lap): the two
+  halves overlap over x in [-60, 60] mm and the assembled beam is 720 mm long;
+* three bolts on the beam's centre line at x = -30, 0, +30 mm (z = 12.7 mm);
+* washers 5/16 in: bore 11/32 in, outside diameter 11/16 in, 1/16 in thick; the
+  beam's bearing face under each washer is that annulus (the beam partition of
+  radius 11/32 in in [G]);
+* bolt 5/16 in shank (diameter 0.3125 in).
+
+Modelling choices (each an approximation named in docs/validation.md):
+
+* the 8.5 mm bolt holes [G] are not modelled: the structured hexahedral mesh
+  keeps the interface node-matching, and the annular washer sets leave the hole
+  area unloaded;
+* a washer set is the outer-face facets whose centroid lies in the washer annulus
+  (the bearing area of the mesh converges to the annulus with refinement);
+* the bolt is the spring of :class:`qsma.model.Bolt`: pretension in the preload,
+  then locked with ``k = E_b A / L``, ``A`` the 5/16 in shank area and ``L`` the grip
+  (two 12.7 mm halves and two 1/16 in washers, 28.575 mm) [G];
+* ``E_b = 200 GPa`` for the bolt: *assumption*, the steel of the tutorial's bolts
+  [G] (the bolts' grade is not in our sources);
+* ``mu = 0.6``: *assumption*. [P] uses mu = 0.03 at the asperity level of a rough
+  contact law, which is not a Coulomb coefficient of a flat interface; 0.6 is the
+  coefficient of qsma's other steel examples;
+* every bolt gets the mean of the three preloads of [P], as [P] does;
+* the bolts, nuts and washers have no mass (28 g a set by [G]'s dimensions; the
+  lap is an antinode of the first bending mode: docs/validation.md estimates the
+  effect) and the 0.8 g accelerometer of [P] is not modelled.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from ..errors import InputError
+from ..model import Body, Bolt, Interface, Material, Model, Probe
+from ..model.generate import graded_axis, structured_mesh
+from ..model.mesh import Mesh
+
+_IN = 0.0254      # metres per inch
+
+#: The Brake-Reuss beam (SI units), sources in the module docstring.
+BRB = dict(
+    L_half=0.420,                 # [G] length of one half beam
+    c=0.120,                      # [G] lap length
+    h=0.0254,                     # [G] beam thickness (each half 12.7 mm in the lap)
+    b=0.0254,                     # [G] beam width
+    x_bolts=(-0.030, 0.0, 0.030),  # [G] bolt positions from the lap centre
+    r_washer_in=11 / 64 * _IN,    # [G] washer bore radius (11/32 in diameter)
+    r_washer_out=11 / 32 * _IN,   # [G] washer outside radius (11/16 in diameter)
+    t_washer=_IN / 16,            # [G] washer thickness
+    d_bolt=5 / 16 * _IN,          # [G] shank diameter
+    E=192.31e9, nu=0.3, rho=7784.3,       # [P] 304L
+    preloads=(12002.0, 12075.0, 12670.0),  # [P] per bolt, N; every bolt gets the mean
+    E_bolt=200e9,                 # assumption (steel of the tutorial's bolts [G])
+    mu=0.6,                       # assumption (see the module docstring)
+)
+
+#: Published comparison values, Hz: [P]'s simulated first three bending modes of the
+#: prestressed model (flat interface, tmdsimpy examples/structures/brb_epmc.py).
+BRB_PUBLISHED_HZ = dict(simulated_flat=(168.5026, 580.4082, 1177.6498))
+
+#: Elements per segment at refine 1: along the outer 300 mm, along the 120 mm lap
+#: (a multiple of 4, so that the bolt axes are grid lines), per 12.7 mm half
+#: thickness, across the 25.4 mm width (even: the bolt axes are grid lines).
+BRB_MESH = dict(n_outer=10, n_lap=16, n_half=2, n_width=4)
+
+
+def brb_pretension() -> float:
+    """Pretension of every bolt: the mean of the three preloads of [P], N."""
+    return float(np.mean(BRB["preloads"]))
+
+
+def brb_bolt_stiffness() -> float:
+    r"""Locked axial stiffness of one bolt, :math:`k = E_b \pi d^2 / (4 L)` with the
+    grip :math:`L = h + 2 t_w` (both lap halves and both washers), N/m."""
+    s = BRB
+    area = math.pi * s["d_bolt"] ** 2 / 4
+    return s["E_bolt"] * area / (s["h"] + 2 * s["t_washer"])
+
+
+def _check_refine(refine):
+    if isinstance(refine, bool) or not isinstance(refine, (int, np.integer)) or refine < 1:
+        raise InputError(f"refine must be a positive integer (1 = the coarse test mesh), "
+                         f"got {refine!r}")
+
+
+def _axes(refine, left):
+    """Grid axes of one half beam (x, y, z)."""
+    s, m = BRB, BRB_MESH
+    a, lap_end = s["L_half"] - s["c"] / 2, s["c"] / 2
+    outer = (-a, -lap_end, m["n_outer"] * refine)
+    lap = (-lap_end, lap_end, m["n_lap"] * refine)
+    xs = graded_axis(outer, lap) if left else graded_axis(lap, (lap_end, a, outer[2]))
+    t = s["h"] / 2
+    ys = graded_axis((-t, 0.0, m["n_half"] * refine), (0.0, t, m["n_half"] * refine))
+    zs = np.linspace(0.0, s["b"], m["n_width"] * refine + 1)
+    return xs, ys, zs
+
+
+def _drop_cells(mesh: Mesh, keep: np.ndarray) -> Mesh:
+    """``mesh`` with only the cells ``keep`` and the nodes they use (renumbered)."""
+    cells = mesh.cells[keep]
+    used, inverse = np.unique(cells, return_inverse=True)
+    return Mesh(mesh.points[used], inverse.reshape(cells.shape), mesh.cell_type)
+
+
+def _half_beam_mesh(refine, left) -> Mesh:
+    """One stepped half beam: the box of its axes without the lap's other half
+    (left beam: the upper half y > 0 of the lap is removed; right beam: the lower)."""
+    box = structured_mesh(*_axes(refine, left))
+    centre = box.points[box.cells].mean(axis=1)
+    lap = np.abs(centre[:, 0]) < BRB["c"] / 2
+    other_half = centre[:, 1] > 0 if left else centre[:, 1] < 0
+    return _drop_cells(box, ~(lap & other_half))
+
+
+def _washer(mesh, facets, x_bolt):
+    """Facets of ``facets`` whose centroid lies in the washer annulus around the bolt
+    axis at ``x_bolt`` (z = b / 2)."""
+    s = BRB
+    c = mesh.points[facets].mean(axis=1)
+    r = np.hypot(c[:, 0] - x_bolt, c[:, 2] - s["b"] / 2)
+    return facets[(r >= s["r_washer_in"]) & (r <= s["r_washer_out"])]
+
+
+def _sets(mesh, left):
+    s = BRB
+    eps = 1e-9 * s["L_half"]
+    t, lap_end = s["h"] / 2, s["c"] / 2
+    p = mesh.points
+    outer_y = -t if left else t
+    outer = mesh.boundary_facets_where(lambda q: np.abs(q[:, 1] - outer_y) < eps)
+    facet_sets = {
+        "interface": mesh.boundary_facets_where(
+            lambda q: (np.abs(q[:, 1]) < eps) & (np.abs(q[:, 0]) <= lap_end + eps)),
+    }
+    for k, xb in enumerate(s["x_bolts"]):
+        facet_sets[f"washer{k + 1}"] = _washer(mesh, outer, xb)
+    end_x = -(s["L_half"] - lap_end) if left else s["L_half"] - lap_end
+    node_sets = {"end": np.flatnonzero(np.abs(p[:, 0] - end_x) < eps)}
+    return mesh.with_sets(node_sets=node_sets, facet_sets=facet_sets)
+
+
+def brb(refine: int = 1, mu: float | None = None, element: str = "C3D8I") -> Model:
+    r"""The Brake-Reuss beam, free-free, with its three pretensioned bolts.
+
+    Two hexahedral half beams (``"left"``, x < 60 mm, and ``"right"``) meet on the
+    lap's interface y = 0, |x| <= 60 mm, node to node; no clamp (the test hangs on
+    soft suspensions). Bolt ``k`` joins the washer set ``washer{k}`` on the left
+    beam's outer face y = -12.7 mm (head) to the one on the right beam's outer face
+    y = +12.7 mm (nut), pretension :func:`brb_pretension`, locked stiffness
+    :func:`brb_bolt_stiffness`. The probe is the mean y displacement of the right
+    beam's free end (x = 360 mm), where [G] puts its output node.
+
+    Parameters
+    ----------
+    refine : int
+        Every element divided ``refine`` times per direction. ``1``: the coarse test
+        mesh (1,030 nodes, 85 interface pairs; preload and tied modes in about a
+        second, a run of five levels in 20 to 30 s); ``2``: the validation mesh
+        (6,282 nodes, 297 pairs; 13 levels in 2.4 CPU minutes, docs/validation.md).
+    mu : float, optional
+        Friction coefficient (default 0.6, an assumption: module docstring).
+    element : str
+        ``"C3D8I"`` (default: incompatible modes, which bend correctly with two
+        elements per half thickness) or ``"hexahedron"`` (trilinear, full
+        integration: shear locking stiffens the coarse meshes).
+
+    Notes
+    -----
+    The tied structure (pairs closed by the preload welded, open pairs free, bolts
+    locked) has six rigid modes, which qsma skips; ``mode = 0`` is the first
+    elastic mode.
+    """
+    _check_refine(refine)
+    if element not in ("C3D8I", "hexahedron"):
+        raise InputError(f"element must be 'C3D8I' or 'hexahedron', got {element!r}")
+    s = BRB
+    steel = Material(s["E"], s["nu"], s["rho"])
+    bodies = []
+    for name, left in (("left", True), ("right", False)):
+        mesh = _sets(_half_beam_mesh(refine, left), left)
+        if element != "hexahedron":
+            mesh = dataclasses.replace(mesh, element=element)
+        bodies.append(Body(name, mesh, steel))
+    N0, k = brb_pretension(), brb_bolt_stiffness()
+    bolts = tuple(Bolt(f"bolt{j}", "left", f"washer{j}", "right", f"washer{j}", N0, k)
+                  for j in range(1, len(s["x_bolts"]) + 1))
+    suffix = "" if element == "C3D8I" else f", element={element}"
+    return Model(bodies=tuple(bodies),
+                 interface=Interface("left", "interface", "right", "interface"),
+                 tip=Probe(sets=(("right", "end"),), direction=(0.0, 1.0, 0.0)),
+                 mu=s["mu"] if mu is None else mu, bolts=bolts,
+                 name=f"brb (refine={refine}{suffix})")
