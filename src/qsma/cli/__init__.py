@@ -7,6 +7,7 @@ input (including an output folder in use by another run), 130 interrupted
 from __future__ import annotations
 
 import argparse
+import logging
 import os
 import signal
 import sys
@@ -97,7 +98,12 @@ def main(argv=None) -> int:
 
 def _exit_now(signum, frame, message=True, code=EXIT_INTERRUPTED):
     """Flush stdout and stderr and end the process with ``code`` at once (no
-    interpreter teardown)."""
+    interpreter teardown). Logging handlers (a ``--log`` file) are flushed and closed
+    first: nothing the run reported is lost."""
+    try:
+        logging.shutdown()
+    except Exception:                    # a broken handler must not block the exit
+        pass
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()
