@@ -85,6 +85,25 @@ class ContactProblem:
         for name, value in values.items():
             object.__setattr__(self, name, value)
 
+    @classmethod
+    def derived(cls, K, mu, gap0, dim):
+        """A problem the package derived from a validated one (the Schur complement of
+        an SPD ``K`` on a zone, with that zone's ``mu`` and ``gap0``): ``K`` is
+        symmetrised and nothing else is checked again (the Cholesky test alone costs
+        ``n^3/3``)."""
+        K = _frozen(0.5 * (K + K.T))
+        n = K.shape[0] // dim
+        new = object.__new__(cls)
+        values = {"K": K, "mu": _frozen(np.array(mu, dtype=float)),
+                  "gap0": _frozen(np.array(gap0, dtype=float)), "dim": int(dim), "n_pairs": n,
+                  "kappa": float(np.mean(np.diag(K))),
+                  "normal_index": _frozen(np.arange(n) * dim + dim - 1),
+                  "tangent_index": _frozen(np.arange(n)[:, None] * dim + np.arange(dim - 1)),
+                  "diagonal_blocks": _frozen(_diagonal_blocks(K, dim))}
+        for name, value in values.items():
+            object.__setattr__(new, name, value)
+        return new
+
     @property
     def abs_K(self):
         """``|K|`` (element-wise), built once on first use: the residual's round-off
