@@ -9,6 +9,7 @@ import numpy as np
 
 from ..errors import ContactConvergenceWarning, InputError
 from .law import classify, pair_quantities
+from .problem import _power_of_two
 from .residual import FORCE_TOL, measures as all_measures, reaction_scale
 from .state import ContactResult, ContactState, Outcome
 
@@ -195,13 +196,6 @@ class _Scaled:
 
     def back(self, out):
         return out._replace(d=out.d * self.u, lam=out.lam * self.f)
-
-
-def _power_of_two(x):
-    """``2**round(log2 x)`` for ``x > 0``, 1 otherwise."""
-    if not (np.isfinite(x) and x > 0):
-        return 1.0
-    return float(2.0 ** round(np.log2(x)))
 
 
 def _lookup(method, options):

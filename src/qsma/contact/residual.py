@@ -105,19 +105,21 @@ def roundoff_allowance(problem, lam_w, d):
 
 def _terms(problem, lam_w, d):
     with np.errstate(over="ignore"):
-        return problem.abs_K @ np.abs(d.ravel()) + np.abs(lam_w.ravel())
+        return problem.abs_product(d) + np.abs(lam_w.ravel())
 
 
 def products(problem, d):
     r"""``(K d, |K| |d|)``: the two matrix-vector products every measure needs.
 
-    :func:`measures` computes them once for the three measures of a solve. (Forming
-    ``|K|`` block by block in the cache instead of reading the stored ``|K|`` was
-    measured slower with numpy: 7.5 ms against 2.5 ms at N = 1683.)
+    :func:`measures` computes them once for the three measures of a solve; ``|K| |d|``,
+    a size, in single precision on large problems
+    (:meth:`qsma.contact.ContactProblem.abs_product`). (Forming ``|K|`` block by block
+    in the cache instead was measured slower with numpy: 7.5 ms against 2.5 ms for the
+    two double products at N = 1683.)
     """
     x = np.asarray(d, dtype=float).ravel()
     with np.errstate(over="ignore", invalid="ignore"):
-        return problem.K @ x, problem.abs_K @ np.abs(x)
+        return problem.K @ x, problem.abs_product(x)
 
 
 def residual_components(problem, lam_w, d, lam, previous_state=None):
