@@ -356,7 +356,7 @@ class _BasketRun:
         slip = self.status == SLIPPING
         change, slow, previous = 0.0, 0, np.inf
         for _ in range(DIRECTION_STEPS):
-            s, alpha, misfit = self._slip_law(self.d)
+            s, alpha, misfit = self._slip_law(self.d, self.lam)
             goal = self._threshold()[slip]
             if not slip.any() or np.all(np.sqrt(misfit) <= goal) or self.solves >= self.maxiter:
                 return change, None
