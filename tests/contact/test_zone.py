@@ -159,8 +159,7 @@ def test_growth_outside_the_outer_zone_rebuilds_it():
     inside = zone.grown(np.arange(10) == 3)
     assert inside.steps[0] is zone.steps[0] and inside.keep.sum() == 3
     outside = zone.grown(np.arange(10) == 7)
-    assert outside.steps[0] is not zone.steps[0] and outside.keep[7]
-    assert outside.keep.sum() == 3 and np.all(outside.steps[0].keep[:4])
+    assert len(outside.steps) == 1 and outside.keep[7] and outside.keep.sum() == 3
 
 
 def test_full_check_rejects_a_corrupted_zone_answer(monkeypatch):
@@ -194,31 +193,3 @@ def test_measures_equal_the_three_functions():
     want = (residual(p, lam_w, d, lam, prev), force_residual(p, lam_w, d, lam, prev),
             legacy_residual(p, lam_w, d, lam, prev))
     assert got == want and min(want) > 0
-
-
-def test_growth_outside_takes_a_margin_and_a_mostly_open_zone_is_narrowed():
-    """A new outer elimination also takes the eliminated pairs nearest to closing; a
-    zone whose pairs are mostly open is narrowed to its closed pairs for the next
-    level; the answers stay those of the whole-interface solve."""
-    from qsma.contact.zone import OUTER_MARGIN_MIN, _tightened
-    p = _problem(20, seed=4)
-    zone = ContactZone.build(p, np.arange(20) < 4)
-    opening = np.arange(20.0)                       # pairs 4, 5, ... nearest to closing
-    grown = zone.grown(np.arange(20) == 10, opening)
-    assert grown.keep.sum() == 5 and grown.keep[10]
-    assert np.all(grown.steps[0].keep[:4 + OUTER_MARGIN_MIN])     # the margin
-    status = np.full(20, 2)
-    status[:2] = 0
-    assert _tightened(zone, status) is zone                        # 2 open < NARROW_MIN_OPEN
-    wide = ContactZone.build(p, np.arange(20) < 16)
-    narrow = _tightened(wide, status)
-    assert narrow.keep.sum() == 2 and narrow.steps[0] is wide.steps[0]
-    lam_w = np.zeros((20, 2))
-    lam_w[:, 1] = np.where(np.arange(20) < 8, 1.0, -1.0)
-    pre = solve(p, lam_w)
-    assert np.sum(pre.status == 2) > 10 and pre.success          # mostly open
-    res, zone = solve_in_zone(ContactZone.build(p, np.ones(20, bool)), lam_w, pre.state)
-    assert res.success and np.array_equal(zone.keep, res.status != 2)     # narrowed
-    lam_w[:, 0] = 0.3                                   # the next level, on the narrowed zone
-    nxt, _ = solve_in_zone(zone, lam_w, res.state)
-    _assert_same(nxt, solve(p, lam_w, pre.state))

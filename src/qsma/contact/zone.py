@@ -37,15 +37,6 @@ from .state import OPEN, ContactState
 #: residual 9.9e-11 on the zone, 1.02e-10 on the full problem (level 17); a factor
 #: 100 leaves room above the round-off floor of the residual (~1e-15).
 RETRY_TOL = 1e-2
-#: Share of the outer zone's size (at least OUTER_MARGIN_MIN pairs) added to a new outer
-#: zone from the eliminated pairs nearest to closing (:meth:`ContactZone.grown`).
-#: lap-3d refine 1 (176 pairs, active_set): without it a new elimination of the full
-#: problem for every two pairs that closed as the plates roll (22 in one run); with it
-#: 4, and 26 eliminations on the zone problem.
-OUTER_MARGIN, OUTER_MARGIN_MIN = 0.25, 4
-#: Open pairs a zone may hold before :func:`_tightened` narrows it (when they are also
-#: more than half of it): below, their unknowns cost less than a new elimination.
-NARROW_MIN_OPEN = 8
 
 
 @dataclass(frozen=True, eq=False)
@@ -179,25 +170,13 @@ class ContactZone:
             return ContactZone(self.full, outer.keep, (outer,))
         return ContactZone(self.full, keep.copy(), (outer, Elimination.build(outer.sub, inner)))
 
-    def grown(self, pairs, opening=None) -> "ContactZone":
+    def grown(self, pairs) -> "ContactZone":
         """This zone with ``pairs`` added: carved out of the outer elimination if they lie
-        inside it, else out of a new elimination of the full problem.
-
-        The new outer zone is the old one, ``pairs``, and (given the ``opening`` of every
-        pair) the :data:`OUTER_MARGIN` share of the old outer zone's size taken from the
-        eliminated pairs nearest to closing: a contact that moves (a rolling lap joint)
-        closes pairs next to those that just closed, which then join on the zone problem
-        only, ``O(n_outer^3)``, not by a new elimination of the full problem."""
+        inside it, else a new elimination of the full problem."""
         keep = self.keep | np.asarray(pairs, dtype=bool)
-        outer = self.steps[0].keep
-        if not np.any(keep & ~outer):
+        if not np.any(keep & ~self.steps[0].keep):
             return self.narrowed(keep)
-        wide = outer | keep
-        if opening is not None:
-            outside = np.flatnonzero(~wide)
-            extra = min(len(outside), max(OUTER_MARGIN_MIN, int(OUTER_MARGIN * outer.sum())))
-            wide[outside[np.argsort(np.asarray(opening)[outside], kind="stable")[:extra]]] = True
-        return ContactZone.build(self.full, wide).narrowed(keep)
+        return ContactZone.build(self.full, keep)
 
     def loads(self, lam_w, basis=None):
         """Per elimination step, the eliminated displacement ``u`` at zero zone
@@ -285,25 +264,8 @@ def solve_in_zone(zone: ContactZone, lam_w, state: ContactState, *, method="bask
         checked = measures(full, lam_w, d, lam, state)
         if not out.converged or (checked[0] <= tol and checked[1] <= FORCE_TOL):
             break
-    result = _result(full, lam_w, state, out, method, tol, fallback=sub.fallback,
-                     measures=checked)
-    return result, (_tightened(zone, result.status) if result.success else zone)
-
-
-def _tightened(zone, status):
-    """The zone for the next level: narrowed to the closed pairs of ``status`` when
-    more than half of its pairs (and at least :data:`NARROW_MIN_OPEN`) are open.
-
-    A zone only grows within a ramp; in a joint whose contact moves (the lap joints
-    roll) it fills with pairs that opened again, whose three unknowns then enter every
-    block step of the zone's solver. Narrowing costs one elimination on the outer
-    zone problem, ``O(n_outer^3)``, once, for many levels."""
-    closed = np.asarray(status) != OPEN
-    n_open = int(np.sum(zone.keep & ~closed))
-    if n_open < NARROW_MIN_OPEN or n_open <= int(np.sum(zone.keep & closed)) \
-            or not closed.any():
-        return zone
-    return zone.narrowed(zone.keep & closed)
+    return _result(full, lam_w, state, out, method, tol, fallback=sub.fallback,
+                   measures=checked), zone
 
 
 def _settled(zone, lam_w, state, method, tol, maxiter, max_growth, basis):
@@ -319,7 +281,7 @@ def _settled(zone, lam_w, state, method, tol, maxiter, max_growth, basis):
         closing = (~zone.keep) & (d[:, -1] + zone.full.gap0 < 0)
         if not closing.any() or attempt == max_growth - 1:
             break
-        zone = zone.grown(closing, d[:, -1] + zone.full.gap0)
+        zone = zone.grown(closing)
     return zone, sub, d, closing, nit
 
 
