@@ -22,7 +22,7 @@ from ._threads import blas_threads as threads_limited, threads_for
 from .condense import reduce_two_bodies
 from .contact import DEFAULT_TOL, ContactProblem, ContactState, OPEN, SLIPPING, STUCK
 from .contact import solve as contact_solve
-from .contact.zone import solve_in_zone, zone_from_state
+from .contact.zone import solve_in_zone, solve_preload, zone_from_state
 from .errors import (AnalysisError, ContactConvergenceWarning, InputError,
                      InterfaceGapWarning, QSMAWarning)
 from .fe import assemble_body
@@ -314,26 +314,29 @@ def _warn_closed_gaps(model, pairing):
 
 
 def preload(model, assembled, pairing, *, method="basket", opts=None, schur_backend="auto",
-            clock=None, reduced=None):
+            clock=None, reduced=None, eliminate_open=True):
     """Condense the assembled bodies and solve the bolt preload with frictional contact.
 
     ``reduced``: the condensed model if already made (:func:`prepare`), else it is made.
-    Returns ``(reduced, problem, result)``. Raises :class:`AnalysisError` if the solve
-    fails or leaves no pair in contact (tied modes of a disconnected assembly would be
-    meaningless).
+    ``eliminate_open``: solve on the predicted contact zone, the other pairs eliminated
+    exactly (:func:`qsma.contact.zone.solve_preload`; the answer is judged on the whole
+    interface either way). Returns ``(reduced, problem, result)``. Raises
+    :class:`AnalysisError` if the solve fails or leaves no pair in contact (tied modes
+    of a disconnected assembly would be meaningless).
     """
     clock = _Timer() if clock is None else clock
     if reduced is None:
         reduced = _condense(model, assembled, pairing, schur_backend, clock)
     with clock.stage("condensation"):
         problem = _contact_problem(model, pairing, reduced.K)
+    zone = "preload" if eliminate_open else None
     with clock.stage("contact"):
-        pre, _ = _solve(problem, reduced, 0.0, None, method, opts or {}, "preload")
+        pre, _ = _solve(problem, reduced, 0.0, None, method, opts or {}, "preload", zone)
         for _ in range(ANCHOR_ROUNDS if getattr(reduced, "ghost", None) else 0):
             if not pre.success:                    # docs/theory.md section 10
                 break
             reduced = anchored(reduced, pre.d)
-            pre, _ = _solve(problem, reduced, 0.0, None, method, opts or {}, "preload")
+            pre, _ = _solve(problem, reduced, 0.0, None, method, opts or {}, "preload", zone)
     if pre.success:
         pre = held_by_joint(reduced, pre, _load_factors(reduced, 0.0), "the preload")
     if not pre.success:
@@ -585,14 +588,22 @@ class _Response:
 
 
 def _solve(problem, reduced, alpha, state, method, opts, where, zone=None):
-    """One contact solve at modal force ``alpha``; returns ``(result, zone)``."""
-    lam_w = reduced.welded_contact_force(_load_factors(reduced, alpha))
+    """One contact solve at modal force ``alpha``; returns ``(result, zone)``.
+
+    ``zone``: None (the whole interface), ``"preload"`` (from the reference state on the
+    predicted zone, :func:`qsma.contact.zone.solve_preload`) or a
+    :class:`qsma.contact.zone.ContactZone`."""
+    factors = _load_factors(reduced, alpha)
+    lam_w = reduced.welded_contact_force(factors)
+    basis = (reduced.W, factors)            # lam_w = W a: the zone eliminates W once
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ContactConvergenceWarning)
         if zone is None:
             res = contact_solve(problem, lam_w, state, method=method, **opts)
+        elif isinstance(zone, str):
+            res, zone = solve_preload(problem, lam_w, method=method, basis=basis, **opts)
         else:
-            res, zone = solve_in_zone(zone, lam_w, state, method=method, **opts)
+            res, zone = solve_in_zone(zone, lam_w, state, method=method, basis=basis, **opts)
     if not res.success:
         warnings.warn(f"contact solve at {where} did not converge: {res.message} "
                       f"(residual {res.residual:.2e})", ContactConvergenceWarning,

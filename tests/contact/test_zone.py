@@ -1,10 +1,15 @@
 """Open-pair elimination (qsma.contact.zone) equals the full solve, and grows the zone
 when an eliminated pair closes."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
-from qsma.contact import ContactProblem, ContactState, solve
-from qsma.contact.zone import ContactZone, solve_in_zone, zone_from_state
+from qsma.contact import (ContactProblem, ContactState, force_residual, legacy_residual, residual,
+                          solve)
+from qsma.contact.residual import measures
+from qsma.contact.zone import (ContactZone, predicted_zone, solve_in_zone, solve_preload,
+                               zone_from_state)
 from qsma.errors import ContactConvergenceWarning
 
 
@@ -59,3 +64,132 @@ def test_zone_that_cannot_settle_is_a_failure():
     with pytest.warns(ContactConvergenceWarning):
         res, _ = solve_in_zone(zone, lw, pre.state, max_growth=1)
     assert not res.success and "not settled" in res.message and res.residual > 1e-10
+
+
+# -- the preload on a predicted zone, the elimination itself, the full check (issue 14) --
+
+def _slipping_problem(seed=0, n=30):
+    """Pairs pressed and sheared (they slip) next to pairs in slight tension: the slip of
+    the pressed pairs closes some of the lifted ones through the coupling of K, so the
+    welded solution predicts the zone wrongly (8 pairs for seed 0)."""
+    rng = np.random.default_rng(seed)
+    A = rng.normal(size=(2 * n, 2 * n))
+    K = A @ A.T / n + np.diag(np.full(2 * n, 2.0))
+    pressed = np.arange(n) % 2 == 0
+    lam_w = np.zeros((n, 2))
+    lam_w[:, 1] = np.where(pressed, 1.0, -0.05)
+    lam_w[:, 0] = np.where(pressed, 2.0, 0.0)
+    return ContactProblem(K, 0.3), lam_w
+
+
+def _assert_same(zoned, full):
+    assert zoned.success and full.success
+    assert np.array_equal(zoned.status, full.status)
+    scale_d, scale_lam = np.abs(full.d).max(), np.abs(full.lam).max()
+    np.testing.assert_allclose(zoned.d, full.d, rtol=0, atol=1e-12 * scale_d)
+    np.testing.assert_allclose(zoned.lam, full.lam, rtol=0, atol=1e-12 * scale_lam)
+
+
+def test_preload_on_a_wrong_prediction_grows_to_the_full_answer():
+    p, lam_w = _slipping_problem()
+    full = solve(p, lam_w)
+    missed = (full.status != 2) & ~predicted_zone(p, lam_w)
+    assert missed.sum() == 8                  # the predictor is wrong for these pairs
+    res, zone = solve_preload(p, lam_w)
+    _assert_same(res, full)
+    assert np.all(zone.keep[missed])          # they joined the zone
+    assert "zone of" in res.message
+
+
+def _model_preload(model):
+    from qsma.analysis import _contact_problem, _load_factors, prepare
+    prep = prepare(model)
+    problem = _contact_problem(prep.model, prep.pairing, prep.reduced.K)
+    return problem, prep.reduced.welded_contact_force(_load_factors(prep.reduced, 0.0))
+
+
+@pytest.mark.parametrize("example", ["sandwich_2d", "sandwich_3d"])
+def test_zone_preload_equals_the_whole_interface_preload(example):
+    """Refine 1: states equal, d and lam to round-off (measured 1.5e-14 and 1.7e-15
+    relative to their largest value, benchmarks/bench_ramp.py)."""
+    from qsma import examples
+    p, lam_w = _model_preload(getattr(examples, example)(1))
+    full = solve(p, lam_w)
+    res, zone = solve_preload(p, lam_w)
+    _assert_same(res, full)
+    assert zone.n_eliminated > p.n_pairs // 2            # most pairs were never solved for
+    ramp_zone = zone_from_state(p, res.state)            # carved out of the preload's
+    assert ramp_zone.steps[0] is zone.steps[0]
+    assert np.array_equal(ramp_zone.keep, res.status != 2)
+
+
+def test_elimination_is_the_schur_complement_and_nesting_is_exact():
+    p = _problem(12, seed=5)
+    outer_keep = np.arange(12) < 9
+    inner_keep = np.arange(12) < 5
+    outer = ContactZone.build(p, outer_keep)
+    K, i = p.K, np.repeat(outer_keep, 2)
+    S = K[np.ix_(i, i)] - K[np.ix_(i, ~i)] @ np.linalg.solve(K[np.ix_(~i, ~i)], K[np.ix_(~i, i)])
+    np.testing.assert_allclose(outer.sub.K, S, rtol=0, atol=1e-13 * np.abs(S).max())
+    nested, direct = outer.narrowed(inner_keep), ContactZone.build(p, inner_keep)
+    assert len(nested.steps) == 2
+    np.testing.assert_allclose(nested.sub.K, direct.sub.K, rtol=0,
+                               atol=1e-12 * np.abs(direct.sub.K).max())
+    rng = np.random.default_rng(1)
+    lam_w, d_A = rng.normal(size=(12, 2)), rng.normal(size=(5, 2))
+    np.testing.assert_allclose(nested.welded(lam_w), direct.welded(lam_w), atol=1e-12)
+    np.testing.assert_allclose(nested.expand(d_A, lam_w), direct.expand(d_A, lam_w),
+                               atol=1e-12)
+    # the expanded displacement leaves the eliminated pairs force-free
+    d = direct.expand(d_A, lam_w)
+    lam = (p.K @ d.ravel() + lam_w.ravel()).reshape(-1, 2)
+    np.testing.assert_allclose(lam[~inner_keep], 0.0, atol=1e-12)
+    # a load given as a basis (lam_w = Wb a) is eliminated once and gives the same
+    Wb = rng.normal(size=(24, 3))
+    a = np.array([1.0, -0.5, 2.0])
+    lw = (Wb @ a).reshape(-1, 2)
+    np.testing.assert_allclose(nested.welded(lw, (Wb, a)), nested.welded(lw), atol=1e-12)
+    np.testing.assert_allclose(nested.expand(d_A, lw, (Wb, a)), nested.expand(d_A, lw),
+                               atol=1e-12)
+
+
+def test_growth_outside_the_outer_zone_rebuilds_it():
+    p = _problem(10, seed=2)
+    zone = ContactZone.build(p, np.arange(10) < 4).narrowed(np.arange(10) < 2)
+    inside = zone.grown(np.arange(10) == 3)
+    assert inside.steps[0] is zone.steps[0] and inside.keep.sum() == 3
+    outside = zone.grown(np.arange(10) == 7)
+    assert len(outside.steps) == 1 and outside.keep[7] and outside.keep.sum() == 3
+
+
+def test_full_check_rejects_a_corrupted_zone_answer(monkeypatch):
+    """The zone answer is judged on the full problem: a zone solve that reports success
+    with a wrong force (1e-6 of the largest, on one pair) must come out as a failure."""
+    import qsma.contact.zone as zone_module
+    p, lam_w = _slipping_problem()
+    honest, _ = solve_preload(p, lam_w)
+    assert honest.success
+
+    def corrupted(problem, welded, state, **kwargs):
+        res = solve(problem, welded, state, **kwargs)
+        lam = res.lam.copy()
+        lam[np.argmax(np.abs(lam[:, -1])), -1] *= 1 + 1e-6
+        return replace(res, lam=lam)
+
+    monkeypatch.setattr(zone_module, "solve", corrupted)
+    with pytest.warns(ContactConvergenceWarning):
+        res, _ = solve_preload(p, lam_w)
+    assert not res.success and res.residual > 1e-10
+
+
+def test_measures_equal_the_three_functions():
+    p, lam_w = _slipping_problem(3)
+    res = solve(p, lam_w)
+    rng = np.random.default_rng(4)
+    d = res.d + 1e-7 * rng.normal(size=res.d.shape)
+    lam = res.lam + 1e-7 * rng.normal(size=res.lam.shape)
+    prev = ContactState.reference(p)
+    got = measures(p, lam_w, d, lam, prev)
+    want = (residual(p, lam_w, d, lam, prev), force_residual(p, lam_w, d, lam, prev),
+            legacy_residual(p, lam_w, d, lam, prev))
+    assert got == want and min(want) > 0

@@ -134,6 +134,7 @@ class _BasketRun:
         self.confirmed = np.zeros(n, int)
         self.ever_moved = np.zeros(n, bool)
         self.d, self._lam = np.array(guess.d, dtype=float).ravel(), None
+        self._threshold_of = None                # (d, threshold) of the current iterate
         self.cautious, self.solves, self.quiet = False, 0, 0
         self.seen = {self._key(self.status, self.direction)}
 
@@ -191,8 +192,12 @@ class _BasketRun:
         """Per pair, the violation a check ignores (force units): a fraction of what
         the residual allows, ``CHECK_FRACTION tol max|lam|``, plus the round-off
         allowance of the pair's force (:func:`qsma.contact.residual.roundoff_allowance`)."""
-        return (CHECK_FRACTION * self.tol * reaction_scale(self.lam)
-                + roundoff_allowance(self.problem, self.lam_w, self.d2))
+        cached = self._threshold_of
+        if cached is None or cached[0] is not self.d:     # one per iterate (d is replaced)
+            cached = (self.d, CHECK_FRACTION * self.tol * reaction_scale(self.lam)
+                      + roundoff_allowance(self.problem, self.lam_w, self.d2))
+            self._threshold_of = cached
+        return cached[1]
 
     def _set_iterate(self, d):
         self.d, self._lam = d, None
@@ -351,7 +356,7 @@ class _BasketRun:
         slip = self.status == SLIPPING
         change, slow, previous = 0.0, 0, np.inf
         for _ in range(DIRECTION_STEPS):
-            s, alpha, misfit = self._slip_law(self.d)
+            s, alpha, misfit = self._slip_law(self.d, self.lam)
             goal = self._threshold()[slip]
             if not slip.any() or np.all(np.sqrt(misfit) <= goal) or self.solves >= self.maxiter:
                 return change, None

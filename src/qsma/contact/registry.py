@@ -9,7 +9,8 @@ import numpy as np
 
 from ..errors import ContactConvergenceWarning, InputError
 from .law import classify, pair_quantities
-from .residual import FORCE_TOL, force_residual, legacy_residual, reaction_scale, residual
+from .problem import _power_of_two
+from .residual import FORCE_TOL, measures as all_measures, reaction_scale
 from .state import ContactResult, ContactState, Outcome
 
 #: name -> solver function; filled by :func:`register_method`.
@@ -126,9 +127,9 @@ def solve(problem, lam_w, state=None, *, method="basket", tol=DEFAULT_TOL, maxit
 
 
 def _measures(scaled, out):
-    """``(residual, force_residual)`` of an iterate in the internal units of ``scaled``."""
-    args = (scaled.problem, scaled.lam_w, out.d, out.lam, scaled.previous)
-    return residual(*args), force_residual(*args)
+    """``(residual, force_residual, legacy_residual)`` of an iterate in the internal
+    units of ``scaled`` (one pass over ``K``)."""
+    return all_measures(scaled.problem, scaled.lam_w, out.d, out.lam, scaled.previous)
 
 
 def _run_chain(scaled, method, fn, tol, maxiter, fallback, options):
@@ -197,13 +198,6 @@ class _Scaled:
         return out._replace(d=out.d * self.u, lam=out.lam * self.f)
 
 
-def _power_of_two(x):
-    """``2**round(log2 x)`` for ``x > 0``, 1 otherwise."""
-    if not (np.isfinite(x) and x > 0):
-        return 1.0
-    return float(2.0 ** round(np.log2(x)))
-
-
 def _lookup(method, options):
     if method not in METHODS:
         raise InputError(f"unknown contact method {method!r}; valid: {sorted(METHODS)}")
@@ -254,9 +248,8 @@ def _result(problem, lam_w, previous, out, method, tol, fallback=None, scaled=No
     else:
         internal = out
     if measures is None:
-        measures = (residual(problem, lam_w, internal.d, internal.lam, previous),
-                    force_residual(problem, lam_w, internal.d, internal.lam, previous))
-    r, r_force = measures
+        measures = all_measures(problem, lam_w, internal.d, internal.lam, previous)
+    r, r_force, r_legacy = measures
     success = bool(out.converged and r <= tol and r_force <= FORCE_TOL)
     message = out.message
     if out.converged and not success:
@@ -269,8 +262,7 @@ def _result(problem, lam_w, previous, out, method, tol, fallback=None, scaled=No
         warnings.warn(f"contact method {method!r}: {message} (residual {r:.3e}, tol {tol:.1e})",
                       ContactConvergenceWarning, stacklevel=3)
     return ContactResult(state.d, state.lam, state.status, success, out.nit, float(r), message,
-                         method, state, outcome, fallback, r_force,
-                         legacy_residual(problem, lam_w, internal.d, internal.lam, previous))
+                         method, state, outcome, fallback, r_force, r_legacy)
 
 
 def _classify(problem, previous, out, tol):

@@ -12,73 +12,193 @@ the size of the zone. This is exact while the eliminated pairs stay open
 (``w_O >= 0``); when one would close it joins the zone and the level is solved
 again. Every answer is expanded to all pairs and judged by the public residual
 of the full problem.
+
+One elimination (:class:`Elimination`) costs a Cholesky factorisation of ``K_OO``
+and two triangular solves with the zone's columns, ``O(n_O^3 + n_O^2 n_A)``; a
+zone inside a zone already built is an elimination on the small zone problem,
+``O(n_A^3)``. So the preload is solved on a predicted zone (:func:`solve_preload`),
+and the ramp's zone, the pairs closed after the preload, is carved out of it
+(:func:`zone_from_state` finds the preload's elimination cached on the problem).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.linalg as sla
 
-from .law import pair_quantities, classify
 from .problem import ContactProblem
-from .registry import Iterate, _result, solve
-from .residual import residual
+from .registry import DEFAULT_TOL, Iterate, _result, solve
+from .residual import FORCE_TOL, measures
 from .state import OPEN, ContactState
+
+#: Tolerance factor of the second zone solve of a level whose zone answer met ``tol``
+#: on the zone but not on the full problem. sandwich-3d refine 1 with ``active_set``:
+#: residual 9.9e-11 on the zone, 1.02e-10 on the full problem (level 17); a factor
+#: 100 leaves room above the round-off floor of the residual (~1e-15).
+RETRY_TOL = 1e-2
+
+
+@dataclass(frozen=True, eq=False)
+class Elimination:
+    """The open pairs of ``problem`` outside ``keep`` eliminated exactly.
+
+    Attributes
+    ----------
+    problem : ContactProblem
+    keep : (n_pairs,) bool, the zone
+    sub : ContactProblem on the zone, stiffness ``S = K_AA - K_AO K_OO^-1 K_OA``
+    iA, iO : flat indices of the zone and of the eliminated unknowns
+    factor : lower Cholesky factor ``L`` of ``K_OO`` (``None`` if nothing is eliminated)
+    Bt : ``K_OO^-1 K_OA`` (eliminated unknowns x zone unknowns)
+    """
+
+    problem: ContactProblem
+    keep: np.ndarray
+    sub: ContactProblem
+    iA: np.ndarray
+    iO: np.ndarray
+    factor: np.ndarray | None
+    Bt: np.ndarray
+    _loads: dict = field(default_factory=dict, repr=False)
+
+    @classmethod
+    def build(cls, problem: ContactProblem, keep) -> "Elimination":
+        r"""Eliminate the pairs outside ``keep``.
+
+        With ``K_OO = L L^T`` and ``W = L^-1 K_OA``:
+
+        .. math:: S = K_{AA} - W^T W, \qquad K_{OO}^{-1} K_{OA} = L^{-T} W .
+        """
+        keep = np.asarray(keep, dtype=bool).copy()
+        flat = np.repeat(keep, problem.dim)
+        iA, iO = np.flatnonzero(flat), np.flatnonzero(~flat)
+        if len(iO) == 0:
+            return cls(problem, keep, problem, iA, iO, None, np.zeros((0, len(iA))))
+        K = problem.K
+        L = sla.cholesky(K[np.ix_(iO, iO)], lower=True, overwrite_a=True, check_finite=False)
+        W = sla.solve_triangular(L, K[np.ix_(iO, iA)], lower=True, overwrite_b=True,
+                                 check_finite=False)
+        S = K[np.ix_(iA, iA)] - W.T @ W
+        Bt = sla.solve_triangular(L, W, lower=True, trans="T", overwrite_b=True,
+                                  check_finite=False)
+        sub = ContactProblem.derived(S, problem.mu[keep], problem.gap0[keep], problem.dim)
+        return cls(problem, keep, sub, iA, iO, L, Bt)
+
+    def load(self, lam_w, basis=None):
+        """The zone's welded force ``lam_w_A - K_AO K_OO^-1 lam_w_O`` (flat) and the
+        eliminated displacement at ``d_A = 0``, ``u = K_OO^-1 lam_w_O``.
+
+        ``basis = (Wb, a)`` with ``lam_w = Wb a``: both are taken from the columns of
+        ``Wb`` eliminated once (cached by the identity of ``Wb``), so a load level costs
+        no solve with ``L``. Returns ``(welded, u, basis of the zone problem or None)``.
+        """
+        if self.factor is None:
+            return lam_w, np.zeros(0), basis
+        if basis is not None:
+            WA, U = self._basis(basis[0])
+            a = np.asarray(basis[1], dtype=float)
+            return WA @ a, U @ a, (WA, a)
+        lw_O = lam_w[self.iO]
+        return (lam_w[self.iA] - self.Bt.T @ lw_O,
+                sla.cho_solve((self.factor, True), lw_O, check_finite=False), None)
+
+    def _basis(self, Wb):
+        cached = self._loads.get("basis")
+        if cached is None or cached[0] is not Wb:
+            Wb_O = Wb[self.iO]
+            cached = (Wb, Wb[self.iA] - self.Bt.T @ Wb_O,
+                      sla.cho_solve((self.factor, True), Wb_O, check_finite=False))
+            self._loads["basis"] = cached
+        return cached[1], cached[2]
+
+    def expand(self, d_A, u):
+        """Displacements of all unknowns (flat) from the zone's, ``d_O = -Bt d_A - u``."""
+        d = np.empty(self.problem.size)
+        d[self.iA] = d_A
+        if len(self.iO):
+            d[self.iO] = -(self.Bt @ d_A) - u
+        return d
 
 
 @dataclass(frozen=True, eq=False)
 class ContactZone:
     """A problem reduced to the pairs of ``keep`` (the others open).
 
+    The reduction is a chain of at most two eliminations: the first on the full
+    problem (the expensive one, shared), the second, if any, on the first one's zone
+    problem (a zone carved out of a larger one).
+
     Attributes
     ----------
     full : ContactProblem
     keep : (n_pairs,) bool, the zone
-    sub : ContactProblem on the zone
-    B : ``K_AO K_OO^-1`` (zone unknowns x eliminated unknowns)
+    steps : tuple of :class:`Elimination`, outermost first
     """
 
     full: ContactProblem
     keep: np.ndarray
-    sub: ContactProblem
-    B: np.ndarray
-    cho_OO: object
-    iA: np.ndarray
-    iO: np.ndarray
+    steps: tuple
 
     @classmethod
     def build(cls, problem: ContactProblem, keep) -> "ContactZone":
-        keep = np.asarray(keep, dtype=bool).copy()
-        dim = problem.dim
-        flat = np.repeat(keep, dim)
-        iA, iO = np.flatnonzero(flat), np.flatnonzero(~flat)
-        K = problem.K
-        if len(iO) == 0:
-            return cls(problem, keep, problem, np.zeros((len(iA), 0)), None, iA, iO)
-        cho = sla.cho_factor(K[np.ix_(iO, iO)])
-        B = sla.cho_solve(cho, K[np.ix_(iO, iA)]).T
-        S = K[np.ix_(iA, iA)] - B @ K[np.ix_(iO, iA)]
-        sub = ContactProblem(0.5 * (S + S.T), problem.mu[keep], problem.gap0[keep], dim)
-        return cls(problem, keep, sub, B, cho, iA, iO)
+        """One elimination of the pairs outside ``keep`` (cached on ``problem`` for
+        :func:`zone_from_state`)."""
+        step = Elimination.build(problem, keep)
+        zone = cls(problem, step.keep, (step,))
+        problem.__dict__["_zone_outer"] = zone
+        return zone
+
+    @property
+    def sub(self) -> ContactProblem:
+        """The contact problem of the zone."""
+        return self.steps[-1].sub
 
     @property
     def n_eliminated(self):
         return int((~self.keep).sum())
 
-    def welded(self, lam_w):
-        """Welded force of the zone problem."""
-        lw = np.asarray(lam_w, dtype=float).ravel()
-        out = lw[self.iA] - (self.B @ lw[self.iO] if len(self.iO) else 0.0)
-        return out.reshape(-1, self.full.dim)
+    def narrowed(self, keep) -> "ContactZone":
+        """The zone of ``keep`` (a subset of this zone's pairs) carved out of this
+        zone's outermost elimination: an elimination on its zone problem only."""
+        keep = np.asarray(keep, dtype=bool)
+        outer = self.steps[0]
+        if np.any(keep & ~outer.keep):
+            raise ValueError("narrowed: the new zone must lie inside the outer zone")
+        inner = keep[outer.keep]
+        if inner.all():
+            return ContactZone(self.full, outer.keep, (outer,))
+        return ContactZone(self.full, keep.copy(), (outer, Elimination.build(outer.sub, inner)))
 
-    def expand(self, d_A, lam_w):
-        """Relative displacements of all pairs from those of the zone."""
+    def grown(self, pairs) -> "ContactZone":
+        """This zone with ``pairs`` added: carved out of the outer elimination if they lie
+        inside it, else a new elimination of the full problem."""
+        keep = self.keep | np.asarray(pairs, dtype=bool)
+        if not np.any(keep & ~self.steps[0].keep):
+            return self.narrowed(keep)
+        return ContactZone.build(self.full, keep)
+
+    def loads(self, lam_w, basis=None):
+        """Per elimination step, the eliminated displacement ``u`` at zero zone
+        displacement; and the zone problem's welded force ``(n_zone, dim)``."""
         lw = np.asarray(lam_w, dtype=float).ravel()
-        d = np.zeros(self.full.n_pairs * self.full.dim)
-        d[self.iA] = d_A.ravel()
-        if len(self.iO):
-            d[self.iO] = -(self.B.T @ d_A.ravel()) - sla.cho_solve(self.cho_OO, lw[self.iO])
+        us = []
+        for step in self.steps:
+            lw, u, basis = step.load(lw, basis)
+            us.append(u)
+        return us, lw.reshape(-1, self.full.dim)
+
+    def welded(self, lam_w, basis=None):
+        """Welded force of the zone problem."""
+        return self.loads(lam_w, basis)[1]
+
+    def expand(self, d_A, lam_w, basis=None, us=None):
+        """Relative displacements of all pairs from those of the zone (``us`` from
+        :meth:`loads` if already computed)."""
+        us = self.loads(lam_w, basis)[0] if us is None else us
+        d = np.asarray(d_A, dtype=float).ravel()
+        for step, u in zip(self.steps[::-1], us[::-1]):
+            d = step.expand(d, u)
         return d.reshape(-1, self.full.dim)
 
     def restrict(self, state: ContactState) -> ContactState:
@@ -86,34 +206,88 @@ class ContactZone:
 
 
 def zone_from_state(problem, state: ContactState) -> ContactZone:
-    """The zone of the pairs that are not open in ``state``."""
-    return ContactZone.build(problem, state.status != OPEN)
+    """The zone of the pairs that are not open in ``state``.
+
+    Carved out of the last elimination built on ``problem`` (that of the preload)
+    when it contains them; else a new elimination."""
+    keep = np.asarray(state.status) != OPEN
+    outer = problem.__dict__.get("_zone_outer")
+    if outer is not None and not np.any(keep & ~outer.keep):
+        return outer.narrowed(keep)
+    return ContactZone.build(problem, keep)
+
+
+def predicted_zone(problem, lam_w):
+    """Pairs that may be closed after the preload: those pressed in the welded
+    solution (``lam_w,n > 0``) or overlapping (``g0 < 0``); all pairs if none is."""
+    lam_w = np.asarray(lam_w, dtype=float)
+    keep = (lam_w[:, -1] > 0) | (problem.gap0 < 0)
+    return keep if keep.any() else np.ones(problem.n_pairs, bool)
+
+
+def solve_preload(problem, lam_w, *, method="basket", tol=DEFAULT_TOL, maxiter=None,
+                  basis=None, max_growth=20):
+    """The first load level from the undeformed reference, solved on a zone.
+
+    The zone starts as :func:`predicted_zone` and grows exactly as in
+    :func:`solve_in_zone` when an eliminated pair would close; the answer is judged
+    on the full problem. Returns ``(ContactResult over all pairs, zone)``.
+    """
+    zone = ContactZone.build(problem, predicted_zone(problem, lam_w))
+    return solve_in_zone(zone, lam_w, ContactState.reference(problem), method=method, tol=tol,
+                         maxiter=maxiter, max_growth=max_growth, basis=basis)
 
 
 def solve_in_zone(zone: ContactZone, lam_w, state: ContactState, *, method="basket",
-                  tol=1e-10, maxiter=None, max_growth=20):
+                  tol=DEFAULT_TOL, maxiter=None, max_growth=20, basis=None):
     """Solve one level on the zone, growing it when an eliminated pair would close.
 
+    ``basis = (Wb, a)``, optional: ``lam_w = Wb a`` (see :meth:`Elimination.load`).
     Returns ``(ContactResult over all pairs, zone)``; the zone returned is the one
-    to use for the next level. ``success`` is judged on the full problem.
+    to use for the next level. ``success`` is judged on the full problem, by one
+    evaluation of the measures (:func:`qsma.contact.residual.measures`). A zone answer
+    that meets ``tol`` on the zone but not on the full problem (the round-off of the
+    elimination, seen with ``active_set``, whose Newton iterate stops just below
+    ``tol``) is solved again on the zone to ``RETRY_TOL * tol``.
     """
     full = zone.full
     lam_w = np.asarray(lam_w, dtype=float)
     nit = 0
+    for sub_tol in (tol, RETRY_TOL * tol):
+        zone, sub, d, closing, n = _settled(zone, lam_w, state, method, sub_tol, maxiter,
+                                            max_growth, basis)
+        nit += n
+        lam = np.zeros_like(d)
+        lam[zone.keep] = sub.lam
+        out = Iterate(d, lam, nit, bool(sub.success and not closing.any()),
+                      _message(sub, zone, closing))
+        checked = measures(full, lam_w, d, lam, state)
+        if not out.converged or (checked[0] <= tol and checked[1] <= FORCE_TOL):
+            break
+    return _result(full, lam_w, state, out, method, tol, fallback=sub.fallback,
+                   measures=checked), zone
+
+
+def _settled(zone, lam_w, state, method, tol, maxiter, max_growth, basis):
+    """Solve on the zone, grown until no eliminated pair closes (or ``max_growth``
+    solves): ``(zone, zone result, d of all pairs, closing pairs, iterations)``."""
+    nit = 0
     for attempt in range(max_growth):
-        sub = solve(zone.sub, zone.welded(lam_w), zone.restrict(state), method=method,
-                    tol=tol, maxiter=maxiter)
+        us, welded = zone.loads(lam_w, basis)
+        sub = solve(zone.sub, welded, zone.restrict(state), method=method, tol=tol,
+                    maxiter=maxiter)
         nit += sub.nit
-        d = zone.expand(sub.d, lam_w)
-        closing = (~zone.keep) & (d[:, -1] + full.gap0 < 0)
+        d = zone.expand(sub.d, lam_w, us=us)
+        closing = (~zone.keep) & (d[:, -1] + zone.full.gap0 < 0)
         if not closing.any() or attempt == max_growth - 1:
             break
-        zone = ContactZone.build(full, zone.keep | closing)
-    lam = np.zeros_like(d)
-    lam[zone.keep] = sub.lam
+        zone = zone.grown(closing)
+    return zone, sub, d, closing, nit
+
+
+def _message(sub, zone, closing):
     msg = sub.message + (f" (zone of {int(zone.keep.sum())} pairs, "
                          f"{zone.n_eliminated} open pairs eliminated)")
     if closing.any():         # max_growth rebuilds and still an eliminated pair closing
         msg += f"; {int(closing.sum())} eliminated pair(s) still closing, zone not settled"
-    out = Iterate(d, lam, nit, bool(sub.success and not closing.any()), msg)
-    return _result(full, lam_w, state, out, method, tol, fallback=sub.fallback), zone
+    return msg
