@@ -194,14 +194,25 @@ def test_spd_solver_solves_and_refuses_a_singular_matrix(backend):
 
 def test_peak_memory_sees_a_large_allocation():
     """The peak resident memory reported for results.json rises by what a 160 MiB
-    array touches (Linux VmHWM, reset first; elsewhere ru_maxrss, never lower)."""
+    array touches (Linux VmHWM, reset first; elsewhere ru_maxrss, never lower).
+
+    In the full suite on a loaded machine the array was once served from pages that
+    were already resident (VmRSS did not rise either: 515 MB before and after), so
+    the check is made only when the current resident memory shows the allocation."""
     from qsma import _resources
-    _resources.reset_peak()
+    reset = _resources.reset_peak()
     before = _resources.peak_memory_mb()
     if before is None:
         pytest.skip("peak memory is not reported on this platform (Windows)")
+    rss0 = _resources.current_memory_mb()
     block = np.ones(20 * 2**20)                   # 160 MiB, written so it is resident
     after = _resources.peak_memory_mb()
+    rss1 = _resources.current_memory_mb()
+    if rss1 is not None:
+        assert after >= rss1 - 1.0                # the peak covers the present
+        if not reset or rss1 - rss0 < 150:
+            pytest.skip(f"the allocation did not raise the resident memory measurably "
+                        f"(VmRSS {rss0:.0f} -> {rss1:.0f} MB, peak reset: {reset})")
     assert after - before >= 150 * (block[-1] == 1.0)
     snap = _resources.snapshot()
     assert snap["peak_memory_mb"] >= after - 0.1 and snap["cpu_s"] > 0
