@@ -102,6 +102,19 @@ def test_unknown_set_and_wrong_length_are_refused_by_name():
         _block((Spring("end", (1.0, 1.0, 1.0)),))
 
 
+def test_a_set_without_nodes_or_area_is_refused_by_name():
+    """An empty node set would divide by zero, a facet set of zero area would spread
+    NaN shares into K: both refused when the body is made."""
+    mesh = structured_mesh(np.linspace(0, 0.04, 17), np.linspace(0, 0.01, 5))
+    flat = np.array([[0, 0]])                          # a facet from node 0 to itself
+    mesh = mesh.with_sets(node_sets={"none": np.array([], dtype=int)},
+                          facet_sets={"flat": flat})
+    with pytest.raises(InputError, match="spring on 'none': the set has no nodes"):
+        Body("block", mesh, STEEL, springs=(Spring("none", (1.0, 1.0)),))
+    with pytest.raises(InputError, match="spring on 'flat': the facet set has no area"):
+        Body("block", mesh, STEEL, springs=(Spring("flat", (1.0, 1.0)),))
+
+
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 

@@ -70,9 +70,15 @@ def _terminate(signum, frame):
     raise KeyboardInterrupt            # unwinds: the staging folder is removed
 
 
-def main(argv=None) -> int:
+def main(argv=None, *, fast_exit=False) -> int:
     """Run the command line; returns the exit code (0 ok, 1 analysis failed or results
-    not written, 2 bad input, 130 interrupted)."""
+    not written, 2 bad input, 130 interrupted).
+
+    ``fast_exit``: set only by the process entry points (:func:`entry`, ``python -m
+    qsma``): after a subcommand of :data:`FAST_EXIT` the process then leaves by
+    ``os._exit`` once its output is flushed. A program that calls ``main()`` itself
+    always gets the exit code back, with its own teardown (atexit handlers, open
+    files) untouched."""
     if threading.current_thread() is not threading.main_thread():
         return _main(argv)
     _Interrupt.signum = None
@@ -91,15 +97,20 @@ def main(argv=None) -> int:
         # KeyboardInterrupt went through C code that ran Python code (e.g. an import of
         # a compiled module), even though we handled it: leave directly instead
         _exit_now(None, None, message=False)
-    if argv is None and _Process.command in FAST_EXIT:
+    if fast_exit and argv is None and _Process.command in FAST_EXIT:
         _exit_now(None, None, message=False, code=code)
     return code
 
 
+def entry() -> int:
+    """The ``qsma`` console script: :func:`main` as the process itself."""
+    return main(fast_exit=True)
+
+
 def _exit_now(signum, frame, message=True, code=EXIT_INTERRUPTED):
     """Flush stdout and stderr and end the process with ``code`` at once (no
-    interpreter teardown). Logging handlers (a ``--log`` file) are flushed and closed
-    first: nothing the run reported is lost."""
+    interpreter teardown). Logging handlers that a program may have configured are
+    flushed and closed first."""
     try:
         logging.shutdown()
     except Exception:                    # a broken handler must not block the exit

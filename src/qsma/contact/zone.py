@@ -18,7 +18,8 @@ and two triangular solves with the zone's columns, ``O(n_O^3 + n_O^2 n_A)``; a
 zone inside a zone already built is an elimination on the small zone problem,
 ``O(n_A^3)``. So the preload is solved on a predicted zone (:func:`solve_preload`),
 and the ramp's zone, the pairs closed after the preload, is carved out of it
-(:func:`zone_from_state` finds the preload's elimination cached on the problem).
+(:func:`zone_from_state` finds the last elimination built on the problem, that of
+the preload or of a zone grown since, cached on it; any of them is exact).
 """
 from __future__ import annotations
 
@@ -208,8 +209,11 @@ class ContactZone:
 def zone_from_state(problem, state: ContactState) -> ContactZone:
     """The zone of the pairs that are not open in ``state``.
 
-    Carved out of the last elimination built on ``problem`` (that of the preload)
-    when it contains them; else a new elimination."""
+    Carved out of the last elimination built on ``problem`` (the preload's, or a
+    zone grown since) when it contains them; else a new elimination. Every
+    elimination of the same problem is exact, so which one is reused changes the
+    cost only. The cached elimination (its Cholesky factor) lives as long as the
+    problem."""
     keep = np.asarray(state.status) != OPEN
     outer = problem.__dict__.get("_zone_outer")
     if outer is not None and not np.any(keep & ~outer.keep):

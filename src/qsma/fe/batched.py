@@ -182,6 +182,8 @@ def block_pattern(nodes, n_nodes) -> BlockPattern:
     keys = (np.repeat(np.arange(n_nodes, dtype=np.int64), np.diff(graph.indptr)) * n_nodes
             + graph.indices)
     slot = np.searchsorted(keys, rows.astype(np.int64) * n_nodes + cols)
+    if len(keys) < 2**31:            # held for the life of the cache: half the memory
+        slot = slot.astype(np.int32)
     return BlockPattern(graph.indptr, graph.indices, slot.reshape(ne, nb, nb))
 
 

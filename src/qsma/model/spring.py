@@ -79,6 +79,7 @@ def check_springs(body) -> None:
             raise InputError(f"body {body.name!r}: spring on {s.set!r} needs "
                              f"{body.dim} stiffness values (x, y{', z' if body.dim == 3 else ''}), "
                              f"got {len(s.stiffness)}")
+        spring_shares(body, s)             # an empty set or one without area: refused
 
 
 def spring_shares(body, spring) -> tuple:
@@ -87,11 +88,20 @@ def spring_shares(body, spring) -> tuple:
     if spring.set in body.mesh.facet_sets:
         from .mesh import facet_node_weights
         facets = body.mesh.facet_sets[spring.set]
-        w = facet_node_weights(body.mesh.points, facets, body.mesh.facet_type)
+        with np.errstate(invalid="ignore", divide="ignore"):   # degenerate: refused below
+            w = facet_node_weights(body.mesh.points, facets, body.mesh.facet_type)
         area = np.bincount(facets.ravel(), w.ravel(), minlength=body.mesh.n_nodes)
         nodes = np.unique(facets)
-        return nodes, area[nodes] / area[nodes].sum()
+        total = area[nodes].sum()
+        if not (np.isfinite(total) and total > 0):
+            raise InputError(f"body {body.name!r}: spring on {spring.set!r}: the facet set "
+                             f"has no area (empty or degenerate facets); name a set of "
+                             f"facets with an area, or a node set")
+        return nodes, area[nodes] / total
     nodes = np.unique(body.mesh.nodes(spring.set))
+    if len(nodes) == 0:
+        raise InputError(f"body {body.name!r}: spring on {spring.set!r}: the set has no "
+                         f"nodes; name a set with nodes")
     return nodes, np.full(len(nodes), 1.0 / len(nodes))
 
 
