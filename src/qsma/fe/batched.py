@@ -31,13 +31,13 @@ CSR.
 from __future__ import annotations
 
 from dataclasses import dataclass
-import functools
 
 import numpy as np
 import scipy.sparse as sp
 import skfem
 from skfem.quadrature import get_quadrature
 
+from .cache import per_mesh
 from .elements import SKFEM_ELEMENTS, fe_space
 
 #: Elements per batch (bounds the temporary arrays: about 50 MB for hexahedron20).
@@ -132,7 +132,7 @@ class CellQuadrature:
             * self.weights for s in range(0, self.n_elements, BATCH)])
 
 
-@functools.lru_cache(maxsize=8)
+@per_mesh
 def cell_quadrature(mesh) -> CellQuadrature:
     """The :class:`CellQuadrature` of a single-type qsma mesh (cached; meshes are
     immutable), with the quadrature order of :data:`qsma.fe.elements.SKFEM_ELEMENTS`."""
@@ -187,7 +187,7 @@ def block_pattern(nodes, n_nodes) -> BlockPattern:
     return BlockPattern(graph.indptr, graph.indices, slot.reshape(ne, nb, nb))
 
 
-@functools.lru_cache(maxsize=8)
+@per_mesh
 def mesh_pattern(mesh) -> BlockPattern:
     """:func:`block_pattern` of a single-type qsma mesh (cached with the mesh)."""
     return block_pattern(cell_quadrature(mesh).nodes, mesh.n_nodes)

@@ -31,6 +31,7 @@ import numpy as np
 import skfem
 
 from ..errors import InputError
+from .cache import per_mesh
 
 # cell type -> (scikit-fem mesh class, scalar element class, quadrature order)
 # Quadrature orders (scikit-fem ``intorder``): 2 gives 2x2 (2x2x2) Gauss on quads /
@@ -194,7 +195,7 @@ def _check_vector_numbering(basis, n_scalar, dim):
             raise RuntimeError("unexpected scikit-fem vector DOF ordering")
 
 
-@functools.lru_cache(maxsize=8)
+@per_mesh
 def fe_space(mesh) -> FESpace:
     """The :class:`FESpace` of qsma mesh ``mesh`` (cached; meshes are immutable). One
     cell type: a mixed mesh has one space per block (:meth:`Mesh.block_meshes`)."""

@@ -27,11 +27,10 @@ and loads come from scikit-fem's Q1 basis.
 """
 from __future__ import annotations
 
-import functools
-
 import numpy as np
 
 from .batched import block_pattern, isotropic_blocks, sum_into_csr
+from .cache import per_mesh
 from .elements import local_origin
 
 _GAUSS = np.array([-1.0, 1.0]) / np.sqrt(3.0)      # 2-point Gauss-Legendre, weights 1
@@ -119,7 +118,7 @@ def element_stiffness(X, lam, mu, modes=True, taylor=True, condensed=True):
     return Kuu - Kua @ np.linalg.solve(Kaa, np.swapaxes(Kua, 1, 2))
 
 
-@functools.lru_cache(maxsize=8)
+@per_mesh
 def _cached(mesh, lam, mu):
     X_all = mesh.points - local_origin(mesh.points)
     dim, cells = mesh.dim, mesh.cells
