@@ -17,10 +17,13 @@ unless --levels says otherwise. Ways of computing the same cases (``--ways``):
   start-up included, as a user pays it).
 
 The ways are interleaved in each repeat (so a change of machine load hits all of
-them) and the medians are printed: wall seconds, and CPU seconds of this process
-(for a Dask sweep: the sum of the cases' CPU seconds on the workers, from their
-done-markers, which leaves out the cluster start-up and the preparation each worker
-remakes). On a machine shared with other jobs the wall times vary by 2x from run to
+them) and the medians are printed: wall seconds, CPU seconds of the cases (this
+process's for the separate runs and a serial sweep; for a Dask sweep the sum of the
+cases' CPU seconds on the workers, from their done-markers, which leaves out the
+cluster start-up and what a worker does when the shared preparation arrives), and
+the CPU seconds of every process (this one and all its children once they have
+ended: the Dask nannies and workers with their start-up, the unpickling of the
+preparation, the cases and the shut-down). On a machine shared with other jobs the wall times vary by 2x from run to
 run; the CPU times are the steadier measure of the work done. The sweeps write their
 per-case results.json/csv, the study table and report.html (no figures); the
 separate runs write nothing.
@@ -31,6 +34,7 @@ import glob
 import itertools
 import json
 import os
+import resource
 import statistics
 import tempfile
 import time
@@ -95,21 +99,34 @@ def main():
           f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
     wall = {k: [] for k in ways}
     cpu = {k: [] for k in ways}
+    total = {k: [] for k in ways}
     for _ in range(args.repeat):
         for name, fn in ways.items():
-            w0, c0 = time.perf_counter(), time.process_time()
+            w0, c0, a0 = time.perf_counter(), time.process_time(), children_cpu()
             worker_cpu = fn()
             wall[name].append(time.perf_counter() - w0)
-            cpu[name].append(worker_cpu if name.startswith("dask") else
-                             time.process_time() - c0)
+            own = time.process_time() - c0
+            cpu[name].append(worker_cpu if name.startswith("dask") else own)
+            total[name].append(own + children_cpu() - a0)
     first = next(iter(ways))
     ref_w, ref_c = statistics.median(wall[first]), statistics.median(cpu[first])
-    print(f"| way | wall s | speed-up (wall) | CPU s | speed-up (CPU) |  (against {first})")
-    print("|---|---|---|---|---|")
+    ref_t = statistics.median(total[first])
+    print(f"| way | wall s | speed-up (wall) | CPU s of the cases | speed-up (CPU) | "
+          f"CPU s, all processes | speed-up |  (against {first})")
+    print("|---|---|---|---|---|---|---|")
     for name in ways:
         w, c = statistics.median(wall[name]), statistics.median(cpu[name])
-        print(f"| {name} | {w:.2f} | {ref_w / w:.2f}x | {c:.2f} | {ref_c / c:.2f}x |")
+        t = statistics.median(total[name])
+        print(f"| {name} | {w:.2f} | {ref_w / w:.2f}x | {c:.2f} | {ref_c / c:.2f}x | "
+              f"{t:.2f} | {ref_t / t:.2f}x |")
     print(f"load average after: {os.getloadavg()[0]:.1f}")
+
+
+def children_cpu():
+    """User + system CPU seconds of this process's children (and theirs) that have
+    ended and been waited for."""
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return ru.ru_utime + ru.ru_stime
 
 
 def scaled(model, s):

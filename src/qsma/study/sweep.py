@@ -25,7 +25,7 @@ the same table.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import csv
 import io
 import itertools
@@ -234,7 +234,6 @@ def _check_bodies(cases, model):
 
 
 def _model_with_materials(model, key):
-    from dataclasses import replace
     from ..model import Material
     bodies = []
     for b, over in zip(model.bodies, key):
@@ -504,6 +503,99 @@ def _fingerprint(model, options) -> str:
     return h.hexdigest()
 
 
+# ------------------------------------------------- shipping a preparation to workers
+
+@dataclass(frozen=True, eq=False)
+class ShippedPreparation:
+    r"""A :class:`qsma.analysis.Prepared` sent to Dask workers with its condensed model.
+
+    A ``Prepared`` pickled on its own keeps the model, pairing and assembled bodies
+    and condenses again where it is unpickled (its factorisations cannot be pickled):
+    every worker then repeated the Schur complements and the two-body combination of
+    the preparation. Pickled through this wrapper it keeps the condensed model as
+    computed here (``K``, ``W``, the condensed loads and functionals, the factor of
+    the welded pair, each body's ``Kc``), and each body's factorised
+    :math:`K_{EE}^{-1}` is replaced by :class:`RefactorisedEE`, which factorises
+    :math:`K_{EE}` of the shipped assembled body the first time a solve is asked for
+    (the tied modes, the modal load, the fields) and keeps the factor. A worker thus
+    does one sparse factorisation per body instead of the whole condensation, and
+    every number it starts from is the one the study computed.
+
+    Unpickling gives the ``Prepared`` itself (with an empty cache).
+    """
+
+    prepared: object
+
+    def __reduce__(self):
+        p = self.prepared
+        by_name = {a.body.name: a for a in p.assembled}
+        bodies = tuple(replace(b, solve_EE=RefactorisedEE(by_name[b.name], b.E,
+                                                           _backend_of(b.solve_EE)))
+                       for b in p.reduced.bodies)
+        return (_arrived, (p.model, p.pairing, p.assembled,
+                           replace(p.reduced, bodies=bodies), p.preload_scale,
+                           p.schur_backend, p.timings_s))
+
+
+def _backend_of(solver) -> str:
+    """The factorisation backend of a ``K_EE`` solver (``"auto"`` if it does not say)."""
+    return getattr(solver, "backend", "auto")
+
+
+def _arrived(model, pairing, assembled, reduced, preload_scale, schur_backend, timings):
+    from ..analysis import Prepared
+    return Prepared(model, pairing, assembled, reduced, preload_scale, schur_backend,
+                    timings, {})
+
+
+class RefactorisedEE:
+    r"""``x = K_EE^{-1} b`` of one body, factorised on first use.
+
+    ``K_EE = K[E][:, E]`` with ``K`` the assembled stiffness of ``assembled`` and ``E``
+    the body's non-interface free DOFs (:attr:`qsma.condense.CondensedBody.E`), the
+    block whose factor the condensation used. The factorisation is
+    :func:`qsma.linalg.spd_solver` with the condensation's ``backend`` where it names
+    one it knows (its fill-reducing ordering may differ from the condensation's, so
+    solves agree with the original factor to round-off, not bit for bit). Accepts
+    ``b`` of shape ``(n_E,)`` or ``(n_E, k)``.
+    """
+
+    def __init__(self, assembled, E, backend="auto"):
+        import threading
+        self.assembled, self.E, self.backend = assembled, np.asarray(E), backend
+        self._solve = None
+        self._lock = threading.Lock()
+
+    @property
+    def n(self) -> int:
+        return len(self.E)
+
+    @property
+    def factorised(self) -> bool:
+        return self._solve is not None
+
+    def __call__(self, b):
+        b = np.asarray(b, dtype=float)
+        if b.ndim not in (1, 2) or b.shape[0] != self.n:
+            raise InputError(f"K_EE solve: right-hand side must have shape ({self.n},) or "
+                             f"({self.n}, k), got {b.shape}")
+        if b.ndim == 2 and b.shape[1] == 0:
+            return np.zeros_like(b)
+        with self._lock:
+            if self._solve is None:
+                from ..linalg import spd_solver
+                K = self.assembled.K.tocsr()
+                self._solve = spd_solver(K[self.E][:, self.E], backend=self.backend)
+        return self._solve(b)
+
+    def __reduce__(self):                 # shipped again (e.g. spilled): refactorised
+        return (RefactorisedEE, (self.assembled, self.E, self.backend))
+
+    def __repr__(self):
+        return (f"RefactorisedEE(n={self.n}, backend={self.backend!r}, "
+                f"factorised={self.factorised})")
+
+
 def _run_serial(groups, key_of, todo, options, out, files, scheduler, workers):
     for c in todo:
         yield run_case(groups[key_of(c)], c, options, out / c.name, files)
@@ -511,7 +603,8 @@ def _run_serial(groups, key_of, todo, options, out, files, scheduler, workers):
 
 def _run_dask(groups, key_of, todo, options, out, files, scheduler, workers):
     """Cases as Dask tasks; each group's preparation is scattered once to every
-    worker (its factorisations are remade there on arrival, once per worker)."""
+    worker with its condensed model (:class:`ShippedPreparation`: no condensation on
+    the workers, one ``K_EE`` factorisation per body and worker when first needed)."""
     try:
         from distributed import Client, LocalCluster, as_completed
     except ImportError as exc:      # dask is the optional extra 'sweep'
@@ -539,7 +632,8 @@ def _run_dask(groups, key_of, todo, options, out, files, scheduler, workers):
     else:
         client = scheduler
     try:
-        shared = {k: client.scatter(p, broadcast=True, hash=False) for k, p in groups.items()}
+        shared = {k: client.scatter(ShippedPreparation(p), broadcast=True, hash=False)
+                  for k, p in groups.items()}
         futures = {client.submit(run_case, shared[key_of(c)], c, options, out / c.name,
                                  files, pure=False): c for c in todo}
         for fut in as_completed(futures):
