@@ -54,6 +54,26 @@ def test_dropped_run_leaves_no_mesh_matrix_or_factor_alive():
     assert mesh() is None and solver() is None
 
 
+def test_dropped_run_is_freed_without_the_cycle_collector():
+    """The large objects of a run are freed as soon as the result goes, by reference
+    counting alone: none of them sits in a reference cycle that would keep it until
+    the next full collection of the cyclic garbage collector (which a program may
+    not see for many runs)."""
+    model = sandwich_2d(1)
+    res = qsma.run(model, levels=LEVELS)
+    refs = [weakref.ref(o) for o in (model.bodies[0].mesh, model.bodies[1].mesh,
+                                     res.reduced, *res.reduced.bodies,
+                                     res.reduced.bodies[0].solve_EE, res)]
+    was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        del model, res
+        assert [r() is None for r in refs] == [True] * len(refs)
+    finally:
+        if was_enabled:
+            gc.enable()
+
+
 def test_second_run_does_not_retain_the_first():
     """Two runs one after the other: after the second, only its objects are alive."""
     before = _live(HEAVY)
