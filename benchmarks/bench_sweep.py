@@ -23,10 +23,10 @@ cases' CPU seconds on the workers, from their done-markers, which leaves out the
 cluster start-up and what a worker does when the shared preparation arrives), and
 the CPU seconds of every process (this one and all its children once they have
 ended: the Dask nannies and workers with their start-up, the unpickling of the
-preparation, the cases and the shut-down). On a machine shared with other jobs the wall times vary by 2x from run to
-run; the CPU times are the steadier measure of the work done. The sweeps write their
-per-case results.json/csv, the study table and report.html (no figures); the
-separate runs write nothing.
+preparation, the cases and the shut-down). On a machine shared with other jobs the
+wall times vary by 2x from run to run; the CPU times are the steadier measure of the
+work done. The sweeps write their per-case results.json/csv, the study table and
+report.html (no figures); the separate runs write nothing.
 """
 import argparse
 from dataclasses import replace

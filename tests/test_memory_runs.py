@@ -2,9 +2,9 @@
 
 A program that runs several models in turn (a script, a notebook, a benchmark) must
 not grow by the meshes, element data, matrices and factorisations of earlier runs
-once their results are dropped. The per-mesh caches of qsma.fe held the last meshes
-of the process and their element data (the cause of 145 MB more resident memory per
-sandwich-3d refine 1 run, docs/performance.md "Memory of repeated runs").
+once their results are dropped. The per-mesh caches of qsma.fe held the last eight
+meshes of the process and their element data, whatever run they came from
+(docs/performance.md, "Memory of repeated runs in one process").
 """
 import gc
 import weakref

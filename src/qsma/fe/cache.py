@@ -4,9 +4,10 @@ Element spaces, quadrature data and sparsity patterns are built once per mesh an
 reused by every assembly of it (stiffness and mass, a sweep's material cases). A
 :func:`functools.lru_cache` keyed on the mesh would keep the last meshes of a process
 alive together with those arrays, however many runs ago they were used: a program
-running several models in turn grew by the size of their element data per run
-(docs/performance.md, "Memory of repeated runs"). Here the mesh is held weakly: its
-entries go when the mesh is collected, and a mesh that lives is never rebuilt.
+running several models in turn kept the element data of up to eight meshes of
+earlier runs (docs/performance.md, "Memory of repeated runs in one process"). Here
+the mesh is held weakly: its entries go when the mesh is collected, and a mesh that
+lives is never rebuilt.
 """
 from __future__ import annotations
 

@@ -307,10 +307,10 @@ def _free_cycles(n_contact_dofs):
 
     A run leaves some of its contact problems in reference cycles (a problem caches
     its contact-zone elimination, which refers back to the problem): about 57 MB per
-    sandwich-3d refine 1 run (docs/performance.md, "Memory of repeated runs"). Only a
-    full collection frees them, which a process running case after case may not do
-    for many cases. It costs about 40 ms: negligible against a 3D case, 4 % of a
-    sandwich-2d case, whose cycles hold little (skipped there)."""
+    sandwich-3d refine 1 run (docs/performance.md, "Memory of repeated runs in one
+    process"). Only a full collection frees them, which a process running case
+    after case may not do for many cases. It costs about 40 ms: negligible against
+    a 3D case, 4 % of a sandwich-2d case, whose cycles hold little (skipped there)."""
     if n_contact_dofs >= FREE_CYCLES_FROM:
         import gc
         gc.collect()
