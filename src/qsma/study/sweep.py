@@ -33,6 +33,7 @@ import json
 import logging
 import os
 from pathlib import Path
+import threading
 import time
 
 import numpy as np
@@ -583,7 +584,6 @@ class RefactorisedEE:
     """
 
     def __init__(self, assembled, E, backend="auto"):
-        import threading
         self.assembled, self.E, self.backend = assembled, np.asarray(E), backend
         self._solve = None
         self._lock = threading.Lock()
