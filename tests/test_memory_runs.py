@@ -114,7 +114,7 @@ def test_fe_caches_follow_their_mesh():
     n = mesh_pattern.cache_size()
     del mesh, pattern
     gc.collect()
-    assert data() is None and mesh_pattern.cache_size() == n - 1
+    assert data() is None and mesh_pattern.cache_size() <= n - 1
 
 
 def test_per_mesh_cache_keys_on_identity_and_arguments():
