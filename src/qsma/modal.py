@@ -355,9 +355,10 @@ class SubstructuredInverse:
     capacitance: np.ndarray | None = None
 
     def __call__(self, b):
+        """``(T^T K T)^{-1} b`` for ``b`` of shape (n,) or (n, k) (all columns at once)."""
         b = np.asarray(b, dtype=float)
-        if b.ndim == 2:
-            return np.column_stack([self(col) for col in b.T]) if b.shape[1] else b.copy()
+        if b.ndim == 2 and b.shape[1] == 0:
+            return b.copy()
         x = self.unbolted(b)
         if self.B is not None:
             x = x - self.Y @ np.linalg.solve(self.capacitance, self.B.T @ x)
@@ -367,11 +368,11 @@ class SubstructuredInverse:
         """``K_0^{-1} b`` (``Pi K_0^+ Pi^T b`` for a free-free assembly)."""
         if self.Z is not None:
             b = b - self.MZ @ np.linalg.solve(self.gram, self.Z.T @ b)
-        f = np.zeros(self.offsets[-1])
+        f = np.zeros((self.offsets[-1],) + b.shape[1:])
         f[self.rows] = b
         off, (i1, i2) = self.offsets, self.order
         u1, u2 = self.solver(f[off[i1]:off[i1 + 1]], f[off[i2]:off[i2 + 1]])
-        u = np.zeros(off[-1])
+        u = np.zeros(f.shape)
         u[off[i1]:off[i1 + 1]] = u1
         u[off[i2]:off[i2 + 1]] = u2
         x = u[self.rows]
@@ -407,7 +408,7 @@ def substructured_inverse(model, assembled, pairing, tied, reduced, T, M):
         from .model.bolt import bolt_vectors
         B = np.column_stack([T.T @ np.concatenate(bolt_vectors(model, b))
                              for b in model.bolts])
-        Y = np.column_stack([inv.unbolted(c) for c in B.T])
+        Y = inv.unbolted(B)
         k = np.array([b.stiffness for b in model.bolts])
         inv = replace(inv, B=B, Y=Y, capacitance=np.diag(1 / k) + B.T @ Y)
     return inv
