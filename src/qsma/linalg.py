@@ -47,6 +47,7 @@ import weakref
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from scipy.linalg import blas as sla_blas
 
 from .errors import AnalysisError, InputError
 
@@ -467,27 +468,35 @@ def _schur_metis_superlu(K, C, E) -> SchurParts:
 
 
 def _low_rank_sum(L_CE, d):
-    r"""``L_CE diag(d) L_CE^T`` (dense, d > 0) in blocks of columns, each block a dense
-    product over the rows it touches: the nested-dissection order keeps the early
-    blocks (subdomains) on few rows, only the last (separators) touch all of C."""
+    r"""``L_CE diag(d) L_CE^T`` (dense, d > 0) in blocks of columns, each block a
+    symmetric rank-k update (BLAS ``dsyrk``, upper triangle) over the rows it touches
+    (found by a mask, not a sort):
+    the nested-dissection order keeps the early blocks (subdomains) on few rows, only
+    the last (separators) touch all of C. The lower triangle is mirrored at the end."""
     L_CE = sp.csc_matrix(L_CE)
     nC, nE = L_CE.shape
     ptr, rows_of = L_CE.indptr, L_CE.indices
-    scaled = L_CE.data * np.repeat(np.sqrt(d), np.diff(ptr))
-    col = np.repeat(np.arange(nE), np.diff(ptr))
-    out = np.zeros((nC, nC))
+    root = np.sqrt(d)
+    out = np.zeros((nC, nC), order="F")
+    touched = np.zeros(nC, dtype=bool)
+    local_of = np.zeros(nC, dtype=np.int64)
     for j in range(0, nE, SCHUR_UPDATE_COLUMNS):
-        a, b = ptr[j], ptr[min(j + SCHUR_UPDATE_COLUMNS, nE)]
+        k = min(j + SCHUR_UPDATE_COLUMNS, nE)
+        a, b = ptr[j], ptr[k]
         if a == b:
             continue
-        rows, local = np.unique(rows_of[a:b], return_inverse=True)
-        D = np.zeros((len(rows), min(SCHUR_UPDATE_COLUMNS, nE - j)))
-        D[local, col[a:b] - j] = scaled[a:b]
+        touched[:] = False
+        touched[rows_of[a:b]] = True
+        rows = np.flatnonzero(touched)              # sorted: upper stays upper
+        local_of[rows] = np.arange(len(rows))
+        cols = np.repeat(np.arange(k - j), np.diff(ptr[j:k + 1]))
+        D = np.zeros((len(rows), k - j), order="F")
+        D[local_of[rows_of[a:b]], cols] = L_CE.data[a:b] * root[j + cols]
         if len(rows) == nC:
-            out += D @ D.T
+            sla_blas.dsyrk(1.0, D, beta=1.0, c=out, overwrite_c=True, lower=0)
         else:
-            out[np.ix_(rows, rows)] += D @ D.T
-    return out
+            out[np.ix_(rows, rows)] += sla_blas.dsyrk(1.0, D, lower=0)
+    return mirror_triangle(out.T, "lower")          # C order, no copy
 
 
 def _bordered_solver(lu, p, nC):

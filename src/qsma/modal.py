@@ -496,7 +496,7 @@ def block_shift_invert(solve, M, k, Z=None, gram=None, start=None):
     ARPACK with a tolerance instead of machine epsilon), or when they stagnate below
     :data:`EIG_RESIDUAL_FLOOR` (round-off of the solves). A basis of
     :data:`EIG_MAX_BLOCKS` blocks is restarted from the best ``k +`` :data:`EIG_GUARD`
-    Ritz vectors, the next block being their residuals.
+    Ritz vectors, the next block being the Krylov continuation (:meth:`_Basis.restarted`).
 
     ``Z``, ``gram``: rigid motions of a free-free assembly (``solve`` already returns the
     part M-orthogonal to them) and ``Z^T M Z``; the start block is made M-orthogonal to
@@ -540,7 +540,7 @@ def block_shift_invert(solve, M, k, Z=None, gram=None, start=None):
                 return 1.0 / mu[:k], basis.Q @ Y[:, :k]
             V = W
         mu, Y, res = basis.ritz(want)
-        basis, V = basis.restarted(Y[:, :min(want, basis.size)], mu)
+        basis, V = basis.restarted(Y[:, :min(want, basis.size)], V)
     raise AnalysisError(f"tied modes: the block shift-invert iteration did not converge "
                         f"in {EIG_MAX_RESTARTS} restarts (relative residuals up to "
                         f"{worst:.2e} > {EIG_RESIDUAL_RTOL})")
@@ -581,10 +581,12 @@ class _Basis:
         R, MR = self.W @ Y - (self.Q @ Y) * mu, self.MW @ Y - (self.MQ @ Y) * mu
         return np.sqrt(np.abs(np.einsum("ik,ik->k", R, MR)))
 
-    def restarted(self, Y, mu):
-        """The basis of the Ritz vectors ``Q Y`` and the next block, their residuals."""
+    def restarted(self, Y, W_last):
+        """The basis of the Ritz vectors ``Q Y`` and the next block: the last block's
+        ``S Q_j`` without its part in ``Q``, which spans the residuals of all the Ritz
+        pairs (thick restart: the Krylov recurrence goes on from there)."""
         kept = _Basis(self.Q @ Y, self.MQ @ Y, self.W @ Y, self.MW @ Y)
-        return kept, kept.W - kept.Q * mu[:Y.shape[1]]
+        return kept, W_last - self.Q @ (self.MQ.T @ W_last)
 
 
 def _m_orthonormal(V, basis, M):
