@@ -16,10 +16,10 @@ the numbers are in ``docs/schur.md``):
     ordering and the Schur complement computed during the factorisation
     (``iparm(36) = 1``), plus a plain Cholesky of ``K_EE`` for the solver.
 ``"metis_superlu"``
-    METIS nested dissection of ``K_EE`` (``pymetis``) and one SuperLU factorisation of
-    the bordered matrix ``[[K_EE, 0], [K_CE, I]]`` in that order, without pivoting:
-    ``Kc = K_CC - L_CE D L_CE^T`` by blocked BLAS products, and the same factor solves
-    with ``K_EE`` (the default without PARDISO).
+    METIS nested dissection of ``K_EE`` (``pymetis``) on its node graph and one SuperLU
+    factorisation of the bordered matrix ``[[K_EE, K_EC], [0, I]]`` in that order,
+    without pivoting: ``Kc = K_CC - U_EC^T D^-1 U_EC`` by blocked BLAS products, and
+    the same factor solves with ``K_EE`` (the default without PARDISO).
 ``"cholmod"``
     CHOLMOD (supernodal Cholesky, from the ``cvxopt`` wheel) of ``K`` ordered
     ``[E by AMD, C last]``: ``K = L L^T`` with ``Kc = L_CC L_CC^T``.
@@ -425,23 +425,28 @@ def _schur_metis_superlu(K, C, E) -> SchurParts:
     r"""One SuperLU factorisation gives both ``Kc`` and the solver.
 
     With ``p`` the METIS ordering of ``K_EE`` (``A = K_EE[p][:, p]``, ``B = K_CE[:, p]``),
-    SuperLU factorises, in that order and without pivoting, the block lower triangular
+    SuperLU factorises, in that order and without pivoting, the block upper triangular
 
-    .. math:: M = \begin{bmatrix} A & 0 \\ B & I \end{bmatrix}
-              = \begin{bmatrix} L & 0 \\ L_{CE} & I \end{bmatrix}
-                \begin{bmatrix} D L^T & 0 \\ 0 & I \end{bmatrix},
-              \qquad L_{CE} = B L^{-T} D^{-1},
+    .. math:: M = \begin{bmatrix} A & B^T \\ 0 & I \end{bmatrix}
+              = \begin{bmatrix} L & 0 \\ 0 & I \end{bmatrix}
+                \begin{bmatrix} D L^T & U_{EC} \\ 0 & I \end{bmatrix},
+              \qquad U_{EC} = L^{-1} B^T,
 
-    so the C columns are never updated (no dense |C| x |C| factorisation) and
-    ``Kc = K_CC - L_CE D L_CE^T``, summed in dense blocks of
-    :data:`SCHUR_UPDATE_COLUMNS` columns of ``L_CE`` over the rows they touch.
-    ``M [x; y] = [b; 0]`` gives ``x = A^-1 b``: the same factor is the solver."""
+    so the C columns are never updated by each other (no dense |C| x |C|
+    factorisation) and ``Kc = K_CC - U_EC^T D^{-1} U_EC``, summed in dense blocks of
+    :data:`SCHUR_UPDATE_COLUMNS` rows of ``U_EC`` over the columns they touch. One
+    extraction of ``U`` gives both ``D`` (the pivots) and ``U_EC`` (scipy builds L and
+    U at every access of either, so the former ``[[A, 0], [B, I]]`` with ``L_CE``
+    from L and ``D`` from U built both twice), and SuperLU's L holds no interface rows.
+    ``M [x; y] = [b; 0]`` gives ``y = 0`` and ``x = A^-1 b``: the same factor is the
+    solver."""
     t0 = time.perf_counter()
     nE, nC = len(E), len(C)
     K_EE = K[E][:, E]
     p = nested_dissection(K_EE)
     A = K_EE[p][:, p]
-    M = sp.bmat([[A, None], [K[C][:, E[p]], sp.identity(nC)]], format="csc")
+    M = sp.bmat([[A, K[E[p]][:, C]], [None, sp.identity(nC)]], format="csc")
+    del K_EE
     t1 = time.perf_counter()
     try:
         lu = spla.splu(M, permc_spec="NATURAL", diag_pivot_thresh=0.0,
@@ -451,14 +456,17 @@ def _schur_metis_superlu(K, C, E) -> SchurParts:
     identity = np.arange(nE + nC)
     if not (np.array_equal(lu.perm_r, identity) and np.array_equal(lu.perm_c, identity)):
         return _schur_superlu_partial(K, C, E)   # SuperLU reordered or pivoted
-    d = lu.U.diagonal()[:nE]
+    del M
+    U = lu.U.tocsc()
+    d = U.diagonal()[:nE]
     ratio = float(np.min(d / A.diagonal()))
     t2 = time.perf_counter()
     if not ratio > PIVOT_RATIO_MIN:
         return SchurParts(np.zeros((nC, nC)), None, ratio, {})
-    L_CE = lu.L.tocsc()[nE:, :nE]
-    Kc = _low_rank_sum(L_CE, d)
-    del L_CE
+    U_EC = U[:nE, nE:].tocsr()                    # rows E: its transpose is CSC
+    del U
+    Kc = _low_rank_sum(U_EC.T, 1.0 / d)
+    del U_EC
     Kc *= -1.0
     K_CC = K[C][:, C].tocoo()                     # added entry by entry: no dense copy
     Kc[K_CC.row, K_CC.col] += K_CC.data           # (canonical: no repeated entries)
@@ -468,7 +476,7 @@ def _schur_metis_superlu(K, C, E) -> SchurParts:
 
 
 def _low_rank_sum(L_CE, d):
-    r"""``L_CE diag(d) L_CE^T`` (dense, d > 0) in blocks of columns, each block a
+    r"""``L_CE diag(d) L_CE^T`` (dense, d > 0; ``L_CE`` sparse, CSC) in blocks of columns, each block a
     symmetric rank-k update (BLAS ``dsyrk``, upper triangle) over the rows it touches
     (found by a mask, not a sort):
     the nested-dissection order keeps the early blocks (subdomains) on few rows, only
