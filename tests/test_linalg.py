@@ -280,3 +280,19 @@ def test_nested_dissection_keeps_a_node_together_and_orders_with_little_fill():
     fill = lambda B: spla.splu(B.tocsc(), permc_spec="NATURAL", diag_pivot_thresh=0.0,
                                options={"SymmetricMode": True}).L.nnz
     assert fill(A[p][:, p]) < fill(A)
+
+
+def test_dropping_scipys_cached_factor_copies_keeps_the_solver():
+    """scipy's SuperLU keeps the CSC copies of L and U built at the first access of
+    either; after ``_drop_extracted_factors`` they hold no entries (where scipy caches
+    them: the same object at every access) and ``solve`` is still exact."""
+    import scipy.sparse.linalg as spla
+    A = laplacian_2d(30, 20)
+    lu, ratio, _ = linalg._superlu(A)                  # reads lu.U, then drops
+    assert ratio > 0
+    b = np.random.default_rng(0).standard_normal(A.shape[0])
+    assert np.abs(A @ lu.solve(b) - b).max() < 1e-12 * np.abs(b).max()
+    if lu.L is lu.L:                                   # cached by this scipy
+        assert lu.L.nnz == 0 and lu.U.nnz == 0
+    fresh = spla.splu(A.tocsc())
+    assert fresh.L.nnz > 0                             # the copies are not shared
