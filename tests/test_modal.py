@@ -220,6 +220,16 @@ def test_block_shift_invert_gives_the_chain_spectrum(monkeypatch, k, block):
     assert all(s[1] <= block for s in applied)            # the operator saw blocks
 
 
+@pytest.mark.parametrize("n", [9, 14, 30])
+def test_block_shift_invert_on_a_space_it_exhausts(n):
+    """Few DOFs: the basis reaches the whole space (the next block is numerically in
+    its span and dropped); the Ritz pairs are then exact, and returned as such."""
+    K, M, exact = _chain(n)
+    lu = spla.splu(K)
+    lam, vec = modal.block_shift_invert(lambda B: lu.solve(np.asfortranarray(B)), M, 6)
+    np.testing.assert_allclose(lam, exact[:6], rtol=1e-11)
+
+
 def test_block_shift_invert_with_a_start_in_the_null_space_of_the_projection():
     """A start block entirely along the removed motions (here the first unit vector,
     projected out) is replaced by random directions: the answer is unchanged."""

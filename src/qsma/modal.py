@@ -521,8 +521,9 @@ def block_shift_invert(solve, M, k, Z=None, gram=None, start=None):
     for _ in range(EIG_MAX_RESTARTS):
         for _ in range(EIG_MAX_BLOCKS):
             V, MV = _m_orthonormal(V, basis, M)
-            if V.shape[1] == 0 and basis.size >= want:
-                break                        # invariant subspace: Ritz pairs are exact
+            if V.shape[1] == 0 and basis.size >= want:    # invariant subspace (the
+                mu, Y, _ = basis.ritz(want)               # whole space when n is small):
+                return 1.0 / mu[:k], basis.Q @ Y[:, :k]   # the Ritz pairs are exact
             if V.shape[1] == 0:              # start in the span of Z: random directions
                 V = rng.standard_normal((n, b))
                 if Z is not None:
@@ -535,7 +536,7 @@ def block_shift_invert(solve, M, k, Z=None, gram=None, start=None):
                 continue
             mu, Y, res = basis.ritz(want)
             worst, previous = float(np.max(res[:k] / mu[:k])), worst
-            if (worst <= EIG_RESIDUAL_RTOL or basis.size + b > n
+            if (worst <= EIG_RESIDUAL_RTOL
                     or worst <= EIG_RESIDUAL_FLOOR and worst > 0.5 * previous):
                 return 1.0 / mu[:k], basis.Q @ Y[:, :k]
             V = W
