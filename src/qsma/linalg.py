@@ -447,10 +447,11 @@ def _schur_metis_superlu(K, C, E) -> SchurParts:
 
     so the C columns are never updated by each other (no dense |C| x |C|
     factorisation) and ``Kc = K_CC - U_EC^T D^{-1} U_EC``, summed in dense blocks of
-    :data:`SCHUR_UPDATE_COLUMNS` rows of ``U_EC`` over the columns they touch. One
-    extraction of ``U`` gives both ``D`` (the pivots) and ``U_EC`` (scipy builds L and
-    U at every access of either, so the former ``[[A, 0], [B, I]]`` with ``L_CE``
-    from L and ``D`` from U built both twice), and SuperLU's L holds no interface rows.
+    :data:`SCHUR_UPDATE_COLUMNS` rows of ``U_EC`` over the columns they touch. ``U``
+    gives both ``D`` (the pivots) and ``U_EC`` (a column slice; the former
+    ``[[A, 0], [B, I]]`` needed ``L_CE``, a row slice of L), and SuperLU's L holds no
+    interface rows. scipy's copies of L and U are emptied afterwards
+    (:func:`_drop_extracted_factors`).
     ``M [x; y] = [b; 0]`` gives ``y = 0`` and ``x = A^-1 b``: the same factor is the
     solver."""
     t0 = time.perf_counter()
