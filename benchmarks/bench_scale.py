@@ -1,7 +1,7 @@
 """How each stage of a QSMA run grows with the model: sandwich-3d at several refinements.
 
 Usage: python benchmarks/bench_scale.py [--refine 1 2] [--repeat 3 1] [--json out.json]
-                                        [--method basket] [--schur-backend auto]
+                                        [--method basket] [--schur-backend auto] [--quick]
        python benchmarks/bench_scale.py --tables r1.json r2.json   (reprint saved rows)
 
 Per refinement, ``qsma.run`` is called ``--repeat`` times (one number per refinement,
@@ -14,7 +14,10 @@ the repeats and the process peak. The last table fits ``cost ~ n^p`` by least sq
 in log-log over the refinements, once against the number of DOFs and once against the
 number of interface pairs, so that a larger model can be predicted. The results f0, q
 and zeta of the last level are printed so that a change of method can be checked
-against them (``--json`` writes them with all the numbers).
+against them (``--json`` writes them with all the numbers). ``--quick`` runs two load
+levels (tip 1e-7 and 2e-7, not refined) instead of the default ramp: the assembly,
+the condensation and the tied modes are the same, the contact stage is short, and
+the results of the last level are those of 2e-7 (f0 is comparable, q and zeta not).
 """
 import argparse
 from contextlib import contextmanager
@@ -127,6 +130,8 @@ def main():
     ap.add_argument("--method", default=None, help="contact method (default: qsma's)")
     ap.add_argument("--schur-backend", default=None)
     ap.add_argument("--json", default=None, help="also write every number to this file")
+    ap.add_argument("--quick", action="store_true",
+                    help="two load levels, not refined (no long ramp)")
     ap.add_argument("--tables", nargs="+", default=None,
                     help="print the tables of rows saved by --json (runs done separately, "
                          "e.g. the large refinement alone in the background)")
@@ -140,6 +145,8 @@ def main():
         return
     options = {k: v for k, v in (("method", args.method),
                                  ("schur_backend", args.schur_backend)) if v is not None}
+    if args.quick:
+        options.update(levels=qsma.Levels.log("tip", 1e-7, 2e-7, 2), refine_levels=False)
     print("sandwich-3d; per stage: wall s / CPU s (median of the runs)", flush=True)
     rows = []
     for i, refine in enumerate(args.refine):

@@ -56,7 +56,11 @@ def test_tied_set_is_the_closed_pairs_and_f0_matches_modes(result):
     p = make_pairing(m)
     closed = result.preload.status != 2
     f = linear_modes(m, A, p, tied=closed, n_modes=1).f_hz[0]
-    assert f == pytest.approx(result.f0_hz, rel=1e-10)
+    # the run's f0 comes from the substructured solves of the condensation, f from a
+    # factor of the tied stiffness: their round-off differs by 1.9e-10 relative here
+    # (212.5442924274 / 212.5442924669 Hz; the Rayleigh quotients of the two shapes
+    # with the assembled K cross over, 212.5442924275 / 212.5442924678 Hz)
+    assert f == pytest.approx(result.f0_hz, rel=5e-10)
     # the preload is symmetric: no pair slips under it
     assert np.all(result.preload.status[closed] == 0)
 

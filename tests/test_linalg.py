@@ -233,3 +233,66 @@ def test_mirror_triangle_copies_one_triangle(source):
     keep = np.triu(A) if source == "upper" else np.tril(A)
     expected = keep + (np.triu(A, 1).T if source == "upper" else np.tril(A, -1).T)
     assert np.array_equal(linalg.mirror_triangle(A, source), expected)
+
+
+# ----------------------------------------------------------------------------------
+# Supervariables and the nested-dissection ordering on their quotient graph
+
+def _groups_by_brute_force(A):
+    out = [0]
+    for i in range(1, A.shape[0]):
+        same = np.array_equal(A.indices[A.indptr[i]:A.indptr[i + 1]],
+                              A.indices[A.indptr[i - 1]:A.indptr[i]])
+        out.append(out[-1] + (not same))
+    return np.array(out)
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_supervariables_are_runs_of_rows_with_one_pattern(seed):
+    """Node blocks of 1-3 DOFs with a few entries added that break some blocks: the
+    groups equal a row-by-row comparison of the patterns."""
+    rng = np.random.default_rng(seed)
+    R = sp.random(40, 40, density=0.1, random_state=seed)
+    dofs = int(rng.integers(1, 4))
+    A = sp.kron(R + R.T + sp.identity(40), np.ones((dofs, dofs))).tolil()
+    for _ in range(3):
+        A[rng.integers(0, A.shape[0]), rng.integers(0, A.shape[0])] = 0.5
+    A = A.tocsr()
+    A.sort_indices()
+    np.testing.assert_array_equal(linalg.supervariables(A), _groups_by_brute_force(A))
+
+
+def test_nested_dissection_keeps_a_node_together_and_orders_with_little_fill():
+    """On the bottom beam of sandwich-2d (2 DOFs a node) the permutation lists each
+    node's DOFs consecutively, and SuperLU on the reordered matrix fills less than in
+    the natural order."""
+    pytest.importorskip("pymetis")
+    import scipy.sparse.linalg as spla
+    K, C = sandwich_body()
+    E = np.setdiff1d(np.arange(K.shape[0]), C)
+    A = K[E][:, E].tocsr()
+    p = linalg.nested_dissection(A)
+    np.testing.assert_array_equal(np.sort(p), np.arange(A.shape[0]))
+    group = linalg.supervariables(A)
+    assert group[-1] + 1 < A.shape[0]                     # nodes were merged
+    runs = group[p]                                       # each group once, unbroken
+    assert np.count_nonzero(np.diff(runs)) == group[-1]
+    fill = lambda B: spla.splu(B.tocsc(), permc_spec="NATURAL", diag_pivot_thresh=0.0,
+                               options={"SymmetricMode": True}).L.nnz
+    assert fill(A[p][:, p]) < fill(A)
+
+
+def test_dropping_scipys_cached_factor_copies_keeps_the_solver():
+    """scipy's SuperLU keeps the CSC copies of L and U built at the first access of
+    either; after ``_drop_extracted_factors`` they hold no entries (where scipy caches
+    them: the same object at every access) and ``solve`` is still exact."""
+    import scipy.sparse.linalg as spla
+    A = laplacian_2d(30, 20)
+    lu, ratio, _ = linalg._superlu(A)                  # reads lu.U, then drops
+    assert ratio > 0
+    b = np.random.default_rng(0).standard_normal(A.shape[0])
+    assert np.abs(A @ lu.solve(b) - b).max() < 1e-12 * np.abs(b).max()
+    if lu.L is lu.L:                                   # cached by this scipy
+        assert lu.L.nnz == 0 and lu.U.nnz == 0
+    fresh = spla.splu(A.tocsc())
+    assert fresh.L.nnz > 0                             # the copies are not shared

@@ -179,3 +179,81 @@ def test_mechanism_falls_back_to_the_full_factorisation():
     with pytest.raises(InputError, match="not held|rigid-body"):
         linear_modes(p.model, p.assembled, p.pairing, tied=none, n_modes=2,
                      reduced=reduced)
+
+
+# ----------------------------------------------------------------------------------
+# Block Krylov shift-invert (qsma.modal.block_shift_invert)
+
+import scipy.sparse as sp  # noqa: E402
+import scipy.sparse.linalg as spla  # noqa: E402
+
+from qsma import modal  # noqa: E402
+
+
+def _chain(n):
+    """Fixed-free chain of n unit masses and unit springs: ``K`` tridiagonal, ``M = I``,
+    eigenvalues ``4 sin^2((2j - 1) pi / (2 (2n + 1)))``, j = 1..n."""
+    K = sp.diags([-np.ones(n - 1), np.r_[2.0 * np.ones(n - 1), 1.0], -np.ones(n - 1)],
+                 [-1, 0, 1], format="csc")
+    j = np.arange(1, n + 1)
+    return K, sp.identity(n, format="csc"), 4 * np.sin((2 * j - 1) * np.pi / (2 * (2 * n + 1))) ** 2
+
+
+@pytest.mark.parametrize("k, block", [(6, 6), (6, 2), (1, 6), (12, 4)])
+def test_block_shift_invert_gives_the_chain_spectrum(monkeypatch, k, block):
+    """The k lowest eigenvalues of the chain to 1e-12, M-orthonormal vectors whose
+    shift-invert residuals ``|K^-1 M x - x / lam|_M`` are below 1e-10 / lam (the
+    solver's criterion is 1e-11); blocks narrower than k included."""
+    monkeypatch.setattr(modal, "EIG_BLOCK", block)
+    K, M, exact = _chain(400)
+    lu = spla.splu(K)
+    applied = []
+
+    def solve(B):
+        applied.append(B.shape)
+        return lu.solve(np.asfortranarray(B))
+    lam, vec = modal.block_shift_invert(solve, M, k)
+    np.testing.assert_allclose(lam, exact[:k], rtol=1e-12)
+    np.testing.assert_allclose(vec.T @ (M @ vec), np.eye(k), atol=1e-12)
+    res = lu.solve(np.asfortranarray(M @ vec)) - vec / lam      # S x - mu x
+    assert np.all(np.sqrt(np.einsum("ik,ik->k", res, M @ res)) < 1e-10 / lam)
+    assert all(s[1] <= block for s in applied)            # the operator saw blocks
+
+
+@pytest.mark.parametrize("n", [9, 14, 30])
+def test_block_shift_invert_on_a_space_it_exhausts(n):
+    """Few DOFs: the basis reaches the whole space (the next block is numerically in
+    its span and dropped); the Ritz pairs are then exact, and returned as such."""
+    K, M, exact = _chain(n)
+    lu = spla.splu(K)
+    lam, vec = modal.block_shift_invert(lambda B: lu.solve(np.asfortranarray(B)), M, 6)
+    np.testing.assert_allclose(lam, exact[:6], rtol=1e-11)
+
+
+def test_block_shift_invert_with_a_start_in_the_null_space_of_the_projection():
+    """A start block entirely along the removed motions (here the first unit vector,
+    projected out) is replaced by random directions: the answer is unchanged."""
+    K, M, exact = _chain(200)
+    lu = spla.splu(K)
+    Z = np.zeros((200, 1))
+    Z[-1] = 1.0
+    gram = Z.T @ (M @ Z)
+
+    def solve(B):                      # K^-1 restricted to the M-complement of Z
+        X = lu.solve(np.asfortranarray(B - (M @ Z) @ np.linalg.solve(gram, Z.T @ B)))
+        return X - Z @ np.linalg.solve(gram, (M @ Z).T @ X)
+    lam, vec = modal.block_shift_invert(solve, M, 3, Z, gram, start=Z)
+    assert np.all(np.abs(Z.T @ (M @ vec)) < 1e-12)
+    assert np.all(np.isfinite(lam)) and np.all(np.diff(lam) > 0)
+
+
+def test_block_shift_invert_refuses_to_return_unconverged_modes(monkeypatch):
+    """With one restart of one block allowed, the iteration cannot converge and says so
+    (AnalysisError), instead of returning the Ritz pairs it has."""
+    from qsma.errors import AnalysisError
+    monkeypatch.setattr(modal, "EIG_MAX_RESTARTS", 1)
+    monkeypatch.setattr(modal, "EIG_MAX_BLOCKS", 2)
+    K, M, _ = _chain(400)
+    lu = spla.splu(K)
+    with pytest.raises(AnalysisError, match="did not converge"):
+        modal.block_shift_invert(lambda B: lu.solve(np.asfortranarray(B)), M, 6)

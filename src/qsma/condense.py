@@ -60,8 +60,9 @@ class CondensedBody:
 
     def recover(self, u_local: np.ndarray, F: np.ndarray) -> np.ndarray:
         """Full DOF vector of the body from interface displacements (local) and the
-        full applied load ``F``: ``u_E = K_EE^-1 (F_E - K_EC u_C)``."""
-        u = np.zeros(self.n_dofs)
+        full applied load ``F``: ``u_E = K_EE^-1 (F_E - K_EC u_C)``; columns of
+        ``u_local`` and ``F`` give columns of the result (one multi-RHS solve)."""
+        u = np.zeros((self.n_dofs,) + np.shape(u_local)[1:])
         uC = self.R @ u_local
         u[self.C] = uC
         u[self.E] = self.solve_EE(F[self.E] - self.K_EC @ uC)
@@ -446,15 +447,20 @@ class TiedSolver:
     KGG_cho: object
 
     def __call__(self, F1, F2):
-        """Full displacement vectors ``(u_1, u_2)`` of the bodies under ``F_1, F_2``."""
+        """Full displacement vectors ``(u_1, u_2)`` of the bodies under ``F_1, F_2``;
+        loads of shape (n_dofs, k) give k columns (each body's ``K_EE`` factor applied
+        to all of them at once)."""
         rm = self.reduced
-        Fc = tuple(b.condensed_load(F)[:, None] for b, F in zip(rm.bodies, (F1, F2)))
-        d = np.zeros(rm.K.shape[0])
+        Fc = tuple(b.condensed_load(F).reshape(len(b.C), -1)
+                   for b, F in zip(rm.bodies, (F1, F2)))
+        d = np.zeros((rm.K.shape[0], Fc[0].shape[1]))
         if len(self.G):
             w = _welded(rm.bodies, rm.S_cho, Fc, rm.P, rm.slave, rm.gauge is not None)
-            d[self.G] = -sla.cho_solve(self.KGG_cho, w[self.G, 0])
-        u1, u2 = _released_interface(rm, d, tuple(f[:, 0] for f in Fc))
-        return tuple(b.recover(u, F) for b, u, F in zip(rm.bodies, (u1, u2), (F1, F2)))
+            d[self.G] = -sla.cho_solve(self.KGG_cho, w[self.G])
+        u = _released_interface(rm, d, Fc)
+        if np.ndim(F1) == 1:
+            u = tuple(v[:, 0] for v in u)
+        return tuple(b.recover(v, F) for b, v, F in zip(rm.bodies, u, (F1, F2)))
 
 
 def tied_solver(reduced, tied) -> TiedSolver | None:
@@ -482,7 +488,7 @@ def tied_solver(reduced, tied) -> TiedSolver | None:
 
 def _released_interface(rm, d, Fc):
     """Interface displacements of both bodies for the relative displacement ``d`` and
-    condensed loads ``Fc`` (vectors), the formula of
+    condensed loads ``Fc`` (vectors, or matrices of as many columns), the formula of
     :meth:`ReducedModel.interface_displacements`."""
     if rm.P is None:
         u1 = sla.cho_solve(rm.S_cho, Fc[0] + Fc[1] - rm.bodies[1].Kc @ d)

@@ -355,9 +355,10 @@ class SubstructuredInverse:
     capacitance: np.ndarray | None = None
 
     def __call__(self, b):
+        """``(T^T K T)^{-1} b`` for ``b`` of shape (n,) or (n, k) (all columns at once)."""
         b = np.asarray(b, dtype=float)
-        if b.ndim == 2:
-            return np.column_stack([self(col) for col in b.T]) if b.shape[1] else b.copy()
+        if b.ndim == 2 and b.shape[1] == 0:
+            return b.copy()
         x = self.unbolted(b)
         if self.B is not None:
             x = x - self.Y @ np.linalg.solve(self.capacitance, self.B.T @ x)
@@ -367,11 +368,11 @@ class SubstructuredInverse:
         """``K_0^{-1} b`` (``Pi K_0^+ Pi^T b`` for a free-free assembly)."""
         if self.Z is not None:
             b = b - self.MZ @ np.linalg.solve(self.gram, self.Z.T @ b)
-        f = np.zeros(self.offsets[-1])
+        f = np.zeros((self.offsets[-1],) + b.shape[1:])
         f[self.rows] = b
         off, (i1, i2) = self.offsets, self.order
         u1, u2 = self.solver(f[off[i1]:off[i1 + 1]], f[off[i2]:off[i2 + 1]])
-        u = np.zeros(off[-1])
+        u = np.zeros(f.shape)
         u[off[i1]:off[i1 + 1]] = u1
         u[off[i2]:off[i2 + 1]] = u2
         x = u[self.rows]
@@ -407,7 +408,7 @@ def substructured_inverse(model, assembled, pairing, tied, reduced, T, M):
         from .model.bolt import bolt_vectors
         B = np.column_stack([T.T @ np.concatenate(bolt_vectors(model, b))
                              for b in model.bolts])
-        Y = np.column_stack([inv.unbolted(c) for c in B.T])
+        Y = inv.unbolted(B)
         k = np.array([b.stiffness for b in model.bolts])
         inv = replace(inv, B=B, Y=Y, capacitance=np.diag(1 / k) + B.T @ Y)
     return inv
@@ -427,14 +428,21 @@ def identity_rows(T) -> np.ndarray | None:
     return None if np.any(rows < 0) else rows
 
 
+def _rigid_fields(model, assembled):
+    """Translations then rotations of every body (each about its own centroid) over
+    the stacked DOFs, one column per kind of motion: a smooth start block."""
+    from .condense import rigid_body_modes
+    return np.vstack([rigid_body_modes(a.body.mesh.points) for a in assembled])
+
+
 def _substructured_modes(inverse, M, T, tied, n_modes, model, assembled):
     """:func:`linear_modes` with :class:`SubstructuredInverse` (sigma = 0; the rigid
     modes of a free-free assembly are its motions ``Z``, M-orthonormalised)."""
     n = M.shape[0]
     n_free = 0 if inverse.Z is None else inverse.Z.shape[1]
     k = min(n_modes, n - 2 - n_free)
-    shape_only = spla.LinearOperator(M.shape, matvec=lambda x: x, dtype=float)
-    lam, vec = _lanczos(shape_only, k, M, 0.0, inverse, inverse)
+    start = None if n_free else _rigid_fields(model, assembled)[inverse.rows]
+    lam, vec = block_shift_invert(inverse, M, k, inverse.Z, inverse.gram, start)
     _check_rigid(lam, model, assembled, T, vec)
     vec /= np.sqrt(np.einsum("ik,ik->k", vec, M @ vec))
     omega = np.sqrt(np.maximum(lam, 0.0))
@@ -444,3 +452,158 @@ def _substructured_modes(inverse, M, T, tied, n_modes, model, assembled):
         vec = np.column_stack([rigid, vec])
         omega = np.concatenate([np.zeros(n_free), omega])
     return Modes(omega, T @ vec, tied.copy(), n_free)
+
+
+# ----------------------------------------------------------------------------------
+# Block Krylov shift-invert (the inverse applied to blocks: one multi-RHS solve)
+
+#: Converged when every wanted Ritz pair ``(mu, x)`` of ``S = K^-1 M`` (``x^T M x = 1``)
+#: has ``||S x - mu x||_M <= EIG_RESIDUAL_RTOL * mu``. The eigenvalue error is then
+#: below ``EIG_RESIDUAL_RTOL^2 / gap`` and the angle of the shape below
+#: ``EIG_RESIDUAL_RTOL / gap`` (relative gap to the other eigenvalues of ``S``).
+EIG_RESIDUAL_RTOL = 1e-11
+#: Also converged when every relative residual is below this and the worst one fell by
+#: less than half over the last block: the round-off floor of the solves (``eps``
+#: times the condition number of ``K``) is reached. lap-2d with a bolt and the top
+#: plate free stops at 1.7e-11.
+EIG_RESIDUAL_FLOOR = 1e-8
+#: Extra columns of the block beyond the wanted modes (they speed up the convergence
+#: of the last wanted ones); blocks of 4-16 columns cost 1.6-5 single solves of a
+#: SuperLU factor (docs/performance.md).
+EIG_GUARD = 2
+#: Most columns of a block (the inverse applied to that many vectors at once).
+EIG_BLOCK = 6
+#: Largest basis, in blocks, before a thick restart keeps the best Ritz vectors.
+EIG_MAX_BLOCKS = 8
+#: Restarts before the iteration gives up (AnalysisError).
+EIG_MAX_RESTARTS = 30
+#: Seed of the random start block (reproducible runs).
+EIG_SEED = 20240611
+
+
+def block_shift_invert(solve, M, k, Z=None, gram=None, start=None):
+    r"""The ``k`` smallest eigenpairs of ``K x = lambda M x`` from ``solve(B) = K^{-1} B``
+    applied to blocks of columns (block Lanczos with full reorthogonalisation and thick
+    restarts).
+
+    ``S = K^{-1} M`` is self-adjoint in the ``M`` inner product; its largest eigenvalues
+    ``mu = 1 / lambda`` are wanted. The basis ``Q`` (``Q^T M Q = I``) grows by blocks
+    of at most :data:`EIG_BLOCK` columns, ``S Q_j`` orthogonalised against ``Q``; the
+    Rayleigh-Ritz step solves the small symmetric eigenproblem of
+    ``H = Q^T M S Q = (M Q)^T W`` (``W = S Q`` kept: no further solve) and the residual
+    of a Ritz pair ``(mu, x = Q y)`` is ``r = W y - mu x``. Converged when
+    ``||r||_M <= EIG_RESIDUAL_RTOL mu`` for the ``k`` wanted pairs (the criterion of
+    ARPACK with a tolerance instead of machine epsilon), or when they stagnate below
+    :data:`EIG_RESIDUAL_FLOOR` (round-off of the solves). A basis of
+    :data:`EIG_MAX_BLOCKS` blocks is restarted from the best ``k +`` :data:`EIG_GUARD`
+    Ritz vectors, the next block being the Krylov continuation (:meth:`_Basis.restarted`).
+
+    ``Z``, ``gram``: rigid motions of a free-free assembly (``solve`` already returns the
+    part M-orthogonal to them) and ``Z^T M Z``; the start block is made M-orthogonal to
+    them as well. ``start``: columns of the first block (at most ``b``), completed by
+    seeded random columns (:data:`EIG_SEED`); rigid-body fields as start make the first
+    block the static deflections under uniform accelerations, close to the low modes
+    (load-dependent Ritz vectors): on sandwich-3d refine 1, 48 columns against 56
+    from a random start (docs/performance.md).
+
+    Returns ``(lam, vec)``, ``lam`` increasing, ``vec`` M-orthonormal. Raises
+    :class:`AnalysisError` if the iteration does not converge.
+    """
+    n = M.shape[0]
+    b = min(EIG_BLOCK, k + EIG_GUARD, n - k)
+    want = min(k + EIG_GUARD, n - 1)           # basis size before convergence is judged
+    rng = np.random.default_rng(EIG_SEED)
+    V = np.zeros((n, 0)) if start is None else np.asarray(start, dtype=float)[:, :b]
+    V = np.hstack([V, rng.standard_normal((n, b - V.shape[1]))])
+    if Z is not None:
+        V -= Z @ np.linalg.solve(gram, (M @ Z).T @ V)
+    basis, worst = _Basis.empty(n), np.inf
+    for _ in range(EIG_MAX_RESTARTS):
+        for _ in range(EIG_MAX_BLOCKS):
+            V, MV = _m_orthonormal(V, basis, M)
+            if V.shape[1] == 0 and basis.size >= want:    # invariant subspace (the
+                mu, Y, _ = basis.ritz(want)               # whole space when n is small):
+                return 1.0 / mu[:k], basis.Q @ Y[:, :k]   # the Ritz pairs are exact
+            if V.shape[1] == 0:              # start in the span of Z: random directions
+                V = rng.standard_normal((n, b))
+                if Z is not None:
+                    V -= Z @ np.linalg.solve(gram, (M @ Z).T @ V)
+                continue
+            W = solve(MV)
+            basis = basis.extended(V, MV, W, M @ W)
+            if basis.size < want:
+                V = W
+                continue
+            mu, Y, res = basis.ritz(want)
+            worst, previous = float(np.max(res[:k] / mu[:k])), worst
+            if (worst <= EIG_RESIDUAL_RTOL
+                    or worst <= EIG_RESIDUAL_FLOOR and worst > 0.5 * previous):
+                return 1.0 / mu[:k], basis.Q @ Y[:, :k]
+            V = W
+        mu, Y, res = basis.ritz(want)
+        basis, V = basis.restarted(Y[:, :min(want, basis.size)], V)
+    raise AnalysisError(f"tied modes: the block shift-invert iteration did not converge "
+                        f"in {EIG_MAX_RESTARTS} restarts (relative residuals up to "
+                        f"{worst:.2e} > {EIG_RESIDUAL_RTOL})")
+
+
+@dataclass(frozen=True)
+class _Basis:
+    """M-orthonormal basis ``Q`` of :func:`block_shift_invert` with ``M Q``, ``W = S Q``
+    and ``M W`` (each sparse product done once per column)."""
+
+    Q: np.ndarray
+    MQ: np.ndarray
+    W: np.ndarray
+    MW: np.ndarray
+
+    @classmethod
+    def empty(cls, n):
+        return cls(*(np.zeros((n, 0)) for _ in range(4)))
+
+    @property
+    def size(self):
+        return self.Q.shape[1]
+
+    def extended(self, V, MV, W, MW):
+        return _Basis(*(np.hstack(pair) for pair in ((self.Q, V), (self.MQ, MV),
+                                                     (self.W, W), (self.MW, MW))))
+
+    def ritz(self, wanted):
+        """Ritz values ``mu`` (decreasing), coefficients ``Y`` and the residual norms
+        ``||W y - mu Q y||_M`` of the first ``wanted`` pairs."""
+        H = self.MQ.T @ self.W
+        mu, Y = np.linalg.eigh(0.5 * (H + H.T))
+        mu, Y = mu[::-1], Y[:, ::-1]
+        return mu, Y, self.residuals(Y[:, :wanted], mu[:wanted])
+
+    def residuals(self, Y, mu):
+        """``||W y - mu Q y||_M`` per column of ``Y``."""
+        R, MR = self.W @ Y - (self.Q @ Y) * mu, self.MW @ Y - (self.MQ @ Y) * mu
+        return np.sqrt(np.abs(np.einsum("ik,ik->k", R, MR)))
+
+    def restarted(self, Y, W_last):
+        """The basis of the Ritz vectors ``Q Y`` and the next block: the last block's
+        ``S Q_j`` without its part in ``Q``, which spans the residuals of all the Ritz
+        pairs (thick restart: the Krylov recurrence goes on from there)."""
+        kept = _Basis(self.Q @ Y, self.MQ @ Y, self.W @ Y, self.MW @ Y)
+        return kept, W_last - self.Q @ (self.MQ.T @ W_last)
+
+
+def _m_orthonormal(V, basis, M):
+    """``(V', M V')``: the columns of ``V`` minus their M-projection on the basis,
+    M-orthonormalised by the eigenvectors of their Gram matrix; two passes (round-off).
+    Directions whose norm fell below ``1e-12`` of the largest column of ``V``
+    (numerically in the span of the basis or of the other columns) are dropped."""
+    MV = M @ V
+    scale = float(np.max(np.einsum("ik,ik->k", V, MV), initial=0.0))
+    for _ in range(2):
+        V = V - basis.Q @ (basis.MQ.T @ V)
+        MV = M @ V
+        G = V.T @ MV
+        w, U = np.linalg.eigh(0.5 * (G + G.T))
+        keep = w > 1e-24 * scale
+        U = U[:, keep] / np.sqrt(w[keep])
+        V, MV = V @ U, MV @ U
+        scale = 1.0
+    return V, MV
