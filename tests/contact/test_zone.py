@@ -14,12 +14,12 @@ from qsma.contact.zone import (ContactZone, predicted_zone, solve_in_zone, solve
 from qsma.errors import ContactConvergenceWarning
 
 
-def _problem(n=24, seed=3):
-    """A chain of 2D pairs with dense elastic coupling (SPD), mu = 0.4."""
+def _problem(n=24, seed=3, dim=2):
+    """A chain of pairs with dense elastic coupling (SPD), mu = 0.4."""
     rng = np.random.default_rng(seed)
-    A = rng.normal(size=(2 * n, 2 * n))
-    K = A @ A.T / n + np.diag(np.full(2 * n, 2.0))
-    return ContactProblem(K, 0.4)
+    A = rng.normal(size=(dim * n, dim * n))
+    K = A @ A.T / n + np.diag(np.full(dim * n, 2.0))
+    return ContactProblem(K, 0.4, dim=dim)
 
 
 def test_zone_matches_full_solve_and_grows():
@@ -170,6 +170,19 @@ def test_growth_outside_the_outer_zone_borders_it():
     _assert_same_zone(outside, ContactZone.build(p, outside.keep), p)
 
 
+def test_growth_inside_the_outer_zone_borders_the_inner_elimination():
+    p = _problem(14, seed=4, dim=3)
+    zone = ContactZone.build(p, np.arange(14) < 10).narrowed(np.arange(14) < 3)
+    inner = zone.steps[1]
+    grown = zone.grown(np.isin(np.arange(14), [5, 8]))
+    assert grown.steps[0] is zone.steps[0] and len(grown.steps) == 2
+    assert isinstance(grown.steps[1].inverse, zone_module._BorderedInverse)
+    assert grown.steps[1] is not inner and grown.keep.sum() == 5
+    _assert_same_zone(grown, ContactZone.build(p, grown.keep), p)
+    whole = grown.grown(np.arange(14) < 10)                 # the whole outer zone
+    assert len(whole.steps) == 1 and whole.steps[0] is zone.steps[0]
+
+
 def _assert_same_zone(zone, fresh, p, seed=1):
     """Zone stiffness, welded force (direct and through a basis) and expansion of two
     eliminations of the same zone agree to 1e-12 of their scale."""
@@ -269,3 +282,31 @@ def test_measures_equal_the_three_functions():
     want = (residual(p, lam_w, d, lam, prev), force_residual(p, lam_w, d, lam, prev),
             legacy_residual(p, lam_w, d, lam, prev))
     assert got == want and min(want) > 0
+
+
+def test_lifting_ramp_narrows_the_zone_and_equals_the_full_solve():
+    """Pairs pressed by the preload lift one group after another: the zone is narrowed to
+    the closed pairs (fitted_zone) and every answer equals the whole-interface solve."""
+    rng = np.random.default_rng(12)
+    n = 30
+    A = rng.normal(size=(3 * n, 3 * n))
+    p = ContactProblem(A @ A.T / n + np.diag(np.full(3 * n, 3.0)), 0.3, dim=3)
+    base = np.zeros((n, 3))
+    base[:, 2] = 1.0
+    pre = solve(p, base)
+    assert np.all(pre.status != 2)
+    zone = zone_from_state(p, pre.state)
+    state_full = state_zone = pre.state
+    narrowed = 0
+    for s in np.linspace(0.2, 2.0, 10):
+        lw = base.copy()
+        lw[:, 0] = 0.2 * s
+        lw[:, 2] = 1.0 - s * np.linspace(0.2, 1.6, n)       # lifts from the last pair on
+        start = zone_module.fitted_zone(zone, state_zone)
+        narrowed += start.keep.sum() < zone.keep.sum()
+        full = solve(p, lw, state_full)
+        zres, zone = solve_in_zone(zone, lw, state_zone)
+        _assert_same(zres, full)
+        assert zres.residual <= 1e-10 and zres.residual_force <= 1e-6
+        state_full, state_zone = full.state, zres.state
+    assert narrowed and (state_zone.status == 2).sum() > n // 2

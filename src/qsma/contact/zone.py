@@ -292,15 +292,21 @@ class ContactZone:
         return ContactZone(self.full, keep.copy(), (outer, Elimination.build(outer.sub, inner)))
 
     def grown(self, pairs) -> "ContactZone":
-        """This zone with ``pairs`` added: carved out of the outer elimination if they lie
-        inside it; else the outer elimination bordered by the pairs outside it
+        """This zone with ``pairs`` added. Inside the outer elimination: the inner
+        elimination (on the outer zone problem) bordered by them, or the zone carved out
+        of the outer one; else the outer elimination bordered by the pairs outside it
         (:meth:`Elimination.bordered`, cached on the problem like :meth:`build`), or, after
         :data:`MAX_BORDERS` borderings in a row, a new elimination of the full problem."""
         keep = self.keep | np.asarray(pairs, dtype=bool)
         outer = self.steps[0]
         outside = keep & ~outer.keep
         if not outside.any():
-            return self.narrowed(keep)
+            inner = self.steps[-1] if len(self.steps) == 2 else None
+            if (inner is None or keep[outer.keep].all()
+                    or inner.inverse.depth >= MAX_BORDERS):
+                return self.narrowed(keep)
+            return ContactZone(self.full, keep.copy(),
+                               (outer, inner.bordered(keep[outer.keep])))
         if outer.inverse.depth >= MAX_BORDERS:
             return ContactZone.build(self.full, keep)
         step = outer.bordered(outside)
