@@ -34,7 +34,7 @@ import scipy.linalg as sla
 from .problem import ContactProblem
 from .registry import DEFAULT_TOL, Iterate, _result, solve
 from .residual import FORCE_TOL, measures
-from .state import OPEN, ContactState
+from .state import OPEN, STUCK, ContactState
 
 #: Tolerance factor of the second zone solve of a level whose zone answer met ``tol``
 #: on the zone but not on the full problem. sandwich-3d refine 1 with ``active_set``:
@@ -395,11 +395,13 @@ def solve_preload(problem, lam_w, *, method="basket", tol=DEFAULT_TOL, maxiter=N
 
 
 def solve_in_zone(zone: ContactZone, lam_w, state: ContactState, *, method="basket",
-                  tol=DEFAULT_TOL, maxiter=None, max_growth=20, basis=None):
+                  tol=DEFAULT_TOL, maxiter=None, max_growth=20, basis=None, guess=None):
     """Solve one level on the zone (narrowed first by :func:`fitted_zone`), growing it
     when an eliminated pair would close.
 
     ``basis = (Wb, a)``, optional: ``lam_w = Wb a`` (see :meth:`Elimination.load`).
+    ``guess``, optional: a state of all pairs to start the zone solve from (see
+    :func:`qsma.contact.solve`); the zone is not narrowed below its closed pairs.
     Returns ``(ContactResult over all pairs, zone)``; the zone returned is the one
     to use for the next level. ``success`` is judged on the full problem, by one
     evaluation of the measures (:func:`qsma.contact.residual.measures`). A zone answer
@@ -409,11 +411,11 @@ def solve_in_zone(zone: ContactZone, lam_w, state: ContactState, *, method="bask
     """
     full = zone.full
     lam_w = np.asarray(lam_w, dtype=float)
-    zone = fitted_zone(zone, state)
+    zone = fitted_zone(zone, state if guess is None else _closed_in_either(state, guess))
     nit = 0
     for sub_tol in (tol, RETRY_TOL * tol):
         zone, sub, d, closing, n = _settled(zone, lam_w, state, method, sub_tol, maxiter,
-                                            max_growth, basis)
+                                            max_growth, basis, guess)
         nit += n
         lam = np.zeros_like(d)
         lam[zone.keep] = sub.lam
@@ -426,14 +428,20 @@ def solve_in_zone(zone: ContactZone, lam_w, state: ContactState, *, method="bask
                    measures=checked), zone
 
 
-def _settled(zone, lam_w, state, method, tol, maxiter, max_growth, basis):
+def _closed_in_either(state, guess):
+    """A state whose open pairs are those open in both ``state`` and ``guess``."""
+    both_open = (np.asarray(state.status) == OPEN) & (np.asarray(guess.status) == OPEN)
+    return ContactState(state.d, state.lam, np.where(both_open, OPEN, STUCK))
+
+
+def _settled(zone, lam_w, state, method, tol, maxiter, max_growth, basis, guess=None):
     """Solve on the zone, grown until no eliminated pair closes (or ``max_growth``
     solves): ``(zone, zone result, d of all pairs, closing pairs, iterations)``."""
     nit = 0
     for attempt in range(max_growth):
         us, welded = zone.loads(lam_w, basis)
         sub = solve(zone.sub, welded, zone.restrict(state), method=method, tol=tol,
-                    maxiter=maxiter)
+                    maxiter=maxiter, guess=None if guess is None else zone.restrict(guess))
         nit += sub.nit
         d = zone.expand(sub.d, lam_w, us=us)
         closing = (~zone.keep) & (d[:, -1] + zone.full.gap0 < 0)
