@@ -43,7 +43,7 @@ import numpy as np
 from ..errors import InputError
 from .law import (basket_transitions, local_states, pair_quantities, row_norm,
                   slip_directions_from_forces)
-from .linear import block_step, known_displacement, open_rows, slip_rows, solve_partitioned
+from .linear import basket_system, known_displacement, open_rows, slip_rows, solve_partitioned
 from .registry import Iterate, register_method
 from .residual import reaction_scale, residual, roundoff_allowance
 from .state import OPEN, SLIPPING, STUCK
@@ -293,8 +293,10 @@ class _BasketRun:
     def _block_step(self):
         self.solves += 1
         if self.coupling == "joint":
-            return block_step(self.problem, self.lw, self.status, self.direction, self.alpha,
-                              self.prev, self.problem.kappa)
+            R, b, unknown, d_known = basket_system(self.problem, self.lw, self.status,
+                                                   self.direction, self.alpha, self.prev,
+                                                   self.problem.kappa)
+            return solve_partitioned(R, b, unknown, d_known)
         return self._gauss_seidel_step()
 
     def _gauss_seidel_step(self):

@@ -84,9 +84,9 @@ def slip_rows(problem, lam_w, pairs, direction, alpha, t_prev, c):
     rows = K[T] + ms[:, :, None] * K[N][:, None, :]
     rhs = -(lam_w[T] + ms * lam_w[N][:, None])
     if m > 1 and np.any(alpha):
-        Pi = _projectors(direction, alpha)
-        rows -= Pi @ K[T]
-        rhs += (Pi @ (lam_w[T] + c * t_prev)[:, :, None])[:, :, 0]
+        Pi = alpha[:, None, None] * (np.eye(m) - direction[:, :, None] * direction[:, None, :])
+        rows -= np.einsum("kij,kjc->kic", Pi, K[T])
+        rhs += np.einsum("kij,kj->ki", Pi, lam_w[T] + c * t_prev)
         k = np.arange(len(pairs))[:, None, None]
         rows[k, np.arange(m)[None, :, None], T[:, None, :]] += c * Pi
     return rows.reshape(-1, K.shape[1]), rhs.ravel()
@@ -106,58 +106,6 @@ def basket_system(problem, lam_w, status, direction, alpha, d_prev, c):
     unknown = free_components(problem, pairs_open, pairs_slip)
     return (np.vstack([Ro, Rs]), np.concatenate([bo, bs]), unknown,
             known_displacement(problem, status, d_prev))
-
-
-def _projectors(direction, alpha):
-    """``alpha (I - s s^T)`` per pair, ``(k, m, m)``."""
-    m = direction.shape[1]
-    return alpha[:, None, None] * (np.eye(m) - direction[:, :, None] * direction[:, None, :])
-
-
-def block_step(problem, lam_w, status, direction, alpha, d_prev, c):
-    r"""The displacement of fixed pair states: :func:`basket_system` solved for its
-    unknowns, formed on the unknown columns only.
-
-    With ``d_D`` the known displacement (:func:`known_displacement`) and
-    ``f = K d_D + lam_w`` the force at ``d_U = 0``, the rows are
-
-    .. math::
-        K_{oU}\, d_U = -f_o, \qquad
-        igl[(I - lpha\Pi) K_{tU} + \mu s K_{nU} + lpha c\,\Pi E_tigr] d_U
-          = -(f_t + \mu s f_n) + lpha \Pi (f_t + c\, t_{prev})
-
-    for the open pairs ``o`` and the slipping pairs (``E_t`` places a pair's
-    tangential components among the unknowns), the same system as
-    ``R[:, U] d_U = b - R[:, D] d_D`` but without forming the known columns
-    (one product ``K d_D`` instead). Returns a new ``(N,)`` vector; raises
-    ``numpy.linalg.LinAlgError`` if the block is singular.
-    """
-    pairs_open = np.flatnonzero(status == OPEN)
-    pairs_slip = np.flatnonzero(status == SLIPPING)
-    unknown = free_components(problem, pairs_open, pairs_slip)
-    d = known_displacement(problem, status, d_prev)
-    if unknown.size == 0:
-        return d
-    K, dim, m = problem.K, problem.dim, problem.dim - 1
-    f = K @ d + lam_w
-    io = unknown[:len(pairs_open) * dim]
-    T, N = problem.tangent_index[pairs_slip], problem.normal_index[pairs_slip]
-    k = len(pairs_slip)
-    ms = problem.mu[pairs_slip, None] * direction[pairs_slip]
-    KT = K[np.ix_(T.ravel(), unknown)].reshape(k, m, len(unknown))
-    A_slip = KT + ms[:, :, None] * K[np.ix_(N, unknown)][:, None, :]
-    r_slip = -(f[T] + ms * f[N][:, None])
-    a = alpha[pairs_slip]
-    if m > 1 and np.any(a):
-        Pi = _projectors(direction[pairs_slip], a)
-        A_slip -= Pi @ KT
-        r_slip += (Pi @ (f[T] + c * d_prev[pairs_slip, :-1])[:, :, None])[:, :, 0]
-        at = len(io) + np.arange(k * m).reshape(k, m)          # t of each pair among U
-        A_slip[np.arange(k)[:, None, None], np.arange(m)[None, :, None],
-               at[:, None, :]] += c * Pi
-    A = np.vstack([K[np.ix_(io, unknown)], A_slip.reshape(k * m, len(unknown))])
-    d[unknown] = np.linalg.solve(A, np.concatenate([-f[io], r_slip.ravel()]))
-    return d
 
 
 def solve_partitioned(rows, rhs, unknown, d_fixed):
