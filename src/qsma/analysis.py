@@ -619,8 +619,10 @@ class _Solver:
     def __init__(self, problem, reduced, method, opts, zone):
         self.problem, self.reduced, self.method, self.opts = problem, reduced, method, opts
         self.zone = zone
+        self.guess = None       # a state to start the next solve from (set by _ramp)
 
-    def __call__(self, alpha, state, where, guess=None):
+    def __call__(self, alpha, state, where):
+        guess, self.guess = self.guess, None
         res, self.zone = _solve(self.problem, self.reduced, alpha, state, self.method,
                                 self.opts, where, self.zone, guess)
         if res.success:
@@ -658,7 +660,8 @@ def _ramp(solver, alpha, start, keep_going, progress, where="load level", respon
     """Monotonic ramp through ``alpha`` from ``start``; ``prefix`` (a :class:`_RampOut`
     and its length) reuses levels already solved on the same path; ``guesses`` maps a
     level to a state to start its iteration from (the same level solved on a coarser
-    grid: the path differs, so the level is solved again, but from near its answer)."""
+    grid: the path differs, so the level is solved again, but from near its answer),
+    handed to a :class:`_Solver` as its ``guess``."""
     rows = {k: [] for k in ("d", "lam", "status", "residual", "nit", "ok", "q", "tip")}
     fallback, success, message, failed = [], True, "all levels converged", None
     state, first = start, 0
@@ -671,9 +674,9 @@ def _ramp(solver, alpha, start, keep_going, progress, where="load level", respon
             state = old.state(first - 1)
     for k in range(first, len(alpha)):
         a = alpha[k]
-        guess = None if guesses is None else guesses.get(float(a))
-        res = (solver(a, state, f"{where} {k} (alpha={a:.4g})") if guess is None else
-               solver(a, state, f"{where} {k} (alpha={a:.4g})", guess))
+        if guesses is not None:
+            solver.guess = guesses.get(float(a))      # read (and cleared) by the solve
+        res = solver(a, state, f"{where} {k} (alpha={a:.4g})")
         if not res.success:
             success = False
             failed = k if failed is None else failed
