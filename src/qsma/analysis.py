@@ -587,23 +587,25 @@ class _Response:
         return float(self.ct @ (np.asarray(d).ravel() - self.d0) + self.at * alpha)
 
 
-def _solve(problem, reduced, alpha, state, method, opts, where, zone=None):
+def _solve(problem, reduced, alpha, state, method, opts, where, zone=None, guess=None):
     """One contact solve at modal force ``alpha``; returns ``(result, zone)``.
 
     ``zone``: None (the whole interface), ``"preload"`` (from the reference state on the
     predicted zone, :func:`qsma.contact.zone.solve_preload`) or a
-    :class:`qsma.contact.zone.ContactZone`."""
+    :class:`qsma.contact.zone.ContactZone`. ``guess``: a state to start the iteration
+    from (the slip is measured from ``state``; see :func:`qsma.contact.solve`)."""
     factors = _load_factors(reduced, alpha)
     lam_w = reduced.welded_contact_force(factors)
     basis = (reduced.W, factors)            # lam_w = W a: the zone eliminates W once
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ContactConvergenceWarning)
         if zone is None:
-            res = contact_solve(problem, lam_w, state, method=method, **opts)
+            res = contact_solve(problem, lam_w, state, method=method, guess=guess, **opts)
         elif isinstance(zone, str):
             res, zone = solve_preload(problem, lam_w, method=method, basis=basis, **opts)
         else:
-            res, zone = solve_in_zone(zone, lam_w, state, method=method, basis=basis, **opts)
+            res, zone = solve_in_zone(zone, lam_w, state, method=method, basis=basis,
+                                      guess=guess, **opts)
     if not res.success:
         warnings.warn(f"contact solve at {where} did not converge: {res.message} "
                       f"(residual {res.residual:.2e})", ContactConvergenceWarning,
@@ -617,10 +619,12 @@ class _Solver:
     def __init__(self, problem, reduced, method, opts, zone):
         self.problem, self.reduced, self.method, self.opts = problem, reduced, method, opts
         self.zone = zone
+        self.guess = None       # a state to start the next solve from (set by _ramp)
 
     def __call__(self, alpha, state, where):
+        guess, self.guess = self.guess, None
         res, self.zone = _solve(self.problem, self.reduced, alpha, state, self.method,
-                                self.opts, where, self.zone)
+                                self.opts, where, self.zone, guess)
         if res.success:
             res = held_by_joint(self.reduced, res, _load_factors(self.reduced, alpha), where)
         return res
@@ -652,9 +656,12 @@ class _RampOut:
 
 
 def _ramp(solver, alpha, start, keep_going, progress, where="load level", response=None,
-          prefix=None):
+          prefix=None, guesses=None):
     """Monotonic ramp through ``alpha`` from ``start``; ``prefix`` (a :class:`_RampOut`
-    and its length) reuses levels already solved on the same path."""
+    and its length) reuses levels already solved on the same path; ``guesses`` maps a
+    level to a state to start its iteration from (the same level solved on a coarser
+    grid: the path differs, so the level is solved again, but from near its answer),
+    handed to a :class:`_Solver` as its ``guess``."""
     rows = {k: [] for k in ("d", "lam", "status", "residual", "nit", "ok", "q", "tip")}
     fallback, success, message, failed = [], True, "all levels converged", None
     state, first = start, 0
@@ -667,6 +674,8 @@ def _ramp(solver, alpha, start, keep_going, progress, where="load level", respon
             state = old.state(first - 1)
     for k in range(first, len(alpha)):
         a = alpha[k]
+        if guesses is not None:
+            solver.guess = guesses.get(float(a))      # read (and cleared) by the solve
         res = solver(a, state, f"{where} {k} (alpha={a:.4g})")
         if not res.success:
             success = False
@@ -712,7 +721,9 @@ def _refined_backbone(solver, alpha, pre, opts, progress, response, k_ref):
         first = int(np.flatnonzero(new[:len(grid)] != grid)[0]) if not np.array_equal(
             new[:len(grid)], grid) else len(grid)
         trial = _ramp(solver, new, pre.state, False, None, response=response,
-                      prefix=(out, first))
+                      prefix=(out, first),
+                      guesses={float(grid[j]): out.state(j) for j in range(first, out.n)
+                               if out.ok[j]})
         if not trial.success:          # keep the converged coarser grid
             break
         grid, out = new, trial

@@ -7,18 +7,19 @@ import pytest
 
 from qsma.contact import (ContactProblem, ContactState, force_residual, legacy_residual, residual,
                           solve)
+from qsma.contact import zone as zone_module
 from qsma.contact.residual import measures
 from qsma.contact.zone import (ContactZone, predicted_zone, solve_in_zone, solve_preload,
                                zone_from_state)
 from qsma.errors import ContactConvergenceWarning
 
 
-def _problem(n=24, seed=3):
-    """A chain of 2D pairs with dense elastic coupling (SPD), mu = 0.4."""
+def _problem(n=24, seed=3, dim=2):
+    """A chain of pairs with dense elastic coupling (SPD), mu = 0.4."""
     rng = np.random.default_rng(seed)
-    A = rng.normal(size=(2 * n, 2 * n))
-    K = A @ A.T / n + np.diag(np.full(2 * n, 2.0))
-    return ContactProblem(K, 0.4)
+    A = rng.normal(size=(dim * n, dim * n))
+    K = A @ A.T / n + np.diag(np.full(dim * n, 2.0))
+    return ContactProblem(K, 0.4, dim=dim)
 
 
 def test_zone_matches_full_solve_and_grows():
@@ -153,13 +154,101 @@ def test_elimination_is_the_schur_complement_and_nesting_is_exact():
                                atol=1e-12)
 
 
-def test_growth_outside_the_outer_zone_rebuilds_it():
+def test_growth_outside_the_outer_zone_borders_it():
+    """A pair closing outside the outer elimination joins it by bordering (no new
+    factorisation); the zone problem, the loads and the expansion equal those of a
+    fresh elimination to round-off."""
     p = _problem(10, seed=2)
     zone = ContactZone.build(p, np.arange(10) < 4).narrowed(np.arange(10) < 2)
     inside = zone.grown(np.arange(10) == 3)
     assert inside.steps[0] is zone.steps[0] and inside.keep.sum() == 3
     outside = zone.grown(np.arange(10) == 7)
-    assert len(outside.steps) == 1 and outside.keep[7] and outside.keep.sum() == 3
+    assert outside.keep[7] and outside.keep.sum() == 3
+    outer = outside.steps[0]
+    assert isinstance(outer.inverse, zone_module._BorderedInverse)
+    assert np.array_equal(outer.keep, (np.arange(10) < 4) | (np.arange(10) == 7))
+    _assert_same_zone(outside, ContactZone.build(p, outside.keep), p)
+
+
+def test_growth_inside_the_outer_zone_borders_the_inner_elimination():
+    p = _problem(14, seed=4, dim=3)
+    zone = ContactZone.build(p, np.arange(14) < 10).narrowed(np.arange(14) < 3)
+    inner = zone.steps[1]
+    grown = zone.grown(np.isin(np.arange(14), [5, 8]))
+    assert grown.steps[0] is zone.steps[0] and len(grown.steps) == 2
+    assert isinstance(grown.steps[1].inverse, zone_module._BorderedInverse)
+    assert grown.steps[1] is not inner and grown.keep.sum() == 5
+    _assert_same_zone(grown, ContactZone.build(p, grown.keep), p)
+    whole = grown.grown(np.arange(14) < 10)                 # the whole outer zone
+    assert len(whole.steps) == 1 and whole.steps[0] is zone.steps[0]
+
+
+def _assert_same_zone(zone, fresh, p, seed=1):
+    """Zone stiffness, welded force (direct and through a basis) and expansion of two
+    eliminations of the same zone agree to 1e-12 of their scale."""
+    assert np.array_equal(zone.keep, fresh.keep)
+    scale = np.abs(fresh.sub.K).max()
+    np.testing.assert_allclose(zone.sub.K, fresh.sub.K, rtol=0, atol=1e-12 * scale)
+    rng = np.random.default_rng(seed)
+    lam_w = rng.normal(size=(p.n_pairs, p.dim))
+    d_A = rng.normal(size=(int(zone.keep.sum()), p.dim))
+    np.testing.assert_allclose(zone.welded(lam_w), fresh.welded(lam_w), atol=1e-12)
+    Wb = rng.normal(size=(p.size, 2))
+    a = np.array([0.7, -1.3])
+    lw = (Wb @ a).reshape(-1, p.dim)
+    np.testing.assert_allclose(zone.welded(lw, (Wb, a)), fresh.welded(lw), atol=1e-12)
+    d = zone.expand(d_A, lam_w)
+    np.testing.assert_allclose(d, fresh.expand(d_A, lam_w), atol=1e-12)
+    lam = (p.K @ d.ravel() + lam_w.ravel()).reshape(-1, p.dim)
+    np.testing.assert_allclose(lam[~zone.keep], 0.0, atol=1e-12)   # eliminated: force-free
+    np.testing.assert_allclose(zone.expand(d_A, lw, (Wb, a)), fresh.expand(d_A, lw),
+                               atol=1e-12)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_repeated_bordering_equals_a_fresh_elimination(dim):
+    """Pairs joining one or a few at a time, up to MAX_BORDERS borderings in a row (then
+    a new elimination): each zone equals the elimination built from scratch."""
+    rng = np.random.default_rng(7)
+    n = 40
+    A = rng.normal(size=(dim * n, dim * n))
+    p = ContactProblem(A @ A.T / n + np.diag(np.full(dim * n, 2.0)), 0.3, dim=dim)
+    zone = ContactZone.build(p, np.arange(n) < 6)
+    order = rng.permutation(np.arange(6, n))
+    depths = []
+    for k in range(zone_module.MAX_BORDERS + 2):
+        pairs = np.zeros(n, bool)
+        pairs[order[k::zone_module.MAX_BORDERS + 2][:1 + k % 3]] = True
+        zone = zone.grown(pairs)
+        depths.append(zone.steps[0].inverse.depth)
+        _assert_same_zone(zone, ContactZone.build(p, zone.keep), p, seed=k)
+    assert max(depths) == zone_module.MAX_BORDERS and 0 in depths     # then rebuilt
+
+
+def test_ramp_whose_zone_grows_by_bordering_equals_the_full_solve():
+    """A 3D ramp that closes lifted pairs level by level: every zone answer (zone grown
+    by bordering) passes the full residual and equals the whole-interface solve."""
+    rng = np.random.default_rng(11)
+    n = 30
+    A = rng.normal(size=(3 * n, 3 * n))
+    p = ContactProblem(A @ A.T / n + np.diag(np.full(3 * n, 3.0)), 0.3, dim=3)
+    base = np.zeros((n, 3))
+    base[:, 2] = np.where(np.arange(n) < 10, 1.0, -np.linspace(0.1, 2.0, n))
+    pre = solve(p, base)
+    zone = zone_from_state(p, pre.state)
+    first_outer = zone.steps[0]
+    state_full = state_zone = pre.state
+    bordered = 0
+    for s in np.linspace(0.2, 2.4, 10):
+        lw = base.copy()
+        lw[:, 0], lw[:, 1], lw[:, 2] = 0.3 * s, -0.1 * s, base[:, 2] + s
+        full = solve(p, lw, state_full)
+        zres, zone = solve_in_zone(zone, lw, state_zone)
+        bordered += isinstance(zone.steps[0].inverse, zone_module._BorderedInverse)
+        _assert_same(zres, full)
+        assert zres.residual <= 1e-10 and zres.residual_force <= 1e-6
+        state_full, state_zone = full.state, zres.state
+    assert bordered and zone.steps[0] is not first_outer
 
 
 def test_full_check_rejects_a_corrupted_zone_answer(monkeypatch):
@@ -193,3 +282,31 @@ def test_measures_equal_the_three_functions():
     want = (residual(p, lam_w, d, lam, prev), force_residual(p, lam_w, d, lam, prev),
             legacy_residual(p, lam_w, d, lam, prev))
     assert got == want and min(want) > 0
+
+
+def test_lifting_ramp_narrows_the_zone_and_equals_the_full_solve():
+    """Pairs pressed by the preload lift one group after another: the zone is narrowed to
+    the closed pairs (fitted_zone) and every answer equals the whole-interface solve."""
+    rng = np.random.default_rng(12)
+    n = 30
+    A = rng.normal(size=(3 * n, 3 * n))
+    p = ContactProblem(A @ A.T / n + np.diag(np.full(3 * n, 3.0)), 0.3, dim=3)
+    base = np.zeros((n, 3))
+    base[:, 2] = 1.0
+    pre = solve(p, base)
+    assert np.all(pre.status != 2)
+    zone = zone_from_state(p, pre.state)
+    state_full = state_zone = pre.state
+    narrowed = 0
+    for s in np.linspace(0.2, 2.0, 10):
+        lw = base.copy()
+        lw[:, 0] = 0.2 * s
+        lw[:, 2] = 1.0 - s * np.linspace(0.2, 1.6, n)       # lifts from the last pair on
+        start = zone_module.fitted_zone(zone, state_zone)
+        narrowed += start.keep.sum() < zone.keep.sum()
+        full = solve(p, lw, state_full)
+        zres, zone = solve_in_zone(zone, lw, state_zone)
+        _assert_same(zres, full)
+        assert zres.residual <= 1e-10 and zres.residual_force <= 1e-6
+        state_full, state_zone = full.state, zres.state
+    assert narrowed and (state_zone.status == 2).sum() > n // 2

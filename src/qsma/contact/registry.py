@@ -71,7 +71,7 @@ def register_method(name):
 
 
 def solve(problem, lam_w, state=None, *, method="basket", tol=DEFAULT_TOL, maxiter=None,
-          fallback=True, **options):
+          fallback=True, guess=None, **options):
     """Solve one load level of the frictional contact problem.
 
     Find ``d`` and ``lam = K d + lam_w`` such that every pair is open, stuck
@@ -98,6 +98,10 @@ def solve(problem, lam_w, state=None, *, method="basket", tol=DEFAULT_TOL, maxit
     fallback : bool
         If the method fails, hand over to :data:`FALLBACKS` ``[method]``
         (started from the failed iterate); ``result.fallback`` names it.
+    guess : ContactState, optional
+        Iterate (and pair states) to start from instead of ``state``, e.g. the
+        answer of the same load level on a neighbouring path; the slip is still
+        measured from ``state``, and the answer is judged exactly as without it.
     **options
         Keyword options of the method; an unknown name raises.
 
@@ -120,8 +124,9 @@ def solve(problem, lam_w, state=None, *, method="basket", tol=DEFAULT_TOL, maxit
     previous = ContactState.reference(problem) if state is None else state.check_against(problem)
     tol, maxiter = _check_tol(tol), _check_maxiter(maxiter)
     scaled = _Scaled(problem, lam_w, previous)
+    start = None if guess is None else scaled.to_internal(guess.check_against(problem))
     out, used, measures = _run_chain(scaled, method, fn, tol, maxiter, bool(fallback),
-                                     options)
+                                     options, start)
     return _result(problem, lam_w, previous, out, method, tol, fallback=used, scaled=scaled,
                    measures=measures)
 
@@ -132,12 +137,12 @@ def _measures(scaled, out):
     return all_measures(scaled.problem, scaled.lam_w, out.d, out.lam, scaled.previous)
 
 
-def _run_chain(scaled, method, fn, tol, maxiter, fallback, options):
+def _run_chain(scaled, method, fn, tol, maxiter, fallback, options, start=None):
     """The method, then its fallback if its answer is not accepted (not converged, or
     rejected by the residual or the force check of :func:`_result`); ``(Iterate,
     fallback name or None, measures of the first iterate or None)``, the iterate in
-    the internal units of ``scaled``."""
-    out = _guarded(fn, scaled, None, tol, maxiter, options)
+    the internal units of ``scaled``; ``start`` an iterate to begin from."""
+    out = _guarded(fn, scaled, start, tol, maxiter, options)
     rescue = FALLBACKS.get(method)
     left = None if maxiter is None else maxiter - out.nit
     measures = _measures(scaled, out) if out.converged else None

@@ -19,7 +19,10 @@ zone inside a zone already built is an elimination on the small zone problem,
 ``O(n_A^3)``. So the preload is solved on a predicted zone (:func:`solve_preload`),
 and the ramp's zone, the pairs closed after the preload, is carved out of it
 (:func:`zone_from_state` finds the last elimination built on the problem, that of
-the preload or of a zone grown since, cached on it; any of them is exact).
+the preload or of a zone grown since, cached on it; any of them is exact). A pair
+closing outside the outer elimination borders it (:meth:`Elimination.bordered`):
+the new pairs join its zone through ``k`` solves with the factor already built,
+``O(k n_O^2)``, not a new factorisation.
 """
 from __future__ import annotations
 
@@ -31,13 +34,72 @@ import scipy.linalg as sla
 from .problem import ContactProblem
 from .registry import DEFAULT_TOL, Iterate, _result, solve
 from .residual import FORCE_TOL, measures
-from .state import OPEN, ContactState
+from .state import OPEN, STUCK, ContactState
 
 #: Tolerance factor of the second zone solve of a level whose zone answer met ``tol``
 #: on the zone but not on the full problem. sandwich-3d refine 1 with ``active_set``:
 #: residual 9.9e-11 on the zone, 1.02e-10 on the full problem (level 17); a factor
 #: 100 leaves room above the round-off floor of the residual (~1e-15).
 RETRY_TOL = 1e-2
+#: Borderings of one elimination (:meth:`Elimination.bordered`) before the next growth
+#: builds a new one. Each adds a correction of rank ``3 k`` to every solve with the
+#: eliminated block, so a chain costs a little more per solve and carries the round-off
+#: of each step (agreement with a fresh elimination measured in tests/contact/test_zone.py).
+MAX_BORDERS = 16
+#: A level's zone is narrowed to the pairs closed in its starting state
+#: (:func:`fitted_zone`) when at least this fraction of its pairs is open there: the zone
+#: only grows within a level, and a joint that lifts over the ramp would otherwise carry
+#: its opened pairs (3 unknowns each in 3D) into every block step. lap-3d refine 2
+#: (651 pairs): zones of 233 to 304 pairs of which about 140 closed.
+NARROW_FRACTION = 0.25
+
+
+@dataclass(frozen=True, eq=False)
+class _CholeskyInverse:
+    """``K_OO^-1 x`` from the lower Cholesky factor ``L`` of ``K_OO``."""
+
+    L: np.ndarray
+
+    @property
+    def depth(self):
+        return 0
+
+    def solve(self, x):
+        return sla.cho_solve((self.L, True), x, check_finite=False)
+
+
+@dataclass(frozen=True, eq=False)
+class _BorderedInverse:
+    r"""``K_{O'O'}^{-1} x`` for ``O'`` = the eliminated set ``O`` less the rows ``G``,
+    from the inverse on ``O`` (``H = K_OO^{-1}``, never formed):
+
+    .. math:: K_{O'O'}^{-1} = H_{O'O'} - H_{O'G} H_{GG}^{-1} H_{GO'} ,
+
+    the inverse of a principal block written with the inverse of the whole.
+
+    Attributes
+    ----------
+    parent : the inverse on ``O``
+    rows : positions of ``O'`` in ``O``
+    HG : ``H_{O'G}`` (n_O' x k)
+    C : ``H_{GG}^{-1}`` (k x k)
+    """
+
+    parent: object
+    rows: np.ndarray
+    HG: np.ndarray
+    C: np.ndarray
+    n_parent: int
+
+    @property
+    def depth(self):
+        return self.parent.depth + 1
+
+    def solve(self, x):
+        x = np.asarray(x, dtype=float)
+        padded = np.zeros((self.n_parent,) + x.shape[1:])
+        padded[self.rows] = x
+        return self.parent.solve(padded)[self.rows] - self.HG @ (self.C @ (self.HG.T @ x))
 
 
 @dataclass(frozen=True, eq=False)
@@ -50,7 +112,9 @@ class Elimination:
     keep : (n_pairs,) bool, the zone
     sub : ContactProblem on the zone, stiffness ``S = K_AA - K_AO K_OO^-1 K_OA``
     iA, iO : flat indices of the zone and of the eliminated unknowns
-    factor : lower Cholesky factor ``L`` of ``K_OO`` (``None`` if nothing is eliminated)
+    inverse : ``K_OO^-1`` as an object with ``solve(x)``: the Cholesky factor of
+        ``K_OO`` (:meth:`build`) or a bordered one (:meth:`bordered`); ``None`` if
+        nothing is eliminated
     Bt : ``K_OO^-1 K_OA`` (eliminated unknowns x zone unknowns)
     """
 
@@ -59,7 +123,7 @@ class Elimination:
     sub: ContactProblem
     iA: np.ndarray
     iO: np.ndarray
-    factor: np.ndarray | None
+    inverse: object
     Bt: np.ndarray
     _loads: dict = field(default_factory=dict, repr=False)
 
@@ -84,7 +148,58 @@ class Elimination:
         Bt = sla.solve_triangular(L, W, lower=True, trans="T", overwrite_b=True,
                                   check_finite=False)
         sub = ContactProblem.derived(S, problem.mu[keep], problem.gap0[keep], problem.dim)
-        return cls(problem, keep, sub, iA, iO, L, Bt)
+        return cls(problem, keep, sub, iA, iO, _CholeskyInverse(L), Bt)
+
+    def bordered(self, pairs) -> "Elimination":
+        r"""This elimination with the eliminated ``pairs`` taken back into the zone,
+        from what it holds (no new factorisation of the eliminated block).
+
+        With the zone ``A``, the rows ``G`` of ``pairs`` and ``O' = O \ G``,
+        ``H = K_OO^{-1}``, ``B = K_OO^{-1} K_OA`` (``Bt``) and
+        ``C = H_GG^{-1}``: if the pairs of ``G`` carry a force, ``d_O = -B d_A -
+        u + H_{OG} lam_G`` and so ``lam_G = C (d_G + B_G d_A + u_G)``; the zone
+        problem of ``A u G`` is
+
+        .. math::
+            S' = \begin{bmatrix} S + B_G^T C B_G & B_G^T C \\ C B_G & C
+                 \end{bmatrix}, \qquad
+            B' = \begin{bmatrix} B_{O'} - H_{O'G} C B_G & -H_{O'G} C \end{bmatrix},
+
+        exactly the elimination of ``O'`` (the Schur complement of the bordered
+        system). Cost: ``k`` solves with ``H`` and products with ``k`` columns,
+        ``O(k n_O^2 + k n_O n_A)`` for ``k = len(G)``, instead of a new
+        ``O(n_O^3)`` factorisation.
+        """
+        pairs = np.asarray(pairs, dtype=bool) & ~self.keep
+        if not pairs.any():
+            return self
+        p, keep = self.problem, self.keep | pairs
+        flat = np.repeat(keep, p.dim)
+        iA, iO = np.flatnonzero(flat), np.flatnonzero(~flat)
+        in_O = np.full(p.size, -1)
+        in_O[self.iO] = np.arange(len(self.iO))
+        g = in_O[np.flatnonzero(np.repeat(pairs, p.dim))]       # rows G within O
+        rows = in_O[iO]                                          # rows O' within O
+        unit = np.zeros((len(self.iO), len(g)))
+        unit[g, np.arange(len(g))] = 1.0
+        H = self.inverse.solve(unit)                             # H_{O G}
+        C = _spd_inverse(H[g])
+        CB = C @ self.Bt[g]
+        HG = H[rows]
+        at_A = np.searchsorted(iA, self.iA)                      # old zone within the new
+        at_G = np.searchsorted(iA, self.iO[g])
+        S = np.empty((len(iA), len(iA)))
+        S[np.ix_(at_A, at_A)] = self.sub.K + self.Bt[g].T @ CB
+        S[np.ix_(at_A, at_G)] = CB.T
+        S[np.ix_(at_G, at_A)] = CB
+        S[np.ix_(at_G, at_G)] = C
+        Bt = np.empty((len(iO), len(iA)))
+        Bt[:, at_A] = self.Bt[rows] - HG @ CB
+        Bt[:, at_G] = -HG @ C
+        sub = ContactProblem.derived(S, p.mu[keep], p.gap0[keep], p.dim)
+        inverse = (_BorderedInverse(self.inverse, rows, HG, C, len(self.iO))
+                   if len(iO) else None)
+        return Elimination(p, keep, sub, iA, iO, inverse, Bt)
 
     def load(self, lam_w, basis=None):
         """The zone's welded force ``lam_w_A - K_AO K_OO^-1 lam_w_O`` (flat) and the
@@ -92,24 +207,22 @@ class Elimination:
 
         ``basis = (Wb, a)`` with ``lam_w = Wb a``: both are taken from the columns of
         ``Wb`` eliminated once (cached by the identity of ``Wb``), so a load level costs
-        no solve with ``L``. Returns ``(welded, u, basis of the zone problem or None)``.
+        no solve with ``K_OO``. Returns ``(welded, u, basis of the zone problem or None)``.
         """
-        if self.factor is None:
+        if self.inverse is None:
             return lam_w, np.zeros(0), basis
         if basis is not None:
             WA, U = self._basis(basis[0])
             a = np.asarray(basis[1], dtype=float)
             return WA @ a, U @ a, (WA, a)
         lw_O = lam_w[self.iO]
-        return (lam_w[self.iA] - self.Bt.T @ lw_O,
-                sla.cho_solve((self.factor, True), lw_O, check_finite=False), None)
+        return lam_w[self.iA] - self.Bt.T @ lw_O, self.inverse.solve(lw_O), None
 
     def _basis(self, Wb):
         cached = self._loads.get("basis")
         if cached is None or cached[0] is not Wb:
             Wb_O = Wb[self.iO]
-            cached = (Wb, Wb[self.iA] - self.Bt.T @ Wb_O,
-                      sla.cho_solve((self.factor, True), Wb_O, check_finite=False))
+            cached = (Wb, Wb[self.iA] - self.Bt.T @ Wb_O, self.inverse.solve(Wb_O))
             self._loads["basis"] = cached
         return cached[1], cached[2]
 
@@ -120,6 +233,13 @@ class Elimination:
         if len(self.iO):
             d[self.iO] = -(self.Bt @ d_A) - u
         return d
+
+
+def _spd_inverse(A):
+    """Inverse of a symmetric positive definite matrix through its Cholesky factor."""
+    L = sla.cholesky(0.5 * (A + A.T), lower=True, check_finite=False)
+    inv = sla.cho_solve((L, True), np.eye(len(A)), check_finite=False)
+    return 0.5 * (inv + inv.T)
 
 
 @dataclass(frozen=True, eq=False)
@@ -172,12 +292,27 @@ class ContactZone:
         return ContactZone(self.full, keep.copy(), (outer, Elimination.build(outer.sub, inner)))
 
     def grown(self, pairs) -> "ContactZone":
-        """This zone with ``pairs`` added: carved out of the outer elimination if they lie
-        inside it, else a new elimination of the full problem."""
+        """This zone with ``pairs`` added. Inside the outer elimination: the inner
+        elimination (on the outer zone problem) bordered by them, or the zone carved out
+        of the outer one; else the outer elimination bordered by the pairs outside it
+        (:meth:`Elimination.bordered`, cached on the problem like :meth:`build`), or, after
+        :data:`MAX_BORDERS` borderings in a row, a new elimination of the full problem."""
         keep = self.keep | np.asarray(pairs, dtype=bool)
-        if not np.any(keep & ~self.steps[0].keep):
-            return self.narrowed(keep)
-        return ContactZone.build(self.full, keep)
+        outer = self.steps[0]
+        outside = keep & ~outer.keep
+        if not outside.any():
+            inner = self.steps[-1] if len(self.steps) == 2 else None
+            if (inner is None or keep[outer.keep].all()
+                    or inner.inverse.depth >= MAX_BORDERS):
+                return self.narrowed(keep)
+            return ContactZone(self.full, keep.copy(),
+                               (outer, inner.bordered(keep[outer.keep])))
+        if outer.inverse.depth >= MAX_BORDERS:
+            return ContactZone.build(self.full, keep)
+        step = outer.bordered(outside)
+        grown = ContactZone(self.full, step.keep, (step,))
+        self.full.__dict__["_zone_outer"] = grown
+        return grown.narrowed(keep)
 
     def loads(self, lam_w, basis=None):
         """Per elimination step, the eliminated displacement ``u`` at zero zone
@@ -221,6 +356,23 @@ def zone_from_state(problem, state: ContactState) -> ContactZone:
     return ContactZone.build(problem, keep)
 
 
+def fitted_zone(zone: ContactZone, state: ContactState) -> ContactZone:
+    """``zone`` narrowed to the pairs closed in ``state`` if at least
+    :data:`NARROW_FRACTION` of its pairs are open there (and the closed ones lie in its
+    outer elimination), else ``zone`` itself.
+
+    Exact either way: a pair eliminated here that closes during the level joins the
+    zone again (:func:`solve_in_zone`). The narrowing is an elimination on the outer
+    zone problem, ``O(n_outer^3)``; it pays when the open pairs would otherwise be
+    unknowns of every block step of the level."""
+    closed = np.asarray(state.status) != OPEN
+    surplus = int(np.count_nonzero(zone.keep & ~closed))
+    if (not closed.any() or surplus < NARROW_FRACTION * zone.keep.sum()
+            or np.any(closed & ~zone.steps[0].keep)):
+        return zone
+    return zone.narrowed(closed)
+
+
 def predicted_zone(problem, lam_w):
     """Pairs that may be closed after the preload: those pressed in the welded
     solution (``lam_w,n > 0``) or overlapping (``g0 < 0``); all pairs if none is."""
@@ -243,10 +395,13 @@ def solve_preload(problem, lam_w, *, method="basket", tol=DEFAULT_TOL, maxiter=N
 
 
 def solve_in_zone(zone: ContactZone, lam_w, state: ContactState, *, method="basket",
-                  tol=DEFAULT_TOL, maxiter=None, max_growth=20, basis=None):
-    """Solve one level on the zone, growing it when an eliminated pair would close.
+                  tol=DEFAULT_TOL, maxiter=None, max_growth=20, basis=None, guess=None):
+    """Solve one level on the zone (narrowed first by :func:`fitted_zone`), growing it
+    when an eliminated pair would close.
 
     ``basis = (Wb, a)``, optional: ``lam_w = Wb a`` (see :meth:`Elimination.load`).
+    ``guess``, optional: a state of all pairs to start the zone solve from (see
+    :func:`qsma.contact.solve`); the zone is not narrowed below its closed pairs.
     Returns ``(ContactResult over all pairs, zone)``; the zone returned is the one
     to use for the next level. ``success`` is judged on the full problem, by one
     evaluation of the measures (:func:`qsma.contact.residual.measures`). A zone answer
@@ -256,10 +411,11 @@ def solve_in_zone(zone: ContactZone, lam_w, state: ContactState, *, method="bask
     """
     full = zone.full
     lam_w = np.asarray(lam_w, dtype=float)
+    zone = fitted_zone(zone, state if guess is None else _closed_in_either(state, guess))
     nit = 0
     for sub_tol in (tol, RETRY_TOL * tol):
         zone, sub, d, closing, n = _settled(zone, lam_w, state, method, sub_tol, maxiter,
-                                            max_growth, basis)
+                                            max_growth, basis, guess)
         nit += n
         lam = np.zeros_like(d)
         lam[zone.keep] = sub.lam
@@ -272,14 +428,20 @@ def solve_in_zone(zone: ContactZone, lam_w, state: ContactState, *, method="bask
                    measures=checked), zone
 
 
-def _settled(zone, lam_w, state, method, tol, maxiter, max_growth, basis):
+def _closed_in_either(state, guess):
+    """A state whose open pairs are those open in both ``state`` and ``guess``."""
+    both_open = (np.asarray(state.status) == OPEN) & (np.asarray(guess.status) == OPEN)
+    return ContactState(state.d, state.lam, np.where(both_open, OPEN, STUCK))
+
+
+def _settled(zone, lam_w, state, method, tol, maxiter, max_growth, basis, guess=None):
     """Solve on the zone, grown until no eliminated pair closes (or ``max_growth``
     solves): ``(zone, zone result, d of all pairs, closing pairs, iterations)``."""
     nit = 0
     for attempt in range(max_growth):
         us, welded = zone.loads(lam_w, basis)
         sub = solve(zone.sub, welded, zone.restrict(state), method=method, tol=tol,
-                    maxiter=maxiter)
+                    maxiter=maxiter, guess=None if guess is None else zone.restrict(guess))
         nit += sub.nit
         d = zone.expand(sub.d, lam_w, us=us)
         closing = (~zone.keep) & (d[:, -1] + zone.full.gap0 < 0)
