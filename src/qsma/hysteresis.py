@@ -5,7 +5,9 @@ Two ways to the dissipation ``D`` of a cycle of modal-force amplitude ``A``
 
 * **the loop**: from the state reached on the backbone at ``+A``, unload to ``-A``
   and reload to ``+A`` with the history-dependent contact solver, repeated until
-  the cycle repeats itself (the stabilised cycle); ``D = \oint \alpha\,dq``;
+  the cycle repeats itself (the stabilised cycle), then continued with one cycle per
+  refinement round on halved increments until ``D`` settles;
+  ``D = \oint \alpha\,dq``;
 * **Masing's rules** on the backbone ``alpha(q)``:
   ``D = 8 \int_0^{q_a} \alpha\,dq - 4 A q_a``, exact only for joints whose
   unloading branch is the backbone scaled by two (see :func:`masing_checks`).
