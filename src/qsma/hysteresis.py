@@ -34,8 +34,8 @@ STATE_RTOL = 1e-7
 #: The ways a loop computation ends (:attr:`Loop.outcome`).
 LOOP_OUTCOMES = ("stabilised", "not_stabilised", "solve_failed")
 #: Rounds of loop-increment refinement (each halves the increments where the pair
-#: states change and solves the history again; the change of D between rounds is the
-#: error estimate).
+#: states change and continues the history with one cycle on them; the change of D
+#: from the previous cycle is the error estimate).
 REFINE_ROUNDS = 3
 
 
