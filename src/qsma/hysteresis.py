@@ -248,7 +248,8 @@ def _refinement_cycle(step, modal, previous, state0, u, coarse, k_ref, rtol):
     error = max(cycle_area_error(path, qs, k_ref), change)
     loop = Loop(A, path, qs, D, previous.first_dissipation, error, qs[0], qs[len(u)],
                 previous.n_cycles, n_solves, "stabilised",
-                previous.message.split(";")[0] + f"; increments refined ({len(u)} per branch)")
+                previous.message.split(";")[0]
+                + f"; increments refined ({len(u)} per branch)")
     return loop, _changed(out.status, len(u)), out.state
 
 
