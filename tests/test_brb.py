@@ -159,6 +159,28 @@ def test_damping_rises_with_amplitude_and_stuck_levels_are_tied(coarse_run):
     assert r.f_hz[-1] < r.f0_hz
 
 
+#: Loop dissipations of ``coarse_run`` at 3e-5, 1e-4 and 1e-3 m on fine increments, and
+#: their estimates: qsma before the loop refinement continued the history (every
+#: round solved again from the backbone), with dissipation_rtol = 1e-4 and
+#: loop_steps = 64 (1536 loop solves; the default settings took 726 then).
+FINE_LOOPS_D = (1.3896420727936563e-05, 7.79362316519397e-04, 0.24111356543158197)
+FINE_LOOPS_ERROR = (5.5e-09, 1.4e-07, 1.5e-04)
+
+
+def test_loops_agree_with_finer_loops_within_their_estimates(coarse_run):
+    """The default loops (refinement rounds that continue the history) meet the loops
+    on four times finer increments and a fifty times tighter tolerance within the sum
+    of both error estimates, with about half the solves of the rounds that solved the
+    history again from the backbone (726 solves)."""
+    r = coarse_run
+    loop = r.dissipation_method == "loop"
+    assert np.flatnonzero(loop).tolist() == [2, 3, 4]
+    err = np.abs(r.dissipation[loop] - FINE_LOOPS_D)
+    assert np.all(err <= r.dissipation_error[loop] + FINE_LOOPS_ERROR), err
+    assert np.all(r.dissipation_error[loop] <= 5e-3 * r.dissipation[loop])
+    assert r.solver["loop_solves"] <= 0.65 * 726
+
+
 def test_run_analyses_the_first_elastic_mode(coarse_run, coarse):
     assert coarse_run.f0_hz == pytest.approx(coarse[3].f_hz[6], rel=1e-9)
 

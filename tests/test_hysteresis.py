@@ -148,6 +148,36 @@ def test_refinement_converges_to_the_closed_form():
     assert errors[-1] < 0.1 * errors[0] and errors[-1] < 2e-3 * D
 
 
+def test_refinement_rounds_continue_the_history_one_cycle_each():
+    """Each refinement round is one more cycle on the halved increments, started where
+    the previous cycle ended: the backbone state is the history of the first solve
+    only, and the solves are the cycles on the initial increments plus one cycle per
+    round (a round used to solve every cycle again from the backbone)."""
+    A = 1600.0
+    problem, lam_w = _problem()
+    inner = _stepper(problem, lam_w)
+    histories = []
+
+    def step(alpha, state):
+        histories.append(state)
+        return inner(alpha, state)
+    _, res = _ramp(problem, lam_w, [A])
+    start = res[-1].state
+    u0 = np.linspace(0, 1, 6)[1:]
+    loop = compute_loop(step, _modal, A, start, u0, k_ref=kt, rtol=1e-12, refine_rounds=3)
+    assert loop.success and loop.n_cycles == 1        # Jenkins + stop: no transient
+    assert sum(h is start for h in histories) == 1
+    n_final = (len(loop.alpha) - 1) // 2
+    assert n_final > 2 * len(u0)                      # the rounds did refine
+    assert loop.n_solves == len(histories)
+    # one cycle on u0, then one per round; every round adds at least one point
+    assert 2 * len(u0) + 2 * n_final + 2 * (len(u0) + 1) + 2 * (len(u0) + 2) \
+        <= loop.n_solves <= 2 * len(u0) + 3 * 2 * n_final
+    # the first cycle is the stabilised one on the initial increments: no shakedown
+    assert np.isfinite(loop.coarse_dissipation) and not loop.shakedown
+    assert abs(loop.dissipation - _exact(A)[0]) <= 4 * loop.error
+
+
 def test_shakedown_first_cycle_dissipates_then_elastic():
     """A slider left near its friction limit by the preload (pre-shear 0.999 F_s): the
     first unloading slips it once, every later cycle is elastic, because the slider

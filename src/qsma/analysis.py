@@ -802,6 +802,7 @@ def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref):
             continue
         A = grid[g]
         u = _loop_fractions(grid, g, linear_end, opts.loop_steps)
+        solver.zone = _loop_zone(solver.zone, pos.status[:g + 1], neg_status[:g + 1])
         step = lambda a, s, A=A: solver(a, s, f"loop at A={A:.4g} (alpha={a:.4g})")
         lp = compute_loop(step, response.q, A, pos.state(g), u, k_ref=k_ref,
                           max_cycles=opts.max_cycles, rtol=opts.dissipation_rtol,
@@ -819,6 +820,19 @@ def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref):
             out["first"][i] = lp.first_dissipation
             out["shakedown"][i] = lp.shakedown
     return out
+
+
+def _loop_zone(zone, *statuses):
+    """The zone of a loop: the pairs closed anywhere on either backbone up to its
+    amplitude, carved out of the ramps' zone (which holds every pair closed on them).
+    The elimination is exact; a pair that closes only within the loop joins the zone
+    when it closes (:func:`qsma.contact.zone.solve_in_zone`)."""
+    if zone is None or isinstance(zone, str):
+        return zone
+    keep = np.zeros_like(zone.keep)
+    for status in statuses:
+        keep |= np.any(np.asarray(status) != OPEN, axis=0)
+    return zone.narrowed(keep & zone.steps[0].keep)
 
 
 def _untouched(status, pre):

@@ -5,7 +5,9 @@ Two ways to the dissipation ``D`` of a cycle of modal-force amplitude ``A``
 
 * **the loop**: from the state reached on the backbone at ``+A``, unload to ``-A``
   and reload to ``+A`` with the history-dependent contact solver, repeated until
-  the cycle repeats itself (the stabilised cycle); ``D = \oint \alpha\,dq``;
+  the cycle repeats itself (the stabilised cycle), then continued with one cycle per
+  refinement round on halved increments until ``D`` settles;
+  ``D = \oint \alpha\,dq``;
 * **Masing's rules** on the backbone ``alpha(q)``:
   ``D = 8 \int_0^{q_a} \alpha\,dq - 4 A q_a``, exact only for joints whose
   unloading branch is the backbone scaled by two (see :func:`masing_checks`).
@@ -32,8 +34,8 @@ STATE_RTOL = 1e-7
 #: The ways a loop computation ends (:attr:`Loop.outcome`).
 LOOP_OUTCOMES = ("stabilised", "not_stabilised", "solve_failed")
 #: Rounds of loop-increment refinement (each halves the increments where the pair
-#: states change and solves the history again; the change of D between rounds is the
-#: error estimate).
+#: states change and continues the history with one cycle on them; the change of D
+#: from the previous cycle is the error estimate).
 REFINE_ROUNDS = 3
 
 
@@ -50,15 +52,21 @@ class Loop:
     dissipation : float
         ``D = \\oint alpha dq`` of the stabilised cycle (NaN if the loop failed).
     first_dissipation : float
-        ``D`` of the first cycle after the monotonic ramp (differs on shakedown).
+        ``D`` of the first cycle after the monotonic ramp, on the initial increments
+        (differs on shakedown).
     error : float
         Estimate of the integration error of ``dissipation`` (absolute).
     q_top, q_bottom : float
         ``q`` at ``+A`` and ``-A`` of the stabilised cycle.
     n_cycles : int
-        Cycles computed (the last one is the stabilised cycle).
+        Cycles on the initial increments until one repeated (each refinement round
+        then adds one cycle on its refined increments).
     n_solves : int
         Contact solves spent (all refinement rounds included).
+    coarse_dissipation : float
+        ``D`` of the cycle that repeated on the initial increments (NaN without
+        refinement): the reference of :attr:`shakedown`, on the same increments as
+        ``first_dissipation``.
     outcome : str
         One of :data:`LOOP_OUTCOMES`: ``"stabilised"`` (the answer), ``"not_stabilised"``
         (no cycle repeated within ``max_cycles``), ``"solve_failed"`` (a contact solve
@@ -78,6 +86,7 @@ class Loop:
     n_solves: int
     outcome: str
     message: str
+    coarse_dissipation: float = float("nan")
 
     @property
     def success(self) -> bool:
@@ -105,9 +114,12 @@ class Loop:
 
     @property
     def shakedown(self) -> bool:
-        """Whether the first cycle dissipated differently from the stabilised one."""
+        """Whether the first cycle dissipated differently from the stabilised one (both
+        on the initial increments)."""
+        stabilised = (self.dissipation if np.isnan(self.coarse_dissipation)
+                      else self.coarse_dissipation)
         return bool(self.n_cycles > 1 and not np.isclose(
-            self.first_dissipation, self.dissipation, rtol=1e-6,
+            self.first_dissipation, stabilised, rtol=1e-6,
             atol=1e-9 * self.amplitude * abs(self.q_amplitude)))
 
 
@@ -166,7 +178,7 @@ def compute_loop(step, modal, amplitude, start, fractions, *, k_ref, max_cycles=
     k_ref : float
         Linear reference stiffness of the deviation (the tied ``w0^2``).
     max_cycles : int
-        Cycles before the loop is declared not stabilised.
+        Cycles on the initial increments before the loop is declared not stabilised.
     rtol, atol : float
         Refine until the error estimate is ``<= rtol |D| + atol`` (at most
         ``refine_rounds`` rounds, each halving the increments where pair states change).
@@ -176,30 +188,78 @@ def compute_loop(step, modal, amplitude, start, fractions, *, k_ref, max_cycles=
     The error of a computed loop has two parts: the quadrature of the enclosed area
     on the computed points, and the path error of solving each increment in one step
     (a pair that sticks and slips again within an increment, and a stabilised cycle
-    that depends on the history it was reached by). Every round therefore solves the
-    whole history again, from ``start``, on the refined increments, and the estimate is
-    the larger of the change of ``D`` from the previous round and the quadrature
-    estimate :func:`cycle_area_error` of the last round. With ``refine_rounds = 0``
-    only the quadrature estimate is available.
+    that depends on the history it was reached by). The cycles first run on the
+    initial increments from ``start`` until one repeats (:func:`_cycles`). Each
+    refinement round then halves the increments where a pair changed state and
+    continues with **one** more cycle on them, from the state the previous cycle
+    ended in (the history goes on; it is not solved again from ``start``). The
+    round's cycle is accepted as the stabilised one when it agrees with the previous
+    cycle as two cycles of :func:`_cycles` must (the dissipation within ``rtol |D| +
+    atol``, the shape of ``q`` at the points both cycles share within ``rtol`` of its
+    range): the change of ``D`` bounds together the path error of the coarser
+    increments and what is left of the transient. The estimate is the larger of that
+    change and the quadrature estimate :func:`cycle_area_error` of the last cycle;
+    with ``refine_rounds = 0`` only the quadrature estimate is available.
     """
     u = np.unique(np.clip(np.asarray(fractions, dtype=float), 0.0, 1.0))
     u = np.union1d(u[u > 0], [1.0])
-    n_solves, previous = 0, None
-    for round_ in range(refine_rounds + 1):
-        loop, changed = _cycles(step, modal, amplitude, start, u, k_ref, max_cycles,
-                                rtol, atol)
-        n_solves += loop.n_solves
+    loop, changed, end = _cycles(step, modal, amplitude, start, u, k_ref, max_cycles,
+                                 rtol, atol)
+    if not loop.success or refine_rounds == 0:
+        return loop
+    stabilised = loop
+    if changed.any():
+        loop = replace(loop, error=np.inf)     # no path estimate yet: refine once
+    for _ in range(refine_rounds):
+        if loop.error <= rtol * abs(loop.dissipation) + atol:
+            break
+        u, coarse = _refined(u, changed), u
+        loop, changed, end = _refinement_cycle(step, modal, loop, end, u, coarse, k_ref,
+                                               rtol)
         if not loop.success:
             break
-        if previous is not None:
-            loop = replace(loop, error=max(loop.error,
-                                           abs(loop.dissipation - previous.dissipation)))
-        elif refine_rounds > 0 and changed.any():
-            loop = replace(loop, error=np.inf)     # no path estimate yet: refine once
-        if loop.error <= rtol * abs(loop.dissipation) + atol or round_ == refine_rounds:
-            break
-        previous, u = loop, _refined(u, changed)
-    return replace(loop, n_solves=n_solves)
+    return replace(loop, first_dissipation=stabilised.first_dissipation,
+                   n_cycles=stabilised.n_cycles,
+                   coarse_dissipation=stabilised.dissipation)
+
+
+def _refinement_cycle(step, modal, previous, state0, u, coarse, k_ref, rtol):
+    """One cycle on the refined increments ``u`` from ``state0`` (where ``previous``,
+    on the increments ``coarse``, a subset of ``u``, ended): ``(Loop, changed, end
+    state)``; its error is the larger of the quadrature estimate and the change from
+    ``previous`` (the change of the shape of ``q`` at the shared points, relative to
+    its range, counted as the same relative change of ``D`` when it exceeds
+    ``rtol``)."""
+    A = previous.amplitude
+    path = cycle_path(A, u)
+    out = _one_cycle(step, modal, A, state0, path)
+    n_solves = previous.n_solves + out.n_solves
+    if out.failure is not None:
+        return _failed(A, path[:len(out.q)], out.q, previous.first_dissipation,
+                       previous.n_cycles, n_solves, out.failure), None, None
+    qs = out.q
+    D = cycle_area(path, qs, k_ref)
+    at = np.searchsorted(u, coarse)            # the coarse points are among the new ones
+    shared = np.concatenate([[0], 1 + at, 1 + len(u) + at])
+    shape = _shape_change(qs[shared], previous.q)
+    change = abs(D - previous.dissipation)
+    if shape > rtol:
+        change = max(change, shape * abs(D))
+    error = max(cycle_area_error(path, qs, k_ref), change)
+    loop = Loop(A, path, qs, D, previous.first_dissipation, error, qs[0], qs[len(u)],
+                previous.n_cycles, n_solves, "stabilised",
+                previous.message.split(";")[0]
+                + f"; increments refined ({len(u)} per branch)")
+    return loop, _changed(out.status, len(u)), out.state
+
+
+def _shape_change(q, q_previous):
+    """Largest change of ``q`` about its mean between two cycles on the same points,
+    relative to the range of ``q``."""
+    if len(q) != len(q_previous) or len(q) == 0:
+        return np.inf
+    diff = np.abs((q - q.mean()) - (q_previous - q_previous.mean())).max()
+    return float(diff / max(np.ptp(q), np.finfo(float).tiny))
 
 
 def _refined(u, changed):
@@ -209,45 +269,67 @@ def _refined(u, changed):
     return np.union1d(u, 0.5 * (lo + u)[pick])
 
 
+@dataclass(frozen=True, eq=False)
+class _Cycle:
+    """The solves of one cycle: ``q`` and ``status`` at every point (the start
+    included), the end state, the largest interface displacement from the start
+    (``span``), the solves spent and, if a solve failed, the message."""
+
+    q: np.ndarray
+    status: list
+    state: object
+    span: float
+    n_solves: int
+    failure: str | None
+
+
+def _one_cycle(step, modal, A, state0, path):
+    """Solve the cycle ``path`` (``path[0] = A``, the state ``state0``)."""
+    qs, status, state, span = [modal(state0.d, A)], [state0.status], state0, 0.0
+    for k, a in enumerate(path[1:], start=1):
+        res = step(a, state)
+        if not res.success:
+            return _Cycle(np.array(qs), status, state, span, k,
+                          f"loop at A = {A:.6g}: contact solve failed at alpha = {a:.6g}: "
+                          f"{res.message} (residual {res.residual:.2e})")
+        state = res.state
+        qs.append(modal(res.d, a))
+        status.append(res.status)
+        span = max(span, float(np.abs(res.d - state0.d).max()))
+    return _Cycle(np.array(qs), status, state, span, len(path) - 1, None)
+
+
 def _cycles(step, modal, A, start, u, k_ref, max_cycles, rtol, atol):
     """Cycles from ``start`` until one ends in the state it started from (it repeats
     exactly), or two successive cycles agree: dissipation within ``rtol |D| + atol`` and
     the shape of ``q`` (about its mean) within ``rtol`` of its range. ``(Loop,
-    changed)`` with ``changed[i]`` whether a pair changed state in branch interval ``i``
-    of the last cycle."""
+    changed, end)`` with ``changed[i]`` whether a pair changed state in branch interval
+    ``i`` of the last cycle and ``end`` the state it ended in."""
     path = cycle_path(A, u)
     state0, first, previous, n_solves = start, None, None, 0
     for cycle in range(1, max_cycles + 1):
-        qs, status, state, span = [modal(state0.d, A)], [state0.status], state0, 0.0
-        for k, a in enumerate(path[1:], start=1):
-            res = step(a, state)
-            n_solves += 1
-            if not res.success:
-                return _failed(A, path[:k], qs, first, cycle, n_solves,
-                               f"loop at A = {A:.6g}, cycle {cycle}: contact solve failed at "
-                               f"alpha = {a:.6g}: {res.message} (residual "
-                               f"{res.residual:.2e})"), None
-            state = res.state
-            qs.append(modal(res.d, a))
-            status.append(res.status)
-            span = max(span, float(np.abs(res.d - state0.d).max()))
-        qs = np.array(qs)
+        out = _one_cycle(step, modal, A, state0, path)
+        n_solves += out.n_solves
+        if out.failure is not None:
+            return _failed(A, path[:len(out.q)], out.q, first, cycle, n_solves,
+                           out.failure.replace(":", f", cycle {cycle}:", 1)), None, None
+        qs, state = out.q, out.state
         D = cycle_area(path, qs, k_ref)
         first = D if first is None else first
-        repeats = _same(state, state0, span) or (
+        repeats = _same(state, state0, out.span) or (
             previous is not None and abs(D - previous[1]) <= rtol * abs(D) + atol
-            and np.abs((qs - qs.mean()) - (previous[0] - previous[0].mean())).max()
-            <= rtol * max(np.ptp(qs), np.finfo(float).tiny))
+            and _shape_change(qs, previous[0]) <= rtol)
         if repeats:
             return Loop(A, path, qs, D, first, cycle_area_error(path, qs, k_ref), qs[0],
                         qs[len(u)], cycle, n_solves, "stabilised",
-                        f"stabilised after {cycle} cycle(s)"), _changed(status, len(u))
+                        f"stabilised after {cycle} cycle(s)"), \
+                _changed(out.status, len(u)), state
         previous, state0 = (qs, D), state
     return Loop(A, path, qs, D, first, cycle_area_error(path, qs, k_ref), qs[0], qs[len(u)],
                 max_cycles, n_solves, "not_stabilised",
                 f"loop at A = {A:.6g} not stabilised after {max_cycles} cycles (the state "
                 f"at +A still changes: ratcheting or slow shakedown); raise max_cycles"), \
-        _changed(status, len(u))
+        _changed(out.status, len(u)), state
 
 
 def _same(a, b, span):
