@@ -159,3 +159,27 @@ def test_sweep_case_frees_reference_cycles_of_large_interfaces():
     finally:
         if was_enabled:
             gc.enable()
+
+
+def test_contact_zones_of_a_dropped_run_are_freed_without_the_cycle_collector():
+    """The contact zones (their Cholesky factors of the interface) are cached on the
+    contact problem and refer back to it; a run that owns the problem releases the
+    cache, so the eliminations go with the run by reference counting alone.
+    sandwich-2d eliminates its open pairs (several eliminations per run)."""
+    from qsma.contact.zone import Elimination
+
+    def eliminations():
+        return {id(o) for o in gc.get_objects() if isinstance(o, Elimination)}
+
+    gc.collect()
+    before = eliminations()
+    was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        res = qsma.run(sandwich_2d(1), levels=LEVELS)
+        assert res.success
+        del res
+        assert eliminations() - before == set()
+    finally:
+        if was_enabled:
+            gc.enable()

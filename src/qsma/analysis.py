@@ -22,7 +22,7 @@ from ._threads import blas_threads as threads_limited, threads_for
 from .condense import reduce_two_bodies
 from .contact import DEFAULT_TOL, ContactProblem, ContactState, OPEN, SLIPPING, STUCK
 from .contact import solve as contact_solve
-from .contact.zone import solve_in_zone, solve_preload, zone_from_state
+from .contact.zone import release_zones, solve_in_zone, solve_preload, zone_from_state
 from .errors import (AnalysisError, ContactConvergenceWarning, InputError,
                      InterfaceGapWarning, QSMAWarning)
 from .fe import assemble_body
@@ -468,16 +468,23 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
     alpha = levels.alpha(omega0, phi_tip)
     k_ref = omega0 ** 2
 
-    with clock.stage("contact"):
-        solver = _Solver(problem, reduced, opts.method, sopts,
-                         zone_from_state(problem, pre.state) if opts.eliminate_open else None)
-        grid, user, pos = _refined_backbone(solver, alpha, pre, opts, progress, response, k_ref)
-        n_ok = len(user)
-        neg = _ramp(solver, -grid[:pos.n], pre, True, None, "negative load level",
-                    response=response)
+    try:
+        with clock.stage("contact"):
+            solver = _Solver(problem, reduced, opts.method, sopts,
+                             zone_from_state(problem, pre.state) if opts.eliminate_open
+                             else None)
+            grid, user, pos = _refined_backbone(solver, alpha, pre, opts, progress, response,
+                                                k_ref)
+            n_ok = len(user)
+            neg = _ramp(solver, -grid[:pos.n], pre, True, None, "negative load level",
+                        response=response)
 
-    with clock.stage("hysteresis"):
-        hyst = _hysteresis(solver, response, grid[:pos.n], user, pos, neg, pre, opts, k_ref)
+        with clock.stage("hysteresis"):
+            hyst = _hysteresis(solver, response, grid[:pos.n], user, pos, neg, pre, opts,
+                               k_ref)
+    finally:
+        if prepared is None:        # the problem dies with this run: free its zones now,
+            release_zones(problem)  # not at the next collection of the cycle collector
 
     with clock.stage("postprocess"):
         al = alpha[:n_ok]

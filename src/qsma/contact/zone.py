@@ -356,6 +356,15 @@ def zone_from_state(problem, state: ContactState) -> ContactZone:
     return ContactZone.build(problem, keep)
 
 
+def release_zones(problem):
+    """Drop the elimination cached on ``problem`` (:func:`zone_from_state`).
+
+    The cache and the problem refer to each other, so without this call the Cholesky
+    factors of a dropped problem wait for the cycle collector; a run that owns its
+    problem calls it when the problem is no longer needed."""
+    problem.__dict__.pop("_zone_outer", None)
+
+
 def fitted_zone(zone: ContactZone, state: ContactState) -> ContactZone:
     """``zone`` narrowed to the pairs closed in ``state`` if at least
     :data:`NARROW_FRACTION` of its pairs are open there (and the closed ones lie in its
