@@ -64,9 +64,9 @@ class Loop:
     n_solves : int
         Contact solves spent (all refinement rounds included).
     coarse_dissipation : float
-        ``D`` of the cycle that repeated on the initial increments (NaN without
-        refinement): the reference of :attr:`shakedown`, on the same increments as
-        ``first_dissipation``.
+        ``D`` of the cycle that repeated on the initial increments (NaN when
+        ``refine_rounds = 0`` or when no cycle repeated): the reference of
+        :attr:`shakedown`, on the same increments as ``first_dissipation``.
     outcome : str
         One of :data:`LOOP_OUTCOMES`: ``"stabilised"`` (the answer), ``"not_stabilised"``
         (no cycle repeated within ``max_cycles``), ``"solve_failed"`` (a contact solve
@@ -218,6 +218,10 @@ def compute_loop(step, modal, amplitude, start, fractions, *, k_ref, max_cycles=
                                                rtol)
         if not loop.success:
             break
+    if loop.success and loop.error > rtol * abs(loop.dissipation) + atol:
+        loop = replace(loop, message=loop.message + f"; error estimate {loop.error:.3g} "
+                       f"above the tolerance after {refine_rounds} refinement rounds "
+                       "(the last cycle is not known to have settled)")
     return replace(loop, first_dissipation=stabilised.first_dissipation,
                    n_cycles=stabilised.n_cycles,
                    coarse_dissipation=stabilised.dissipation)

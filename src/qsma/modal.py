@@ -500,11 +500,15 @@ def block_shift_invert(solve, M, k, Z=None, gram=None, start=None):
 
     ``Z``, ``gram``: rigid motions of a free-free assembly (``solve`` already returns the
     part M-orthogonal to them) and ``Z^T M Z``; the start block is made M-orthogonal to
-    them as well. ``start``: columns of the first block (at most ``b``), completed by
-    seeded random columns (:data:`EIG_SEED`); rigid-body fields as start make the first
-    block the static deflections under uniform accelerations, close to the low modes
-    (load-dependent Ritz vectors): on sandwich-3d refine 1, 48 columns against 56
-    from a random start (docs/performance.md).
+    them as well. ``start``: smooth columns for the first block (at most ``b``); each
+    gets a seeded random part of its own norm (:data:`EIG_SEED`) and the block is
+    completed by random columns. Rigid-body fields as start make the first block
+    close to the static deflections under uniform accelerations, close to the low
+    modes (load-dependent Ritz vectors). The random part is not optional: a start
+    made of the rigid fields alone has no component in the modes of some symmetry
+    classes of a symmetric structure, which a Krylov space built from it never
+    reaches, and the iteration would converge to the wrong "lowest" modes
+    (tests/test_modal.py, the symmetric clamped box).
 
     Returns ``(lam, vec)``, ``lam`` increasing, ``vec`` M-orthonormal. Raises
     :class:`AnalysisError` if the iteration does not converge.
@@ -513,8 +517,12 @@ def block_shift_invert(solve, M, k, Z=None, gram=None, start=None):
     b = min(EIG_BLOCK, k + EIG_GUARD, n - k)
     want = min(k + EIG_GUARD, n - 1)           # basis size before convergence is judged
     rng = np.random.default_rng(EIG_SEED)
-    V = np.zeros((n, 0)) if start is None else np.asarray(start, dtype=float)[:, :b]
-    V = np.hstack([V, rng.standard_normal((n, b - V.shape[1]))])
+    V = rng.standard_normal((n, b))
+    if start is not None:                   # smooth start plus an equal random part:
+        S = np.asarray(start, dtype=float)[:, :b]   # every column reaches every mode
+        scale = np.linalg.norm(V[:, :S.shape[1]], axis=0) / np.maximum(
+            np.linalg.norm(S, axis=0), np.finfo(float).tiny)
+        V[:, :S.shape[1]] += S * scale
     if Z is not None:
         V -= Z @ np.linalg.solve(gram, (M @ Z).T @ V)
     basis, worst = _Basis.empty(n), np.inf

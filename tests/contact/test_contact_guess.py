@@ -54,3 +54,18 @@ def test_a_guess_of_another_problem_is_refused():
     wrong = ContactState(np.zeros((3, 3)), np.zeros((3, 3)), np.zeros(3, int))
     with pytest.raises(InputError, match="state.d must have shape"):
         solve(p, base, guess=wrong)
+
+
+def test_a_guess_of_another_problem_is_refused_on_the_zone_too():
+    """The zone path checks the guess before using its states (it used to fail with a
+    numpy broadcasting error), and a guess that is not a state is named."""
+    p, base = _ramp_problem()
+    pre = solve(p, base)
+    zone = zone_from_state(p, pre.state)
+    wrong = ContactState(np.zeros((3, 3)), np.zeros((3, 3)), np.zeros(3, int))
+    with pytest.raises(InputError, match="state.d must have shape"):
+        solve_in_zone(zone, _level(base, 0.2), pre.state, guess=wrong)
+    for call in (lambda: solve(p, base, guess="x"),
+                 lambda: solve_in_zone(zone, _level(base, 0.2), pre.state, guess="x")):
+        with pytest.raises(InputError, match="guess must be a ContactState"):
+            call()

@@ -124,7 +124,7 @@ def solve(problem, lam_w, state=None, *, method="basket", tol=DEFAULT_TOL, maxit
     previous = ContactState.reference(problem) if state is None else state.check_against(problem)
     tol, maxiter = _check_tol(tol), _check_maxiter(maxiter)
     scaled = _Scaled(problem, lam_w, previous)
-    start = None if guess is None else scaled.to_internal(guess.check_against(problem))
+    start = None if guess is None else scaled.to_internal(checked_guess(guess, problem))
     out, used, measures = _run_chain(scaled, method, fn, tol, maxiter, bool(fallback),
                                      options, start)
     return _result(problem, lam_w, previous, out, method, tol, fallback=used, scaled=scaled,
@@ -154,6 +154,14 @@ def _run_chain(scaled, method, fn, tol, maxiter, fallback, options, start=None):
     merged = second._replace(nit=out.nit + second.nit,
                              message=f"{out.message}; fell back to {rescue}: {second.message}")
     return merged, rescue, None
+
+
+def checked_guess(guess, problem):
+    """``guess`` if it is a state of ``problem``'s pairs; else :class:`InputError`."""
+    if not isinstance(guess, ContactState):
+        raise InputError(f"guess must be a ContactState of the problem's pairs, got "
+                         f"{type(guess).__name__}")
+    return guess.check_against(problem)
 
 
 def _guarded(fn, scaled, guess, tol, maxiter, options):

@@ -32,7 +32,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from .problem import ContactProblem
-from .registry import DEFAULT_TOL, Iterate, _result, solve
+from .registry import DEFAULT_TOL, Iterate, _result, checked_guess, solve
 from .residual import FORCE_TOL, measures
 from .state import OPEN, STUCK, ContactState
 
@@ -420,6 +420,8 @@ def solve_in_zone(zone: ContactZone, lam_w, state: ContactState, *, method="bask
     """
     full = zone.full
     lam_w = np.asarray(lam_w, dtype=float)
+    if guess is not None:
+        guess = checked_guess(guess, zone.full)
     zone = fitted_zone(zone, state if guess is None else _closed_in_either(state, guess))
     nit = 0
     for sub_tol in (tol, RETRY_TOL * tol):
