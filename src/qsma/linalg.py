@@ -98,6 +98,16 @@ class SchurParts:
     timings: dict = field(default_factory=dict)
 
 
+def ee_rhs(b, n) -> np.ndarray:
+    """``b`` as a float array of shape ``(n,)`` or ``(n, k)`` for a ``K_EE`` solve;
+    :class:`InputError` naming the shape otherwise."""
+    b = np.asarray(b, dtype=float)
+    if b.ndim not in (1, 2) or b.shape[0] != n:
+        raise InputError(f"K_EE solve: right-hand side must have shape ({n},) or "
+                         f"({n}, k), got {b.shape}")
+    return b
+
+
 @dataclass(frozen=True, eq=False)
 class EESolver:
     r"""``x = K_EE^-1 b`` for ``b`` of shape (n_E,) or (n_E, k), E in sorted order
@@ -122,13 +132,8 @@ class EESolver:
         return len(self.E)
 
     def __call__(self, b) -> np.ndarray:
-        b = np.asarray(b, dtype=float)
-        if b.ndim not in (1, 2) or b.shape[0] != self.n:
-            raise InputError(f"K_EE solve: right-hand side must have shape ({self.n},) or "
-                             f"({self.n}, k), got {b.shape}")
-        if b.ndim == 2 and b.shape[1] == 0:
-            return np.zeros_like(b)
-        return self._solve(b)
+        b = ee_rhs(b, self.n)
+        return b if b.size == 0 else self._solve(b)
 
     def __repr__(self):
         return (f"EESolver(n={self.n}, backend={self.backend!r}, "

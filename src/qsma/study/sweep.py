@@ -597,15 +597,12 @@ class RefactorisedEE:
         return self._solve is not None
 
     def __call__(self, b):
-        b = np.asarray(b, dtype=float)
-        if b.ndim not in (1, 2) or b.shape[0] != self.n:
-            raise InputError(f"K_EE solve: right-hand side must have shape ({self.n},) or "
-                             f"({self.n}, k), got {b.shape}")
-        if b.ndim == 2 and b.shape[1] == 0:
-            return np.zeros_like(b)
+        from ..linalg import ee_rhs, spd_solver
+        b = ee_rhs(b, self.n)
+        if b.size == 0:
+            return b.copy()
         with self._lock:
             if self._solve is None:
-                from ..linalg import spd_solver
                 K = self.assembled.K.tocsr()
                 self._solve = spd_solver(K[self.E][:, self.E], backend=self.backend)
         return self._solve(b)
