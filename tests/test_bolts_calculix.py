@@ -15,7 +15,6 @@ import importlib.util
 from pathlib import Path
 import shutil
 
-import numpy as np
 import pytest
 
 pytestmark = pytest.mark.skipif(shutil.which("ccx") is None,

@@ -211,7 +211,8 @@ def test_peak_memory_sees_a_large_allocation():
     pages[::mmap.PAGESIZE] = 1                    # one write per page: all resident
     after = _resources.peak_memory_mb()
     snap = _resources.snapshot()                 # rounded to 0.1 MB
-    assert after - before >= 150 * (pages[-mmap.PAGESIZE] == 1)
+    assert pages[-mmap.PAGESIZE] == 1            # the block is alive and written
+    assert after - before >= 150
     assert snap["peak_memory_mb"] >= after - 0.1 and snap["cpu_s"] > 0
     del pages
     block.close()

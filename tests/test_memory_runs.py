@@ -135,9 +135,11 @@ def test_per_mesh_cache_keys_on_identity_and_arguments():
 
 
 def test_sweep_case_frees_reference_cycles_of_large_interfaces():
-    """After a case with a large interface, a sweep worker collects the cyclic garbage
-    the run left (contact problems caching their zone elimination): nothing of the
-    case waits for the next full collection. Small interfaces skip the collection."""
+    """The collection a sweep worker runs after a case (``_free_cycles``): from
+    ``FREE_CYCLES_FROM`` contact unknowns on it frees cyclic garbage at once, below it
+    leaves it to the automatic collector. Shown on a synthetic reference cycle; that a
+    sweep case's contact problems form such cycles (their cached zone elimination) is
+    the reason for the call, not asserted here."""
     from qsma.study.sweep import FREE_CYCLES_FROM, _free_cycles
 
     class Node:

@@ -3,7 +3,6 @@ spring at the top plate's far end between the free and the clamped plate)."""
 from __future__ import annotations
 
 import copy
-import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +13,7 @@ from qsma.config import parse_config, tomllib
 from qsma.errors import InputError
 from qsma.examples import lap_2d, lap_2d_cantilever
 from qsma.fe import assemble_body
-from qsma.model import Body, Clamp, Material, Pressure, Spring
+from qsma.model import Body, Material, Pressure, Spring
 from qsma.model.generate import structured_mesh
 from qsma.model.spring import spring_matrix, spring_shares
 

@@ -201,17 +201,8 @@ class ReducedModel:
         Projection: ``u_m = S^-1 (P^T Fc_s + Fc_m - sigma P^T Kc_s d)``,
         ``u_s = P u_m + sigma d`` (the equilibrium of the pair with ``d`` imposed).
         """
-        d = np.asarray(d, dtype=float).ravel()
-        a = np.asarray(a, dtype=float)
-        if self.P is None:
-            rhs = (self.Fc[0] + self.Fc[1]) @ a - self.bodies[1].Kc @ d
-            u1 = sla.cho_solve(self.S_cho, rhs)
-            return u1, u1 + d
-        s, m, P = self.slave, 1 - self.slave, self.P
-        rhs = P.T @ (self.Fc[s] @ a - self.sigma * (self.bodies[s].Kc @ d)) + self.Fc[m] @ a
-        um = sla.cho_solve(self.S_cho, rhs)
-        us = P @ um + self.sigma * d
-        return (us, um) if s == 0 else (um, us)
+        return _released_interface(self, np.asarray(d, dtype=float).ravel(), self.Fc,
+                                   np.asarray(a, dtype=float))
 
     def recover(self, d, a):
         """Full displacement vectors of both bodies from ``d`` and the load factors."""
@@ -486,15 +477,17 @@ def tied_solver(reduced, tied) -> TiedSolver | None:
     return TiedSolver(rm, G, cho)
 
 
-def _released_interface(rm, d, Fc):
+def _released_interface(rm, d, Fc, a=None):
     """Interface displacements of both bodies for the relative displacement ``d`` and
-    condensed loads ``Fc`` (vectors, or matrices of as many columns), the formula of
-    :meth:`ReducedModel.interface_displacements`."""
+    condensed loads ``Fc`` (vectors, or matrices of as many columns), times the load
+    factors ``a`` if given: the formulas of :meth:`ReducedModel.interface_displacements`."""
+    applied = (lambda F: F) if a is None else (lambda F: F @ a)
     if rm.P is None:
-        u1 = sla.cho_solve(rm.S_cho, Fc[0] + Fc[1] - rm.bodies[1].Kc @ d)
+        u1 = sla.cho_solve(rm.S_cho, applied(Fc[0] + Fc[1]) - rm.bodies[1].Kc @ d)
         return u1, u1 + d
     s, m, P = rm.slave, 1 - rm.slave, rm.P
-    um = sla.cho_solve(rm.S_cho, P.T @ (Fc[s] - rm.sigma * (rm.bodies[s].Kc @ d)) + Fc[m])
+    um = sla.cho_solve(rm.S_cho, P.T @ (applied(Fc[s]) - rm.sigma * (rm.bodies[s].Kc @ d))
+                       + applied(Fc[m]))
     us = P @ um + rm.sigma * d
     return (us, um) if s == 0 else (um, us)
 

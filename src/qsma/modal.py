@@ -523,8 +523,12 @@ def block_shift_invert(solve, M, k, Z=None, gram=None, start=None):
         scale = np.linalg.norm(V[:, :S.shape[1]], axis=0) / np.maximum(
             np.linalg.norm(S, axis=0), np.finfo(float).tiny)
         V[:, :S.shape[1]] += S * scale
-    if Z is not None:
-        V -= Z @ np.linalg.solve(gram, (M @ Z).T @ V)
+    MZ = None if Z is None else M @ Z
+
+    def off_motions(V):                       # the part of V M-orthogonal to Z
+        return V if Z is None else V - Z @ np.linalg.solve(gram, MZ.T @ V)
+
+    V = off_motions(V)
     basis, worst = _Basis.empty(n), np.inf
     for _ in range(EIG_MAX_RESTARTS):
         for _ in range(EIG_MAX_BLOCKS):
@@ -533,9 +537,7 @@ def block_shift_invert(solve, M, k, Z=None, gram=None, start=None):
                 mu, Y, _ = basis.ritz(want)               # whole space when n is small):
                 return 1.0 / mu[:k], basis.Q @ Y[:, :k]   # the Ritz pairs are exact
             if V.shape[1] == 0:              # start in the span of Z: random directions
-                V = rng.standard_normal((n, b))
-                if Z is not None:
-                    V -= Z @ np.linalg.solve(gram, (M @ Z).T @ V)
+                V = off_motions(rng.standard_normal((n, b)))
                 continue
             W = solve(MV)
             basis = basis.extended(V, MV, W, M @ W)

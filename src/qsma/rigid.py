@@ -256,10 +256,7 @@ def elastic_probe(l, model, assembled):
     rigid motions, so that ``l'^T u`` ignores any rigid motion of the assembly (the
     tip deflection of an elastic mode is unchanged: ``R^T M phi = 0``). ``l`` itself
     where a clamp holds the assembly."""
-    off = model.dof_offsets()
-    points = np.vstack([b.mesh.points for b in model.bodies])
-    fixed = np.concatenate([off[k] + held(a) for k, a in enumerate(assembled)])
-    R = free_motions(points, fixed)
+    R = assembly_motions(model, assembled)
     if R.shape[1] == 0:
         return l
     import scipy.sparse as sp

@@ -134,7 +134,7 @@ class _BasketRun:
         self.confirmed = np.zeros(n, int)
         self.ever_moved = np.zeros(n, bool)
         self.d, self._lam = np.array(guess.d, dtype=float).ravel(), None
-        self._threshold_of = None                # (d, threshold) of the current iterate
+        self._threshold_of = None                # threshold of the current iterate
         self.cautious, self.solves, self.quiet = False, 0, 0
         self.seen = {self._key(self.status, self.direction)}
 
@@ -192,15 +192,13 @@ class _BasketRun:
         """Per pair, the violation a check ignores (force units): a fraction of what
         the residual allows, ``CHECK_FRACTION tol max|lam|``, plus the round-off
         allowance of the pair's force (:func:`qsma.contact.residual.roundoff_allowance`)."""
-        cached = self._threshold_of
-        if cached is None or cached[0] is not self.d:     # one per iterate (d is replaced)
-            cached = (self.d, CHECK_FRACTION * self.tol * reaction_scale(self.lam)
-                      + roundoff_allowance(self.problem, self.lam_w, self.d2))
-            self._threshold_of = cached
-        return cached[1]
+        if self._threshold_of is None:            # reset with each new iterate
+            self._threshold_of = (CHECK_FRACTION * self.tol * reaction_scale(self.lam)
+                                  + roundoff_allowance(self.problem, self.lam_w, self.d2))
+        return self._threshold_of
 
     def _set_iterate(self, d):
-        self.d, self._lam = d, None
+        self.d, self._lam, self._threshold_of = d, None, None
 
     def _end_of_pass(self, tr, stalled):
         """Reopen the final baskets and recheck them; accept on the residual."""

@@ -76,19 +76,11 @@ class ContactProblem:
         dim = _check_dim(self.dim)
         K = _check_stiffness(self.K, dim)
         n = K.shape[0] // dim
-        values = {
-            "dim": dim,
-            "K": K,
-            "n_pairs": n,
-            "mu": _check_per_pair("mu", self.mu, n, default=None, nonnegative=True),
-            "gap0": _check_per_pair("gap0", self.gap0, n, default=0.0, nonnegative=False),
-            "kappa": float(np.mean(np.diag(K))),
-            "normal_index": _frozen(np.arange(n) * dim + dim - 1),
-            "tangent_index": _frozen(np.arange(n)[:, None] * dim + np.arange(dim - 1)),
-            "diagonal_blocks": _frozen(_diagonal_blocks(K, dim)),
-        }
-        for name, value in values.items():
-            object.__setattr__(self, name, value)
+        _set_fields(self, K=K, dim=dim,
+                    mu=_check_per_pair("mu", self.mu, n, default=None, nonnegative=True),
+                    gap0=_check_per_pair("gap0", self.gap0, n, default=0.0,
+                                         nonnegative=False),
+                    **_derived_fields(K, dim))
 
     @classmethod
     def derived(cls, K, mu, gap0, dim):
@@ -97,16 +89,10 @@ class ContactProblem:
         symmetrised and nothing else is checked again (the Cholesky test alone costs
         ``n^3/3``)."""
         K = _frozen(0.5 * (K + K.T))
-        n = K.shape[0] // dim
         new = object.__new__(cls)
-        values = {"K": K, "mu": _frozen(np.array(mu, dtype=float)),
-                  "gap0": _frozen(np.array(gap0, dtype=float)), "dim": int(dim), "n_pairs": n,
-                  "kappa": float(np.mean(np.diag(K))),
-                  "normal_index": _frozen(np.arange(n) * dim + dim - 1),
-                  "tangent_index": _frozen(np.arange(n)[:, None] * dim + np.arange(dim - 1)),
-                  "diagonal_blocks": _frozen(_diagonal_blocks(K, dim))}
-        for name, value in values.items():
-            object.__setattr__(new, name, value)
+        _set_fields(new, K=K, mu=_frozen(np.array(mu, dtype=float)),
+                    gap0=_frozen(np.array(gap0, dtype=float)), dim=int(dim),
+                    **_derived_fields(K, int(dim)))
         return new
 
     def abs_product(self, x):
@@ -168,12 +154,10 @@ class ContactProblem:
             cache["K"] = _frozen(self.K / stiffness)
             cache["blocks"] = _frozen(self.diagonal_blocks / stiffness)
         new = object.__new__(ContactProblem)
-        values = {"K": cache["K"], "mu": self.mu, "gap0": _frozen(self.gap0 / length),
-                  "dim": self.dim, "n_pairs": self.n_pairs, "kappa": self.kappa / stiffness,
-                  "normal_index": self.normal_index, "tangent_index": self.tangent_index,
-                  "diagonal_blocks": cache["blocks"]}
-        for name, value in values.items():
-            object.__setattr__(new, name, value)
+        _set_fields(new, K=cache["K"], mu=self.mu, gap0=_frozen(self.gap0 / length),
+                    dim=self.dim, n_pairs=self.n_pairs, kappa=self.kappa / stiffness,
+                    normal_index=self.normal_index, tangent_index=self.tangent_index,
+                    diagonal_blocks=cache["blocks"])
         if self.size >= SINGLE_PRECISION_FROM:
             A, scale = self._abs_single()               # |K / stiffness|, same bits
             new.__dict__["_abs_single_K"] = (A, scale / stiffness)
@@ -263,6 +247,21 @@ def _check_per_pair(name, value, n, default, nonnegative):
         raise InputError(f"{name} must be >= 0: got {array[k]:g} at pair {k}")
     return _frozen(array)
 
+
+
+def _derived_fields(K, dim) -> dict:
+    """The fields of a :class:`ContactProblem` that follow from ``K`` and ``dim``."""
+    n = K.shape[0] // dim
+    return {"n_pairs": n, "kappa": float(np.mean(np.diag(K))),
+            "normal_index": _frozen(np.arange(n) * dim + dim - 1),
+            "tangent_index": _frozen(np.arange(n)[:, None] * dim + np.arange(dim - 1)),
+            "diagonal_blocks": _frozen(_diagonal_blocks(K, dim))}
+
+
+def _set_fields(problem, **values):
+    """Set the fields of a frozen :class:`ContactProblem`."""
+    for name, value in values.items():
+        object.__setattr__(problem, name, value)
 
 def _diagonal_blocks(K, dim):
     n = K.shape[0] // dim

@@ -347,8 +347,8 @@ def zone_from_state(problem, state: ContactState) -> ContactZone:
     Carved out of the last elimination built on ``problem`` (the preload's, or a
     zone grown since) when it contains them; else a new elimination. Every
     elimination of the same problem is exact, so which one is reused changes the
-    cost only. The cached elimination (its Cholesky factor) lives as long as the
-    problem."""
+    cost only. The cached elimination (its Cholesky factor) lives until
+    :func:`release_zones` or as long as the problem."""
     keep = np.asarray(state.status) != OPEN
     outer = problem.__dict__.get("_zone_outer")
     if outer is not None and not np.any(keep & ~outer.keep):

@@ -114,22 +114,23 @@ class CellQuadrature:
     def dim(self):
         return self.coords.shape[2]
 
+    def _mapped(self):
+        """``(cut, J^-1, det J)`` per batch of :data:`BATCH` elements."""
+        for start in range(0, self.n_elements, BATCH):
+            cut = slice(start, min(start + BATCH, self.n_elements))
+            yield (cut, *inverse_and_determinant(jacobians(self.coords[cut],
+                                                           self.geometry_grads)))
+
     def batches(self):
         """``(cut, G, dx)`` per batch of :data:`BATCH` elements: the physical gradients
         ``G[e, q, a, i] = dN_a/dx_i`` and the weights ``dx[e, q] = w_q |det J|``."""
-        for start in range(0, self.n_elements, BATCH):
-            cut = slice(start, min(start + BATCH, self.n_elements))
-            Jinv, det = inverse_and_determinant(jacobians(self.coords[cut],
-                                                          self.geometry_grads))
+        for cut, Jinv, det in self._mapped():
             G = np.einsum("qaj,eqji->eqai", self.grads, Jinv, optimize=True)
             yield cut, G, np.abs(det) * self.weights
 
     def dx(self):
         """``(ne, nq)`` quadrature weights in physical space, ``w_q |det J|``."""
-        return np.concatenate([
-            np.abs(inverse_and_determinant(jacobians(self.coords[s:s + BATCH],
-                                                     self.geometry_grads))[1])
-            * self.weights for s in range(0, self.n_elements, BATCH)])
+        return np.concatenate([np.abs(det) * self.weights for _, _, det in self._mapped()])
 
 
 @per_mesh

@@ -28,8 +28,9 @@ and loads come from scikit-fem's Q1 basis.
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp  # noqa: F401  (return annotation)
 
-from .batched import block_pattern, isotropic_blocks, sum_into_csr
+from .batched import BATCH, block_pattern, isotropic_blocks, sum_into_csr
 from .cache import per_mesh
 from .elements import local_origin
 
@@ -123,15 +124,14 @@ def _cached(mesh, lam, mu):
     X_all = mesh.points - local_origin(mesh.points)
     dim, cells = mesh.dim, mesh.cells
     na = cells.shape[1]
-    chunk = 4096
-    Ke = np.concatenate([element_stiffness(X_all[cells[s:s + chunk]], lam, mu)
-                         for s in range(0, len(cells), chunk)])
+    Ke = np.concatenate([element_stiffness(X_all[cells[s:s + BATCH]], lam, mu)
+                         for s in range(0, len(cells), BATCH)])
     K5 = Ke.reshape(len(cells), na, dim, na, dim)          # node-major element DOFs
     return sum_into_csr(lambda i, k: K5[:, :, i, :, k], block_pattern(cells, mesh.n_nodes),
                         dim)
 
 
-def incompatible_stiffness(mesh, lam, mu) -> "scipy.sparse.csr_matrix":
+def incompatible_stiffness(mesh, lam, mu) -> "sp.csr_matrix":
     """Global condensed stiffness of a quad / hexahedron mesh with incompatible modes,
     in qsma DOF order (``dim * node + component``), on coordinates relative to the
     bounding-box corner (:func:`qsma.fe.elements.local_origin`). Cached per mesh."""

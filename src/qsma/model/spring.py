@@ -108,7 +108,7 @@ def spring_shares(body, spring) -> tuple:
 def spring_matrix(body) -> sp.csr_matrix:
     """The diagonal stiffness ``K_s`` of the body's springs (its DOF order)."""
     diag = np.zeros(body.n_dofs)
-    for s in getattr(body, "springs", ()):
+    for s in body.springs:
         nodes, shares = spring_shares(body, s)
         for c, k in enumerate(s.stiffness):
             np.add.at(diag, body.dim * nodes + c, k * shares)
@@ -118,5 +118,5 @@ def spring_matrix(body) -> sp.csr_matrix:
 def held_dofs(body) -> np.ndarray:
     """The DOFs a spring of ``body`` holds (stiffness > 0), sorted."""
     out = [body.dim * spring_shares(body, s)[0] + c
-           for s in getattr(body, "springs", ()) for c, k in enumerate(s.stiffness) if k > 0]
+           for s in body.springs for c, k in enumerate(s.stiffness) if k > 0]
     return np.unique(np.concatenate(out)) if out else np.zeros(0, dtype=np.int64)

@@ -60,7 +60,7 @@ def write_modes_vtu(model, modes, path):
     modes : :class:`qsma.modal.Modes` (mass-normalised shapes over the stacked DOFs)
     path : output file (the frequencies are in modes.json)
     """
-    import meshio
+    from ..results import vtu_text
     from ..rundir import atomic_path
     dim = model.dim
     points, blocks, offset = [], [], 0
@@ -75,9 +75,9 @@ def write_modes_vtu(model, modes, path):
         u = modes.shapes[:, k].reshape(-1, dim)
         point_data[f"mode_{k:02d}"] = np.column_stack([u, np.zeros(len(u))]) \
             if dim == 2 else u
-    mesh = meshio.Mesh(np.vstack(points), blocks, point_data=point_data)
     with atomic_path(path) as tmp:
-        meshio.write(tmp, mesh, file_format="vtu", binary=True)
+        Path(tmp).write_text(vtu_text(np.vstack(points), blocks, point_data),
+                             encoding="ascii")
     return Path(path)
 
 
