@@ -32,7 +32,7 @@ import numpy as np
 
 from ..errors import InputError
 from .law import augmented_forces, pair_quantities, slip_directions_from_forces
-from .linear import basket_system, solve_partitioned
+from .linear import BlockSystem
 from .registry import Iterate, register_method
 from .residual import residual
 from .state import OPEN, SLIPPING, STUCK
@@ -179,9 +179,8 @@ class _Newton:
         and ``J d - F = -lam_w``; on slipping pairs the rows are those of
         :func:`qsma.contact.linear.slip_rows` with ``s = -h``.
         """
-        R, b, unknown, d_known = basket_system(self.problem, self.lw, sets.status, -sets.h,
-                                               sets.alpha, self.prev, self.c)
-        return solve_partitioned(R, b, unknown, d_known)
+        return BlockSystem(self.problem, self.lw, sets.status, self.prev).solve(
+            -sets.h, sets.alpha, self.c)
 
     def _line_search(self, sets, delta):
         """Backtracking on ``|F|^2`` along ``delta``; the step length or None."""

@@ -43,9 +43,9 @@ import numpy as np
 from ..errors import InputError
 from .law import (basket_transitions, local_states, pair_quantities, row_norm,
                   slip_directions_from_forces)
-from .linear import basket_system, known_displacement, open_rows, slip_rows, solve_partitioned
+from .linear import BlockSystem, known_displacement, open_rows, slip_rows, solve_partitioned
 from .registry import Iterate, register_method
-from .residual import reaction_scale, residual, roundoff_allowance
+from .residual import measures, reaction_scale, roundoff_allowance
 from .state import OPEN, SLIPPING, STUCK
 
 #: Checks ignore violations below this fraction of ``tol * F``, so that
@@ -112,7 +112,8 @@ def run_baskets(problem, lam_w, previous, *, tol, maxiter=None, coupling="joint"
     while run.solves < maxiter:
         verdict = run.iterate()
         if verdict is not None:
-            return Iterate(run.d2, run.lam2, run.solves, verdict[0], verdict[1])
+            converged, message, checked = verdict
+            return Iterate(run.d2, run.lam2, run.solves, converged, message, measures=checked)
     return Iterate(run.d2, run.lam2, run.solves, False,
                    f"no convergence in maxiter={maxiter} block steps ({run.summary()})")
 
@@ -133,8 +134,10 @@ class _BasketRun:
         self.final = np.zeros(n, bool)
         self.confirmed = np.zeros(n, int)
         self.ever_moved = np.zeros(n, bool)
-        self.d, self._lam = np.array(guess.d, dtype=float).ravel(), None
+        self.d = np.array(guess.d, dtype=float).ravel()
+        self._lam = self._Kd = self._abs_Kd = None   # of the current iterate
         self._threshold_of = None                # threshold of the current iterate
+        self._system = None                      # BlockSystem of the current baskets
         self.cautious, self.solves, self.quiet = False, 0, 0
         self.seen = {self._key(self.status, self.direction)}
 
@@ -145,8 +148,17 @@ class _BasketRun:
     @property
     def lam(self):
         if self._lam is None:
-            self._lam = self.problem.K @ self.d + self.lw
+            self._Kd = self.problem.K @ self.d
+            self._lam = self._Kd + self.lw
         return self._lam
+
+    def _products(self):
+        """``(K d, |K| |d|)`` of the current iterate, each formed once (the threshold of
+        the checks and the residual of the end of a pass share them)."""
+        if self._abs_Kd is None:
+            self._abs_Kd = self.problem.abs_product(self.d)
+        self.lam                                   # sets self._Kd
+        return self._Kd, self._abs_Kd
 
     @property
     def lam2(self):
@@ -158,7 +170,8 @@ class _BasketRun:
                 f"{', cycling detected' if self.cautious else ''}")
 
     def iterate(self):
-        """Block step(s) and state check; ``(converged, message)`` when done."""
+        """Block step(s) and state check; ``(converged, message, measures or None)`` when
+        done (the measures of the final iterate, see :class:`Iterate`)."""
         try:
             d_new = self._block_step()
             change = self._relative_change(d_new) if self.coupling == "gauss_seidel" else 0.0
@@ -167,7 +180,7 @@ class _BasketRun:
             if self.problem.dim == 3 and self.coupling == "joint":
                 change, unsettled = self._settle_directions()
         except np.linalg.LinAlgError:
-            return False, f"singular block system ({self.summary()})"
+            return False, f"singular block system ({self.summary()})", None
         q = pair_quantities(self.problem, self.d2, self.lam2, self.prev)
         threshold = self._threshold()
         tr = basket_transitions(
@@ -194,11 +207,12 @@ class _BasketRun:
         allowance of the pair's force (:func:`qsma.contact.residual.roundoff_allowance`)."""
         if self._threshold_of is None:            # reset with each new iterate
             self._threshold_of = (CHECK_FRACTION * self.tol * reaction_scale(self.lam)
-                                  + roundoff_allowance(self.problem, self.lam_w, self.d2))
+                                  + roundoff_allowance(self.problem, self.lam_w, self.d2,
+                                                       self._products()[1]))
         return self._threshold_of
 
     def _set_iterate(self, d):
-        self.d, self._lam, self._threshold_of = d, None, None
+        self.d, self._lam, self._Kd, self._abs_Kd, self._threshold_of = d, None, None, None, None
 
     def _end_of_pass(self, tr, stalled):
         """Reopen the final baskets and recheck them; accept on the residual."""
@@ -207,11 +221,14 @@ class _BasketRun:
             self.confirmed[:] = 0
             if self._move(tr, temporary=np.ones_like(self.final)):
                 return None
-        r = residual(self.problem, self.lam_w, self.d2, self.lam2, self.previous)
+        checked = measures(self.problem, self.lam_w, self.d2, self.lam2, self.previous,
+                           self._products())
+        r = checked[0]
         if r <= self.tol:
-            return True, f"converged: no pair changed basket ({self.summary()})"
+            return True, f"converged: no pair changed basket ({self.summary()})", checked
         if stalled:
-            return False, f"baskets settled but residual {r:.3e} > tol ({self.summary()})"
+            return (False, f"baskets settled but residual {r:.3e} > tol ({self.summary()})",
+                    checked)
         return None
 
     # -- baskets -------------------------------------------------------------
@@ -291,10 +308,9 @@ class _BasketRun:
     def _block_step(self):
         self.solves += 1
         if self.coupling == "joint":
-            R, b, unknown, d_known = basket_system(self.problem, self.lw, self.status,
-                                                   self.direction, self.alpha, self.prev,
-                                                   self.problem.kappa)
-            return solve_partitioned(R, b, unknown, d_known)
+            if self._system is None or not np.array_equal(self._system.status, self.status):
+                self._system = BlockSystem(self.problem, self.lw, self.status, self.prev)
+            return self._system.solve(self.direction, self.alpha, self.problem.kappa)
         return self._gauss_seidel_step()
 
     def _gauss_seidel_step(self):

@@ -77,19 +77,87 @@ def slip_rows(problem, lam_w, pairs, direction, alpha, t_prev, c):
     """
     K, m = problem.K, problem.dim - 1
     T, N = problem.tangent_index[pairs], problem.normal_index[pairs]
-    ms = problem.mu[pairs, None] * direction
-    if m == 1:                                   # 2D: plain rows Q + mu s P = 0
-        return (K[T[:, 0]] + ms * K[N],
-                -(lam_w[T[:, 0]] + ms[:, 0] * lam_w[N]))
-    rows = K[T] + ms[:, :, None] * K[N][:, None, :]
-    rhs = -(lam_w[T] + ms * lam_w[N][:, None])
+    rows, rhs = _slip_law_rows(K[T], K[N], lam_w[T], lam_w[N], problem.mu[pairs], direction,
+                               alpha, t_prev, c, T)
+    return rows.reshape(-1, K.shape[1]), rhs.ravel()
+
+
+def _slip_law_rows(K_t, K_n, f_t, f_n, mu, direction, alpha, t_prev, c, at):
+    r"""The rows of :func:`slip_rows` on any set of columns.
+
+    ``K_t`` (k, m, n) and ``K_n`` (k, n) are the tangential and normal rows of the
+    slipping pairs on those columns, ``f_t`` (k, m) and ``f_n`` (k,) the force at zero
+    displacement of those columns (``lam_w``, plus ``K d`` of the components held
+    elsewhere), ``at`` (k, m) the columns of the pairs' own tangential components.
+    Returns ``(rows (k, m, n), rhs (k, m))`` of
+    ``(I - alpha Pi)(K_t x + f_t) + mu s (K_n x + f_n) + alpha c Pi (x_t - t_prev) = 0``.
+    """
+    m = K_t.shape[1]
+    ms = mu[:, None] * direction
+    rows = K_t + ms[:, :, None] * K_n[:, None, :]
+    rhs = -(f_t + ms * f_n[:, None])
     if m > 1 and np.any(alpha):
         Pi = alpha[:, None, None] * (np.eye(m) - direction[:, :, None] * direction[:, None, :])
-        rows -= np.einsum("kij,kjc->kic", Pi, K[T])
-        rhs += np.einsum("kij,kj->ki", Pi, lam_w[T] + c * t_prev)
-        k = np.arange(len(pairs))[:, None, None]
-        rows[k, np.arange(m)[None, :, None], T[:, None, :]] += c * Pi
-    return rows.reshape(-1, K.shape[1]), rhs.ravel()
+        rows -= np.einsum("kij,kjc->kic", Pi, K_t)
+        rhs += np.einsum("kij,kj->ki", Pi, f_t + c * t_prev)
+        k = np.arange(len(mu))[:, None, None]
+        rows[k, np.arange(m)[None, :, None], at[:, None, :]] += c * Pi
+    return rows, rhs
+
+
+class BlockSystem:
+    """The block step of one set of pair states, reduced to its unknowns.
+
+    With the states fixed, the known components ``D`` (:func:`known_displacement`)
+    enter as a force: ``f = lam_w + K d_known`` on the rows of the open and the
+    slipping pairs. Built once per set of states (the rows ``K[R, U]`` and ``f``), it
+    then gives the step of any slip directions with products of the size of the
+    unknowns only, the system of :func:`basket_system` restricted to its columns ``U``:
+
+    .. math:: K_{OU} x = -f_O, \qquad
+              (I - \alpha \Pi)(K_{TU} x + f_T) + \mu s (K_{NU} x + f_N)
+              + \alpha c \Pi (x_T - t_{prev}) = 0 .
+
+    Parameters
+    ----------
+    problem : ContactProblem
+    lam_w : (N,)
+    status : (n_pairs,) int
+    d_prev : (n_pairs, dim)
+    """
+
+    def __init__(self, problem, lam_w, status, d_prev):
+        dim, m = problem.dim, problem.dim - 1
+        self.status = np.array(status)
+        self.open = np.flatnonzero(self.status == OPEN)
+        self.slip = np.flatnonzero(self.status == SLIPPING)
+        self.unknown = free_components(problem, self.open, self.slip)
+        self.d_known = known_displacement(problem, self.status, d_prev)
+        n_o, k = len(self.open) * dim, len(self.slip)
+        rows = np.concatenate([self.unknown[:n_o], problem.tangent_index[self.slip].ravel(),
+                               problem.normal_index[self.slip]])
+        K_RU = problem.K[np.ix_(rows, self.unknown)]
+        f = (problem.K[rows] @ self.d_known if self.d_known.any() else 0.0) + lam_w[rows]
+        self.K_open, self.f_open = K_RU[:n_o], f[:n_o]
+        self.K_t = K_RU[n_o:n_o + k * m].reshape(k, m, len(self.unknown))
+        self.K_n = K_RU[n_o + k * m:]
+        self.f_t, self.f_n = f[n_o:n_o + k * m].reshape(k, m), f[n_o + k * m:]
+        self.at = (n_o + np.arange(k * m)).reshape(k, m)   # own tangential columns in U
+        self.mu, self.t_prev = problem.mu[self.slip], d_prev[self.slip, :-1]
+
+    def solve(self, direction, alpha, c):
+        """The displacement ``(N,)`` of the step with slip directions ``direction`` and
+        ``alpha`` (both over all pairs, read at the slipping ones; see :func:`slip_rows`).
+        Raises ``numpy.linalg.LinAlgError`` if the block is singular."""
+        d = self.d_known.copy()
+        if self.unknown.size == 0:
+            return d
+        rows, rhs = _slip_law_rows(self.K_t, self.K_n, self.f_t, self.f_n, self.mu,
+                                   direction[self.slip], alpha[self.slip], self.t_prev, c,
+                                   self.at)
+        A = np.concatenate([self.K_open, rows.reshape(-1, self.unknown.size)])
+        d[self.unknown] = np.linalg.solve(A, np.concatenate([-self.f_open, rhs.ravel()]))
+        return d
 
 
 def basket_system(problem, lam_w, status, direction, alpha, d_prev, c):

@@ -37,7 +37,10 @@ class Iterate(NamedTuple):
     ``d``, ``lam`` (n_pairs, dim) the last iterate, ``nit`` iterations,
     ``converged`` whether the method's own stopping test (the residual)
     passed, ``message`` a sentence for the user, ``numerical_error`` set by
-    :func:`solve` when the method raised.
+    :func:`solve` when the method raised, ``measures`` the
+    ``(residual, force_residual, legacy_residual)`` of this very iterate if the
+    method evaluated them (:func:`qsma.contact.residual.measures`, on the problem and
+    load it was given), so that :func:`solve` does not evaluate them again.
     """
 
     d: np.ndarray
@@ -46,6 +49,7 @@ class Iterate(NamedTuple):
     converged: bool
     message: str
     numerical_error: bool = False
+    measures: tuple | None = None
 
 
 def register_method(name):
@@ -145,7 +149,7 @@ def _run_chain(scaled, method, fn, tol, maxiter, fallback, options, start=None):
     out = _guarded(fn, scaled, start, tol, maxiter, options)
     rescue = FALLBACKS.get(method)
     left = None if maxiter is None else maxiter - out.nit
-    measures = _measures(scaled, out) if out.converged else None
+    measures = (out.measures or _measures(scaled, out)) if out.converged else None
     accepted = measures is not None and measures[0] <= tol and measures[1] <= FORCE_TOL
     if accepted or not fallback or rescue is None or left == 0:
         return out, None, measures
@@ -153,7 +157,7 @@ def _run_chain(scaled, method, fn, tol, maxiter, fallback, options, start=None):
     second = _guarded(METHODS[rescue], scaled, guess, tol, left, {})
     merged = second._replace(nit=out.nit + second.nit,
                              message=f"{out.message}; fell back to {rescue}: {second.message}")
-    return merged, rescue, None
+    return merged, rescue, merged.measures
 
 
 def checked_guess(guess, problem):

@@ -93,19 +93,21 @@ def reaction_scale(lam):
     return float(max(np.abs(lam).max(initial=0.0), TINY_FORCE))
 
 
-def roundoff_allowance(problem, lam_w, d):
+def roundoff_allowance(problem, lam_w, d, abs_Kd=None):
     """Per pair ``a_i = ROUNDOFF sqrt(N) eps max_{j in i} (|K| |d| + |lam_w|)_j``.
 
     ``lam_i = K_i d + lam_w,i`` cannot be computed (nor satisfied by a linear
     solve) closer than a few ``eps`` times the size of its terms.
+    ``abs_Kd``, optional: ``|K| |d|`` if the caller holds it already.
     """
-    terms = _terms(problem, lam_w, d)
-    return ROUNDOFF * np.sqrt(problem.size) * EPS * terms.reshape(problem.n_pairs, -1).max(axis=1)
-
-
-def _terms(problem, lam_w, d):
     with np.errstate(over="ignore"):
-        return problem.abs_product(d) + np.abs(lam_w.ravel())
+        size = problem.abs_product(d) if abs_Kd is None else abs_Kd
+        return _allowance(problem, size + np.abs(lam_w.ravel()))
+
+
+def _allowance(problem, terms):
+    """``a_i`` from the sizes ``e`` of the terms of every equation (flat)."""
+    return ROUNDOFF * np.sqrt(problem.size) * EPS * terms.reshape(problem.n_pairs, -1).max(axis=1)
 
 
 def products(problem, d):
@@ -167,7 +169,7 @@ def _components(problem, lam_w, d, lam, d_prev, Kd_aKd):
         terms = aKd + np.abs(lam_w.ravel())
         miss = np.abs(lam.ravel() - Kd - lam_w.ravel())
         eq = _max_ratio(miss, terms)
-        a = ROUNDOFF * np.sqrt(problem.size) * EPS * terms.reshape(problem.n_pairs, -1).max(1)
+        a = _allowance(problem, terms)
         r_n, r_t = natural_map(pair_quantities(problem, d, lam, d_prev), problem.mu, c)
         F = reaction_scale(lam)
         normal = np.maximum(r_n - a, 0.0) / F
@@ -240,13 +242,18 @@ def _force_and_legacy(problem, lam_w, d, lam, d_prev, Kd, aKd):
     return as_float(force), as_float(legacy)
 
 
-def measures(problem, lam_w, d, lam, previous_state=None):
+def measures(problem, lam_w, d, lam, previous_state=None, known_products=None):
     """``(residual, force_residual, legacy_residual)`` of ``(d, lam)`` from one pass
     over ``K`` (:func:`products`): the three numbers a solve reports, each equal to its
-    function's value."""
+    function's value.
+
+    ``known_products``, optional: ``(K d, |K| |d|)`` of this ``d`` already computed by
+    the caller with :func:`products` or the same two products (a method that holds them
+    for its iterate), so that they are not formed twice.
+    """
     lam_w, d, lam = (np.asarray(a, dtype=float) for a in (lam_w, d, lam))
     d_prev = _previous_displacement(problem, previous_state)
-    Kd_aKd = products(problem, d)
+    Kd_aKd = products(problem, d) if known_products is None else known_products
     r = _components(problem, lam_w, d, lam, d_prev, Kd_aKd).total
     return (r, *_force_and_legacy(problem, lam_w, d, lam, d_prev, *Kd_aKd))
 
