@@ -148,7 +148,7 @@ class _BasketRun:
     @property
     def lam(self):
         if self._lam is None:
-            self._Kd = self.problem.K @ self.d
+            self._Kd = self.problem.product(self.d)
             self._lam = self._Kd + self.lw
         return self._lam
 
@@ -346,7 +346,7 @@ class _BasketRun:
         """
         slip = self.status == SLIPPING
         d2 = d.reshape(-1, self.problem.dim)
-        lam2 = (self.problem.K @ d + self.lw if lam is None else lam).reshape(d2.shape)
+        lam2 = (self.problem.product(d) + self.lw if lam is None else lam).reshape(d2.shape)
         q = pair_quantities(self.problem, d2, lam2, self.prev)
         sigma = q.Q[slip] - self.problem.kappa * q.dv[slip]
         norm = np.maximum(row_norm(sigma), np.finfo(float).tiny)
@@ -392,7 +392,7 @@ class _BasketRun:
         return change, None
 
     def _line_search(self, delta, misfit0):
-        t, K_delta = 1.0, self.problem.K @ delta
+        t, K_delta = 1.0, self.problem.product(delta)
         while t >= MIN_STEP:
             trial = self._slip_law(self.d + t * delta, self.lam + t * K_delta)[2].sum()
             if trial <= (1.0 - 2.0 * ARMIJO * t) * misfit0:

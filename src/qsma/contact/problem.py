@@ -4,6 +4,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.linalg import blas as sla_blas
 
 from ..errors import InputError
 
@@ -95,6 +96,16 @@ class ContactProblem:
                     **_derived_fields(K, int(dim)))
         return new
 
+    def product(self, x):
+        r"""``K x`` for a vector ``x`` (N,), reading one triangle of the symmetric ``K``.
+
+        ``K`` is stored exactly symmetric, so the symmetric matrix-vector product of
+        BLAS (``dsymv``) gives ``K x`` up to round-off while reading half the matrix:
+        the products of a solve are limited by memory traffic (measured 0.6 ms against
+        1.35 ms for ``K @ x`` at N = 1683, 16 against 33 ms at N = 6435).
+        """
+        return _symmetric_product(self.K, np.asarray(x, dtype=float).ravel())
+
     def abs_product(self, x):
         r"""``|K| |x|``, the size of the terms of ``K x`` (the residual's scale).
 
@@ -106,7 +117,7 @@ class ContactProblem:
         """
         ax = np.abs(np.asarray(x, dtype=float).ravel())
         if self.size < SINGLE_PRECISION_FROM:
-            return self.abs_K @ ax
+            return _symmetric_product(self.abs_K, ax)
         top = ax.max(initial=0.0)
         if not np.isfinite(top):
             return np.abs(self.K) @ ax                # NaN/Inf as the exact product has them
@@ -115,7 +126,7 @@ class ContactProblem:
         A, scale = self._abs_single()
         s = _power_of_two(top)
         with np.errstate(under="ignore"):
-            y = A @ (ax / s).astype(np.float32)
+            y = _symmetric_product(A, (ax / s).astype(np.float32))
         return y.astype(float) * (scale * s)
 
     def _abs_single(self):
@@ -177,6 +188,14 @@ class ContactProblem:
         mu_text = f"{mu[0]:g}" if mu.size == 1 else f"[{mu.min():g}..{mu.max():g}]"
         return (f"ContactProblem(n_pairs={self.n_pairs}, dim={self.dim}, mu={mu_text}, "
                 f"kappa={self.kappa:.4g}, max_gap0={np.max(np.abs(self.gap0)):.3g})")
+
+
+def _symmetric_product(A, x):
+    """``A x`` for an exactly symmetric C-ordered ``A`` (float64 or float32) and a vector
+    ``x`` of its type: BLAS ``symv`` on ``A.T``, the same matrix in Fortran order (no
+    copy), reading one triangle."""
+    symv = sla_blas.ssymv if A.dtype == np.float32 else sla_blas.dsymv
+    return symv(1.0, A.T, x)
 
 
 def _power_of_two(x):

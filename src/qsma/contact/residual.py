@@ -121,7 +121,7 @@ def products(problem, d):
     """
     x = np.asarray(d, dtype=float).ravel()
     with np.errstate(over="ignore", invalid="ignore"):
-        return problem.K @ x, problem.abs_product(x)
+        return problem.product(x), problem.abs_product(x)
 
 
 def residual_components(problem, lam_w, d, lam, previous_state=None):
@@ -222,7 +222,7 @@ def force_residual(problem, lam_w, d, lam, previous_state=None):
     lam_w, d, lam = (np.asarray(a, dtype=float) for a in (lam_w, d, lam))
     d_prev = _previous_displacement(problem, previous_state)
     with np.errstate(over="ignore", invalid="ignore"):
-        Kd = problem.K @ d.ravel()
+        Kd = problem.product(d)
     return _force_and_legacy(problem, lam_w, d, lam, d_prev, Kd, None)[0]
 
 
