@@ -106,7 +106,7 @@ def _slip_law_rows(K_t, K_n, f_t, f_n, mu, direction, alpha, t_prev, c, at):
 
 
 class BlockSystem:
-    """The block step of one set of pair states, reduced to its unknowns.
+    r"""The block step of one set of pair states, reduced to its unknowns.
 
     With the states fixed, the known components ``D`` (:func:`known_displacement`)
     enter as a force: ``f = lam_w + K d_known`` on the rows of the open and the
