@@ -344,15 +344,16 @@ class _BasketRun:
         ``|Q + mu P s|^2`` (the rows of the block step, linear in ``P``: no
         clipping of ``P``).
         """
-        slip = self.status == SLIPPING
-        d2 = d.reshape(-1, self.problem.dim)
-        lam2 = (self.problem.product(d) + self.lw if lam is None else lam).reshape(d2.shape)
-        q = pair_quantities(self.problem, d2, lam2, self.prev)
-        sigma = q.Q[slip] - self.problem.kappa * q.dv[slip]
+        slip = np.flatnonzero(self.status == SLIPPING)
+        dim = self.problem.dim
+        lam = self.problem.product(d) + self.lw if lam is None else lam
+        lam2, d2 = lam.reshape(-1, dim)[slip], d.reshape(-1, dim)[slip]
+        Q = lam2[:, :-1]
+        sigma = Q - self.problem.kappa * (d2[:, :-1] - self.prev[slip, :-1])
         norm = np.maximum(row_norm(sigma), np.finfo(float).tiny)
         s = -sigma / norm[:, None]
-        mu_p = self.problem.mu[slip] * q.P[slip]
-        misfit = np.sum((q.Q[slip] + mu_p[:, None] * s) ** 2, axis=1)
+        mu_p = self.problem.mu[slip] * lam2[:, -1]
+        misfit = np.sum((Q + mu_p[:, None] * s) ** 2, axis=1)
         return s, np.clip(mu_p / norm, 0.0, 1.0), misfit
 
     def _settle_directions(self):
