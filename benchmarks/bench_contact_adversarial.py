@@ -5,6 +5,7 @@ Usage: python benchmarks/bench_contact_adversarial.py [--problems 200] [--seed 0
                                                       [--levels 4] [--nodal-max-pairs 30]
                                                       [--methods basket active_set ...]
                                                       [--seconds S] [--start 0]
+                                                      [--list-failures]
 
 Problem ``k`` of seed ``s`` is drawn from its own generator ``default_rng([s, k])``
 (so a problem can be re-run alone, and tiers of sizes run in separate processes).
@@ -128,6 +129,9 @@ def main():
     ap.add_argument("--methods", nargs="*", default=None, help="default: every method")
     ap.add_argument("--levels", type=int, default=4)
     ap.add_argument("--nodal-max-pairs", type=int, default=30)
+    ap.add_argument("--list-failures", action="store_true",
+                    help="print each failed level (problem, method, level, cond, mu), e.g. "
+                         "to compare two versions problem by problem")
     ap.add_argument("--seconds", type=float, default=None,
                     help="stop drawing new problems after this many seconds (or on SIGTERM)")
     args = ap.parse_args()
@@ -179,6 +183,10 @@ def main():
                     state = r.state
                 else:
                     s["failed"] += 1
+                    if args.list_failures:
+                        print(f"FAILED problem {k} {method}: level {s['levels']} "
+                              f"n={problem.n_pairs} dim={problem.dim} cond={cond:.1e} "
+                              f"mu={problem.mu[0]:.2f}: {r.message[:80]}")
                     decade = int(np.log10(cond))
                     by_cond[method][decade] = by_cond[method].get(decade, 0) + 1
                     break                        # a ramp stops at its first failure

@@ -68,6 +68,7 @@ def test_symmetric_products_equal_the_plain_ones(n):
     size = np.abs(problem.K) @ np.abs(x)
     rtol = problem.size * 2.0 ** -24 if problem.size >= 1000 else problem.size * 2.0 ** -52
     np.testing.assert_allclose(problem.abs_product(x), size, rtol=rtol)
+    np.testing.assert_allclose(problem.abs_product(x, symmetric=True), size, rtol=rtol)
 
 
 def test_measures_with_known_products_equal_the_measures():
@@ -82,4 +83,6 @@ def test_measures_with_known_products_equal_the_measures():
     known = measures(problem, lam_w, r.d, r.lam, previous, products(problem, r.d))
     assert fresh == known
     assert fresh[0] == residual_components(problem, lam_w, r.d, r.lam, previous).total
-    assert fresh[0] == r.residual
+    plain = (problem.K @ r.d.ravel(), problem.abs_product(r.d))   # the basket's own
+    assert r.residual == measures(problem, lam_w, r.d, r.lam, previous, plain)[0]
+    assert abs(r.residual - fresh[0]) <= 1e-12                      # round-off of K d

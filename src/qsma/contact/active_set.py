@@ -32,7 +32,7 @@ import numpy as np
 
 from ..errors import InputError
 from .law import augmented_forces, pair_quantities, slip_directions_from_forces
-from .linear import BlockSystem
+from .linear import basket_system, solve_partitioned
 from .registry import Iterate, register_method
 from .residual import residual
 from .state import OPEN, SLIPPING, STUCK
@@ -110,7 +110,7 @@ class _Newton:
         self.problem, self.lw, self.prev, self.c = problem, lam_w.ravel(), previous.d, c
         start = previous if guess is None else guess
         self.d = np.array(start.d, dtype=float).ravel()
-        self.lam = problem.product(self.d) + self.lw
+        self.lam = problem.K @ self.d + self.lw
         self.seen, self.damped, self.failure = set(), False, None
         self.best, self.stall = np.inf, 0
         self.first = _previous_sets(previous) if guess is None else None
@@ -154,7 +154,7 @@ class _Newton:
             self.failure = "line search found no decrease of |F|"
             return False
         self.d = self.d + t * (target - self.d)
-        self.lam = self.problem.product(self.d) + self.lw
+        self.lam = self.problem.K @ self.d + self.lw
         return True
 
     def _watch_cycle(self, sets):
@@ -179,13 +179,14 @@ class _Newton:
         and ``J d - F = -lam_w``; on slipping pairs the rows are those of
         :func:`qsma.contact.linear.slip_rows` with ``s = -h``.
         """
-        return BlockSystem(self.problem, self.lw, sets.status, self.prev).solve(
-            -sets.h, sets.alpha, self.c)
+        R, b, unknown, d_known = basket_system(self.problem, self.lw, sets.status, -sets.h,
+                                               sets.alpha, self.prev, self.c)
+        return solve_partitioned(R, b, unknown, d_known)
 
     def _line_search(self, sets, delta):
         """Backtracking on ``|F|^2`` along ``delta``; the step length or None."""
         merit0 = np.sum(sets.F ** 2)
-        K_delta, t = self.problem.product(delta), 1.0
+        K_delta, t = self.problem.K @ delta, 1.0
         while t >= MIN_STEP:
             F = self.sets(self.d + t * delta, self.lam + t * K_delta).F
             if np.sum(F ** 2) <= (1.0 - 2.0 * ARMIJO * t) * merit0:

@@ -101,12 +101,14 @@ class ContactProblem:
 
         ``K`` is stored exactly symmetric, so the symmetric matrix-vector product of
         BLAS (``dsymv``) gives ``K x`` up to round-off while reading half the matrix:
-        the products of a solve are limited by memory traffic (measured 0.6 ms against
-        1.35 ms for ``K @ x`` at N = 1683, 16 against 33 ms at N = 6435).
+        the checks of a solve are limited by memory traffic (measured 0.6 ms against
+        1.35 ms for ``K @ x`` at N = 1683, 16 against 33 ms at N = 6435). Used by the
+        measures (:mod:`qsma.contact.residual`); the methods iterate with ``K @ x``,
+        whose summation order their recorded paths were measured with.
         """
         return _symmetric_product(self.K, np.asarray(x, dtype=float).ravel())
 
-    def abs_product(self, x):
+    def abs_product(self, x, symmetric=False):
         r"""``|K| |x|``, the size of the terms of ``K x`` (the residual's scale).
 
         From :data:`SINGLE_PRECISION_FROM` unknowns on it is evaluated in single
@@ -114,10 +116,13 @@ class ContactProblem:
         underflow of what matters): half the memory traffic and storage of a second
         dense product. All terms are positive, so the relative error is at most
         ``N 2^-24`` (``~ sqrt(N) 2^-24`` in practice), which a scale tolerates.
+        ``symmetric=True``: one triangle read (BLAS ``symv``, see :meth:`product`),
+        what the measures use; the methods' check thresholds keep the plain product.
         """
         ax = np.abs(np.asarray(x, dtype=float).ravel())
+        times = _symmetric_product if symmetric else np.matmul
         if self.size < SINGLE_PRECISION_FROM:
-            return _symmetric_product(self.abs_K, ax)
+            return times(self.abs_K, ax)
         top = ax.max(initial=0.0)
         if not np.isfinite(top):
             return np.abs(self.K) @ ax                # NaN/Inf as the exact product has them
@@ -126,7 +131,7 @@ class ContactProblem:
         A, scale = self._abs_single()
         s = _power_of_two(top)
         with np.errstate(under="ignore"):
-            y = _symmetric_product(A, (ax / s).astype(np.float32))
+            y = times(A, (ax / s).astype(np.float32))
         return y.astype(float) * (scale * s)
 
     def _abs_single(self):
