@@ -148,7 +148,7 @@ class _BasketRun:
     @property
     def lam(self):
         if self._lam is None:
-            self._Kd = self.problem.K @ self.d
+            self._Kd = self.problem.product(self.d)
             self._lam = self._Kd + self.lw
         return self._lam
 
@@ -156,7 +156,7 @@ class _BasketRun:
         """``(K d, |K| |d|)`` of the current iterate, each formed once (the threshold of
         the checks and the residual of the end of a pass share them)."""
         if self._abs_Kd is None:
-            self._abs_Kd = self.problem.abs_product(self.d)
+            self._abs_Kd = self.problem.abs_product(self.d, symmetric=True)
         self.lam                                   # sets self._Kd
         return self._Kd, self._abs_Kd
 
@@ -346,7 +346,7 @@ class _BasketRun:
         """
         slip = np.flatnonzero(self.status == SLIPPING)
         dim = self.problem.dim
-        lam = self.problem.K @ d + self.lw if lam is None else lam
+        lam = self.problem.product(d) + self.lw if lam is None else lam
         lam2, d2 = lam.reshape(-1, dim)[slip], d.reshape(-1, dim)[slip]
         Q = lam2[:, :-1]
         sigma = Q - self.problem.kappa * (d2[:, :-1] - self.prev[slip, :-1])
@@ -393,7 +393,7 @@ class _BasketRun:
         return change, None
 
     def _line_search(self, delta, misfit0):
-        t, K_delta = 1.0, self.problem.K @ delta
+        t, K_delta = 1.0, self.problem.product(delta)
         while t >= MIN_STEP:
             trial = self._slip_law(self.d + t * delta, self.lam + t * K_delta)[2].sum()
             if trial <= (1.0 - 2.0 * ARMIJO * t) * misfit0:

@@ -103,8 +103,8 @@ class ContactProblem:
         BLAS (``dsymv``) gives ``K x`` up to round-off while reading half the matrix:
         the checks of a solve are limited by memory traffic (measured 0.6 ms against
         1.35 ms for ``K @ x`` at N = 1683, 16 against 33 ms at N = 6435). Used by the
-        measures (:mod:`qsma.contact.residual`); the methods iterate with ``K @ x``,
-        whose summation order their recorded paths were measured with.
+        measures (:mod:`qsma.contact.residual`) and the basket; ``active_set`` and
+        ``nodal_gs`` iterate with ``K @ x``.
         """
         return _symmetric_product(self.K, np.asarray(x, dtype=float).ravel())
 
@@ -117,7 +117,7 @@ class ContactProblem:
         dense product. All terms are positive, so the relative error is at most
         ``N 2^-24`` (``~ sqrt(N) 2^-24`` in practice), which a scale tolerates.
         ``symmetric=True``: one triangle read (BLAS ``symv``, see :meth:`product`),
-        what the measures use; the methods' check thresholds keep the plain product.
+        what the measures and the basket use; the default is the plain product.
         """
         ax = np.abs(np.asarray(x, dtype=float).ravel())
         times = _symmetric_product if symmetric else np.matmul
