@@ -94,7 +94,8 @@ def _slip_law_rows(K_t, K_n, f_t, f_n, mu, direction, alpha, t_prev, c, at):
     """
     m = K_t.shape[1]
     ms = mu[:, None] * direction
-    rows = K_t + ms[:, :, None] * K_n[:, None, :]
+    rows = ms[:, :, None] * K_n[:, None, :]
+    rows += K_t                                  # = K_t + ms K_n, one array fewer
     rhs = -(f_t + ms * f_n[:, None])
     if m > 1 and np.any(alpha):
         Pi = alpha[:, None, None] * (np.eye(m) - direction[:, :, None] * direction[:, None, :])
@@ -155,7 +156,9 @@ class BlockSystem:
         rows, rhs = _slip_law_rows(self.K_t, self.K_n, self.f_t, self.f_n, self.mu,
                                    direction[self.slip], alpha[self.slip], self.t_prev, c,
                                    self.at)
-        A = np.concatenate([self.K_open, rows.reshape(-1, self.unknown.size)])
+        A = rows.reshape(-1, self.unknown.size)
+        if len(self.K_open):
+            A = np.concatenate([self.K_open, A])
         d[self.unknown] = np.linalg.solve(A, np.concatenate([-self.f_open, rhs.ravel()]))
         return d
 
