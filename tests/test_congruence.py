@@ -314,3 +314,27 @@ def test_sweep_ships_the_shared_factor_once():
     assert isinstance(b2.solve_EE, MappedSolver) and b2.solve_EE.base is b1.solve_EE
     x = np.random.default_rng(6).standard_normal(b2.solve_EE.n)
     assert _rel(b2.solve_EE(x), prep.reduced.bodies[1].solve_EE(x)) < 1e-11
+
+
+def test_several_interfaces_share_the_factor_of_congruent_plates():
+    """stack-2d: the top plate is the bottom one mirrored (the middle one differs);
+    the stacked reduced model equals the one of three separate condensations."""
+    import qsma.congruence as congruence
+    from qsma.examples import stack_2d
+    from qsma.multibody import multi_pairing, reduce_model
+    model = stack_2d(1)
+    pairing = multi_pairing(model)
+    asm = [assemble_body(b) for b in model.bodies]
+    shared = reduce_model(model, asm, pairing)
+    saved = congruence.find_congruence
+    congruence.find_congruence = lambda *args: None
+    try:
+        separate = reduce_model(model, asm, pairing)
+    finally:
+        congruence.find_congruence = saved
+    kinds = [type(b.solve_EE).__name__ for b in shared.bodies]
+    assert kinds == ["EESolver", "EESolver", "MappedSolver"]
+    assert shared.bodies[2].solve_EE.base is shared.bodies[0].solve_EE
+    assert _rel(shared.bodies[2].Kc, separate.bodies[2].Kc) < 1e-12
+    assert _rel(shared.K, separate.K) < 1e-11
+    assert _rel(shared.W, separate.W) < 1e-9
