@@ -16,7 +16,8 @@ import pytest
 
 from qsma.analysis import prepare
 from qsma.condense import condense_body, congruent_body, reduce_two_bodies, tied_solver
-from qsma.congruence import MappedSolver, find_congruence, solved_together
+from qsma.congruence import (CongruentMatrix, MappedSolver, find_congruence,
+                             solved_together)
 from qsma.errors import InputError
 from qsma.examples import lap_2d, sandwich_2d
 from qsma.fe import assemble_body
@@ -234,6 +235,21 @@ def test_the_shared_factor_is_one_object(sandwich):
     b1, b2 = shared.bodies
     assert isinstance(b2.solve_EE, MappedSolver) and b2.solve_EE.base is b1.solve_EE
     assert not isinstance(separate.bodies[1].solve_EE, MappedSolver)
+
+
+def test_the_congruent_Kc_is_held_implicitly_and_acts_as_the_dense_one(sandwich):
+    """Body 2's Kc is body 1's seen through the sparse G: no dense copy of its own,
+    products equal those of the dense matrix to round-off."""
+    _, _, _, shared, _ = sandwich
+    Kc = shared.bodies[1].Kc
+    assert isinstance(Kc, CongruentMatrix) and Kc.base is shared.bodies[0].Kc
+    assert Kc.nbytes < 0.05 * shared.bodies[0].Kc.nbytes     # G: O(n), not n^2
+    dense = np.asarray(Kc)
+    assert np.array_equal(dense, dense.T)
+    x = np.random.default_rng(8).standard_normal((Kc.shape[0], 3))
+    assert _rel(Kc @ x, dense @ x) < 1e-13
+    assert _rel(Kc @ x[:, 0], dense @ x[:, 0]) < 1e-13
+    assert _rel(x.T @ Kc, x.T @ dense) < 1e-13
 
 
 def test_condensed_matrices_equal_the_separate_condensation(sandwich):

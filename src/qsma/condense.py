@@ -148,14 +148,16 @@ def congruent_body(base: CondensedBody, assembled, nodes, frames, congruence
     the E and the C DOFs of the two bodies (each in its own order: B's interface
     ``nodes`` in its pair order, its E sorted),
 
-    .. math:: Kc_B = R_B^T T_C R_A\, Kc_A\, R_A^T T_C^T R_B, \qquad
+    .. math:: Kc_B = G\, Kc_A\, G^T, \quad G = R_B^T T_C R_A, \qquad
               (K^B_{EE})^{-1} = T_E (K^A_{EE})^{-1} T_E^T ,
 
     the first from A's ``Kc`` in A's pair frames ``R_A`` to B's pair frames ``R_B``
-    (``frames``), the second a :class:`qsma.congruence.MappedSolver` on A's factor.
+    (``frames``), kept as ``Kc_A`` and the sparse ``G``
+    (:class:`qsma.congruence.CongruentMatrix`: no second dense matrix), the second a
+    :class:`qsma.congruence.MappedSolver` on A's factor.
     ``K_EC`` and the free rigid motions are B's own. None if the E or C DOFs of the
     two bodies do not correspond (then B is condensed on its own)."""
-    from .congruence import MappedSolver
+    from .congruence import CongruentMatrix, MappedSolver
     from .rigid import interface_basis
     t0 = time.perf_counter()
     body = assembled.body
@@ -174,9 +176,7 @@ def congruent_body(base: CondensedBody, assembled, nodes, frames, congruence
         return None
     R = pair_rotation(frames)
     G = (R.T @ T_C @ base.R).tocsr()                 # A's local frames -> B's
-    X = G @ base.Kc
-    Kc = symmetrised(np.ascontiguousarray(G @ X.T))  # G Kc_A G^T (Kc_A symmetric)
-    del X
+    Kc = CongruentMatrix(np.asarray(base.Kc), G)     # G Kc_A G^T, not held densely
     K_EC = assembled.K.tocsr()[E][:, C].tocsc()
     solve = MappedSolver(base.solve_EE, T_E, base.name)
     rigid = interface_basis(assembled, C, R)
@@ -464,13 +464,7 @@ def reduce_two_bodies(assembled1, assembled2, pairing, patterns=("preload",),
                                  (pairing.frames, pairing.frames), backend)
         Fc = tuple(condensed_loads((b1, b2), loads))
         Z = _gauge(asm, (b1, b2), 0, loads)
-        S_cho = _factor_S(b1.Kc + b2.Kc, Z)
-        if Z is None:
-            soft = min((b1.Kc, b2.Kc), key=lambda Kc: np.trace(Kc))
-            K = minus_gram(soft, S_cho, soft)       # = Kc_1 S^-1 Kc_2
-        else:                  # gauged S (free-free): Kc_1 S^-1 Kc_2 as a product
-            K = b1.Kc @ sla.cho_solve(S_cho, b2.Kc)
-            K = 0.5 * (K + K.T)
+        K, S_cho = _node_to_node(np.asarray(b1.Kc), np.asarray(b2.Kc), Z)
         W = _welded((b1, b2), S_cho, Fc, gauged=Z is not None)
         K, g = _ghost(K, [None if b1.rigid is None else -b1.rigid, b2.rigid])
         return ReducedModel(K, W, tuple(patterns), (b1, b2), loads, S_cho, Fc, dim, {}, {},
@@ -492,6 +486,18 @@ def reduce_two_bodies(assembled1, assembled2, pairing, patterns=("preload",),
                       None if bm.rigid is None else -sigma * (P @ bm.rigid)])
     return ReducedModel(K, W, tuple(patterns), bodies, loads, S_cho, Fc, dim, {}, {}, P, s,
                         ghost=g, gauge=Z)
+
+
+def _node_to_node(Kc1, Kc2, Z):
+    """``(K, S_cho)`` of the node-to-node pair from the dense ``Kc_1``, ``Kc_2``:
+    ``S = Kc_1 + Kc_2`` factorised and ``K = Kc_1 S^-1 Kc_2`` (:func:`minus_gram` of
+    the softer body; a gauged ``S`` of a free-free assembly: the product form)."""
+    S_cho = _factor_S(Kc1 + Kc2, Z)
+    if Z is None:
+        soft = min((Kc1, Kc2), key=lambda Kc: np.trace(Kc))
+        return minus_gram(soft, S_cho, soft), S_cho      # = Kc_1 S^-1 Kc_2
+    K = Kc1 @ sla.cho_solve(S_cho, Kc2)
+    return 0.5 * (K + K.T), S_cho
 
 
 def _gauge(asm, bodies, index, loads):

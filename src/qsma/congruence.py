@@ -40,7 +40,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
-from .linalg import ee_rhs
+from .linalg import ee_rhs, symmetrised
 
 log = logging.getLogger("qsma")
 
@@ -241,6 +241,53 @@ def _operator_mismatch(T, A, B) -> float:
     scale = abs(B).max()
     D = T @ sp.csr_matrix(A) @ T.T - B
     return float(abs(D).max() / scale) if scale > 0 else float("inf")
+
+
+# ----------------------------------------------------------------------------------
+# B's condensed stiffness and K_EE solves through A's
+
+@dataclass(frozen=True, eq=False)
+class CongruentMatrix:
+    r"""The symmetric matrix ``G A G^T`` kept as ``A`` (dense, symmetric, owned by
+    the congruent body) and the sparse orthogonal ``G``: no dense copy of its own.
+
+    ``M @ x = G (A (G^T x))`` (vectors or matrices); ``np.asarray(M)`` builds the
+    dense matrix (symmetrised), for the few places that need it whole (the two-body
+    combination, a block-diagonal stack).
+    """
+
+    base: np.ndarray
+    G: sp.csr_matrix
+
+    ndim = 2
+    dtype = np.dtype(float)
+
+    @property
+    def shape(self):
+        return (self.G.shape[0], self.G.shape[0])
+
+    @property
+    def T(self):                                   # symmetric
+        return self
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes held of its own (``G``; ``A`` belongs to the other body)."""
+        return self.G.data.nbytes + self.G.indices.nbytes + self.G.indptr.nbytes
+
+    def __array__(self, dtype=None, copy=None):
+        X = self.G @ self.base                     # G A, then G (G A)^T = G A G^T
+        dense = symmetrised(np.ascontiguousarray(self.G @ X.T))
+        return dense if dtype is None else dense.astype(dtype, copy=False)
+
+    def __matmul__(self, x):
+        return self.G @ (self.base @ (self.G.T @ np.asarray(x)))
+
+    def __rmatmul__(self, x):                      # x M = (M x^T)^T, M symmetric
+        return (self @ np.asarray(x).T).T
+
+    def __repr__(self):
+        return f"CongruentMatrix(shape={self.shape})"
 
 
 # ----------------------------------------------------------------------------------
