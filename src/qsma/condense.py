@@ -18,6 +18,7 @@ weight them, so ``Fc_j = Fc_j[:, patterns] @ a``.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+import logging
 import time
 
 import numpy as np
@@ -26,6 +27,8 @@ import scipy.sparse as sp
 
 from .errors import InputError
 from .linalg import mirror_triangle, schur_complement, symmetrised
+
+log = logging.getLogger("qsma")
 
 
 @dataclass(frozen=True, eq=False)
@@ -54,19 +57,13 @@ class CondensedBody:
 
     def condensed_load(self, F: np.ndarray) -> np.ndarray:
         """``Fc = R^T (F_C - K_CE K_EE^-1 F_E)`` for full-length load(s) ``F``."""
-        F = np.asarray(F, dtype=float)
-        z = self.solve_EE(F[self.E])
-        return self.R.T @ (F[self.C] - self.K_EC.T @ z)
+        return condensed_loads((self,), (F,))[0]
 
     def recover(self, u_local: np.ndarray, F: np.ndarray) -> np.ndarray:
         """Full DOF vector of the body from interface displacements (local) and the
         full applied load ``F``: ``u_E = K_EE^-1 (F_E - K_EC u_C)``; columns of
         ``u_local`` and ``F`` give columns of the result (one multi-RHS solve)."""
-        u = np.zeros((self.n_dofs,) + np.shape(u_local)[1:])
-        uC = self.R @ u_local
-        u[self.C] = uC
-        u[self.E] = self.solve_EE(F[self.E] - self.K_EC @ uC)
-        return u
+        return recovered((self,), (u_local,), (F,))[0]
 
     def functional(self, l: np.ndarray, patterns: np.ndarray):
         """Split ``l @ u`` into ``h @ u_local + e @ a`` (``patterns``: full loads, columns)."""
@@ -215,6 +212,9 @@ def condense_bodies(assembled, nodes, frames, backend="auto") -> tuple:
         if j in own:
             k, cong = own[j]
             b = congruent_body(bodies[k], a, nodes[j], frames[j], cong)
+            if b is None:
+                log.info("body %r is condensed on its own: its interface or other DOFs "
+                         "do not correspond to those of %r", a.body.name, bodies[k].name)
         bodies.append(condense_body(a, nodes[j], frames[j], backend) if b is None else b)
     return tuple(bodies)
 
