@@ -9,7 +9,10 @@ the last one repeated) and every stage of results.json ``timings_s`` is measured
 ways: wall time, CPU time of the process (all threads; more than the wall time where
 BLAS runs on both cores, and the honest measure on a shared machine where the wall time
 waits for other jobs), and the peak resident memory during the stage (Linux ``VmHWM``,
-reset at the start of each stage; qsma._resources). The table gives the medians over
+reset at the start of each stage; qsma._resources), and the resident memory left at
+the end of each stage, beside the MB of the dense interface matrices the result holds
+and the number of K_EE factorisations (congruent bodies share one, qsma.congruence).
+The table gives the medians over
 the repeats and the process peak. The last table fits ``cost ~ n^p`` by least squares
 in log-log over the refinements, once against the number of DOFs and once against the
 number of interface pairs, so that a larger model can be predicted. The results f0, q
@@ -50,6 +53,7 @@ def _instrumented_timer(record):
         entry = record.setdefault(name, {"cpu": 0.0, "peak_mb": 0.0})
         entry["cpu"] += cpu
         entry["peak_mb"] = max(entry["peak_mb"], _resources.peak_memory_mb() or 0.0)
+        entry["held_mb"] = _resources.current_memory_mb() or 0.0   # at its last end
 
     analysis._Timer.stage = stage
     return original
@@ -72,6 +76,9 @@ def measure(refine, options):
         "cpu": {**{k: record.get(k, {}).get("cpu", 0.0) for k in MEASURED},
                 "total": time.process_time() - c0},
         "peak_mb": {k: record.get(k, {}).get("peak_mb", 0.0) for k in MEASURED},
+        "held_mb": {k: record.get(k, {}).get("held_mb", 0.0) for k in MEASURED},
+        "interface_mb": _interface_mb(res.reduced),
+        "factors": _factors(res.reduced),
         "process_peak_mb": max([_resources.peak_memory_mb() or 0.0]
                                + [v["peak_mb"] for v in record.values()]),
         "f0_hz": res.f0_hz, "q_last": float(res.q[-1]), "zeta_last": float(res.zeta[-1]),
@@ -79,10 +86,26 @@ def measure(refine, options):
     }
 
 
+def _interface_mb(reduced):
+    """MB of the dense interface matrices the result's reduced model holds: each
+    body's Kc, the factor of S, K and W (base model of locked bolts)."""
+    rm = getattr(reduced, "base", reduced)
+    arrays = [b.Kc for b in rm.bodies] + [rm.S_cho[0], rm.K, rm.W]
+    return sum(a.nbytes for a in arrays) / 2**20
+
+
+def _factors(reduced):
+    """Number of distinct K_EE factorisations the bodies use (congruent bodies share
+    one, qsma.congruence)."""
+    rm = getattr(reduced, "base", reduced)
+    return len({id(getattr(b.solve_EE, "base", b.solve_EE)) for b in rm.bodies})
+
+
 def median_run(runs):
     med = dict(runs[-1])
-    for key in ("wall", "cpu", "peak_mb"):
-        med[key] = {k: statistics.median(r[key][k] for r in runs) for k in runs[0][key]}
+    for key in ("wall", "cpu", "peak_mb", "held_mb"):
+        if key in runs[0]:
+            med[key] = {k: statistics.median(r[key][k] for r in runs) for k in runs[0][key]}
     med["runs"] = len(runs)
     return med
 
@@ -109,6 +132,14 @@ def print_tables(rows):
     for r in rows:
         print(f"| {r['refine']} | " + " | ".join(f"{r['peak_mb'][k]:.0f}" for k in MEASURED)
               + " |")
+    print("\nResident memory at the end of each stage [MB] (what it leaves held):\n")
+    print("| refine | " + " | ".join(MEASURED) + " | dense interface matrices | "
+          "K_EE factors |")
+    print("|---" * (len(MEASURED) + 3) + "|")
+    for r in rows:
+        if "held_mb" in r:
+            print(f"| {r['refine']} | " + " | ".join(f"{r['held_mb'][k]:.0f}" for k in MEASURED)
+                  + f" | {r['interface_mb']:.0f} | {r['factors']} |")
     print("\nFitted exponents p of CPU time ~ n^p (n = DOFs | interface pairs):\n")
     print("| stage | p (DOFs) | p (pairs) |")
     print("|---|---|---|")

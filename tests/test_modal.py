@@ -289,3 +289,31 @@ def test_block_shift_invert_refuses_to_return_unconverged_modes(monkeypatch):
     lu = spla.splu(K)
     with pytest.raises(AnalysisError, match="did not converge"):
         modal.block_shift_invert(lambda B: lu.solve(np.asfortranarray(B)), M, 6)
+
+
+def test_shift_invert_basis_is_written_in_place_and_restarts_as_products():
+    """The basis of the block shift-invert lives in preallocated arrays: extending it
+    writes the block in place (no copy of the whole basis), a restart keeps
+    ``[Q, MQ, W, MW] Y`` and the next block ``W_last - Q (MQ^T W_last)``, as the
+    products of the basis it was made from."""
+    from qsma.modal import _Basis
+    rng = np.random.default_rng(11)
+    n = 40
+    blocks = [[rng.standard_normal((n, 3)) for _ in range(4)] for _ in range(2)]
+    basis = _Basis.empty(n, 8)
+    arrays = basis.arrays
+    for block in blocks:
+        basis = basis.extended(*block)
+    assert basis.size == 6 and all(a is b for a, b in zip(basis.arrays, arrays))
+    whole = [np.hstack([blocks[0][i], blocks[1][i]]) for i in range(4)]
+    for got, want in zip((basis.Q, basis.MQ, basis.W, basis.MW), whole):
+        assert np.array_equal(got, want)
+    Y = rng.standard_normal((6, 4))
+    W_last = rng.standard_normal((n, 3))
+    expected = [w @ Y for w in whole]
+    nxt_expected = W_last - whole[0] @ (whole[1].T @ W_last)
+    kept, nxt = basis.restarted(Y, W_last)
+    assert kept.size == 4
+    for got, want in zip((kept.Q, kept.MQ, kept.W, kept.MW), expected):
+        assert np.allclose(got, want, rtol=0, atol=1e-13)
+    assert np.allclose(nxt, nxt_expected, rtol=0, atol=1e-13)

@@ -40,9 +40,14 @@ def scaled(model, s):
 #: calls |zeta| < qsma.analysis.ZETA_ZERO = 1e-8 zero): compared absolutely to this.
 ZETA_ROUND_OFF = 1e-10
 #: Dissipation and damping are differences of integrals of the backbone: they amplify
-#: the contact tolerance (1e-10 relative) about tenfold near gross slip (measured
-#: 1.2e-10 relative between a prepared case and a separate run, zeta = 0.94).
-INTEGRAL_RTOL = 1e-9
+#: the round-off of the condensed model (its welded force W is exact to ~2e-10
+#: relative: metis_superlu, splu and superlu_schur differ by that much) near gross
+#: slip. Measured on the mu = 0.6, preload 1.5 case of this module: zeta and the
+#: dissipation change by up to 1.1e-9 between Schur backends (separate runs), and by
+#: 1.7e-9 between a prepared case and a separate run when the two beams share one
+#: factorisation (qsma.congruence); with the contact tolerance at 1e-13 instead of
+#: 1e-10 the numbers do not move.
+INTEGRAL_RTOL = 5e-9
 
 
 def _tol(name):
@@ -154,12 +159,14 @@ def test_shipped_preparation_arrives_condensed_and_runs_as_the_original(model):
         assert np.array_equal(getattr(back.reduced, name), getattr(prep.reduced, name))
     for b0, b1 in zip(prep.reduced.bodies, back.reduced.bodies):
         assert np.array_equal(b1.Kc, b0.Kc) and np.array_equal(b1.E, b0.E)
-        assert isinstance(b1.solve_EE, RefactorisedEE) and not b1.solve_EE.factorised
+        own = getattr(b1.solve_EE, "base", b1.solve_EE)   # the top beam solves through
+        assert isinstance(own, RefactorisedEE) and not own.factorised   # the bottom's
     case = dict(mu=0.4, preload=1.5)
     ref = run_prepared(prep.with_mu(0.4).with_preload_scale(1.5), OPTIONS)
     got = run_prepared(back.with_mu(0.4).with_preload_scale(1.5), OPTIONS)
     assert got.success and ref.success, case
-    assert all(b.solve_EE.factorised for b in back.reduced.bodies)   # the tied modes
+    assert all(getattr(b.solve_EE, "base", b.solve_EE).factorised   # the tied modes
+               for b in back.reduced.bodies)
     assert got.n_levels == ref.n_levels
     for name in COMPARED:
         assert_close(getattr(got, name), getattr(ref, name), *_tol(name))

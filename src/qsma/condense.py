@@ -18,6 +18,7 @@ weight them, so ``Fc_j = Fc_j[:, patterns] @ a``.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+import logging
 import time
 
 import numpy as np
@@ -26,6 +27,8 @@ import scipy.sparse as sp
 
 from .errors import InputError
 from .linalg import mirror_triangle, schur_complement, symmetrised
+
+log = logging.getLogger("qsma")
 
 
 @dataclass(frozen=True, eq=False)
@@ -54,19 +57,13 @@ class CondensedBody:
 
     def condensed_load(self, F: np.ndarray) -> np.ndarray:
         """``Fc = R^T (F_C - K_CE K_EE^-1 F_E)`` for full-length load(s) ``F``."""
-        F = np.asarray(F, dtype=float)
-        z = self.solve_EE(F[self.E])
-        return self.R.T @ (F[self.C] - self.K_EC.T @ z)
+        return condensed_loads((self,), (F,))[0]
 
     def recover(self, u_local: np.ndarray, F: np.ndarray) -> np.ndarray:
         """Full DOF vector of the body from interface displacements (local) and the
         full applied load ``F``: ``u_E = K_EE^-1 (F_E - K_EC u_C)``; columns of
         ``u_local`` and ``F`` give columns of the result (one multi-RHS solve)."""
-        u = np.zeros((self.n_dofs,) + np.shape(u_local)[1:])
-        uC = self.R @ u_local
-        u[self.C] = uC
-        u[self.E] = self.solve_EE(F[self.E] - self.K_EC @ uC)
-        return u
+        return recovered((self,), (u_local,), (F,))[0]
 
     def functional(self, l: np.ndarray, patterns: np.ndarray):
         """Split ``l @ u`` into ``h @ u_local + e @ a`` (``patterns``: full loads, columns)."""
@@ -139,6 +136,115 @@ def condense_body(assembled, nodes, frames, backend="auto") -> CondensedBody:
     return CondensedBody(body.name, body.n_dofs, C, E, R, Kc, solve, K_EC, timings, rigid)
 
 
+def congruent_body(base: CondensedBody, assembled, nodes, frames, congruence
+                   ) -> CondensedBody | None:
+    r"""Body B condensed through the condensation ``base`` of a body A congruent to it
+    (:func:`qsma.congruence.find_congruence`): no factorisation of its own.
+
+    With ``T`` the DOF map of ``congruence`` and ``T_E``, ``T_C`` its blocks between
+    the E and the C DOFs of the two bodies (each in its own order: B's interface
+    ``nodes`` in its pair order, its E sorted),
+
+    .. math:: Kc_B = G\, Kc_A\, G^T, \quad G = R_B^T T_C R_A, \qquad
+              (K^B_{EE})^{-1} = T_E (K^A_{EE})^{-1} T_E^T ,
+
+    the first from A's ``Kc`` in A's pair frames ``R_A`` to B's pair frames ``R_B``
+    (``frames``), kept as ``Kc_A`` and the sparse ``G``
+    (:class:`qsma.congruence.CongruentMatrix`: no second dense matrix), the second a
+    :class:`qsma.congruence.MappedSolver` on A's factor.
+    ``K_EC`` and the free rigid motions are B's own. None if the E or C DOFs of the
+    two bodies do not correspond (then B is condensed on its own)."""
+    from .congruence import CongruentMatrix, MappedSolver
+    from .rigid import interface_basis
+    t0 = time.perf_counter()
+    body = assembled.body
+    dim = body.dim
+    C = (dim * np.asarray(nodes)[:, None] + np.arange(dim)[None, :]).ravel()
+    fixed = np.zeros(body.n_dofs, dtype=bool)
+    fixed[assembled.fixed] = True
+    if fixed[C].any():
+        return None                          # condense_body names the clamped nodes
+    E = np.setdiff1d(assembled.free, C)
+    if len(E) != len(base.E) or len(C) != len(base.C):
+        return None
+    T = congruence.dof_map()
+    T_E, T_C = T[E][:, base.E].tocsr(), T[C][:, base.C].tocsr()
+    if not (_orthogonal_block(T_E) and _orthogonal_block(T_C)):
+        return None
+    R = pair_rotation(frames)
+    G = (R.T @ T_C @ base.R).tocsr()                 # A's local frames -> B's
+    Kc = CongruentMatrix(np.asarray(base.Kc), G)     # G Kc_A G^T, not held densely
+    K_EC = assembled.K.tocsr()[E][:, C].tocsc()
+    solve = MappedSolver(base.solve_EE, T_E, base.name)
+    rigid = interface_basis(assembled, C, R)
+    timings = dict(congruent_with=base.name, mapped=time.perf_counter() - t0,
+                   backend=base.timings.get("backend") if base.timings else None)
+    return CondensedBody(body.name, body.n_dofs, C, E, R, Kc, solve, K_EC, timings, rigid)
+
+
+def _orthogonal_block(T) -> bool:
+    """Whether the sparse square block ``T`` of an orthogonal DOF map is orthogonal
+    itself (unit rows and columns: the map sends the block's DOFs among themselves)."""
+    sq = T.multiply(T)
+    one = lambda v: np.allclose(np.asarray(v).ravel(), 1.0, rtol=0.0, atol=1e-12)
+    return one(sq.sum(axis=0)) and one(sq.sum(axis=1))
+
+
+def condense_bodies(assembled, nodes, frames, backend="auto") -> tuple:
+    """:func:`condense_body` for every body (``nodes[j]``, ``frames[j]`` its interface
+    nodes and pair frames), except that a body congruent to an earlier one
+    (:func:`qsma.congruence.find_congruence`, checked before any factorisation) is
+    derived from that one's condensation (:func:`congruent_body`): one factor for
+    both."""
+    from .congruence import find_congruence
+    own = {}                                  # body j -> (base body k, congruence)
+    for j in range(len(assembled)):
+        for k in range(j):
+            if k in own:
+                continue
+            cong = find_congruence(assembled[k], assembled[j], nodes[k], nodes[j])
+            if cong is not None:
+                own[j] = (k, cong)
+                break
+    bodies = []
+    for j, a in enumerate(assembled):
+        b = None
+        if j in own:
+            k, cong = own[j]
+            b = congruent_body(bodies[k], a, nodes[j], frames[j], cong)
+            if b is None:
+                log.info("body %r is condensed on its own: its interface or other DOFs "
+                         "do not correspond to those of %r", a.body.name, bodies[k].name)
+        bodies.append(condense_body(a, nodes[j], frames[j], backend) if b is None else b)
+    return tuple(bodies)
+
+
+def condensed_loads(bodies, loads) -> list:
+    """``[b.condensed_load(F) for b, F in zip(bodies, loads)]`` with the ``K_EE``
+    solves of bodies that share a factor in one multi-RHS solve
+    (:func:`qsma.congruence.solved_together`)."""
+    from .congruence import solved_together
+    loads = [np.asarray(F, dtype=float) for F in loads]
+    z = solved_together([b.solve_EE for b in bodies], [F[b.E] for b, F in zip(bodies, loads)])
+    return [b.R.T @ (F[b.C] - b.K_EC.T @ zb) for b, F, zb in zip(bodies, loads, z)]
+
+
+def recovered(bodies, u_locals, loads) -> list:
+    """``[b.recover(u, F) ...]`` with the ``K_EE`` solves of bodies that share a factor
+    in one multi-RHS solve."""
+    from .congruence import solved_together
+    uC = [b.R @ u for b, u in zip(bodies, u_locals)]
+    z = solved_together([b.solve_EE for b in bodies],
+                        [F[b.E] - b.K_EC @ c for b, F, c in zip(bodies, loads, uC)])
+    out = []
+    for b, u, c, zb in zip(bodies, u_locals, uC, z):
+        full = np.zeros((b.n_dofs,) + np.shape(u)[1:])
+        full[b.C] = c
+        full[b.E] = zb
+        out.append(full)
+    return out
+
+
 @dataclass(frozen=True, eq=False)
 class ReducedModel:
     r"""The two-body problem ``lam = K d + W a`` with everything the load loop needs.
@@ -208,7 +314,7 @@ class ReducedModel:
         """Full displacement vectors of both bodies from ``d`` and the load factors."""
         u1, u2 = self.interface_displacements(d, a)
         a = np.asarray(a, dtype=float)
-        return tuple(b.recover(u, F @ a) for b, u, F in zip(self.bodies, (u1, u2), self.loads))
+        return tuple(recovered(self.bodies, (u1, u2), [F @ a for F in self.loads]))
 
     def evaluate(self, name, d, a) -> float:
         c_d, c_a = self.functionals[name]
@@ -219,8 +325,8 @@ class ReducedModel:
         if name in self.patterns:
             raise InputError(f"load pattern {name!r} exists already")
         loads = tuple(np.column_stack([L, F]) for L, F in zip(self.loads, (F1, F2)))
-        Fc = tuple(np.column_stack([fc, b.condensed_load(F)])
-                   for fc, b, F in zip(self.Fc, self.bodies, (F1, F2)))
+        Fc = tuple(np.column_stack([fc, new]) for fc, new in
+                   zip(self.Fc, condensed_loads(self.bodies, (F1, F2))))
         w_new = _welded(self.bodies, self.S_cho, tuple(f[:, -1:] for f in Fc), self.P,
                         self.slave, self.gauge is not None)
         # the existing columns are kept as they are (the preload was solved with them;
@@ -354,17 +460,11 @@ def reduce_two_bodies(assembled1, assembled2, pairing, patterns=("preload",),
                   for a in asm)
     dim = assembled1.body.dim
     if pairing.projection is None:
-        b1 = condense_body(assembled1, pairing.nodes1, pairing.frames, backend)
-        b2 = condense_body(assembled2, pairing.nodes2, pairing.frames, backend)
-        Fc = (b1.condensed_load(loads[0]), b2.condensed_load(loads[1]))
+        b1, b2 = condense_bodies(asm, (pairing.nodes1, pairing.nodes2),
+                                 (pairing.frames, pairing.frames), backend)
+        Fc = tuple(condensed_loads((b1, b2), loads))
         Z = _gauge(asm, (b1, b2), 0, loads)
-        S_cho = _factor_S(b1.Kc + b2.Kc, Z)
-        if Z is None:
-            soft = min((b1.Kc, b2.Kc), key=lambda Kc: np.trace(Kc))
-            K = minus_gram(soft, S_cho, soft)       # = Kc_1 S^-1 Kc_2
-        else:                  # gauged S (free-free): Kc_1 S^-1 Kc_2 as a product
-            K = b1.Kc @ sla.cho_solve(S_cho, b2.Kc)
-            K = 0.5 * (K + K.T)
+        K, S_cho = _node_to_node(np.asarray(b1.Kc), np.asarray(b2.Kc), Z)
         W = _welded((b1, b2), S_cho, Fc, gauged=Z is not None)
         K, g = _ghost(K, [None if b1.rigid is None else -b1.rigid, b2.rigid])
         return ReducedModel(K, W, tuple(patterns), (b1, b2), loads, S_cho, Fc, dim, {}, {},
@@ -373,12 +473,12 @@ def reduce_two_bodies(assembled1, assembled2, pairing, patterns=("preload",),
     m = 1 - s
     nodes = (pairing.nodes1, pairing.nodes2)
     eye = np.broadcast_to(np.eye(dim), (len(nodes[m]), dim, dim))
-    bs = condense_body(asm[s], nodes[s], pairing.frames, backend)
-    bm = condense_body(asm[m], nodes[m], eye, backend)
+    framed = (pairing.frames, eye) if s == 0 else (eye, pairing.frames)
+    bodies = condense_bodies(asm, nodes, framed, backend)
+    bs, bm = bodies[s], bodies[m]
     P = projection_matrix(pairing, bs.R)
     sigma = 1.0 if s == 1 else -1.0
-    bodies = (bs, bm) if s == 0 else (bm, bs)
-    Fc = tuple(b.condensed_load(L) for b, L in zip(bodies, loads))
+    Fc = tuple(condensed_loads(bodies, loads))
     Z = _gauge(asm, bodies, m, loads)
     K, S_cho = combine(bs, bm, P, Z)
     W = _welded(bodies, S_cho, Fc, P, s)
@@ -386,6 +486,18 @@ def reduce_two_bodies(assembled1, assembled2, pairing, patterns=("preload",),
                       None if bm.rigid is None else -sigma * (P @ bm.rigid)])
     return ReducedModel(K, W, tuple(patterns), bodies, loads, S_cho, Fc, dim, {}, {}, P, s,
                         ghost=g, gauge=Z)
+
+
+def _node_to_node(Kc1, Kc2, Z):
+    """``(K, S_cho)`` of the node-to-node pair from the dense ``Kc_1``, ``Kc_2``:
+    ``S = Kc_1 + Kc_2`` factorised and ``K = Kc_1 S^-1 Kc_2`` (:func:`minus_gram` of
+    the softer body; a gauged ``S`` of a free-free assembly: the product form)."""
+    S_cho = _factor_S(Kc1 + Kc2, Z)
+    if Z is None:
+        soft = min((Kc1, Kc2), key=lambda Kc: np.trace(Kc))
+        return minus_gram(soft, S_cho, soft), S_cho      # = Kc_1 S^-1 Kc_2
+    K = Kc1 @ sla.cho_solve(S_cho, Kc2)
+    return 0.5 * (K + K.T), S_cho
 
 
 def _gauge(asm, bodies, index, loads):
@@ -442,8 +554,8 @@ class TiedSolver:
         loads of shape (n_dofs, k) give k columns (each body's ``K_EE`` factor applied
         to all of them at once)."""
         rm = self.reduced
-        Fc = tuple(b.condensed_load(F).reshape(len(b.C), -1)
-                   for b, F in zip(rm.bodies, (F1, F2)))
+        Fc = tuple(f.reshape(len(b.C), -1)
+                   for b, f in zip(rm.bodies, condensed_loads(rm.bodies, (F1, F2))))
         d = np.zeros((rm.K.shape[0], Fc[0].shape[1]))
         if len(self.G):
             w = _welded(rm.bodies, rm.S_cho, Fc, rm.P, rm.slave, rm.gauge is not None)
@@ -451,7 +563,7 @@ class TiedSolver:
         u = _released_interface(rm, d, Fc)
         if np.ndim(F1) == 1:
             u = tuple(v[:, 0] for v in u)
-        return tuple(b.recover(v, F) for b, v, F in zip(rm.bodies, u, (F1, F2)))
+        return tuple(recovered(rm.bodies, u, (F1, F2)))
 
 
 def tied_solver(reduced, tied) -> TiedSolver | None:

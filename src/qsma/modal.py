@@ -529,7 +529,7 @@ def block_shift_invert(solve, M, k, Z=None, gram=None, start=None):
         return V if Z is None else V - Z @ np.linalg.solve(gram, MZ.T @ V)
 
     V = off_motions(V)
-    basis, worst = _Basis.empty(n), np.inf
+    basis, worst = _Basis.empty(n, want + EIG_MAX_BLOCKS * b), np.inf
     for _ in range(EIG_MAX_RESTARTS):
         for _ in range(EIG_MAX_BLOCKS):
             V, MV = _m_orthonormal(V, basis, M)
@@ -560,24 +560,47 @@ def block_shift_invert(solve, M, k, Z=None, gram=None, start=None):
 @dataclass(frozen=True)
 class _Basis:
     """M-orthonormal basis ``Q`` of :func:`block_shift_invert` with ``M Q``, ``W = S Q``
-    and ``M W`` (each sparse product done once per column)."""
+    and ``M W`` (each sparse product done once per column).
 
-    Q: np.ndarray
-    MQ: np.ndarray
-    W: np.ndarray
-    MW: np.ndarray
+    The four are the first ``size`` columns of preallocated column-major arrays
+    (``arrays``, shared by the bases that :meth:`extended` and :meth:`restarted`
+    return: the previous basis is not used again). A new block is written in place
+    instead of copying the whole basis (``np.hstack`` held the old and the new basis
+    at once: ~0.5 GB more at 222k unknowns)."""
+
+    arrays: tuple
+    size: int
 
     @classmethod
-    def empty(cls, n):
-        return cls(*(np.zeros((n, 0)) for _ in range(4)))
+    def empty(cls, n, capacity):
+        return cls(tuple(np.zeros((n, capacity), order="F") for _ in range(4)), 0)
 
     @property
-    def size(self):
-        return self.Q.shape[1]
+    def Q(self):
+        return self.arrays[0][:, :self.size]
+
+    @property
+    def MQ(self):
+        return self.arrays[1][:, :self.size]
+
+    @property
+    def W(self):
+        return self.arrays[2][:, :self.size]
+
+    @property
+    def MW(self):
+        return self.arrays[3][:, :self.size]
 
     def extended(self, V, MV, W, MW):
-        return _Basis(*(np.hstack(pair) for pair in ((self.Q, V), (self.MQ, MV),
-                                                     (self.W, W), (self.MW, MW))))
+        k, m = self.size, V.shape[1]
+        arrays = self.arrays
+        if k + m > arrays[0].shape[1]:             # not expected: grow
+            arrays = tuple(np.concatenate([a[:, :k], np.zeros((a.shape[0], m))], axis=1,
+                                          dtype=float) for a in arrays)
+            arrays = tuple(np.asfortranarray(a) for a in arrays)
+        for a, new in zip(arrays, (V, MV, W, MW)):
+            a[:, k:k + m] = new
+        return _Basis(arrays, k + m)
 
     def ritz(self, wanted):
         """Ritz values ``mu`` (decreasing), coefficients ``Y`` and the residual norms
@@ -596,8 +619,11 @@ class _Basis:
         """The basis of the Ritz vectors ``Q Y`` and the next block: the last block's
         ``S Q_j`` without its part in ``Q``, which spans the residuals of all the Ritz
         pairs (thick restart: the Krylov recurrence goes on from there)."""
-        kept = _Basis(self.Q @ Y, self.MQ @ Y, self.W @ Y, self.MW @ Y)
-        return kept, W_last - self.Q @ (self.MQ.T @ W_last)
+        nxt = W_last - self.Q @ (self.MQ.T @ W_last)
+        j = Y.shape[1]
+        for a in self.arrays:                      # a[:, :j] = a[:, :size] Y, one at
+            a[:, :j] = a[:, :self.size] @ Y        # a time (one n x j temporary)
+        return _Basis(self.arrays, j), nxt
 
 
 def _m_orthonormal(V, basis, M):

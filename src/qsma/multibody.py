@@ -41,7 +41,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from .condense import condense_body
+from .condense import condense_bodies, condensed_loads
 from .errors import InputError, InterfaceGapWarning
 
 
@@ -218,11 +218,12 @@ def reduce_bodies(assembled, couplings, patterns=("preload",), backend="auto",
     dim = assembled[0].body.dim
     nodes = interface_nodes(len(assembled), couplings,
                             names or [a.body.name for a in assembled])
-    bodies = tuple(condense_body(a, n, np.broadcast_to(np.eye(dim), (len(n), dim, dim)),
-                                 backend) for a, n in zip(assembled, nodes))
+    bodies = condense_bodies(assembled, nodes,
+                             [np.broadcast_to(np.eye(dim), (len(n), dim, dim)) for n in nodes],
+                             backend)
     loads = tuple(np.column_stack([a.loads.get(p, np.zeros(a.n_dofs)) for p in patterns])
                   for a in assembled)
-    Fc = np.vstack([b.condensed_load(L) for b, L in zip(bodies, loads)])
+    Fc = np.vstack(condensed_loads(bodies, loads))
     Kc = sla.block_diag(*[b.Kc for b in bodies])
     G, offsets = relative_displacement_operator(couplings, nodes, dim)
     slave = _slave_dofs(couplings, nodes, offsets, dim)

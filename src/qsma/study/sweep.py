@@ -551,13 +551,24 @@ class ShippedPreparation:
 
     def __reduce__(self):
         p = self.prepared
-        by_name = {a.body.name: a for a in p.assembled}
-        bodies = tuple(replace(b, solve_EE=RefactorisedEE(by_name[b.name], b.E,
-                                                           _backend_of(b.solve_EE)))
-                       for b in p.reduced.bodies)
+        bodies = _refactorised_bodies(p.reduced.bodies, p.assembled)
         return (_arrived, (p.model, p.pairing, p.assembled,
                            replace(p.reduced, bodies=bodies), p.preload_scale,
                            p.schur_backend, p.timings_s))
+
+
+def _refactorised_bodies(bodies, assembled) -> tuple:
+    """The condensed bodies with each own ``K_EE`` factor replaced by a
+    :class:`RefactorisedEE`; a body that solves through a congruent body's factor
+    (:class:`qsma.congruence.MappedSolver`) keeps doing so, through that body's
+    ``RefactorisedEE`` (one object, pickled once: one factorisation per worker)."""
+    from ..congruence import MappedSolver
+    by_name = {a.body.name: a for a in assembled}
+    own = {b.name: RefactorisedEE(by_name[b.name], b.E, _backend_of(b.solve_EE))
+           for b in bodies if not isinstance(b.solve_EE, MappedSolver)}
+    return tuple(replace(b, solve_EE=replace(b.solve_EE, base=own[b.solve_EE.base_name])
+                         if isinstance(b.solve_EE, MappedSolver) else own[b.name])
+                 for b in bodies)
 
 
 def _backend_of(solver) -> str:
