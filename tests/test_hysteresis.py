@@ -17,6 +17,8 @@ unilateral spring stores and returns energy, the slider dissipates
 D = 2 F_s (x_max - x_min - 2 F_s / k), and the peak-to-peak secant stiffness is
 2 A / (x_max - x_min).
 """
+import warnings
+
 import numpy as np
 import pytest
 
@@ -234,14 +236,18 @@ def test_loops_on_worker_processes_are_the_serial_loops_bit_for_bit():
 
 
 def test_a_failing_loop_job_raises_in_the_caller():
-    """An exception in a worker is raised by map_loops, not swallowed."""
+    """An exception in a worker is raised by map_loops, not swallowed; a warning raised
+    in a worker reaches the caller's filters."""
     def job(i):
         if i == 2:
             raise InputError("level 2 refused")
+        if i == 3:
+            warnings.warn(f"level {i} warns", UserWarning)
         return i
     with pytest.raises(InputError, match="level 2 refused"):
         map_loops(job, range(4), 2)
-    assert map_loops(job, [0, 1, 3], 2) == [0, 1, 3]
+    with pytest.warns(UserWarning, match="level 3 warns"):
+        assert map_loops(job, [0, 1, 3], 2) == [0, 1, 3]
 
 
 @pytest.mark.parametrize("bad", [0, -1, 1.5, "2", True, 10 ** 6])

@@ -26,6 +26,7 @@ from __future__ import annotations
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
 import multiprocessing
+import warnings
 
 import numpy as np
 
@@ -366,7 +367,11 @@ _JOB = None
 
 
 def _call_job(i):
-    return _JOB(i)
+    """``_JOB(i)`` and the warnings it raised, for the parent to raise again."""
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        out = _JOB(i)
+    return out, [(w.message, w.category, w.filename, w.lineno) for w in seen]
 
 
 def parallel_available() -> bool:
@@ -383,7 +388,8 @@ def map_loops(job, indices, workers=1) -> list:
     and the results are those of the serial path bit for bit (``tests/test_analysis.py``).
     The workers are forked from this process, so ``job`` (a closure over the contact
     problem and the backbone states) is inherited, not pickled; only the level index
-    goes to a worker and its :class:`Loop` comes back. The largest amplitudes, whose
+    goes to a worker and its :class:`Loop` comes back, with the warnings it raised
+    (raised again here, in the order of ``indices``). The largest amplitudes, whose
     loops take the most solves, are handed out first. Without the ``fork`` start method
     (Windows) the loops run in this process.
     """
@@ -397,7 +403,13 @@ def map_loops(job, indices, workers=1) -> list:
         with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork")) \
                 as pool:
             futures = {i: pool.submit(_call_job, i) for i in reversed(indices)}
-            return [futures[i].result() for i in indices]
+            out = []
+            for i in indices:
+                result, raised = futures[i].result()
+                for message, category, filename, lineno in raised:
+                    warnings.warn_explicit(message, category, filename, lineno)
+                out.append(result)
+            return out
     finally:
         _JOB = None
 
