@@ -9,8 +9,9 @@ Three tables (docs/performance.md, "Loops on 3D lap joints"):
     final increments per branch.
 ``parallel``
     ``--repeat`` runs of each case with ``loop_workers = 1`` and ``2``, alternating;
-    the median of the hysteresis stage and the ratio, and whether every per-level value
-    and every loop point has the same bits.
+    the median of the hysteresis stage and the ratio, the median CPU seconds of the
+    whole run (workers included: what the second process adds), and whether every
+    per-level value and every loop point has the same bits.
 ``interpolation``
     From one run (the levels with computed loops): loops at every ``stride``-th level, the
     others interpolated by PCHIP of ``log D`` and ``log q_a`` in ``log A`` where the
@@ -82,23 +83,33 @@ def _initial_steps(r, k):
 
 def parallel(args):
     print("| case | loops | loop solves | hysteresis, 1 process [s] | hysteresis, 2 "
-          "processes [s] | ratio | same bits |")
-    print("|---|---|---|---|---|---|---|")
+          "processes [s] | ratio | CPU of the run, 1 / 2 processes [s] | same bits |")
+    print("|---|---|---|---|---|---|---|---|")
     for case in args.cases:
-        times = {1: [], 2: []}
+        times, cpus = {1: [], 2: []}, {1: [], 2: []}
         same = True
         for _ in range(args.repeat):
             runs = {}
             for workers in (1, 2):
+                cpu = _cpu()
                 runs[workers] = _run(case, args.levels, dissipation=args.dissipation,
                                      loop_workers=workers)
+                cpus[workers].append(_cpu() - cpu)
                 times[workers].append(runs[workers].timings_s["hysteresis"])
             same &= _same_bits(runs[1], runs[2])
         med = {w: statistics.median(t) for w, t in times.items()}
+        cpu = {w: statistics.median(t) for w, t in cpus.items()}
         r = runs[1]
         print(f"| {case} | {len(r.loops)} | {r.solver['loop_solves']} | {med[1]:.2f} | "
-              f"{med[2]:.2f} | {med[1] / med[2]:.2f} | {'yes' if same else 'NO'} |",
-              flush=True)
+              f"{med[2]:.2f} | {med[1] / med[2]:.2f} | {cpu[1]:.1f} / {cpu[2]:.1f} | "
+              f"{'yes' if same else 'NO'} |", flush=True)
+
+
+def _cpu():
+    """CPU seconds of this process and of its finished children (the workers)."""
+    import os
+    t = os.times()
+    return t.user + t.system + t.children_user + t.children_system
 
 
 def _same_bits(a, b):
