@@ -47,10 +47,15 @@ def _run(case, levels, **options):
     return qsma.run(EXAMPLES[name](int(refine)), **kw, **options)
 
 
+def _header(*columns):
+    print("| " + " | ".join(columns) + " |")
+    print("|---" * len(columns) + "|")
+
+
 def profile(args):
-    print("| case | level | A | cycles | solves of the cycles | solves of the refinement "
-          "| increments per branch (initial -> final) | D | error / D |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    _header("case", "level", "A", "cycles", "solves of the cycles",
+            "solves of the refinement", "increments per branch (initial -> final)", "D",
+            "error / D")
     for case in args.cases:
         r = _run(case, args.levels, dissipation=args.dissipation)
         total = [0, 0]
@@ -82,9 +87,9 @@ def _initial_steps(r, k):
 
 
 def parallel(args):
-    print("| case | loops | loop solves | hysteresis, 1 process [s] | hysteresis, 2 "
-          "processes [s] | ratio | CPU of the run, 1 / 2 processes [s] | same bits |")
-    print("|---|---|---|---|---|---|---|---|")
+    _header("case", "loops", "loop solves", "hysteresis, 1 process [s]",
+            "hysteresis, 2 processes [s]", "ratio", "CPU of the run, 1 / 2 processes [s]",
+            "same bits")
     for case in args.cases:
         times, cpus = {1: [], 2: []}, {1: [], 2: []}
         same = True
@@ -200,9 +205,8 @@ def sparse(A, loops, atol, rtol, stride):
 
 
 def interpolation(args):
-    print("| case | loops | rtol | stride | computed | solves (share) | worst rel. error "
-          "of zeta | worst error / estimate |")
-    print("|---|---|---|---|---|---|---|---|")
+    _header("case", "loops", "rtol", "stride", "computed", "solves (share)",
+            "worst rel. error of zeta", "worst error / estimate")
     for case in args.cases:
         r = _run(case, args.levels, dissipation=args.dissipation)
         keys = sorted(k for k, lp in r.loops.items())
