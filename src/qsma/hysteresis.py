@@ -385,13 +385,15 @@ def map_loops(job, indices, workers=1) -> list:
     The levels' loops are independent given the backbone: each starts from the
     backbone state at its amplitude, on the ramps' contact zone, so the loop of a level
     is the same sequence of floating-point operations in whichever process solves it,
-    and the results are those of the serial path bit for bit (``tests/test_analysis.py``).
+    and the results are those of the serial path bit for bit (``tests/test_lap.py``,
+    ``tests/test_hysteresis.py``).
     The workers are forked from this process, so ``job`` (a closure over the contact
     problem and the backbone states) is inherited, not pickled; only the level index
     goes to a worker and its :class:`Loop` comes back, with the warnings it raised
     (raised again here, in the order of ``indices``). The largest amplitudes, whose
     loops take the most solves, are handed out first. Without the ``fork`` start method
-    (Windows) the loops run in this process.
+    (Windows) the loops run in this process. One call at a time per process: the job
+    reaches the workers through a module variable.
     """
     global _JOB
     indices = [int(i) for i in indices]
