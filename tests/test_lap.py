@@ -62,9 +62,10 @@ def test_loop_energy_converges_with_the_increments():
 @pytest.mark.skipif(not parallel_available(), reason="no fork start method (Windows)")
 def test_loops_on_two_processes_give_the_serial_results_bit_for_bit():
     """loop_workers=2: every per-level value and every loop point the same bits as the
-    serial run. (Each loop starts from the ramps' contact zone; a zone carried over
-    from the previous loop gives the same bits on these four levels too, and differs
-    at 7e-15 on three levels of the default lap-2d run, too slow for this test.)"""
+    serial run. (Each loop starts from the ramps' contact zone. The zone carried over
+    from the previous loop, as before, gives the same bits on these four levels too;
+    on the default lap-2d run, too slow for this test, it moves three levels by
+    7e-15 against the ramps' zone.)"""
     levels = Levels.log("tip", 1e-4, 1e-3, 4)
     a = qsma.run(lap_2d(1), levels=levels, dissipation="loop")
     b = qsma.run(lap_2d(1), levels=levels, dissipation="loop", loop_workers=2)
