@@ -17,11 +17,16 @@ unilateral spring stores and returns energy, the slider dissipates
 D = 2 F_s (x_max - x_min - 2 F_s / k), and the peak-to-peak secant stiffness is
 2 A / (x_max - x_min).
 """
+import warnings
+
 import numpy as np
 import pytest
 
 from qsma.contact import ContactProblem, solve
-from qsma.hysteresis import (compute_loop, cycle_area, masing_checks, masing_estimate)
+from qsma.errors import InputError
+from qsma.hysteresis import (compute_loop, cycle_area, map_loops, masing_checks,
+                             masing_estimate, parallel_available)
+from qsma.options import RunOptions
 
 k0, k, ku, g, kn, mu, P0 = 1.0e6, 3.0e6, 4.0e6, 2.0e-4, 1.0e9, 0.5, 400.0
 Fs = mu * P0
@@ -202,3 +207,50 @@ def test_cycle_area_is_exact_for_a_parallelogram():
     alpha = f + 0.0 * x            # force = Jenkins force (k0 = 0)
     assert cycle_area(alpha, x, k_ref=1.0) == pytest.approx(4 * Fs_ * (xa - Fs_ / k_),
                                                             rel=1e-14)
+
+
+def _closed_form_loops(amplitudes, workers):
+    """The lumped system's loops at ``amplitudes`` through :func:`map_loops`; the job is
+    a closure (not picklable), so the workers must inherit it."""
+    problem, lam_w = _problem()
+    step = _stepper(problem, lam_w)
+    starts = [_ramp(problem, lam_w, [A])[1][-1].state for A in amplitudes]
+    u = np.linspace(0, 1, 9)[1:]
+    job = lambda i: compute_loop(step, _modal, amplitudes[i], starts[i], u, k_ref=kt)
+    return map_loops(job, range(len(amplitudes)), workers)
+
+
+@pytest.mark.skipif(not parallel_available(), reason="no fork start method (Windows)")
+def test_loops_on_worker_processes_are_the_serial_loops_bit_for_bit():
+    """Two workers return the loops of the serial path in the order asked, with the
+    same bits, each within its estimate of the closed form."""
+    amplitudes = [700.0, 900.0, 1600.0, 2000.0, 1200.0]
+    serial = _closed_form_loops(amplitudes, 1)
+    parallel = _closed_form_loops(amplitudes, 2)
+    for A, a, b in zip(amplitudes, serial, parallel):
+        assert b.amplitude == A and b.success
+        assert np.array_equal(a.q, b.q) and np.array_equal(a.alpha, b.alpha)
+        assert (a.dissipation, a.error, a.n_solves, a.n_cycles) == \
+            (b.dissipation, b.error, b.n_solves, b.n_cycles)
+        assert abs(b.dissipation - _exact(A)[0]) <= 3 * b.error + 1e-9 * _exact(A)[0]
+
+
+def test_a_failing_loop_job_raises_in_the_caller():
+    """An exception in a worker is raised by map_loops, not swallowed; a warning raised
+    in a worker reaches the caller's filters."""
+    def job(i):
+        if i == 2:
+            raise InputError("level 2 refused")
+        if i == 3:
+            warnings.warn(f"level {i} warns", UserWarning)
+        return i
+    with pytest.raises(InputError, match="level 2 refused"):
+        map_loops(job, range(4), 2)
+    with pytest.warns(UserWarning, match="level 3 warns"):
+        assert map_loops(job, [0, 1, 3], 2) == [0, 1, 3]
+
+
+@pytest.mark.parametrize("bad", [0, -1, 1.5, "2", True, 10 ** 6])
+def test_loop_workers_must_be_a_sane_process_count(bad):
+    with pytest.raises(InputError, match="loop_workers"):
+        RunOptions(loop_workers=bad)

@@ -26,7 +26,8 @@ from .contact.zone import release_zones, solve_in_zone, solve_preload, zone_from
 from .errors import (AnalysisError, ContactConvergenceWarning, InputError,
                      InterfaceGapWarning, QSMAWarning)
 from .fe import assemble_body
-from .hysteresis import SECANT_RTOL, compute_loop, masing_checks, masing_estimate
+from .hysteresis import (SECANT_RTOL, compute_loop, map_loops, masing_checks,
+                         masing_estimate)
 from .masing import loop_area
 from .levels import spec_levels
 from .modal import linear_modes, probe_vector
@@ -804,20 +805,24 @@ def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref):
                shakedown=np.zeros(n_ok, bool), use_loop=use_loop[user],
                reason=reason[user], loops={}, n_solves=0)
     linear_end = _linear_end(pos, pre)
-    for i, g in enumerate(user):
-        if not out["use_loop"][i]:
-            continue
+    zone = solver.zone          # every loop starts from the ramps' zone: its bits do
+    todo = np.flatnonzero(out["use_loop"])   # not depend on the loops solved before it
+
+    def level_loop(i):
+        g = user[i]
         A = grid[g]
         u = _loop_fractions(grid, g, linear_end, opts.loop_steps)
-        solver.zone = _loop_zone(solver.zone, pos.status[:g + 1], neg_status[:g + 1])
-        step = lambda a, s, A=A: solver(a, s, f"loop at A={A:.4g} (alpha={a:.4g})")
-        lp = compute_loop(step, response.q, A, pos.state(g), u, k_ref=k_ref,
-                          max_cycles=opts.max_cycles, rtol=opts.dissipation_rtol,
-                          atol=ZETA_ZERO * 2 * np.pi * A * abs(pos.q[g]))
+        solver.zone = _loop_zone(zone, pos.status[:g + 1], neg_status[:g + 1])
+        step = lambda a, s: solver(a, s, f"loop at A={A:.4g} (alpha={a:.4g})")
+        return compute_loop(step, response.q, A, pos.state(g), u, k_ref=k_ref,
+                            max_cycles=opts.max_cycles, rtol=opts.dissipation_rtol,
+                            atol=ZETA_ZERO * 2 * np.pi * A * abs(pos.q[g]))
+
+    for i, lp in zip(todo, map_loops(level_loop, todo, opts.loop_workers)):
         out["loops"][i] = lp
         out["n_solves"] += lp.n_solves
-        log.info("level %d: loop at A=%.4g, %s, %d solves, D=%.4g +- %.1g", i, A, lp.message,
-                 lp.n_solves, lp.dissipation, lp.error)
+        log.info("level %d: loop at A=%.4g, %s, %d solves, D=%.4g +- %.1g", i,
+                 lp.amplitude, lp.message, lp.n_solves, lp.dissipation, lp.error)
         out["cycles"][i] = lp.n_cycles
         if lp.success:
             out["f_hz_loop"][i] = lp.omega / (2 * np.pi)
@@ -826,6 +831,7 @@ def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref):
             out["loop_error"][i] = lp.error
             out["first"][i] = lp.first_dissipation
             out["shakedown"][i] = lp.shakedown
+    solver.zone = zone
     return out
 
 

@@ -23,7 +23,10 @@ integration error from the same rule on every second point (Richardson,
 """
 from __future__ import annotations
 
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
+import multiprocessing
+import warnings
 
 import numpy as np
 
@@ -355,6 +358,62 @@ def _failed(A, path, qs, first, cycle, n_solves, message):
     q = np.array(qs, dtype=float)
     return Loop(A, np.asarray(path, float), q, nan, nan if first is None else first, nan,
                 q[0], nan, cycle, n_solves, "solve_failed", message)
+
+
+# -- Loops on several processes --------------------------------------------------------
+
+#: The job of the worker processes of :func:`map_loops` (inherited at the fork).
+_JOB = None
+
+
+def _call_job(i):
+    """``_JOB(i)`` and the warnings it raised, for the parent to raise again."""
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        out = _JOB(i)
+    return out, [(w.message, w.category, w.filename, w.lineno) for w in seen]
+
+
+def parallel_available() -> bool:
+    """Whether worker processes can inherit a loop job (the ``fork`` start method)."""
+    return "fork" in multiprocessing.get_all_start_methods()
+
+
+def map_loops(job, indices, workers=1) -> list:
+    """``[job(i) for i in indices]``, on ``workers`` processes when ``workers > 1``.
+
+    The levels' loops are independent given the backbone: each starts from the
+    backbone state at its amplitude, on the ramps' contact zone, so the loop of a level
+    is the same sequence of floating-point operations in whichever process solves it,
+    and the results are those of the serial path bit for bit (``tests/test_lap.py``,
+    ``tests/test_hysteresis.py``).
+    The workers are forked from this process, so ``job`` (a closure over the contact
+    problem and the backbone states) is inherited, not pickled; only the level index
+    goes to a worker and its :class:`Loop` comes back, with the warnings it raised
+    (raised again here, in the order of ``indices``). The largest amplitudes, whose
+    loops take the most solves, are handed out first. Without the ``fork`` start method
+    (Windows) the loops run in this process. One call at a time per process: the job
+    reaches the workers through a module variable.
+    """
+    global _JOB
+    indices = [int(i) for i in indices]
+    workers = min(int(workers), len(indices))
+    if workers <= 1 or not parallel_available():
+        return [job(i) for i in indices]
+    _JOB = job
+    try:
+        with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork")) \
+                as pool:
+            futures = {i: pool.submit(_call_job, i) for i in reversed(indices)}
+            out = []
+            for i in indices:
+                result, raised = futures[i].result()
+                for message, category, filename, lineno in raised:
+                    warnings.warn_explicit(message, category, filename, lineno)
+                out.append(result)
+            return out
+    finally:
+        _JOB = None
 
 
 # -- Masing ---------------------------------------------------------------------------

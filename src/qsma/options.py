@@ -22,6 +22,8 @@ DISSIPATION_METHODS = ("auto", "masing", "loop")
 MAX_CYCLES_LIMIT = 100
 #: Largest ``loop_steps``: beyond it a loop costs more solves than a 10^4-level ramp.
 MAX_LOOP_STEPS = 10000
+#: Largest ``loop_workers``: a guard against a typo starting thousands of processes.
+MAX_LOOP_WORKERS = 256
 
 
 @dataclass(frozen=True)
@@ -69,6 +71,10 @@ class RunOptions:
     eliminate_open : bool
         Solve the ramp on the pairs closed after the preload, the open ones eliminated
         exactly (a pair that would close joins the zone).
+    loop_workers : int
+        Processes that compute the levels' loops (1: in this process). The loops of the
+        levels are independent given the backbone; the results are the same bits for
+        any count (:func:`qsma.hysteresis.map_loops`; forked workers, Linux and macOS).
     """
 
     mode: int = 0
@@ -87,6 +93,7 @@ class RunOptions:
     schur_backend: str = "auto"
     blas_threads: typing.Any = "auto"
     eliminate_open: bool = True
+    loop_workers: int = 1
 
     def __post_init__(self):
         from .contact import METHODS
@@ -112,6 +119,7 @@ class RunOptions:
                              f"{self.dissipation_rtol:g}")
         _integer("max_cycles", self.max_cycles, minimum=1, maximum=MAX_CYCLES_LIMIT)
         _integer("loop_steps", self.loop_steps, minimum=2, maximum=MAX_LOOP_STEPS)
+        _integer("loop_workers", self.loop_workers, minimum=1, maximum=MAX_LOOP_WORKERS)
         if self.n_modes is not None:
             _integer("n_modes", self.n_modes, minimum=1)
         for name in ("refine_levels", "direct_loop", "continue_on_failure", "eliminate_open"):

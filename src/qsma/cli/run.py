@@ -11,7 +11,7 @@ from .common import add_model_arguments, load_model
 HELP = "quasi-static modal analysis: backbone, frequency and damping versus amplitude"
 #: RunOptions fields that have a command-line flag of the same name.
 CLI_OPTIONS = ("mode", "method", "tol", "maxiter", "dissipation", "direct_loop",
-               "continue_on_failure")
+               "continue_on_failure", "loop_workers")
 
 
 def add_arguments(p):
@@ -34,6 +34,9 @@ def add_arguments(p):
                    help="dissipation per cycle: Masing's rules where verified and the "
                         "stabilised loop elsewhere (auto, the default), or one of them at "
                         "every level")
+    p.add_argument("--loop-workers", type=int, metavar="N",
+                   help="processes that compute the loops (default 1; same results for "
+                        "any N)")
     p.add_argument("--direct-loop", action="store_true", default=None,
                    help="also compute the hysteresis loop directly (check of Masing)")
     p.add_argument("--continue", dest="continue_on_failure", action="store_true",

@@ -1,0 +1,243 @@
+"""Computed loops on lap joints: where the solves go, loops on two processes, and
+whether D could be interpolated between a subset of the levels.
+
+Three tables (docs/performance.md, "Loops on 3D lap joints"):
+
+``profile``
+    One run per case: per computed loop, the cycles on the initial increments until
+    one repeated, the solves they took, the solves of the refinement rounds and the
+    final increments per branch.
+``parallel``
+    ``--repeat`` runs of each case with ``loop_workers = 1`` and ``2``, alternating;
+    the median of the hysteresis stage and the ratio, the median CPU seconds of the
+    whole run (workers included: what the second process adds), and whether every
+    per-level value and every loop point has the same bits.
+``interpolation``
+    From one run (the levels with computed loops): loops at every ``stride``-th level, the
+    others interpolated by PCHIP of ``log D`` and ``log q_a`` in ``log A`` where the
+    leave-one-out estimate (each computed node predicted from the other nodes) of the
+    two bounding nodes is below ``rtol``, more levels computed until it is; the loops
+    this saves, and the worst error of the interpolated zeta against the computed one,
+    also in units of its estimate.
+
+    python benchmarks/bench_loops.py profile --cases lap-3d:1
+    python benchmarks/bench_loops.py parallel --cases lap-2d:1 --repeat 3
+    python benchmarks/bench_loops.py interpolation --cases lap-2d:1 lap-3d:1 brb:1
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+
+import numpy as np
+
+import qsma
+from qsma.cli.run import parse_levels_spec
+from qsma.examples import EXAMPLES
+from qsma.result import LEVEL_FIELDS
+
+#: A computed loop is an interpolation node if D exceeds this multiple of (its error
+#: estimate + the zero threshold zeta 1e-8): log D of a zero-to-its-error value is noise.
+NODE_MARGIN = 10.0
+
+
+def _run(case, levels, **options):
+    name, refine = case.split(":")
+    kw = {} if levels is None else dict(levels=parse_levels_spec(levels))
+    return qsma.run(EXAMPLES[name](int(refine)), **kw, **options)
+
+
+def _header(*columns):
+    print("| " + " | ".join(columns) + " |")
+    print("|---" * len(columns) + "|")
+
+
+def profile(args):
+    _header("case", "level", "A", "cycles", "solves of the cycles",
+            "solves of the refinement", "increments per branch (initial -> final)", "D",
+            "error / D")
+    for case in args.cases:
+        r = _run(case, args.levels, dissipation=args.dissipation)
+        total = [0, 0]
+        for k, lp in sorted(r.loops.items()):
+            n_final = (len(lp.q) - 1) // 2
+            n_initial = _initial_steps(r, k)
+            cycles = lp.n_cycles * 2 * n_initial
+            total[0] += cycles
+            total[1] += lp.n_solves - cycles
+            print(f"| {case} | {k} | {lp.amplitude:.4g} | {lp.n_cycles} | {cycles} | "
+                  f"{lp.n_solves - cycles} | {n_initial} -> {n_final} | "
+                  f"{lp.dissipation:.3e} | {lp.error / abs(lp.dissipation):.1e} |")
+        t = r.timings_s
+        print(f"| {case} | all {len(r.loops)} | | | {total[0]} | {total[1]} | | | |")
+        print(f"\n{case}: hysteresis {t['hysteresis']:.1f} s, contact {t['contact']:.1f} s, "
+              f"total {t['total']:.1f} s; {sum(total)} loop solves, "
+              f"{t['hysteresis'] / max(sum(total), 1) * 1e3:.1f} ms per solve\n")
+
+
+def _initial_steps(r, k):
+    """Increments per branch of the first cycles of level k's loop (as the analysis
+    chose them)."""
+    from types import SimpleNamespace
+    from qsma.analysis import _linear_end, _loop_fractions
+    bb = r.backbone_states
+    g = int(r.backbone_index[k])
+    linear_end = _linear_end(SimpleNamespace(status=bb.status, n=len(bb.status)), r.preload)
+    return len(_loop_fractions(r.backbone_alpha, g, linear_end, r.options.loop_steps))
+
+
+def parallel(args):
+    _header("case", "loops", "loop solves", "hysteresis, 1 process [s]",
+            "hysteresis, 2 processes [s]", "ratio", "CPU of the run, 1 / 2 processes [s]",
+            "same bits")
+    for case in args.cases:
+        times, cpus = {1: [], 2: []}, {1: [], 2: []}
+        same = True
+        for _ in range(args.repeat):
+            runs = {}
+            for workers in (1, 2):
+                cpu = _cpu()
+                runs[workers] = _run(case, args.levels, dissipation=args.dissipation,
+                                     loop_workers=workers)
+                cpus[workers].append(_cpu() - cpu)
+                times[workers].append(runs[workers].timings_s["hysteresis"])
+            same &= _same_bits(runs[1], runs[2])
+        med = {w: statistics.median(t) for w, t in times.items()}
+        cpu = {w: statistics.median(t) for w, t in cpus.items()}
+        r = runs[1]
+        print(f"| {case} | {len(r.loops)} | {r.solver['loop_solves']} | {med[1]:.2f} | "
+              f"{med[2]:.2f} | {med[1] / med[2]:.2f} | {cpu[1]:.1f} / {cpu[2]:.1f} | "
+              f"{'yes' if same else 'NO'} |", flush=True)
+
+
+def _cpu():
+    """CPU seconds of this process and of its finished children (the workers)."""
+    import os
+    t = os.times()
+    return t.user + t.system + t.children_user + t.children_system
+
+
+def _same_bits(a, b):
+    for name in LEVEL_FIELDS:
+        x, y = getattr(a, name), getattr(b, name)
+        if isinstance(x, np.ndarray) and x.dtype.kind == "f":
+            if not np.array_equal(x, y, equal_nan=True):
+                return False
+        elif list(x) != list(y):
+            return False
+    return all(np.array_equal(lp.q, b.loops[k].q) for k, lp in a.loops.items())
+
+
+# -- the interpolation study --------------------------------------------------------------
+
+def _pchip(x, y, at):
+    from scipy.interpolate import PchipInterpolator
+    return PchipInterpolator(x, y, extrapolate=False)(at)
+
+
+def _is_node(lp, atol):
+    return bool(lp.success and np.isfinite(lp.error)
+                and lp.dissipation > NODE_MARGIN * (lp.error + atol))
+
+
+def _runs(loops, computed, atol):
+    """Computed indices in runs of consecutive nodes (a non-node ends a run)."""
+    runs, run = [], []
+    for i in sorted(computed):
+        if _is_node(loops[i], atol[i]):
+            run.append(i)
+        else:
+            runs.append(run)
+            run = []
+    return [r for r in runs + [run] if r]
+
+
+def _xyz(A, loops, idx):
+    return (np.log(A[idx]), np.log([loops[i].dissipation for i in idx]),
+            np.log([loops[i].q_amplitude for i in idx]))
+
+
+def _leave_one_out(A, loops, run, c):
+    pos = run.index(c)
+    if pos in (0, len(run) - 1):
+        return np.nan
+    x, y, z = _xyz(A, loops, run[:pos] + run[pos + 1:])
+    xc, yc, zc = _xyz(A, loops, [c])
+    return float(abs(_pchip(x, y, xc[0]) - yc[0]) + abs(_pchip(x, z, xc[0]) - zc[0]))
+
+
+def _plan(A, loops, computed, atol, rtol):
+    """{(a, b): estimate or inf} for consecutive computed levels with levels between."""
+    run_of = {i: run for run in _runs(loops, computed, atol) for i in run}
+    order = sorted(computed)
+    plan = {}
+    for a, b in zip(order[:-1], order[1:]):
+        if b - a < 2:
+            continue
+        run = run_of.get(a)
+        if run is None or run_of.get(b) is not run:
+            plan[(a, b)] = np.inf
+            continue
+        e = [v for v in (_leave_one_out(A, loops, run, c) for c in (a, b)) if np.isfinite(v)]
+        plan[(a, b)] = max(e) if e else np.inf
+    return plan
+
+
+def sparse(A, loops, atol, rtol, stride):
+    """Computed indices and {level: (zeta, relative estimate)} of the interpolated ones."""
+    n = len(A)
+    computed = set(range(0, n, stride)) | {n - 1}
+    while True:
+        plan = _plan(A, loops, computed, atol, rtol)
+        more = {(a + b) // 2 for (a, b), e in plan.items() if not e <= rtol}
+        if not more:
+            break
+        computed |= more
+    out = {}
+    for (a, b), e in plan.items():
+        run = next(r for r in _runs(loops, computed, atol) if a in r)
+        x, y, z = _xyz(A, loops, run)
+        node = max(loops[c].error / loops[c].dissipation for c in (a, b))
+        for i in range(a + 1, b):
+            D, qa = np.exp(_pchip(x, y, np.log(A[i]))), np.exp(_pchip(x, z, np.log(A[i])))
+            out[i] = (D / (2 * np.pi * A[i] * qa), e + node)
+    return computed, out
+
+
+def interpolation(args):
+    _header("case", "loops", "rtol", "stride", "computed", "solves (share)",
+            "worst rel. error of zeta", "worst error / estimate")
+    for case in args.cases:
+        r = _run(case, args.levels, dissipation=args.dissipation)
+        keys = sorted(k for k, lp in r.loops.items())
+        loops = [r.loops[k] for k in keys]
+        A = np.array([lp.amplitude for lp in loops])
+        atol = np.array([1e-8 * 2 * np.pi * lp.amplitude * abs(lp.q_top) for lp in loops])
+        total = sum(lp.n_solves for lp in loops)
+        for rtol in args.rtols:
+            for stride in args.strides:
+                computed, interp = sparse(A, loops, atol, rtol, stride)
+                solves = sum(loops[i].n_solves for i in computed)
+                err = [abs(z / loops[i].zeta - 1) for i, (z, _) in interp.items()]
+                ratio = [abs(z / loops[i].zeta - 1) / e for i, (z, e) in interp.items()]
+                print(f"| {case} | {len(loops)} | {rtol:g} | {stride} | {len(computed)} | "
+                      f"{solves} ({solves / total:.2f}) | "
+                      f"{max(err, default=0):.2e} | {max(ratio, default=0):.2f} |",
+                      flush=True)
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("table", choices=["profile", "parallel", "interpolation"])
+    p.add_argument("--cases", nargs="+", default=["lap-2d:1"], help="EXAMPLE:REFINE")
+    p.add_argument("--levels", help="levels spec (default: the 51 default levels)")
+    p.add_argument("--dissipation", default="auto", choices=["auto", "loop"])
+    p.add_argument("--repeat", type=int, default=3)
+    p.add_argument("--rtols", type=float, nargs="+", default=[5e-3, 2e-2, 5e-2])
+    p.add_argument("--strides", type=int, nargs="+", default=[2, 4, 8])
+    args = p.parse_args(argv)
+    {"profile": profile, "parallel": parallel, "interpolation": interpolation}[args.table](args)
+
+
+if __name__ == "__main__":
+    main()
