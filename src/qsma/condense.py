@@ -287,6 +287,12 @@ class ReducedModel:
     ghost: object = None          # qsma.rigid.Ghost: K holds its spring, or None
     gauge: np.ndarray | None = None   # rigid motions of a free-free assembly in S
 
+    def __post_init__(self):
+        # Read-only, so the contact problem can hold this K instead of a copy of it
+        # (qsma.contact.ContactProblem takes an exactly symmetric read-only K as is).
+        if isinstance(self.K, np.ndarray):
+            self.K.flags.writeable = False
+
     @property
     def n_pairs(self):
         return self.K.shape[0] // self.dim

@@ -31,6 +31,28 @@ def test_stores_symmetrised_readonly_arrays_and_per_pair_mu():
     assert "n_pairs=3" in repr(p) and "mu=0.3" in repr(p)
 
 
+def test_frozen_symmetric_stiffness_is_held_without_a_copy():
+    """A read-only, exactly symmetric K (an analysis's reduced model) is held as is; a
+    writeable one, or a read-only one that is not exactly symmetric, is copied (and
+    symmetrised), so the caller can never change a problem behind its back."""
+    A = np.random.default_rng(3).normal(size=(6, 6))
+    K = A @ A.T + 6 * np.eye(6)
+    K = 0.5 * (K + K.T)
+    K.flags.writeable = False
+    assert np.shares_memory(ContactProblem(K, mu=0.3).K, K)
+    writeable = K.copy()
+    held = ContactProblem(writeable, mu=0.3).K
+    assert not np.shares_memory(held, writeable)
+    np.testing.assert_array_equal(held, K)
+    skew = K.copy()
+    skew[0, 1] += 1e-14 * np.abs(K).max()
+    skew.flags.writeable = False
+    held = ContactProblem(skew, mu=0.3).K
+    assert not np.shares_memory(held, skew)
+    np.testing.assert_array_equal(held, held.T)
+    assert not held.flags.writeable
+
+
 def test_3d_indices():
     p = ContactProblem(spd(6), [0.1, 0.2], gap0=[0.0, 1e-3], dim=3)
     np.testing.assert_array_equal(p.normal_index, [2, 5])
