@@ -182,6 +182,23 @@ def test_another_material_is_refused(caplog):
              "the stiffness matrices differ")
 
 
+def test_another_material_beside_a_stiff_spring_is_refused(caplog):
+    """Penalty clamps 1e24 N/m (about 1e13 times the elements' stiffness) on both
+    beams and a top beam 1 % stiffer: each entry is checked against its own rows'
+    diagonal, so the springs do not hide the material (against the largest entry of
+    K, the 1 % difference was 5e-13 of it and the pair was taken as congruent)."""
+    from qsma.model import Spring
+    model = sandwich_2d(1)
+    bodies = tuple(replace(b, clamps=(), springs=(Spring("clamp", (1e24, 1e24)),))
+                   for b in model.bodies)
+    model = replace(model, bodies=bodies)
+    m = bodies[1].material
+    _refused(_top(model, material=replace(m, E=m.E * 1.01)), caplog,
+             "the stiffness matrices differ")
+    asm, pairing = _parts(model)                  # the same springs, the same material
+    assert find_congruence(*asm, pairing.nodes1, pairing.nodes2) is not None
+
+
 def test_another_density_is_refused(caplog):
     model = sandwich_2d(1)
     m = model.bodies[1].material

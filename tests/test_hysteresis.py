@@ -17,6 +17,10 @@ unilateral spring stores and returns energy, the slider dissipates
 D = 2 F_s (x_max - x_min - 2 F_s / k), and the peak-to-peak secant stiffness is
 2 A / (x_max - x_min).
 """
+import multiprocessing
+import os
+import threading
+import time
 import warnings
 
 import numpy as np
@@ -248,6 +252,65 @@ def test_a_failing_loop_job_raises_in_the_caller():
         map_loops(job, range(4), 2)
     with pytest.warns(UserWarning, match="level 3 warns"):
         assert map_loops(job, [0, 1, 3], 2) == [0, 1, 3]
+
+
+def _pid_job(tag):
+    return lambda i: (tag, i, os.getpid())
+
+
+def _in_a_thread(fn):
+    box = {}
+    t = threading.Thread(target=lambda: box.update(out=fn()))
+    t.start()
+    return t, box
+
+
+@pytest.mark.skipif(not parallel_available(), reason="no fork start method (Windows)")
+def test_loop_workers_fork_only_from_the_main_thread():
+    """Two threads asking for workers at once each get their own job's results (the
+    job reaches forked workers through a module variable, so only the main thread may
+    fork: the threads compute their loops themselves)."""
+    calls = [_in_a_thread(lambda tag=tag: map_loops(_pid_job(tag), range(4), 2))
+             for tag in "AB"]
+    for (t, box), tag in zip(calls, "AB"):
+        t.join()
+        assert box["out"] == [(tag, i, os.getpid()) for i in range(4)]
+    on_workers = map_loops(_pid_job("C"), range(4), 2)
+    assert [r[:2] for r in on_workers] == [("C", i) for i in range(4)]
+    assert all(pid != os.getpid() for *_, pid in on_workers)
+
+
+def _loops_in_a_daemon(queue):
+    queue.put(map_loops(_pid_job("D"), range(3), 2) + [os.getpid()])
+
+
+@pytest.mark.skipif(not parallel_available(), reason="no fork start method (Windows)")
+def test_loop_workers_in_a_daemonic_process_run_in_it():
+    """A daemonic process (a sweep's worker) may not have children: the loops run in it
+    instead of failing."""
+    ctx = multiprocessing.get_context("fork")
+    queue = ctx.Queue()
+    p = ctx.Process(target=_loops_in_a_daemon, args=(queue,), daemon=True)
+    p.start()
+    *out, pid = queue.get(timeout=60)
+    p.join(timeout=60)
+    assert out == [("D", i, pid) for i in range(3)]
+
+
+@pytest.mark.skipif(not parallel_available(), reason="no fork start method (Windows)")
+def test_a_failing_loop_stops_the_other_workers():
+    """When one loop raises, the caller gets the exception without waiting for the
+    loops still running on other workers (they would take 60 s here)."""
+    def job(i):
+        if i == 0:
+            time.sleep(0.5)
+            raise InputError("level 0 refused")
+        time.sleep(60)
+        return i
+    t0 = time.monotonic()
+    with pytest.raises(InputError, match="level 0 refused"):
+        map_loops(job, range(3), 3)
+    assert time.monotonic() - t0 < 30
 
 
 @pytest.mark.parametrize("bad", [0, -1, 1.5, "2", True, 10 ** 6])

@@ -49,11 +49,15 @@ log = logging.getLogger("qsma")
 #: :data:`OPERATOR_RTOL` anyway; this bound only has to stay well below the node
 #: spacing (1e-9 of the body size).
 NODE_RTOL = 1e-9
-#: ``max |T K_A T^T - K_B| <= OPERATOR_RTOL max |K_B|`` (and the same for M). The
-#: round-off of assembling the same body at mirrored or rotated coordinates is
-#: 1e-16 .. 1e-15 of max |K| (sandwich-2d and -3d, tests/test_congruence.py), a
-#: different material or element 1e-4 and more.
+#: ``|T K_A T^T - K_B|_ij <= OPERATOR_RTOL sqrt(|K_B,ii K_B,jj|)`` for every entry (and
+#: the same for M): each entry against the diagonal of its own rows, so that a stiff
+#: spring or block does not set the scale of the whole check. The round-off of
+#: assembling the same body at mirrored or rotated coordinates is 1e-16 .. 1e-13 of
+#: it (sandwich-2d and -3d, tests/test_congruence.py), a different material or
+#: element 1e-4 and more.
 OPERATOR_RTOL = 1e-12
+#: Floor of a diagonal entry in :func:`_operator_mismatch`, relative to the largest.
+TINY = 1e-300
 #: Entries of ``Q`` within this of 0 or +-1 are snapped (a signed permutation stays one
 #: exactly, so its DOF map moves single DOFs).
 SNAP_TOL = 1e-10
@@ -114,7 +118,7 @@ def find_congruence(assembled_a, assembled_b, nodes_a, nodes_b) -> Congruence | 
     every node to :data:`NODE_RTOL` one to one; the interface nodes map; the clamped
     DOFs map (``T`` sends no clamped DOF of A to a free DOF of B: for a ``Q`` that is
     not a signed permutation only whole-node clamps do); ``T M_A T^T = M_B`` and
-    ``T K_A T^T = K_B`` to :data:`OPERATOR_RTOL` of their largest entry. Several
+    ``T K_A T^T = K_B`` entry by entry to :data:`OPERATOR_RTOL` of their diagonals. Several
     candidates can match the nodes of a symmetric body; the first one that passes
     every check is taken.
     """
@@ -237,10 +241,20 @@ def _refusal(assembled_a, assembled_b, nodes_a, nodes_b, cong):
 
 
 def _operator_mismatch(T, A, B) -> float:
-    """``max |T A T^T - B| / max |B|``."""
-    scale = abs(B).max()
-    D = T @ sp.csr_matrix(A) @ T.T - B
-    return float(abs(D).max() / scale) if scale > 0 else float("inf")
+    r"""``max_ij |(T A T^T - B)_ij| / sqrt(|B_ii| |B_jj|)``: each entry against the
+    diagonal of its own rows, so that a stiff part (a grounded spring, a stiff block)
+    cannot hide a difference elsewhere; for the positive semi-definite K and M no entry
+    of ``B`` exceeds its scale. A zero diagonal (a row of zeros) is compared against
+    ``TINY`` times the largest entry."""
+    B = sp.csr_matrix(B)
+    top = abs(B).max()
+    if not top > 0:
+        return float("inf")
+    d = np.sqrt(np.maximum(np.abs(B.diagonal()), TINY * top))
+    D = (T @ sp.csr_matrix(A) @ T.T - B).tocoo()
+    if D.nnz == 0:
+        return 0.0
+    return float(np.max(np.abs(D.data) / (d[D.row] * d[D.col])))
 
 
 # ----------------------------------------------------------------------------------

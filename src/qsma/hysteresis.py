@@ -23,12 +23,15 @@ integration error from the same rule on every second point (Richardson,
 """
 from __future__ import annotations
 
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
+import logging
 import multiprocessing
+import threading
 import warnings
 
 import numpy as np
+
+log = logging.getLogger(__name__)
 
 #: Relative tolerance on the interface displacements for "the cycle ended in the state
 #: it started from" (relative to the displacement range of the cycle). The contact
@@ -379,6 +382,21 @@ def parallel_available() -> bool:
     return "fork" in multiprocessing.get_all_start_methods()
 
 
+def _may_fork():
+    """``None`` if this call may fork loop workers, else why not: the ``fork`` start
+    method must exist (not on Windows); a daemonic process (a Dask or multiprocessing
+    worker) may not have children; and only the main thread forks, so that two calls
+    from two threads never share :data:`_JOB` and no other thread of this process is
+    copied half-way through holding a lock."""
+    if not parallel_available():
+        return "the fork start method is not available"
+    if multiprocessing.current_process().daemon:
+        return "this is a daemonic process (e.g. a sweep worker), which may not fork"
+    if threading.current_thread() is not threading.main_thread():
+        return "this is not the main thread of the process"
+    return None
+
+
 def map_loops(job, indices, workers=1) -> list:
     """``[job(i) for i in indices]``, on ``workers`` processes when ``workers > 1``.
 
@@ -391,28 +409,33 @@ def map_loops(job, indices, workers=1) -> list:
     problem and the backbone states) is inherited, not pickled; only the level index
     goes to a worker and its :class:`Loop` comes back, with the warnings it raised
     (raised again here, in the order of ``indices``). The largest amplitudes, whose
-    loops take the most solves, are handed out first. Without the ``fork`` start method
-    (Windows) the loops run in this process. One call at a time per process: the job
-    reaches the workers through a module variable.
+    loops take the most solves, are handed out first. The loops run in this process
+    instead where forking is not possible or not safe (:func:`_may_fork`: Windows, a
+    daemonic sweep worker, a thread other than the main one). An exception, or a
+    signal handled here, stops the workers at once (their loops are abandoned).
     """
     global _JOB
     indices = [int(i) for i in indices]
     workers = min(int(workers), len(indices))
-    if workers <= 1 or not parallel_available():
+    why_not = _may_fork() if workers > 1 else None
+    if why_not is not None:
+        log.info("loops computed in this process, not on %d workers: %s", workers, why_not)
+    if workers <= 1 or why_not is not None:
         return [job(i) for i in indices]
     _JOB = job
+    pool = multiprocessing.get_context("fork").Pool(workers)
     try:
-        with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork")) \
-                as pool:
-            futures = {i: pool.submit(_call_job, i) for i in reversed(indices)}
-            out = []
-            for i in indices:
-                result, raised = futures[i].result()
-                for message, category, filename, lineno in raised:
-                    warnings.warn_explicit(message, category, filename, lineno)
-                out.append(result)
-            return out
+        pending = {i: pool.apply_async(_call_job, (i,)) for i in reversed(indices)}
+        out = []
+        for i in indices:
+            result, raised = pending[i].get()
+            for message, category, filename, lineno in raised:
+                warnings.warn_explicit(message, category, filename, lineno)
+            out.append(result)
+        return out
     finally:
+        pool.terminate()        # idle workers at the end; running ones on an exception
+        pool.join()
         _JOB = None
 
 
