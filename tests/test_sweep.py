@@ -370,3 +370,15 @@ def test_cli_modes_out_writes_vtu_and_json(tmp_path, capsys):
     assert written["f_hz"] == printed["f_hz"] and len(written["f_hz"]) == 3
     assert sorted(k for k in meshio.read(tmp_path / "modes.vtu").point_data
                   if k.startswith("mode_")) == ["mode_00", "mode_01", "mode_02"]
+
+
+def test_the_fingerprint_ignores_loop_workers_only():
+    """A study resumes whatever the number of loop workers (they change no result),
+    but not after a change of an option that does."""
+    from qsma.examples import sandwich_2d
+    from qsma.options import RunOptions
+    from qsma.study.sweep import _fingerprint
+    model = sandwich_2d()
+    base = _fingerprint(model, RunOptions())
+    assert _fingerprint(model, RunOptions(loop_workers=2)) == base
+    assert _fingerprint(model, RunOptions(dissipation_rtol=1e-3)) != base

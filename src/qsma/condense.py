@@ -290,8 +290,10 @@ class ReducedModel:
     def __post_init__(self):
         # Read-only, so the contact problem can hold this K instead of a copy of it
         # (qsma.contact.ContactProblem takes an exactly symmetric read-only K as is).
-        if isinstance(self.K, np.ndarray):
-            self.K.flags.writeable = False
+        a = self.K
+        while isinstance(a, np.ndarray):        # the array and the arrays it views
+            a.flags.writeable = False
+            a = a.base
 
     @property
     def n_pairs(self):

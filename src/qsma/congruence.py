@@ -138,8 +138,8 @@ def find_congruence(assembled_a, assembled_b, nodes_a, nodes_b) -> Congruence | 
             log.info("%s are congruent (Q = %s, K mismatch %.1e): one factorisation",
                      name, np.round(cong.Q, 6).tolist(), mismatch)
             return cong
-        reasons.append(reason)
-    why = "; ".join(dict.fromkeys(reasons)) if reasons else "no orthogonal map of the nodes"
+        reasons.append(f"under Q = {np.round(cong.Q, 6).tolist()}, {reason}")
+    why = ("; ".join(reasons) if reasons else "no orthogonal map of the nodes")
     log.info("%s are condensed separately: %s", name, why)
     return None
 

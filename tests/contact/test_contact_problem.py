@@ -44,6 +44,10 @@ def test_frozen_symmetric_stiffness_is_held_without_a_copy():
     held = ContactProblem(writeable, mu=0.3).K
     assert not np.shares_memory(held, writeable)
     np.testing.assert_array_equal(held, K)
+    base = K.copy()
+    view = base.view()
+    view.flags.writeable = False                 # read-only, but its base is not
+    assert not np.shares_memory(ContactProblem(view, mu=0.3).K, base)
     skew = K.copy()
     skew[0, 1] += 1e-14 * np.abs(K).max()
     skew.flags.writeable = False

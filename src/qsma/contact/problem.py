@@ -250,7 +250,18 @@ def _shareable(K):
     of the interface size, 331 MB at 6,435 unknowns). It is used as is only if it is also
     exactly symmetric, when symmetrising would return the same bits."""
     return (isinstance(K, np.ndarray) and K.dtype == np.float64 and K.ndim == 2
-            and K.shape[0] == K.shape[1] and K.flags.c_contiguous and not K.flags.writeable)
+            and K.shape[0] == K.shape[1] and K.flags.c_contiguous and _read_only_memory(K))
+
+
+def _read_only_memory(a):
+    """Whether no array in the chain of ``a``'s bases is writeable, and the memory
+    belongs to numpy arrays (not a memory map or a foreign buffer): a read-only view of
+    a writeable array could still be changed through the array."""
+    while a is not None:
+        if not isinstance(a, np.ndarray) or isinstance(a, np.memmap) or a.flags.writeable:
+            return False
+        a = a.base
+    return True
 
 
 def _check_symmetric(K):

@@ -58,9 +58,14 @@ DONE_SUFFIX = ".done.json"
 #: this package is developed on; ``workers=`` or ``--workers`` changes it.
 DEFAULT_WORKERS = 2
 CASE_FILES = ("plots", "vtu", "rom", "report")
-#: Run options a sweep does not vary: the BLAS thread count does not change results,
-#: the condensation backend is fixed when the shared preparation is made.
-NOT_SWEPT = ("blas_threads", "schur_backend")
+#: Run options a sweep does not vary: the BLAS thread count and the loop workers do
+#: not change results (a sweep's workers compute their loops themselves: a daemonic
+#: process may not fork), the condensation backend is fixed when the shared
+#: preparation is made.
+NOT_SWEPT = ("blas_threads", "schur_backend", "loop_workers")
+#: Run options left out of a study's fingerprint: they change no result, so a study
+#: resumes whatever they are (and studies started before they existed still resume).
+NOT_FINGERPRINTED = ("loop_workers",)
 
 
 @dataclass(frozen=True)
@@ -521,7 +526,8 @@ def _fingerprint(model, options) -> str:
     h.update(repr((interfaces, model.tip, model.mu)).encode())
     if model.bolts:
         h.update(repr(model.bolts).encode())
-    h.update(repr(sorted(options.as_dict().items())).encode())
+    h.update(repr(sorted((k, v) for k, v in options.as_dict().items()
+                         if k not in NOT_FINGERPRINTED)).encode())
     h.update(repr(options.levels).encode())
     return h.hexdigest()
 
