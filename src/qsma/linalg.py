@@ -465,7 +465,8 @@ def _schur_metis_superlu(K, C, E) -> SchurParts:
     p = nested_dissection(K_EE)
     A = K_EE[p][:, p]
     M = sp.bmat([[A, K[E[p]][:, C]], [None, sp.identity(nC)]], format="csc")
-    del K_EE
+    a = A.diagonal()
+    del K_EE, A                      # not held next to the factor and scipy's copies
     t1 = time.perf_counter()
     try:
         lu = spla.splu(M, permc_spec="NATURAL", diag_pivot_thresh=0.0,
@@ -478,7 +479,7 @@ def _schur_metis_superlu(K, C, E) -> SchurParts:
     del M
     U = lu.U.tocsc()
     d = U.diagonal()[:nE]
-    ratio = float(np.min(d / A.diagonal()))
+    ratio = float(np.min(d / a))
     t2 = time.perf_counter()
     if not ratio > PIVOT_RATIO_MIN:
         return SchurParts(np.zeros((nC, nC)), None, ratio, {})
