@@ -108,12 +108,8 @@ def condense_body(assembled, nodes, frames, backend="auto") -> CondensedBody:
     (:func:`qsma.rigid.interface_basis`; docs/theory.md section 10)."""
     from .rigid import interface_basis
     body = assembled.body
-    dim = body.dim
-    C = (dim * nodes[:, None] + np.arange(dim)[None, :]).ravel()
-    fixed = np.zeros(body.n_dofs, dtype=bool)
-    fixed[assembled.fixed] = True
-    if fixed[C].any():
-        bad = nodes[np.any(fixed[C].reshape(-1, dim), axis=1)]
+    C, bad = _interface_dofs(assembled, nodes)
+    if len(bad):
         raise InputError(f"body {body.name!r}: interface node(s) {bad[:10].tolist()} are "
                          f"clamped; remove them from the interface set or from the clamp")
     free = assembled.free
@@ -158,11 +154,8 @@ def congruent_body(base: CondensedBody, assembled, nodes, frames, congruence
     from .rigid import interface_basis
     t0 = time.perf_counter()
     body = assembled.body
-    dim = body.dim
-    C = (dim * np.asarray(nodes)[:, None] + np.arange(dim)[None, :]).ravel()
-    fixed = np.zeros(body.n_dofs, dtype=bool)
-    fixed[assembled.fixed] = True
-    if fixed[C].any():
+    C, bad = _interface_dofs(assembled, nodes)
+    if len(bad):
         return None                          # condense_body names the clamped nodes
     E = np.setdiff1d(assembled.free, C)
     if len(E) != len(base.E) or len(C) != len(base.C):
@@ -180,6 +173,17 @@ def congruent_body(base: CondensedBody, assembled, nodes, frames, congruence
     timings = dict(congruent_with=base.name, mapped=time.perf_counter() - t0,
                    backend=base.timings.get("backend") if base.timings else None)
     return CondensedBody(body.name, body.n_dofs, C, E, R, Kc, solve, K_EC, timings, rigid)
+
+
+def _interface_dofs(assembled, nodes):
+    """``(C, clamped)``: the interface DOFs of ``nodes`` (node by node, in their order)
+    and those of ``nodes`` that a clamp holds in some direction."""
+    nodes = np.asarray(nodes)
+    dim = assembled.body.dim
+    C = (dim * nodes[:, None] + np.arange(dim)[None, :]).ravel()
+    fixed = np.zeros(assembled.body.n_dofs, dtype=bool)
+    fixed[assembled.fixed] = True
+    return C, nodes[np.any(fixed[C].reshape(-1, dim), axis=1)]
 
 
 def _orthogonal_block(T) -> bool:

@@ -74,7 +74,8 @@ class Congruence:
     Q : (dim, dim) orthogonal, ``det Q = +-1``
     c : (dim,) translation
     perm : node ``i`` of A is node ``perm[i]`` of B
-    mismatch : ``max |T K_A T^T - K_B| / max |K_B|`` measured by the verification
+    mismatch : the largest entry of ``T K_A T^T - K_B`` against the diagonal of its
+        rows (:func:`_operator_mismatch`), measured by the verification
     """
 
     Q: np.ndarray

@@ -31,7 +31,7 @@ import warnings
 
 import numpy as np
 
-log = logging.getLogger(__name__)
+log = logging.getLogger("qsma")
 
 #: Relative tolerance on the interface displacements for "the cycle ended in the state
 #: it started from" (relative to the displacement range of the cycle). The contact

@@ -295,7 +295,6 @@ def _check_per_pair(name, value, n, default, nonnegative):
     return _frozen(array)
 
 
-
 def _derived_fields(K, dim) -> dict:
     """The fields of a :class:`ContactProblem` that follow from ``K`` and ``dim``."""
     n = K.shape[0] // dim
@@ -309,6 +308,7 @@ def _set_fields(problem, **values):
     """Set the fields of a frozen :class:`ContactProblem`."""
     for name, value in values.items():
         object.__setattr__(problem, name, value)
+
 
 def _diagonal_blocks(K, dim):
     n = K.shape[0] // dim
