@@ -1,6 +1,7 @@
 """CPU time of the whole ``qsma run --example sandwich-2d`` process, per stage.
 
 Usage: python benchmarks/bench_process.py [--repeat 5] [--example sandwich-2d]
+       [--baseline SRC]
 
 Two measurements, each the median of ``--repeat`` fresh processes:
 
@@ -14,6 +15,16 @@ Two measurements, each the median of ``--repeat`` fresh processes:
 The analysis row is also split by the run's own stages (pairing, assembly,
 condensation, tied modes, contact ramps, hysteresis, post-processing), in CPU seconds
 (``qsma.analysis._Timer.stage`` wrapped in the child; nested stages count once).
+
+``--baseline SRC`` measures a second source tree (the ``src`` folder of another
+checkout, e.g. a worktree of the main branch) in the same session, its processes
+alternating with this tree's, so that the load of a shared machine falls on both
+columns alike.
+
+The package's sources are compiled to bytecode (``compileall``) before the first
+process, as ``pip install`` does: with ``PYTHONDONTWRITEBYTECODE`` set and no
+``__pycache__``, every process would compile qsma's modules again (0.15-0.3 s of
+CPU, none of it the program's).
 
 The stage sum and the command-line total differ by the argument parsing, the result
 folder protocol and the noise of a shared machine.
@@ -96,9 +107,11 @@ def _cpu_per_stage(analysis):
     return record
 
 
-def _cpu_of(cmd):
-    """User + system CPU seconds of the process ``cmd`` (its output discarded)."""
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+def _cpu_of(cmd, env=None):
+    """User + system CPU seconds of the process ``cmd`` (its output kept, its stderr
+    discarded)."""
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                            env=env)
     stdout = proc.stdout.read()
     _, status, usage = os.wait4(proc.pid, 0)
     proc.returncode = os.waitstatus_to_exitcode(status)
@@ -107,46 +120,86 @@ def _cpu_of(cmd):
     return usage.ru_utime + usage.ru_stime, stdout
 
 
+def _environment(src):
+    """Environment of the child processes: ``src`` first on the path (``None``: as
+    this process), the package's sources compiled to bytecode first."""
+    env = dict(os.environ)
+    if src is not None:
+        env["PYTHONPATH"] = os.pathsep.join([os.path.abspath(src)]
+                                            + env.get("PYTHONPATH", "").split(os.pathsep))
+    subprocess.run([sys.executable, "-c", "import compileall, os, qsma; "
+                    "compileall.compile_dir(os.path.dirname(qsma.__file__), quiet=1)"],
+                   env=env, check=True)
+    return env
+
+
+def _measure(example, env, tmp, tag):
+    """One fresh process of each kind: (stages, process total, qsma run, --no-plots)."""
+    cpu, out = _cpu_of([sys.executable, __file__, "--example", example, "--child", tmp],
+                       env)
+    stages = json.loads(out)
+    run = [sys.executable, "-m", "qsma", "run", "--example", example, "--out"]
+    cli, _ = _cpu_of(run + [os.path.join(tmp, f"run-{tag}")], env)
+    bare, _ = _cpu_of(run + [os.path.join(tmp, f"bare-{tag}"), "--no-plots"], env)
+    return stages, cpu, cli, bare
+
+
+def _rows(samples):
+    """Table rows (name, median CPU s) of the samples of one source tree."""
+    stages = [s[0] for s in samples]
+    rows = [(k, statistics.median(s[k] for s in stages)) for k in STAGES]
+    at = [k for k, _ in rows].index("analysis") + 1
+    rows[at:at] = [(f"analysis: {name}",
+                    statistics.median(s["analysis_stages"].get(name, 0.0) for s in stages))
+                   for name in stages[0]["analysis_stages"]]
+    rows += [("stages, process total", statistics.median(s[1] for s in samples)),
+             ("`qsma run` process total", statistics.median(s[2] for s in samples)),
+             ("`qsma run --no-plots` process total",
+              statistics.median(s[3] for s in samples))]
+    return rows
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--example", default="sandwich-2d")
+    ap.add_argument("--baseline", metavar="SRC",
+                    help="another source tree measured alternately (a before column)")
     ap.add_argument("--child", metavar="OUT", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
         return _child(args.example, args.child)
-    stages, totals, cli, bare = [], [], [], []
+    trees = {"this": _environment(None)}
+    if args.baseline:
+        trees["baseline"] = _environment(args.baseline)
+    samples = {name: [] for name in trees}
+    loads = []
     with tempfile.TemporaryDirectory(prefix="bench-process-") as tmp:
         for i in range(args.repeat):
-            cpu, out = _cpu_of([sys.executable, __file__, "--example", args.example,
-                                "--child", tmp])
-            stages.append(json.loads(out))
-            totals.append(cpu)
-            cpu, _ = _cpu_of([sys.executable, "-m", "qsma", "run", "--example",
-                              args.example, "--out", os.path.join(tmp, f"run{i}")])
-            cli.append(cpu)
-            cpu, _ = _cpu_of([sys.executable, "-m", "qsma", "run", "--example",
-                              args.example, "--no-plots", "--out",
-                              os.path.join(tmp, f"bare{i}")])
-            bare.append(cpu)
-    med = {k: statistics.median(s[k] for s in stages) for k in STAGES}
-    print(f"{args.example}: CPU seconds (user + system), median of {args.repeat} "
-          f"fresh processes")
-    print("| stage | CPU s | share |")
-    print("|---|---|---|")
-    total = statistics.median(totals)
-    for k in STAGES:
-        print(f"| {k} | {med[k]:.3f} | {med[k] / total:.0%} |")
-        if k == "analysis":
-            for name in stages[0]["analysis_stages"]:
-                v = statistics.median(s["analysis_stages"].get(name, 0.0) for s in stages)
-                print(f"| analysis: {name} | {v:.3f} | |")
-    print(f"| stages, process total | {total:.3f} | 100% |")
-    print(f"| `qsma run` process total | {statistics.median(cli):.3f} | |")
-    print(f"| `qsma run --no-plots` process total | {statistics.median(bare):.3f} | |")
-    print(f"(qsma run, every run: {', '.join(f'{x:.2f}' for x in cli)}; --no-plots: "
-          f"{', '.join(f'{x:.2f}' for x in bare)}; load average {os.getloadavg()[0]:.1f} "
-          f"on {os.cpu_count()} cores)")
+            order = list(trees) if i % 2 == 0 else list(trees)[::-1]
+            for name in order:
+                samples[name].append(_measure(args.example, trees[name], tmp, f"{name}{i}"))
+            loads.append(os.getloadavg()[0])
+    _print_table(args, samples, loads)
+
+
+def _print_table(args, samples, loads):
+    names = list(samples)
+    print(f"{args.example}: CPU seconds (user + system), median of {args.repeat} fresh "
+          f"processes" + (", baseline and this tree alternating" if len(names) > 1 else ""))
+    tables = {name: dict(_rows(samples[name])) for name in names}
+    heads = ["baseline CPU s", "this CPU s"] if len(names) > 1 else ["CPU s"]
+    order = ["baseline", "this"] if len(names) > 1 else ["this"]
+    print("| stage | " + " | ".join(heads) + " |")
+    print("|---" * (len(heads) + 1) + "|")
+    for row in tables["this"]:
+        print(f"| {row} | " + " | ".join(
+            f"{tables[n][row]:.3f}" if row in tables[n] else "-" for n in order) + " |")
+    for name in order:
+        runs = samples[name]
+        print(f"({name}: qsma run, every run: {', '.join(f'{s[2]:.2f}' for s in runs)}; "
+              f"--no-plots: {', '.join(f'{s[3]:.2f}' for s in runs)})")
+    print(f"(load average {min(loads):.1f} to {max(loads):.1f} on {os.cpu_count()} cores)")
 
 
 if __name__ == "__main__":
