@@ -4,12 +4,15 @@ import base64
 from dataclasses import replace
 import re
 import shutil
+import sys
+import xml.etree.ElementTree as ET
 
+import numpy as np
 import pytest
 
 import qsma
 from qsma.examples import sandwich_2d
-from qsma.report import REPORT_NAME, run_report_html
+from qsma.report import REPORT_NAME, mesh_svg, nice_ticks, run_report_html
 
 LEVELS = qsma.Levels.log("tip", 1e-6, 1e-3, 5)
 #: Debian's chromium and its driver (apt-get install chromium chromium-driver; .ci/run
@@ -51,17 +54,79 @@ def test_run_report_is_self_contained_and_complete(run_report, run_result):
     html = run_report.read_text()
     # nothing to fetch: every src/href is a data: URI (no http, no file reference)
     refs = re.findall(r'(?:src|href)="([^"]*)"', html)
-    assert refs and all(r.startswith("data:image/png;base64,") for r in refs)
+    assert refs and all(r.startswith(("data:image/png;base64,",
+                                      "data:image/svg+xml;base64,")) for r in refs)
     assert "<script" not in html
     srcs = images(html)
-    assert len(srcs) == 5          # mesh + backbone, loops, damping, interface
-    for s in srcs:
+    assert len(srcs) == 5          # mesh (SVG) + backbone, loops, damping, interface
+    assert srcs[0].startswith("data:image/svg+xml;base64,")
+    assert ET.fromstring(base64.b64decode(srcs[0].split(",", 1)[1])).tag.endswith("svg")
+    for s in srcs[1:]:
         assert base64.b64decode(s.split(",", 1)[1]).startswith(PNG_MAGIC)
     for text in ("sandwich-2d", "Solver statistics", "Timings", "Levels", "Warnings",
                  f"{run_result.f0_hz:.4f}"):
         assert text in html
     level_rows = re.findall(r"<tr><td>(\d+)</td>", html)
     assert level_rows == [str(k) for k in range(run_result.n_levels)]
+
+
+SVG = "{http://www.w3.org/2000/svg}"
+
+
+def test_mesh_figure_shows_every_cell_and_pair_where_it_is(run_result):
+    """The 2D mesh figure (SVG written by qsma): the whole-model panel outlines every
+    cell of each body, one dot per interface pair in the colour of its state after the
+    preload (counts as in the result), dots placed by one map x -> a + s x,
+    y -> b - s y (the same scale s on both axes: the drawing is not distorted)."""
+    res = run_result
+    root = ET.fromstring(mesh_svg(res))
+    paths = root.findall(f".//{SVG}path[@class='cells']")
+    assert len(paths) == 2 * len(res.model.bodies)          # whole model + interface
+    for path, body in zip(paths, res.model.bodies):         # whole model first
+        assert path.get("d").count("M") == len(body.mesh.cells)
+        assert path.get("d").count("Z") == len(body.mesh.cells)
+    pre = res.preload
+    for name, count in (("stuck", pre.n_stuck), ("slipping", pre.n_slipping),
+                        ("open", pre.n_open)):
+        dots = root.findall(f".//{SVG}circle[@class='pair-{name}']")
+        assert len(dots) == count
+    assert pre.n_stuck and pre.n_open        # both colours are exercised here
+    order = np.concatenate([np.flatnonzero(pre.status == s) for s in (0, 1, 2)])
+    dots = root.findall(f".//{SVG}circle[@class]")
+    cx = np.array([float(c.get("cx")) for c in dots])
+    cy = np.array([float(c.get("cy")) for c in dots])
+    x, y = res.pairing.x[order, 0], res.pairing.x[order, 1]
+    scale, offset = np.polyfit(x, cx, 1)
+    assert scale > 0 and np.max(np.abs(offset + scale * x - cx)) < 0.06   # 0.1 px rounding
+    if np.ptp(y) > 0:
+        assert np.allclose(np.polyfit(y, cy, 1)[0], -scale, rtol=1e-3)
+    else:                                    # a straight interface: one row of dots
+        assert np.ptp(cy) < 0.06
+    legend = "".join(root.itertext())
+    assert f"interface pair, stuck after preload ({pre.n_stuck})" in legend
+    assert f"{res.model.n_nodes} nodes, {res.pairing.n_pairs} interface pairs" in legend
+
+
+def test_2d_report_needs_no_matplotlib(run_result, monkeypatch):
+    """A 2D run's report without figures draws its mesh figure without matplotlib
+    (any import of it fails here)."""
+    for name in [m for m in sys.modules if m.split(".")[0] in ("matplotlib", "mpl_toolkits")]:
+        monkeypatch.delitem(sys.modules, name)
+    monkeypatch.setitem(sys.modules, "matplotlib", None)
+    html = run_report_html(run_result, figures={})
+    assert len(images(html)) == 1 and "data:image/svg+xml;base64," in html
+
+
+@pytest.mark.parametrize("lo, hi, n, expected", [
+    (0.0, 0.2032, 5, [0.0, 0.05, 0.1, 0.15, 0.2]),      # step 0.05 >= 0.2032 / 5
+    (0.0, 0.2032, 4, [0.0, 0.1, 0.2]),                  # 0.05 < 0.0508: step 0.1
+    (-3.3e-3, 3.3e-3, 4, [-2e-3, 0.0, 2e-3]),
+    (0.00635, 0.0127, 4, [0.008, 0.01, 0.012]),
+    (175.0, 215.0, 4, [180.0, 190.0, 200.0, 210.0])])
+def test_nice_ticks_are_1_2_5_steps_inside_the_interval(lo, hi, n, expected):
+    """The smallest step of 1, 2 or 5 times a power of ten that is at least
+    ``(hi - lo) / n``; its multiples inside ``[lo, hi]``."""
+    assert np.allclose(nice_ticks(lo, hi, n), expected, rtol=0, atol=1e-12)
 
 
 def test_report_names_the_warnings(run_result):

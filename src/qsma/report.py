@@ -10,6 +10,7 @@ parameters, the case table with statuses and messages, and the study figures.
 from __future__ import annotations
 
 import base64
+from dataclasses import dataclass
 from html import escape
 import io
 from pathlib import Path
@@ -65,16 +66,33 @@ def _pairs(mapping) -> str:
     return _table(("", ""), [(k, v) for k, v in mapping.items()], text_columns=(0, 1))
 
 
-def _figure_html(png: bytes, caption: str) -> str:
-    data = base64.b64encode(png).decode("ascii")
-    return (f'<figure><img alt="{escape(caption)}" src="data:image/png;base64,{data}">'
+def _figure_html(image: bytes, caption: str, mime: str = "image/png") -> str:
+    data = base64.b64encode(image).decode("ascii")
+    return (f'<figure><img alt="{escape(caption)}" src="data:{mime};base64,{data}">'
             f"<figcaption>{escape(caption)}</figcaption></figure>")
 
 
-#: Margins of the mesh figure in inches (left, right, bottom, top): the legend sits in
-#: the right margin. Fixed margins draw the figure once, where ``bbox_inches="tight"``
-#: drew it twice.
-MESH_MARGINS_IN = {2: (0.6, 2.6, 0.35, 0.5), 3: (0.1, 3.2, 0.1, 0.4)}
+#: Margins of the 3D mesh figure in inches (left, right, bottom, top): the legend sits
+#: in the right margin. Fixed margins draw the figure once, where
+#: ``bbox_inches="tight"`` drew it twice.
+MESH_MARGINS_IN = (0.1, 3.2, 0.1, 0.4)
+#: Colours of the bodies (matplotlib's tab:blue, green, purple, brown) and of the pair
+#: states after the preload, shared by the SVG and PNG figures.
+BODY_COLOURS = ("#1f77b4", "#2ca02c", "#9467bd", "#8c564b")
+STATE_COLOURS = {"stuck": "#ff0000", "slipping": "#ffa500", "open": "#999999"}
+
+
+def _pair_states(status):
+    """(state code, name, colour, selection) of each pair state that occurs in
+    ``status``, in the order stuck, slipping, open."""
+    from .contact.state import PairState
+    out = []
+    for state in PairState:
+        name = "slipping" if state == PairState.SLIPPING else state.name.lower()
+        sel = status == state
+        if np.any(sel):
+            out.append((int(state), name, STATE_COLOURS[name], sel))
+    return out
 
 
 def _png(fig) -> bytes:
@@ -91,49 +109,28 @@ def _status(success, message) -> str:
 
 # ---------------------------------------------------------------------------- figures
 
-def mesh_figure(res) -> bytes:
-    """The bodies' meshes (2D: cell outlines; 3D: nodes), the interface pairs coloured
-    by their state after the preload, the tip probe direction in the title."""
-    from .contact import OPEN, SLIPPING, STUCK
+def mesh_figure(res) -> tuple:
+    """The bodies' meshes and the interface pairs coloured by their state after the
+    preload, as ``(MIME type, image bytes)``: a 2D model as SVG written here
+    (:func:`mesh_svg`, no matplotlib), a 3D model as PNG (matplotlib, nodes only)."""
+    if res.model.dim == 2:
+        return "image/svg+xml", mesh_svg(res).encode("utf-8")
+    return "image/png", _mesh_png_3d(res)
+
+
+def _mesh_png_3d(res) -> bytes:
     from .plots import _figure
     model, p = res.model, res.pairing
-    colours = ("tab:blue", "tab:green", "tab:purple", "tab:brown")
-    status = res.preload.status
-    if model.dim == 2:
-        from matplotlib.collections import PolyCollection
-        fig, (whole, ax) = _figure(2, 1, figsize=(9.5, 3.9), hspace=0.45,
-                                   margins=MESH_MARGINS_IN[2],
-                                   gridspec_kw=dict(height_ratios=(1, 3)))
-        for axis in (whole, ax):
-            for k, b in enumerate(model.bodies):
-                corners = 3 if b.mesh.cells.shape[1] in (3, 6) else 4
-                polys = b.mesh.points[b.mesh.cells[:, :corners]]
-                axis.add_collection(PolyCollection(
-                    polys, facecolors="none", linewidths=0.3, edgecolors=colours[k % 4],
-                    label=b.name))
-            axis.autoscale()
-            axis.set_aspect("equal")
-        xy = p.x[:, :2]
-        lo, hi = xy.min(axis=0), xy.max(axis=0)
-        pad = 0.15 * max(hi[0] - lo[0], hi[1] - lo[1], 1e-12)
-        ax.set_xlim(lo[0] - pad, hi[0] + pad)
-        ax.set_ylim(lo[1] - pad, hi[1] + pad)
-        whole.set_title("whole model", fontsize=9)
-    else:
-        fig = _figure(figsize=(7.5, 3.9), margins=MESH_MARGINS_IN[3])[0]
-        fig.clf()
-        ax = fig.add_subplot(projection="3d")
-        for k, b in enumerate(model.bodies):
-            pts = b.mesh.points
-            ax.scatter(pts[:, 0], pts[:, 1], pts[:, 2], s=0.5, color=colours[k % 4],
-                       label=b.name)
-        xy = p.x
-    for s, colour, label in ((STUCK, "red", "stuck"), (SLIPPING, "orange", "slipping"),
-                             (OPEN, "0.6", "open")):
-        sel = status == s
-        if np.any(sel):
-            ax.scatter(*xy[sel].T, s=8, color=colour, zorder=3,
-                       label=f"interface pair, {label} after preload ({int(sel.sum())})")
+    fig = _figure(figsize=(7.5, 3.9), margins=MESH_MARGINS_IN)[0]
+    fig.clf()
+    ax = fig.add_subplot(projection="3d")
+    for k, b in enumerate(model.bodies):
+        pts = b.mesh.points
+        ax.scatter(pts[:, 0], pts[:, 1], pts[:, 2], s=0.5,
+                   color=BODY_COLOURS[k % len(BODY_COLOURS)], label=b.name)
+    for _, label, colour, sel in _pair_states(res.preload.status):
+        ax.scatter(*p.x[sel].T, s=8, color=colour, zorder=3,
+                   label=f"interface pair, {label} after preload ({int(sel.sum())})")
     fig.suptitle(f"{model.name}: {model.n_nodes} nodes, {p.n_pairs} interface pairs",
                  fontsize=10)
     ax.legend(fontsize=7, loc="upper right", bbox_to_anchor=(0.995, 0.88),
@@ -141,23 +138,186 @@ def mesh_figure(res) -> bytes:
     return _png(fig)
 
 
+def nice_ticks(lo, hi, n=5) -> np.ndarray:
+    """Tick values inside ``[lo, hi]`` at a step of 1, 2 or 5 times a power of ten,
+    chosen so that about ``n`` ticks fall in the interval: the smallest such step
+    ``s >= (hi - lo) / n``, ticks at the multiples of ``s``."""
+    span = max(hi - lo, 1e-300)
+    raw = span / n
+    power = 10.0 ** np.floor(np.log10(raw))
+    step = next(m * power for m in (1, 2, 5, 10) if m * power >= raw * (1 - 1e-9))
+    first = np.ceil(lo / step - 1e-9) * step
+    ticks = first + step * np.arange(int(np.floor((hi - first) / step + 1e-9)) + 1)
+    return np.where(np.abs(ticks) < 1e-12 * span, 0.0, ticks)
+
+
+@dataclass(frozen=True)
+class _Panel:
+    """One panel of an SVG figure: the data window ``(x0, x1, y0, y1)`` shown at equal
+    scale in the pixel box with top-left corner ``(left, top)``, ``scale`` pixels per
+    data unit."""
+    window: tuple
+    left: float
+    top: float
+    scale: float
+
+    @property
+    def size(self):
+        x0, x1, y0, y1 = self.window
+        return (x1 - x0) * self.scale, (y1 - y0) * self.scale
+
+    def pixels(self, xy):
+        """Pixel coordinates of data points ``xy`` (..., 2): y grows downwards."""
+        x0, _, _, y1 = self.window
+        return np.stack([self.left + (xy[..., 0] - x0) * self.scale,
+                         self.top + (y1 - xy[..., 1]) * self.scale], axis=-1)
+
+
+def _fit_panel(window, left, top, width, max_height) -> _Panel:
+    """The panel of ``window`` at equal scale, as wide as ``width`` pixels unless that
+    makes it taller than ``max_height``."""
+    x0, x1, y0, y1 = window
+    scale = min(width / max(x1 - x0, 1e-300), max_height / max(y1 - y0, 1e-300))
+    return _Panel(window, left, top, scale)
+
+
+def _svg_cells(panel, polys, colour, inside=False) -> str:
+    """One ``<path>`` of the outlines of ``polys`` (cells, corners, 2) in ``panel``;
+    when ``inside``, only the cells whose bounding box meets the window (the rest
+    would be clipped away whole)."""
+    if inside:
+        x0, x1, y0, y1 = panel.window
+        lo, hi = polys.min(axis=1), polys.max(axis=1)
+        polys = polys[(hi[:, 0] >= x0) & (lo[:, 0] <= x1) & (hi[:, 1] >= y0)
+                      & (lo[:, 1] <= y1)]
+    corners = polys.shape[1]
+    move = "M%.1f %.1f" + "L%.1f %.1f" * (corners - 1) + "Z"
+    px = panel.pixels(polys).reshape(len(polys), -1)
+    d = "".join(move % tuple(row) for row in px.tolist())
+    return (f'<path d="{d}" fill="none" stroke="{colour}" stroke-width="0.5" '
+            f'class="cells"/>')
+
+
+def _svg_axes(panel, clip_id) -> str:
+    """Frame, tick marks and tick labels of ``panel``, and its clip rectangle."""
+    x0, x1, y0, y1 = panel.window
+    w, h = panel.size
+    left, top = panel.left, panel.top
+    out = [f'<clipPath id="{clip_id}"><rect x="{left:.1f}" y="{top:.1f}" '
+           f'width="{w:.1f}" height="{h:.1f}"/></clipPath>',
+           f'<rect x="{left:.1f}" y="{top:.1f}" width="{w:.1f}" height="{h:.1f}" '
+           f'fill="none" stroke="#000" stroke-width="0.8"/>']
+    nx = max(2, min(8, int(w // 70)))
+    for t in nice_ticks(x0, x1, nx):
+        x = panel.pixels(np.array([t, y0]))[0]
+        out.append(f'<line x1="{x:.1f}" y1="{top + h:.1f}" x2="{x:.1f}" '
+                   f'y2="{top + h + 4:.1f}" stroke="#000"/><text x="{x:.1f}" '
+                   f'y="{top + h + 15:.1f}" text-anchor="middle">{t:g}</text>')
+    for t in nice_ticks(y0, y1, max(2, min(5, int(h // 25)))):
+        y = panel.pixels(np.array([x0, t]))[1]
+        out.append(f'<line x1="{left - 4:.1f}" y1="{y:.1f}" x2="{left:.1f}" '
+                   f'y2="{y:.1f}" stroke="#000"/><text x="{left - 6:.1f}" '
+                   f'y="{y + 4:.1f}" text-anchor="end">{t:g}</text>')
+    return "\n".join(out)
+
+
+#: Size of the 2D mesh figure in pixels and its margins (left for the tick labels,
+#: right for the legend, top for the title).
+MESH_SVG = dict(width=950, left=60, right=270, top=30, whole_height=70,
+                zoom_height=220, gap=45)
+
+
+def mesh_svg(res) -> str:
+    """The 2D mesh figure as an SVG document: the whole model (cell outlines of each
+    body), below it the interface region with a margin of 15 % of its extent (cells
+    clipped to it, interface pairs as dots coloured by their state after the preload),
+    the legend on the right. Both panels at equal scale in x and y; coordinates as in
+    the model. Written directly (no matplotlib): 2D cells are outlines, text and dots."""
+    model, p = res.model, res.pairing
+    g = MESH_SVG
+    width = g["width"] - g["left"] - g["right"]
+    points = np.vstack([b.mesh.points[:, :2] for b in model.bodies])
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    whole = _fit_panel((lo[0], hi[0], lo[1], hi[1]), g["left"], g["top"] + 20, width,
+                       g["whole_height"])
+    xy = p.x[:, :2]
+    plo, phi = xy.min(axis=0), xy.max(axis=0)
+    pad = 0.15 * max(phi[0] - plo[0], phi[1] - plo[1], 1e-12)
+    zoom = _fit_panel((plo[0] - pad, phi[0] + pad, plo[1] - pad, phi[1] + pad),
+                      g["left"], whole.top + whole.size[1] + g["gap"], width,
+                      g["zoom_height"])
+    height = zoom.top + zoom.size[1] + 25
+    parts = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{g["width"]}" '
+             f'height="{height:.0f}" viewBox="0 0 {g["width"]} {height:.0f}" '
+             f'font-family="DejaVu Sans, sans-serif" font-size="11">',
+             f'<rect width="100%" height="100%" fill="#fff"/>',
+             f'<text x="{g["width"] / 2:.0f}" y="18" text-anchor="middle" font-size="13">'
+             f'{escape(model.name)}: {model.n_nodes} nodes, {p.n_pairs} interface pairs'
+             f'</text>',
+             f'<text x="{whole.left + whole.size[0] / 2:.1f}" y="{whole.top - 6:.1f}" '
+             f'text-anchor="middle">whole model</text>']
+    for k, (panel, clip) in enumerate(((whole, "whole"), (zoom, "zoom"))):
+        parts.append(_svg_axes(panel, clip))
+        parts.append(f'<g clip-path="url(#{clip})">')
+        for i, b in enumerate(model.bodies):
+            corners = 3 if b.mesh.cells.shape[1] in (3, 6) else 4
+            parts.append(_svg_cells(panel, b.mesh.points[b.mesh.cells[:, :corners], :2],
+                                    BODY_COLOURS[i % len(BODY_COLOURS)], inside=k == 1))
+        if panel is zoom:
+            parts.append(_svg_pairs(zoom, xy, res.preload.status))
+        parts.append("</g>")
+    parts.append(_svg_legend(model, res.preload.status, g["width"] - g["right"] + 20,
+                             g["top"] + 20))
+    parts.append("</svg>")
+    return "\n".join(parts) + "\n"
+
+
+def _svg_pairs(panel, xy, status) -> str:
+    """The interface pairs as dots, coloured by their state (class ``pair-STATE``)."""
+    px = panel.pixels(xy)
+    out = []
+    for _, label, colour, sel in _pair_states(status):
+        out += [f'<circle cx="{x:.1f}" cy="{y:.1f}" r="2.5" fill="{colour}" '
+                f'class="pair-{label}"/>' for x, y in px[sel].tolist()]
+    return "\n".join(out)
+
+
+def _svg_legend(model, status, left, top) -> str:
+    """Swatches and names of the bodies and of the pair states (with their counts)."""
+    rows = [(f'<rect x="{left}" y="{{y}}" width="14" height="8" fill="none" '
+             f'stroke="{BODY_COLOURS[i % len(BODY_COLOURS)]}"/>', b.name)
+            for i, b in enumerate(model.bodies)]
+    for _, label, colour, sel in _pair_states(status):
+        rows.append((f'<circle cx="{left + 7}" cy="{{c}}" r="3" fill="{colour}"/>',
+                     f"interface pair, {label} after preload ({int(sel.sum())})"))
+    out = [f'<rect x="{left - 6}" y="{top - 12}" width="{MESH_SVG["right"] - 24}" '
+           f'height="{16 * len(rows) + 8}" fill="#fff" stroke="#ccc"/>']
+    for j, (mark, text) in enumerate(rows):
+        y = top + 16 * j
+        out.append(mark.format(y=y - 7, c=y - 3) + f'<text x="{left + 20}" y="{y:.0f}" '
+                   f'font-size="10">{escape(text)}</text>')
+    return "\n".join(out)
+
+
 def _run_figures(res, figures) -> list:
-    """(caption, PNG bytes) of the run's figures: those given (name -> PNG path, e.g.
+    """(caption, image bytes, MIME type) of the run's figures: those given (name -> PNG path, e.g.
     written beside results.json), else drawn into a temporary folder."""
     captions = {"backbone": "Backbone: modal force versus modal amplitude",
                 "damping": "Secant frequency and damping ratio versus amplitude",
                 "loops": "Hysteresis loops (tied linear force subtracted)",
                 "interface": "Interface tractions and pair states",
                 "interface_map": "Interface maps"}
-    out = [("Mesh and interface pairs", mesh_figure(res))]
+    mime, image = mesh_figure(res)
+    out = [("Mesh and interface pairs", image, mime)]
     if not res.n_levels:
         return out
     if figures is None:
         from .plots import write_plots
         with tempfile.TemporaryDirectory(prefix="qsma-report-") as tmp:
-            return out + [(captions.get(k, k), Path(v).read_bytes())
+            return out + [(captions.get(k, k), Path(v).read_bytes(), "image/png")
                           for k, v in write_plots(res, tmp).items()]
-    return out + [(captions.get(k, k), Path(v).read_bytes()) for k, v in figures.items()]
+    return out + [(captions.get(k, k), Path(v).read_bytes(), "image/png")
+                  for k, v in figures.items()]
 
 
 # ------------------------------------------------------------------------- run report
@@ -200,7 +360,7 @@ def run_report_html(res, figures=None) -> str:
         "omega0 [rad/s]": f"{res.omega0:.4f}", "phi at the tip": f"{res.phi_tip:.6g}",
         "tied frequencies [Hz]": ", ".join(f"{f:.2f}" for f in res.modes.f_hz)}))
     parts.append("<h2>Figures</h2>" + "\n".join(
-        _figure_html(png, cap) for cap, png in _run_figures(res, figures)))
+        _figure_html(image, cap, mime) for cap, image, mime in _run_figures(res, figures)))
     rows = [[k] + [fmt.format(getattr(res, name)[k]) for name, _, fmt in LEVEL_TABLE]
             + [", ".join(res.flags[k])] for k in range(res.n_levels)]
     parts.append("<h2>Levels</h2>" + _table(
@@ -278,4 +438,4 @@ def write_study_report(parameters, cases, table, figures, path):
 
 
 __all__ = ["write_report", "run_report_html", "write_study_report", "study_report_html",
-           "mesh_figure", "run_warnings", "REPORT_NAME"]
+           "mesh_figure", "mesh_svg", "nice_ticks", "run_warnings", "REPORT_NAME"]
