@@ -159,3 +159,39 @@ def test_busy_folder_names_the_owner_that_is_still_writing_its_name(tmp_path):
                 pass
     finally:
         os.close(fd)
+
+
+#: Modules a ``qsma run`` of a built-in example never needs: parameter studies, fits
+#: and reduced-order models, the mesh-file readers, meshio (fields.vtu is written by
+#: qsma), Dask, pyplot (figures are drawn on matplotlib's Figure + Agg).
+NOT_IMPORTED_BY_A_RUN = ("qsma.study", "qsma.rom", "qsma.model.io",
+                         "meshio", "dask", "distributed", "matplotlib.pyplot")
+
+
+@pytest.mark.parametrize("plots", [False, True])
+def test_a_run_imports_only_what_it_needs(tmp_path, plots):
+    """In a fresh process: ``qsma run --no-plots`` never imports matplotlib (nor
+    Pillow), and no run imports the modules of :data:`NOT_IMPORTED_BY_A_RUN`; the run
+    still writes its files (with the figures and report.html when plotting)."""
+    import subprocess
+    code = ("import json, sys\nfrom qsma.cli import main\ncode = main(sys.argv[1:])\n"
+            "print(json.dumps([code, sorted(sys.modules)]))")
+    out = tmp_path / "run"
+    args = ["run", "--example", "sandwich-2d", "--levels", "tip:log:1e-6:1e-4:3",
+            "--quiet", "--out", str(out)] + ([] if plots else ["--no-plots"])
+    proc = subprocess.run([sys.executable, "-c", code, *args], capture_output=True,
+                          text=True)
+    assert proc.returncode == 0, proc.stderr
+    exit_code, modules = json.loads(proc.stdout.splitlines()[-1])
+    assert exit_code == 0
+    loaded = {m for m in modules if m.split(".")[0] in ("qsma", "meshio", "dask",
+                                                       "distributed", "matplotlib",
+                                                       "PIL")}
+    unwanted = [m for m in loaded
+                if any(m == n or m.startswith(n + ".") for n in NOT_IMPORTED_BY_A_RUN)]
+    assert unwanted == []
+    assert ("matplotlib" in loaded) == plots and ("PIL" in loaded) == plots
+    assert "qsma.analysis" in loaded                     # the check sees imports at all
+    files = {p.name for p in out.iterdir()}
+    assert {"results.json", "results.csv", "fields.vtu", "manifest.json"} <= files
+    assert ({"report.html", "backbone.png", "interface.png"} <= files) == plots
