@@ -150,3 +150,38 @@ def test_log_axes_have_a_1_2_5_minor_grid(results, tmp_path, monkeypatch):
                 assert set(mantissa) <= {2.0, 5.0}, (fig, mantissa)
                 seen += len(ticks)
     assert seen >= 4
+
+
+def test_figures_hold_the_plotted_data(results, tmp_path, monkeypatch):
+    """Each figure draws the result's own numbers (not a resampled or truncated copy):
+    the backbone (q, alpha) and the tied line, the loops at the three levels, the
+    secant frequency and damping against the peak tip velocity, the preload pressure
+    along the interface."""
+    from qsma.masing import masing_loop
+    res = results["sandwich-2d"]
+    figures = _capture(res, tmp_path, monkeypatch)
+
+    def data(line):
+        return tuple(np.asarray(v, float) for v in line.get_data())
+
+    backbone = figures["backbone.png"].axes[0].get_lines()
+    np.testing.assert_array_equal(data(backbone[0]), (res.q, res.alpha))
+    np.testing.assert_allclose(data(backbone[1])[1], res.q * res.omega0 ** 2)
+    n, k0 = res.n_levels, res.omega0 ** 2
+    loops = figures["loops.png"].axes[0].get_lines()
+    for line, k in zip(loops, sorted({n // 2, (3 * n) // 4, n - 1})):
+        assert line.get_label().endswith(f"level {k}")
+        lp = res.loops.get(k)
+        if lp is not None and lp.success:
+            q, f = lp.q, lp.alpha
+        else:
+            q, f = masing_loop(res.alpha, res.q, k)
+        np.testing.assert_allclose(data(line)[1], f - k0 * q)
+    top, bottom = figures["damping_frequency.png"].axes
+    v = np.abs(res.tip_velocity)
+    np.testing.assert_array_equal(data(top.get_lines()[0]), (v, res.f_hz))
+    np.testing.assert_array_equal(data(bottom.get_lines()[0]), (v, res.zeta))
+    pressure = figures["interface.png"].axes[0].get_lines()[0]
+    p = res.pairing
+    np.testing.assert_allclose(data(pressure), (p.x[:, 0], res.preload.lam[:, -1] / p.area
+                                                / 1e6))
