@@ -66,16 +66,29 @@ def power_label(x, pos=None) -> str:
 LOG_MINOR_SUBS = (2.0, 5.0)
 
 
-def _plain_log_ticks(*axes):
-    """Major tick labels of the log/symlog axes of ``axes`` by :func:`power_label`,
-    minor ticks at :data:`LOG_MINOR_SUBS` on the log axes."""
-    from matplotlib.ticker import FuncFormatter, LogLocator
+#: Number of intervals between the major ticks of a linear axis (at most; steps of 1,
+#: 2, 2.5 or 5 times a power of ten). Matplotlib's automatic choice puts up to nine
+#: ticks on these axes; five read as well and build a fifth less of the figure's
+#: artists (each tick is two marks, a grid line and two labels; docs/performance.md).
+LINEAR_BINS = 5
+
+
+def _set_ticks(*axes):
+    """Tick locators and labels of ``axes``: major tick labels of the log/symlog axes
+    by :func:`power_label`, minor ticks at :data:`LOG_MINOR_SUBS` on the log axes, at
+    most :data:`LINEAR_BINS` intervals on the linear axes that matplotlib ticks
+    automatically (fixed ticks, e.g. the contact state axis, are kept)."""
+    from matplotlib.ticker import AutoLocator, FuncFormatter, LogLocator, MaxNLocator
     for ax in axes:
         for axis in (ax.xaxis, ax.yaxis):
             if axis.get_scale() in ("log", "symlog"):
                 axis.set_major_formatter(FuncFormatter(power_label))
             if axis.get_scale() == "log":
                 axis.set_minor_locator(LogLocator(subs=LOG_MINOR_SUBS))
+            elif (axis.get_scale() == "linear"
+                  and type(axis.get_major_locator()) is AutoLocator):
+                axis.set_major_locator(MaxNLocator(nbins=LINEAR_BINS,
+                                                   steps=[1, 2, 2.5, 5, 10]))
 
 
 def plot_backbone(res, path):
@@ -96,7 +109,7 @@ def plot_backbone(res, path):
     ax.loglog(res.q, res.q * res.omega0 ** 2, "--", lw=1, label="linear (tied)")
     ax.set_xlabel("modal amplitude q [\u221akg m]")
     ax.set_ylabel("modal force \u03b1 [N/\u221akg]")
-    _plain_log_ticks(ax)
+    _set_ticks(ax)
     ax.set_title(f"Backbone, mode {res.mode_index} (f0 = {res.f0_hz:.2f} Hz)")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend()
@@ -126,6 +139,7 @@ def plot_loops(res, path):
     ax.set_xlabel("modal amplitude q [\u221akg m]")
     ax.set_ylabel("\u03b1 \u2212 \u03c9\u2080\u00b2 q [N/\u221akg]")
     ax.ticklabel_format(style="sci", scilimits=(-3, 3))
+    _set_ticks(ax)
     ax.set_title("Hysteresis loops")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
@@ -161,7 +175,7 @@ def plot_damping_frequency(res, path):
     lowest = np.nanmin(shown) if np.isfinite(shown).any() else 0.0
     a2.set_ylim(bottom=min(-ZETA_LINEAR, 3 * lowest))
     a2.set_ylabel("damping ratio \u03b6 [-]")
-    _plain_log_ticks(a1, a2)
+    _set_ticks(a1, a2)
     a2.set_xlabel("peak tip velocity [m/s]")
     for a in (a1, a2):
         a.grid(True, which="both", alpha=0.3)
@@ -203,6 +217,7 @@ def plot_interface(res, path, levels=None):
     axes[2].set_yticks([0, 1, 2], ["stuck", "slip", "open"])
     axes[2].set_ylabel("contact state [-]")
     axes[2].set_xlabel("x along the interface [m]")
+    _set_ticks(*axes)
     for a in axes:
         a.grid(True, alpha=0.3)
     axes[0].legend(fontsize=7)
