@@ -1,11 +1,12 @@
 """``report.html``: a self-contained page a person reads, for a run and for a study.
 
-One HTML file, no network: the figures are PNG images embedded as base64 ``data:``
-URIs, the style is inline, there is no script. A run's report holds the model summary,
-a picture of the mesh with the interface, the figures of the run (:mod:`qsma.plots`),
-the per-level table, the solver statistics and every warning the result carries (the
-message, flagged levels, the direct loop's outcome). A study's report holds the
-parameters, the case table with statuses and messages, and the study figures.
+One HTML file, no network: the figures are PNG images (the mesh of a 2D model an SVG
+drawing written here) embedded as base64 ``data:`` URIs, the style is inline, there
+is no script. A run's report holds the model summary, a picture of the mesh with the
+interface, the figures of the run (:mod:`qsma.plots`), the per-level table, the
+solver statistics and every warning the result carries (the message, flagged levels,
+the direct loop's outcome). A study's report holds the parameters, the case table with
+statuses and messages, and the study figures.
 """
 from __future__ import annotations
 
