@@ -12,6 +12,7 @@ import pytest
 
 import qsma
 from qsma.examples import sandwich_2d
+import qsma.report
 from qsma.report import REPORT_NAME, mesh_svg, nice_ticks, run_report_html
 
 LEVELS = qsma.Levels.log("tip", 1e-6, 1e-3, 5)
@@ -105,6 +106,29 @@ def test_mesh_figure_shows_every_cell_and_pair_where_it_is(run_result):
     legend = "".join(root.itertext())
     assert f"interface pair, stuck after preload ({pre.n_stuck})" in legend
     assert f"{res.model.n_nodes} nodes, {res.pairing.n_pairs} interface pairs" in legend
+
+
+def test_a_fine_mesh_is_drawn_by_its_outline(run_result, monkeypatch):
+    """Beyond MAX_SVG_CELLS cells a body is drawn by the edges of one cell only: on a
+    structured grid of nx x ny cells the 2 (nx + ny) edges of its rectangle."""
+    nx, ny = 3, 2
+    node = np.arange((nx + 1) * (ny + 1)).reshape(ny + 1, nx + 1)
+    cells = np.array([[node[j, i], node[j, i + 1], node[j + 1, i + 1], node[j + 1, i]]
+                      for j in range(ny) for i in range(nx)])
+    edges = qsma.report._outline_edges(cells)
+    assert len(edges) == 2 * (nx + ny)
+    rows, cols = np.divmod(edges, nx + 1)
+    on_side = ((rows == 0).all(1) | (rows == ny).all(1) | (cols == 0).all(1)
+               | (cols == nx).all(1))
+    assert on_side.all()
+    every_cell = mesh_svg(run_result)
+    monkeypatch.setattr(qsma.report, "MAX_SVG_CELLS", 100)
+    outline = mesh_svg(run_result)
+    root = ET.fromstring(outline)
+    assert root.findall(f".//{SVG}path[@class='cells']") == []
+    assert len(root.findall(f".//{SVG}path[@class='outline']")) == \
+        2 * len(run_result.model.bodies)
+    assert len(outline) < len(every_cell) / 3
 
 
 def test_2d_report_needs_no_matplotlib(run_result, monkeypatch):

@@ -182,21 +182,45 @@ def _fit_panel(window, left, top, width, max_height) -> _Panel:
     return _Panel(window, left, top, scale)
 
 
-def _svg_cells(panel, polys, colour, inside=False) -> str:
-    """One ``<path>`` of the outlines of ``polys`` (cells, corners, 2) in ``panel``;
-    when ``inside``, only the cells whose bounding box meets the window (the rest
-    would be clipped away whole)."""
+#: Cells of one body drawn in one panel of the SVG mesh figure, at most: a finer mesh
+#: is drawn by its outline (cells of a pixel or less read as a solid area anyway, and
+#: the page stays small: about 40 bytes per cell).
+MAX_SVG_CELLS = 20000
+
+
+def _svg_cells(panel, points, cells, colour, inside=False) -> str:
+    """One ``<path>`` of the outlines of the ``cells`` (corner node indices into
+    ``points``) in ``panel``; when ``inside``, only the cells whose bounding box meets
+    the window (the rest would be clipped away whole). Beyond :data:`MAX_SVG_CELLS`
+    cells, the edges that belong to one cell only (the outline of the body)."""
+    polys = points[cells]
     if inside:
         x0, x1, y0, y1 = panel.window
         lo, hi = polys.min(axis=1), polys.max(axis=1)
-        polys = polys[(hi[:, 0] >= x0) & (lo[:, 0] <= x1) & (hi[:, 1] >= y0)
-                      & (lo[:, 1] <= y1)]
-    corners = polys.shape[1]
-    move = "M%.1f %.1f" + "L%.1f %.1f" * (corners - 1) + "Z"
-    px = panel.pixels(polys).reshape(len(polys), -1)
-    d = "".join(move % tuple(row) for row in px.tolist())
+        keep = (hi[:, 0] >= x0) & (lo[:, 0] <= x1) & (hi[:, 1] >= y0) & (lo[:, 1] <= y1)
+        polys, cells = polys[keep], cells[keep]
+    if len(cells) > MAX_SVG_CELLS:
+        edges = _outline_edges(cells)
+        px = panel.pixels(points[edges]).reshape(len(edges), -1)
+        d = "".join("M%.1f %.1fL%.1f %.1f" % tuple(row) for row in px.tolist())
+        kind = "outline"
+    else:
+        corners = polys.shape[1]
+        move = "M%.1f %.1f" + "L%.1f %.1f" * (corners - 1) + "Z"
+        px = panel.pixels(polys).reshape(len(polys), -1)
+        d = "".join(move % tuple(row) for row in px.tolist())
+        kind = "cells"
     return (f'<path d="{d}" fill="none" stroke="{colour}" stroke-width="0.5" '
-            f'class="cells"/>')
+            f'class="{kind}"/>')
+
+
+def _outline_edges(cells) -> np.ndarray:
+    """The edges (node pairs) of ``cells`` (corner nodes in cyclic order) that belong
+    to one cell only: the boundary of the meshed region."""
+    edges = np.stack([cells, np.roll(cells, -1, axis=1)], axis=-1).reshape(-1, 2)
+    _, first, count = np.unique(np.sort(edges, axis=1), axis=0, return_index=True,
+                                return_counts=True)
+    return edges[first[count == 1]]
 
 
 def _svg_axes(panel, clip_id) -> str:
@@ -233,7 +257,9 @@ def mesh_svg(res) -> str:
     body), below it the interface region with a margin of 15 % of its extent (cells
     clipped to it, interface pairs as dots coloured by their state after the preload),
     the legend on the right. Both panels at equal scale in x and y; coordinates as in
-    the model. Written directly (no matplotlib): 2D cells are outlines, text and dots."""
+    the model. Written directly (no matplotlib): 2D cells are outlines, text and dots.
+    A body of more than :data:`MAX_SVG_CELLS` cells in a panel is drawn by its
+    outline there."""
     model, p = res.model, res.pairing
     g = MESH_SVG
     width = g["width"] - g["left"] - g["right"]
@@ -262,7 +288,7 @@ def mesh_svg(res) -> str:
         parts.append(f'<g clip-path="url(#{clip})">')
         for i, b in enumerate(model.bodies):
             corners = 3 if b.mesh.cells.shape[1] in (3, 6) else 4
-            parts.append(_svg_cells(panel, b.mesh.points[b.mesh.cells[:, :corners], :2],
+            parts.append(_svg_cells(panel, b.mesh.points[:, :2], b.mesh.cells[:, :corners],
                                     BODY_COLOURS[i % len(BODY_COLOURS)], inside=k == 1))
         if panel is zoom:
             parts.append(_svg_pairs(zoom, xy, res.preload.status))
