@@ -199,6 +199,11 @@ def _print_table(args, samples, loads):
         runs = samples[name]
         print(f"({name}: qsma run, every run: {', '.join(f'{s[2]:.2f}' for s in runs)}; "
               f"--no-plots: {', '.join(f'{s[3]:.2f}' for s in runs)})")
+    if len(names) > 1:          # the pairs ran one after the other: the load is shared
+        for i, what in ((2, "qsma run"), (3, "qsma run --no-plots")):
+            diff = [t[i] - b[i] for t, b in zip(samples["this"], samples["baseline"])]
+            print(f"({what}: this - baseline, median of the {len(diff)} paired "
+                  f"differences {statistics.median(diff):+.3f} s)")
     print(f"(load average {min(loads):.1f} to {max(loads):.1f} on {os.cpu_count()} cores)")
 
 
