@@ -141,6 +141,19 @@ def test_2d_report_needs_no_matplotlib(run_result, monkeypatch):
     assert len(images(html)) == 1 and "data:image/svg+xml;base64," in html
 
 
+def test_3d_mesh_figure_is_a_png_with_every_pair_state():
+    """A 3D model's mesh figure stays a matplotlib PNG (nodes in a 3D projection),
+    with a legend entry per pair state that occurs after the preload."""
+    from qsma.examples import lap_3d
+    res = qsma.run(lap_3d(), levels=qsma.Levels.log("tip", 1e-6, 1e-4, 2))
+    mime, png = qsma.report.mesh_figure(res)
+    assert mime == "image/png" and png.startswith(PNG_MAGIC)
+    states = qsma.report._pair_states(res.preload.status)    # every pair in one state
+    assert sum(int(sel.sum()) for *_, sel in states) == res.pairing.n_pairs
+    html = run_report_html(res, figures={})
+    assert images(html)[0].startswith("data:image/png;base64,")
+
+
 @pytest.mark.parametrize("lo, hi, n, expected", [
     (0.0, 0.2032, 5, [0.0, 0.05, 0.1, 0.15, 0.2]),      # step 0.05 >= 0.2032 / 5
     (0.0, 0.2032, 4, [0.0, 0.1, 0.2]),                  # 0.05 < 0.0508: step 0.1
