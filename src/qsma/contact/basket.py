@@ -197,7 +197,7 @@ class _BasketRun:
         self.quiet += 1
         self._update_directions(q)
         if change > self.pass_tol:
-            return None
+            return self._accepted_early(tr)
         stalled = self.quiet >= 2 if self.coupling == "joint" else change == 0.0
         return self._end_of_pass(tr, stalled)
 
@@ -213,6 +213,20 @@ class _BasketRun:
 
     def _set_iterate(self, d):
         self.d, self._lam, self._Kd, self._abs_Kd, self._threshold_of = d, None, None, None, None
+
+    def _accepted_early(self, tr):
+        """The verdict on a 3D iterate whose slip directions have settled but whose last
+        Newton step still moved ``d`` by more than ``pass_tol``, when every pair, final
+        basket or not, passes its check (``tr``): converged if the iterate meets the
+        residual, else None (the pass goes on as before). Without it the pass took one
+        more block step only to see ``d`` not move."""
+        if self.coupling != "joint" or np.any(tr.status != self.status):
+            return None
+        checked = measures(self.problem, self.lam_w, self.d2, self.lam2, self.previous,
+                           self._products())
+        if checked[0] <= self.tol:
+            return True, f"converged: no pair changed basket ({self.summary()})", checked
+        return None
 
     def _end_of_pass(self, tr, stalled):
         """Reopen the final baskets and recheck them; accept on the residual."""
