@@ -425,7 +425,7 @@ def solve_in_zone(zone: ContactZone, lam_w, state: ContactState, *, method="bask
         guess = checked_guess(guess, zone.full)
         held = _held_guess(zone, lam_w, state, guess, method, tol)
         if held is not None:
-            return held, zone
+            return held
     zone = fitted_zone(zone, state if guess is None else _closed_in_either(state, guess))
     nit = 0
     for sub_tol in (tol, RETRY_TOL * tol):
@@ -444,16 +444,18 @@ def solve_in_zone(zone: ContactZone, lam_w, state: ContactState, *, method="bask
 
 
 def _held_guess(zone, lam_w, state, guess, method, tol):
-    """The result of ``guess`` if it already is this level's answer on the full problem
-    (:func:`qsma.contact.registry.guess_measures`) and its closed pairs lie in the zone
-    (so that the next level starts from a zone that holds them), else None."""
-    if np.any((np.asarray(guess.status) != OPEN) & ~zone.keep):
-        return None
+    """``(result, zone)`` of ``guess`` if it already is this level's answer on the full
+    problem (:func:`qsma.contact.registry.guess_measures`), the zone grown by the
+    guess's closed pairs outside it (the next level starts from a zone that holds
+    them); else None."""
     checked = guess_measures(zone.full, lam_w, state, guess, tol)
     if checked is None:
         return None
+    outside = (np.asarray(guess.status) != OPEN) & ~zone.keep
+    if outside.any():
+        zone = zone.grown(outside)
     return _result(zone.full, lam_w, state, accepted_guess(guess), method, tol,
-                   measures=checked)
+                   measures=checked), zone
 
 
 def _closed_in_either(state, guess):
