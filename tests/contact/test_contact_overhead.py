@@ -162,3 +162,19 @@ def test_the_full_problem_is_read_twice_per_zone_solve(monkeypatch):
     assert level(1.0, first.state, guess=first.state).nit > 0         # check rejects
     assert calls == {"product": 9, "abs_product": 9}
     np.testing.assert_allclose(other_path.d, second.d, rtol=0, atol=1e-12 * np.abs(second.d).max())
+
+
+def test_linearised_first_step_gives_the_same_ramp(monkeypatch):
+    """The first block step of a 3D solve linearised at the starting iterate against the
+    directions of the starting forces with ``alpha = 0``: the same states and answers
+    to round-off, not more block steps."""
+    p, base = _problem()
+    levels = np.linspace(0.2, 2.0, 8)
+    newton = _ramp(p, base, levels)
+    monkeypatch.setattr(basket._BasketRun, "_linearised_start", lambda self: None)
+    plain = _ramp(p, base, levels)
+    for a, b in zip(newton, plain):
+        assert a.success and b.success
+        np.testing.assert_array_equal(a.status, b.status)
+        np.testing.assert_allclose(a.d, b.d, rtol=0, atol=1e-11 * np.abs(b.d).max())
+    assert sum(r.nit for r in newton) <= sum(r.nit for r in plain)

@@ -175,6 +175,8 @@ class _BasketRun:
         """Block step(s) and state check; ``(converged, message, measures or None)`` when
         done (the measures of the final iterate, see :class:`Iterate`)."""
         try:
+            if self.solves == 0:
+                self._linearised_start()
             d_new = self._block_step()
             change = self._relative_change(d_new) if self.coupling == "gauss_seidel" else 0.0
             self._set_iterate(d_new)
@@ -202,6 +204,17 @@ class _BasketRun:
             return self._accepted_early(tr)
         stalled = self.quiet >= 2 if self.coupling == "joint" else change == 0.0
         return self._end_of_pass(tr, stalled)
+
+    def _linearised_start(self):
+        """3D, joint coupling, before the first block step of a solve: the slipping
+        pairs' slip directions and cone curvature ``alpha`` from the slip law at the
+        starting iterate (:meth:`_slip_law`), so that the first step already is a
+        Newton step on the directions, instead of the directions of the starting forces
+        with ``alpha = 0``. Measured on the 586 solves of sandwich-3d refine 1: 2302 ->
+        1917 block steps, the same states and answers to 6e-13 of their largest value."""
+        slip = self.status == SLIPPING
+        if self.problem.dim == 3 and self.coupling == "joint" and slip.any():
+            self.direction[slip], self.alpha[slip], _ = self._slip_law(self.d, self.lam)
 
     def _threshold(self):
         """Per pair, the violation a check ignores (force units): a fraction of what
