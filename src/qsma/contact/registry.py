@@ -105,7 +105,9 @@ def solve(problem, lam_w, state=None, *, method="basket", tol=DEFAULT_TOL, maxit
     guess : ContactState, optional
         Iterate (and pair states) to start from instead of ``state``, e.g. the
         answer of the same load level on a neighbouring path; the slip is still
-        measured from ``state``, and the answer is judged exactly as without it.
+        measured from ``state``, and the answer is judged exactly as without it. A
+        guess that already meets the check of this level (:func:`guess_measures`) is
+        the answer, with ``nit = 0``.
     **options
         Keyword options of the method; an unknown name raises.
 
