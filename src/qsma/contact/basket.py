@@ -38,6 +38,8 @@ direction is a sign and one block step is exact.
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from ..errors import InputError
@@ -173,6 +175,8 @@ class _BasketRun:
         """Block step(s) and state check; ``(converged, message, measures or None)`` when
         done (the measures of the final iterate, see :class:`Iterate`)."""
         try:
+            if self.solves == 0:
+                self._linearised_start()
             d_new = self._block_step()
             change = self._relative_change(d_new) if self.coupling == "gauss_seidel" else 0.0
             self._set_iterate(d_new)
@@ -197,9 +201,20 @@ class _BasketRun:
         self.quiet += 1
         self._update_directions(q)
         if change > self.pass_tol:
-            return None
+            return self._accepted_early(tr)
         stalled = self.quiet >= 2 if self.coupling == "joint" else change == 0.0
         return self._end_of_pass(tr, stalled)
+
+    def _linearised_start(self):
+        """3D, joint coupling, before the first block step of a solve: the slipping
+        pairs' slip directions and cone curvature ``alpha`` from the slip law at the
+        starting iterate (:meth:`_slip_law`), so that the first step already is a
+        Newton step on the directions, instead of the directions of the starting forces
+        with ``alpha = 0``. Measured on the 586 solves of sandwich-3d refine 1: 2302 ->
+        1917 block steps, the same states and answers to 6e-13 of their largest value."""
+        slip = self.status == SLIPPING
+        if self.problem.dim == 3 and self.coupling == "joint" and slip.any():
+            self.direction[slip], self.alpha[slip], _ = self._slip_law(self.d, self.lam)
 
     def _threshold(self):
         """Per pair, the violation a check ignores (force units): a fraction of what
@@ -211,8 +226,25 @@ class _BasketRun:
                                                        self._products()[1]))
         return self._threshold_of
 
-    def _set_iterate(self, d):
-        self.d, self._lam, self._Kd, self._abs_Kd, self._threshold_of = d, None, None, None, None
+    def _set_iterate(self, d, Kd=None):
+        """A new iterate ``d``; ``Kd``, optional: its product ``K d`` if already formed."""
+        self.d, self._lam, self._Kd, self._abs_Kd, self._threshold_of = d, None, Kd, None, None
+        if Kd is not None:
+            self._lam = Kd + self.lw
+
+    def _accepted_early(self, tr):
+        """The verdict on a 3D iterate whose slip directions have settled but whose last
+        Newton step still moved ``d`` by more than ``pass_tol``, when every pair, final
+        basket or not, passes its check (``tr``): converged if the iterate meets the
+        residual, else None (the pass goes on as before). Without it the pass took one
+        more block step only to see ``d`` not move."""
+        if self.coupling != "joint" or np.any(tr.status != self.status):
+            return None
+        checked = measures(self.problem, self.lam_w, self.d2, self.lam2, self.previous,
+                           self._products())
+        if checked[0] <= self.tol:
+            return True, f"converged: no pair changed basket ({self.summary()})", checked
+        return None
 
     def _end_of_pass(self, tr, stalled):
         """Reopen the final baskets and recheck them; accept on the residual."""
@@ -369,9 +401,9 @@ class _BasketRun:
         pair is going to zero, i.e. the pair is stuck at the cone).
         """
         slip = self.status == SLIPPING
-        change, slow, previous = 0.0, 0, np.inf
+        change, slow, previous, law = 0.0, 0, np.inf, None
         for _ in range(DIRECTION_STEPS):
-            s, alpha, misfit = self._slip_law(self.d, self.lam)
+            s, alpha, misfit = law or self._slip_law(self.d, self.lam)
             goal = self._threshold()[slip]
             if not slip.any() or np.all(np.sqrt(misfit) <= goal) or self.solves >= self.maxiter:
                 return change, None
@@ -383,21 +415,33 @@ class _BasketRun:
                 return change, stuck_pair
             previous = size
             self.direction[slip], self.alpha[slip] = s, alpha
-            target = self._block_step()
-            t = self._line_search(target - self.d, misfit.sum())
-            if t is None or t < SHORT_STEP:
+            step = self._line_search(self._block_step(), misfit.sum())
+            if step is None or step.t < SHORT_STEP:
                 return change, stuck_pair
-            d_new = self.d + t * (target - self.d)
-            change = self._relative_change(d_new)
-            self._set_iterate(d_new)
+            change = self._relative_change(step.d)
+            self._set_iterate(step.d, step.Kd)
+            law = step.law
         return change, None
 
-    def _line_search(self, delta, misfit0):
-        t, K_delta = 1.0, self.problem.product(delta)
+    def _line_search(self, target, misfit0):
+        """Armijo backtracking on the slip-law misfit from the iterate towards ``target``
+        (the block step); the accepted :class:`_Step` or None below :data:`MIN_STEP`.
+
+        The full step is tried first at ``target`` itself with ``K target``, the one
+        product of the Newton step: an accepted full step hands its ``K d`` and its slip
+        law to the next Newton step (no second product, no second evaluation). A
+        shorter step keeps no product (the next Newton step forms ``K d`` of its
+        iterate), so every ``K d`` of an iterate is a product of that very ``d``."""
+        K_target = self.problem.product(target)
+        law = self._slip_law(target, K_target + self.lw)
+        if law[2].sum() <= (1.0 - 2.0 * ARMIJO) * misfit0:
+            return _Step(1.0, target, K_target, law)
+        self.lam                                   # sets self._Kd of the iterate
+        delta, K_delta, t = target - self.d, K_target - self._Kd, 0.5
         while t >= MIN_STEP:
             trial = self._slip_law(self.d + t * delta, self.lam + t * K_delta)[2].sum()
             if trial <= (1.0 - 2.0 * ARMIJO * t) * misfit0:
-                return t
+                return _Step(t, self.d + t * delta, None, None)
             t *= 0.5
         return None
 
@@ -411,6 +455,17 @@ class _BasketRun:
         ok = slipping & (size > 0)
         self.direction[ok] = -sigma[ok] / size[ok, None]
         self.alpha[ok] = np.clip(self.problem.mu[ok] * q.P[ok] / size[ok], 0.0, 1.0)
+
+
+class _Step(NamedTuple):
+    """An accepted step of the slip-direction line search: its length ``t``, the new
+    iterate ``d``, and for a full step (``t = 1``) its ``K d`` and slip law
+    (:meth:`_BasketRun._slip_law`), else None."""
+
+    t: float
+    d: np.ndarray
+    Kd: np.ndarray | None
+    law: tuple | None
 
 
 def _known_mask(problem, status):

@@ -8,9 +8,9 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import ContactConvergenceWarning, InputError
-from .law import classify, pair_quantities
+from .law import classify, natural_map, pair_quantities
 from .problem import _power_of_two
-from .residual import FORCE_TOL, measures as all_measures, reaction_scale
+from .residual import FORCE_TOL, measures as all_measures, pair_stiffness, reaction_scale
 from .state import ContactResult, ContactState, Outcome
 
 #: name -> solver function; filled by :func:`register_method`.
@@ -105,7 +105,9 @@ def solve(problem, lam_w, state=None, *, method="basket", tol=DEFAULT_TOL, maxit
     guess : ContactState, optional
         Iterate (and pair states) to start from instead of ``state``, e.g. the
         answer of the same load level on a neighbouring path; the slip is still
-        measured from ``state``, and the answer is judged exactly as without it.
+        measured from ``state``, and the answer is judged exactly as without it. A
+        guess that already meets the check of this level (:func:`guess_measures`) is
+        the answer, with ``nit = 0``.
     **options
         Keyword options of the method; an unknown name raises.
 
@@ -129,6 +131,11 @@ def solve(problem, lam_w, state=None, *, method="basket", tol=DEFAULT_TOL, maxit
     tol, maxiter = _check_tol(tol), _check_maxiter(maxiter)
     scaled = _Scaled(problem, lam_w, previous)
     start = None if guess is None else scaled.to_internal(checked_guess(guess, problem))
+    checked = None if start is None else guess_measures(scaled.problem, scaled.lam_w,
+                                                        scaled.previous, start, tol)
+    if checked is not None:
+        return _result(problem, lam_w, previous, accepted_guess(start), method, tol,
+                       scaled=scaled, measures=checked)
     out, used, measures = _run_chain(scaled, method, fn, tol, maxiter, bool(fallback),
                                      options, start)
     return _result(problem, lam_w, previous, out, method, tol, fallback=used, scaled=scaled,
@@ -158,6 +165,39 @@ def _run_chain(scaled, method, fn, tol, maxiter, fallback, options, start=None):
     merged = second._replace(nit=out.nit + second.nit,
                              message=f"{out.message}; fell back to {rescue}: {second.message}")
     return merged, rescue, merged.measures
+
+
+def guess_measures(problem, lam_w, previous, guess, tol):
+    r"""The measures of ``guess`` taken as the answer of this level, if it is one.
+
+    A state of a neighbouring path (the same level solved on a coarser grid) is
+    already the answer when the slip since ``previous`` does not change it. First a
+    filter without any product with ``K``: every pair's natural map in its own
+    stiffness,
+
+    .. math:: \max_i \max(r_{n,i}, r_{t,i}) \le tol \max|\lambda| ,
+
+    stricter than :func:`qsma.contact.residual.residual` (no round-off allowance);
+    a guess that fails it is not checked further. Then the acceptance test of every
+    answer, :func:`qsma.contact.residual.measures` on ``problem``: ``(residual,
+    force_residual, legacy_residual)`` if ``residual <= tol`` and ``force_residual <=
+    FORCE_TOL``, else None (the level is then solved from the guess as before).
+    """
+    q = pair_quantities(problem, guess.d, guess.lam, previous.d)
+    with np.errstate(over="ignore", invalid="ignore"):
+        r_n, r_t = natural_map(q, problem.mu, pair_stiffness(problem))
+        law = max(r_n.max(initial=0.0), r_t.max(initial=0.0))
+    if not law <= tol * reaction_scale(guess.lam):
+        return None
+    checked = all_measures(problem, lam_w, guess.d, guess.lam, previous)
+    return checked if checked[0] <= tol and checked[1] <= FORCE_TOL else None
+
+
+def accepted_guess(guess):
+    """The :class:`Iterate` of a guess that passed :func:`guess_measures`: no
+    iteration."""
+    return Iterate(guess.d, guess.lam, 0, True,
+                   "converged: the starting guess meets the check of this level")
 
 
 def checked_guess(guess, problem):

@@ -32,7 +32,8 @@ import numpy as np
 import scipy.linalg as sla
 
 from .problem import ContactProblem
-from .registry import DEFAULT_TOL, Iterate, _result, checked_guess, solve
+from .registry import (DEFAULT_TOL, Iterate, _result, accepted_guess, checked_guess,
+                       guess_measures, solve)
 from .residual import FORCE_TOL, measures
 from .state import OPEN, STUCK, ContactState
 
@@ -422,6 +423,9 @@ def solve_in_zone(zone: ContactZone, lam_w, state: ContactState, *, method="bask
     lam_w = np.asarray(lam_w, dtype=float)
     if guess is not None:
         guess = checked_guess(guess, zone.full)
+        held = _held_guess(zone, lam_w, state, guess, method, tol)
+        if held is not None:
+            return held
     zone = fitted_zone(zone, state if guess is None else _closed_in_either(state, guess))
     nit = 0
     for sub_tol in (tol, RETRY_TOL * tol):
@@ -436,6 +440,21 @@ def solve_in_zone(zone: ContactZone, lam_w, state: ContactState, *, method="bask
         if not out.converged or (checked[0] <= tol and checked[1] <= FORCE_TOL):
             break
     return _result(full, lam_w, state, out, method, tol, fallback=sub.fallback,
+                   measures=checked), zone
+
+
+def _held_guess(zone, lam_w, state, guess, method, tol):
+    """``(result, zone)`` of ``guess`` if it already is this level's answer on the full
+    problem (:func:`qsma.contact.registry.guess_measures`), the zone grown by the
+    guess's closed pairs outside it (the next level starts from a zone that holds
+    them); else None."""
+    checked = guess_measures(zone.full, lam_w, state, guess, tol)
+    if checked is None:
+        return None
+    outside = (np.asarray(guess.status) != OPEN) & ~zone.keep
+    if outside.any():
+        zone = zone.grown(outside)
+    return _result(zone.full, lam_w, state, accepted_guess(guess), method, tol,
                    measures=checked), zone
 
 
