@@ -6,10 +6,20 @@ on a machine whose cores are busy it can be 20-40 times slower (spinning threads
 measured with benchmarks/bench_analysis.py: sandwich-2d contact ramp 1.1 s with
 2 threads on a loaded 2-core machine, 0.03 s with 1). Below
 :data:`SMALL_PROBLEM` interface unknowns qsma therefore runs BLAS single-threaded.
+
+The sparse direct solves are parallel in another way: scipy's SuperLU releases the
+GIL in its triangular solves, so the columns of a multi-RHS solve are split into
+blocks solved by Python threads at once (:func:`qsma.linalg.solved_by_columns`).
+:func:`solve_threads` gives their number: the environment variable
+:data:`SOLVE_THREADS_ENV` if set, else ``min(2, cores)``.
 """
 from __future__ import annotations
 
 from contextlib import contextmanager
+import numbers
+import os
+
+from .errors import InputError
 
 #: Interface unknowns (pairs x dim) up to which BLAS is limited to one thread.
 SMALL_PROBLEM = 2000
@@ -29,3 +39,39 @@ def blas_threads(limit):
 def threads_for(n_unknowns: int):
     """The BLAS thread limit for an interface problem of ``n_unknowns`` unknowns."""
     return 1 if n_unknowns <= SMALL_PROBLEM else None
+
+
+#: Environment variable with the number of threads of a multi-RHS sparse solve
+#: (a positive integer; 1: serial).
+SOLVE_THREADS_ENV = "QSMA_SOLVE_THREADS"
+#: Default thread count of a multi-RHS solve at most: the machines of issue 14 have two
+#: cores, and a SuperLU solve of few columns is bound by reading the factor, which two
+#: threads share (docs/performance.md, "Condensation and tied modes on two cores").
+DEFAULT_SOLVE_THREADS = 2
+
+
+def solve_threads(value=None) -> int:
+    """The number of threads of a multi-RHS sparse solve: ``value`` if given, else the
+    environment variable :data:`SOLVE_THREADS_ENV`, else
+    ``min(DEFAULT_SOLVE_THREADS, cores)``.
+
+    Raises
+    ------
+    InputError
+        ``value`` (or the variable) is not a positive integer.
+    """
+    source = "solve threads"
+    if value is None:
+        value = os.environ.get(SOLVE_THREADS_ENV)
+        source = f"environment variable {SOLVE_THREADS_ENV}"
+        if value is None or value.strip() == "":
+            return max(1, min(DEFAULT_SOLVE_THREADS, os.cpu_count() or 1))
+        try:
+            value = int(value.strip())
+        except ValueError:
+            raise InputError(f"{source} must be a positive integer, got {value!r}; "
+                             f"unset it or set e.g. {SOLVE_THREADS_ENV}=2") from None
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
+        raise InputError(f"{source} must be a positive integer, got {value!r} (1 solves "
+                         f"serially)")
+    return int(value)

@@ -41,6 +41,7 @@ from __future__ import annotations
 import ctypes
 from dataclasses import dataclass, field
 import importlib.util
+import threading
 import time
 import weakref
 
@@ -49,6 +50,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.linalg import blas as sla_blas
 
+from ._threads import solve_threads
 from .errors import AnalysisError, InputError
 
 #: Smallest accepted ``d_i / (K_EE)_ii`` over the pivots ``d_i`` of ``K_EE``. It is
@@ -310,9 +312,71 @@ def _drop_extracted_factors(lu):
         copy.indptr = np.zeros(copy.shape[1] + 1, dtype=copy.indptr.dtype)
 
 
+#: Fewest columns a thread of :func:`solved_by_columns` is given. Measured on the
+#: sandwich-3d refine-1 factor (15,810 DOFs, one BLAS thread): 8 columns take 41 ms
+#: serially and 52 ms as two threads of 4 (the two threads share the reading of the
+#: factor), 12 columns 71 ms and 45 ms as two of 6 (docs/performance.md).
+SOLVE_MIN_COLUMNS = 6
+
+
+def solved_by_columns(solve, b, threads=None) -> np.ndarray:
+    r"""``solve(b)`` for a multi-RHS ``solve`` (a sparse factor's triangular solves),
+    with the columns of ``b`` split into ``t`` consecutive blocks solved by ``t``
+    threads at once:
+
+    .. math:: X = [\,\mathrm{solve}(B_1), \dots, \mathrm{solve}(B_t)\,],
+              \qquad B = [B_1, \dots, B_t] .
+
+    The columns of a solve are independent, so the result has the bits of the serial
+    solve of the same blocks. SuperLU (``nrhs >= 2``) works on the columns with BLAS
+    ``trsm`` and ``gemm``, whose kernels (OpenBLAS 0.3.31, one BLAS thread) treat
+    columns in pairs and a last odd column by another path (a different rounding,
+    measured ~5e-16 relative): the blocks therefore start at even offsets, so that every
+    column keeps its partner and the threaded solve has the bits of the serial one
+    (tests/test_linalg.py). With several BLAS threads the bits of a solve depend on its
+    width anyway (OpenBLAS splits the columns among its threads). It pays only where
+    the solve releases the GIL (scipy's SuperLU does).
+
+    Parameters
+    ----------
+    solve : callable on (n, k) arrays returning (n, k) arrays
+    b : (n,) or (n, k) array
+    threads : thread count (:func:`qsma._threads.solve_threads`: validated, default
+        from the environment or ``min(2, cores)``); ``t = min(threads,
+        k // SOLVE_MIN_COLUMNS)`` blocks, one block (a plain call) below that.
+    """
+    t = min(solve_threads(threads), b.shape[1] // SOLVE_MIN_COLUMNS if b.ndim == 2 else 1)
+    if t <= 1:
+        return solve(b)
+    edges = 2 * np.round(np.linspace(0, b.shape[1] / 2, t + 1)).astype(int)
+    edges[-1] = b.shape[1]                       # even offsets: see the docstring
+    blocks = [b[:, i:j] for i, j in zip(edges[:-1], edges[1:])]
+    out = [None] * t
+    errors = []
+
+    def work(k):
+        try:
+            out[k] = solve(blocks[k])
+        except BaseException as exc:            # re-raised in the calling thread
+            errors.append(exc)
+
+    workers = [threading.Thread(target=work, args=(k,), daemon=True) for k in range(1, t)]
+    for w in workers:
+        w.start()
+    work(0)
+    for w in workers:
+        w.join()
+    if errors:
+        raise errors[0]
+    return np.hstack(out)
+
+
 def _superlu_solver(lu):
-    def solve(b):
+    def whole(b):
         return lu.solve(b if b.ndim == 1 else np.asfortranarray(b))
+
+    def solve(b):
+        return solved_by_columns(whole, b)
     return solve
 
 
@@ -532,12 +596,15 @@ def _bordered_solver(lu, p, nC):
     """``K_EE^-1 b`` from the LU of ``[[A, 0], [B, I]]``, ``A = K_EE[p][:, p]``."""
     nE = len(p)
 
-    def solve(b):
+    def whole(b):
         rhs = np.zeros((nE + nC,) + b.shape[1:], order="F")
         rhs[:nE] = b[p]
         x = np.empty_like(b)
         x[p] = lu.solve(rhs)[:nE]
         return x
+
+    def solve(b):
+        return solved_by_columns(whole, b)
     return solve
 
 
