@@ -392,3 +392,47 @@ def test_solve_threads_default_and_setting(monkeypatch):
     monkeypatch.setenv("QSMA_SOLVE_THREADS", " 3 ")
     assert solve_threads() == 3
     assert solve_threads(np.int64(4)) == 4
+
+
+@pytest.mark.parametrize("problem", ["laplacian_3d", "elasticity"])
+def test_coupling_read_from_the_columns_of_U_equals_the_sliced_one(problem, monkeypatch):
+    """``_coupling_transposed`` (U_EC^T read from the arrays of U's interface columns)
+    gives the same Schur complement as slicing ``U[:nE, nE:]`` (the former path, kept
+    as its fallback): the same entries in the same order, so the same bits; and it
+    equals the dense reference."""
+    _backend("metis_superlu")
+    if problem == "laplacian_3d":
+        K = laplacian_3d(12)
+        C = np.random.default_rng(5).permutation(K.shape[0])[:150]
+    else:
+        K, C = PROBLEMS["elasticity"]
+    seen = []
+    original = linalg._coupling_transposed
+
+    def spy(U, nE):
+        L_CE = original(U, nE)
+        sliced = U[:nE, nE:].tocsr().T.tocsr()
+        seen.append(abs(L_CE - sliced).max())
+        return L_CE
+    monkeypatch.setattr(linalg, "_coupling_transposed", spy)
+    Kc_new, _ = schur_complement(K, C, backend="metis_superlu")
+    assert seen == [0.0]
+    monkeypatch.setattr(linalg, "_coupling_transposed",
+                        lambda U, nE: U[:nE, nE:].tocsr().T.tocsr())
+    Kc_old, _ = schur_complement(K, C, backend="metis_superlu")
+    assert np.array_equal(Kc_new, Kc_old)
+    ref, _, _ = dense_reference(K, C)
+    assert np.abs(Kc_new - ref).max() < RTOL * np.abs(ref).max()
+
+
+def test_coupling_falls_back_to_slicing_when_the_trailing_block_is_not_identity():
+    U = sp.csc_matrix(np.array([[2.0, 0.5, 0.3],
+                                [0.0, 3.0, 0.7],
+                                [0.0, 0.1, 1.0]]))       # an entry below the unit
+    L_CE = linalg._coupling_transposed(U, 1)
+    assert np.array_equal(L_CE.toarray(), np.array([[0.5], [0.3]]))
+    U = sp.csc_matrix(np.array([[2.0, 0.5, 0.3],
+                                [0.0, 1.0, 0.0],
+                                [0.0, 0.0, 1.0]]))
+    assert np.array_equal(linalg._coupling_transposed(U, 1).toarray(),
+                          np.array([[0.5], [0.3]]))

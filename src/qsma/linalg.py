@@ -243,8 +243,10 @@ def _validated(K, C):
         raise InputError(f"C holds positions outside 0..{n - 1}: {C.min()}..{C.max()}")
     if len(np.unique(C)) != len(C):
         raise InputError("C holds repeated positions")
-    K = sp.csr_matrix(K, dtype=float, copy=True)
-    K.sum_duplicates()
+    K = sp.csr_matrix(K, dtype=float)             # shares the caller's arrays where
+    if not K.has_canonical_format:                # it can: not modified below
+        K = K.copy()
+        K.sum_duplicates()
     scale = abs(K).max()
     if not np.isfinite(scale) or scale == 0:
         raise InputError(f"K must have finite, not all zero entries (max |K| = {scale})")
@@ -547,17 +549,42 @@ def _schur_metis_superlu(K, C, E) -> SchurParts:
     t2 = time.perf_counter()
     if not ratio > PIVOT_RATIO_MIN:
         return SchurParts(np.zeros((nC, nC)), None, ratio, {})
-    U_EC = U[:nE, nE:].tocsr()                    # rows E: its transpose is CSC
+    L_CE = _coupling_transposed(U, nE)             # U_EC^T, CSR: one copy of U_EC
     del U
     _drop_extracted_factors(lu)
-    Kc = _low_rank_sum(U_EC.T, 1.0 / d)
-    del U_EC
+    Kc = _low_rank_sum(L_CE, 1.0 / d)             # its CSC conversion, copies gone
+    del L_CE
     Kc *= -1.0
     K_CC = K[C][:, C].tocoo()                     # added entry by entry: no dense copy
     Kc[K_CC.row, K_CC.col] += K_CC.data           # (canonical: no repeated entries)
     t3 = time.perf_counter()
     return SchurParts(Kc, _bordered_solver(lu, p, nC), ratio,
                       {"ordering": t1 - t0, "factorization": t2 - t1, "schur": t3 - t2})
+
+
+def _coupling_transposed(U, nE):
+    r"""``U_EC^T`` (CSR, |C| x |E|) from the CSC ``U`` of the bordered factorisation of
+    :func:`_schur_metis_superlu`, read from the arrays of U's last |C| columns.
+
+    Those columns hold ``U_EC`` and the unit diagonal of ``U_CC = I`` (nothing updates
+    the trailing identity block): one entry of row ``>= nE`` per column, in its own
+    column, which is dropped; the CSC arrays of ``U_EC`` that remain are the CSR arrays
+    of its transpose. One copy of ``U_EC`` (data and row indices) is made, where
+    slicing ``U[:nE, nE:]`` and converting it made three while scipy's copies of both
+    triangles were held (the peak of the condensation). Falls back to that slicing if
+    the trailing block is not the identity pattern."""
+    nC = U.shape[1] - nE
+    start = U.indptr[nE]
+    rows = U.indices[start:]
+    keep = rows < nE
+    dropped = np.flatnonzero(~keep)
+    colptr = U.indptr[nE:] - start
+    own = np.searchsorted(colptr, dropped, side="right") - 1
+    if len(dropped) != nC or not (np.array_equal(own, np.arange(nC))
+                                  and np.array_equal(rows[dropped], nE + own)):
+        return U[:nE, nE:].tocsr().T.tocsr()
+    indptr = colptr - np.arange(nC + 1, dtype=colptr.dtype)
+    return sp.csr_matrix((U.data[start:][keep], rows[keep], indptr), shape=(nC, nE))
 
 
 def _low_rank_sum(L_CE, d):
