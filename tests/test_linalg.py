@@ -314,22 +314,20 @@ def laplacian_3d(n, shift=1e-2):
 @pytest.mark.parametrize("backend", ["metis_superlu", "splu", "superlu_schur"])
 def test_threaded_solves_equal_serial_ones_bit_for_bit(backend, monkeypatch):
     """The K_EE solver of a backend on 1, 2 and 3 threads (QSMA_SOLVE_THREADS) gives
-    the same bits for every column (one BLAS thread, as qsma runs interface problems
-    up to 2000 unknowns: with several the bits of a solve depend on its width), also in
+    the same bits for every column (the solves run on one BLAS thread whatever the
+    process setting: with several the bits of a solve depend on its width), also in
     another block of even offset, and solves the system (residual)."""
-    from threadpoolctl import threadpool_limits
     _backend(backend)
     K = laplacian_3d(14)
     C = np.arange(0, K.shape[0], 37)
     _, solve = schur_complement(K, C, backend=backend)
     B = np.random.default_rng(4).standard_normal((solve.n, 25))
     results = {}
-    with threadpool_limits(limits=1, user_api="blas"):
-        for threads in ("1", "2", "3"):
-            monkeypatch.setenv("QSMA_SOLVE_THREADS", threads)
-            results[threads] = solve(B)
-        monkeypatch.setenv("QSMA_SOLVE_THREADS", "1")
-        other = solve(B[:, 6:18])
+    for threads in ("1", "2", "3"):
+        monkeypatch.setenv("QSMA_SOLVE_THREADS", threads)
+        results[threads] = solve(B)
+    monkeypatch.setenv("QSMA_SOLVE_THREADS", "1")
+    other = solve(B[:, 6:18])
     assert np.array_equal(results["1"], results["2"])
     assert np.array_equal(results["1"], results["3"])
     assert np.array_equal(other, results["1"][:, 6:18])
@@ -436,3 +434,26 @@ def test_coupling_falls_back_to_slicing_when_the_trailing_block_is_not_identity(
                                 [0.0, 0.0, 1.0]]))
     assert np.array_equal(linalg._coupling_transposed(U, 1).toarray(),
                           np.array([[0.5], [0.3]]))
+
+
+def test_one_blas_thread_nests_and_restores_the_setting():
+    """Inside ``one_blas_thread`` BLAS has one thread, also in a nested block and in a
+    worker thread; leaving the outermost block restores the previous limit."""
+    import threading
+    from threadpoolctl import threadpool_info, threadpool_limits
+    from qsma._threads import one_blas_thread
+
+    def blas_threads():
+        return {i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"}
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = blas_threads()
+        seen = []
+        with one_blas_thread():
+            with one_blas_thread():
+                seen.append(blas_threads())
+            worker = threading.Thread(target=lambda: seen.append(blas_threads()))
+            worker.start()
+            worker.join()
+            seen.append(blas_threads())
+        assert seen == [{1}, {1}, {1}]
+        assert blas_threads() == before

@@ -50,7 +50,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.linalg import blas as sla_blas
 
-from ._threads import solve_threads
+from ._threads import one_blas_thread, solve_threads
 from .errors import AnalysisError, InputError
 
 #: Smallest accepted ``d_i / (K_EE)_ii`` over the pivots ``d_i`` of ``K_EE``. It is
@@ -291,8 +291,9 @@ def _superlu(A, ordering="MMD_AT_PLUS_A"):
     """LU of the SPD matrix ``A`` without row pivoting (symmetric fill-reducing
     ordering ``ordering``, by default MMD on A + A^T), and its smallest pivot ratio."""
     try:
-        lu = spla.splu(A.tocsc(), permc_spec=ordering, diag_pivot_thresh=0.0,
-                       options={"SymmetricMode": True})
+        with one_blas_thread():
+            lu = spla.splu(A.tocsc(), permc_spec=ordering, diag_pivot_thresh=0.0,
+                           options={"SymmetricMode": True})
     except RuntimeError as exc:      # "Factor is exactly singular"
         return None, -np.inf, exc
     if not np.array_equal(lu.perm_r, lu.perm_c):
@@ -336,8 +337,12 @@ def solved_by_columns(solve, b, threads=None) -> np.ndarray:
     measured ~5e-16 relative): the blocks therefore start at even offsets, so that every
     column keeps its partner and the threaded solve has the bits of the serial one
     (tests/test_linalg.py). With several BLAS threads the bits of a solve depend on its
-    width anyway (OpenBLAS splits the columns among its threads). It pays only where
-    the solve releases the GIL (scipy's SuperLU does).
+    width (OpenBLAS splits the columns among its threads), so the blocks are solved with
+    BLAS limited to one thread (:func:`qsma._threads.one_blas_thread`), which is also
+    the fast setting: SuperLU calls BLAS on small supernode blocks, where OpenBLAS
+    threads spin (a 12-column solve at sandwich-3d refine 1: 506 ms with two BLAS
+    threads, 66 ms with one). The threads pay only where the solve releases the GIL
+    (scipy's SuperLU does).
 
     Parameters
     ----------
@@ -348,8 +353,12 @@ def solved_by_columns(solve, b, threads=None) -> np.ndarray:
         k // SOLVE_MIN_COLUMNS)`` blocks, one block (a plain call) below that.
     """
     t = min(solve_threads(threads), b.shape[1] // SOLVE_MIN_COLUMNS if b.ndim == 2 else 1)
-    if t <= 1:
-        return solve(b)
+    with one_blas_thread():
+        return solve(b) if t <= 1 else _threaded(solve, b, t)
+
+
+def _threaded(solve, b, t):
+    """:func:`solved_by_columns` on ``t >= 2`` threads."""
     edges = 2 * np.round(np.linspace(0, b.shape[1] / 2, t + 1)).astype(int)
     edges[-1] = b.shape[1]                       # even offsets: see the docstring
     blocks = [b[:, i:j] for i, j in zip(edges[:-1], edges[1:])]
@@ -535,8 +544,9 @@ def _schur_metis_superlu(K, C, E) -> SchurParts:
     del K_EE, A                      # not held next to the factor and scipy's copies
     t1 = time.perf_counter()
     try:
-        lu = spla.splu(M, permc_spec="NATURAL", diag_pivot_thresh=0.0,
-                       options={"SymmetricMode": True})
+        with one_blas_thread():      # small supernode blocks: see solved_by_columns
+            lu = spla.splu(M, permc_spec="NATURAL", diag_pivot_thresh=0.0,
+                           options={"SymmetricMode": True})
     except RuntimeError:             # "Factor is exactly singular"
         return SchurParts(np.zeros((nC, nC)), None, -np.inf, {})
     identity = np.arange(nE + nC)
