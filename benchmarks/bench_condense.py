@@ -14,8 +14,10 @@ factor of the condensation, ``metis_superlu``) for several numbers of columns: t
 solver as qsma calls it on 1 and 2 threads (``QSMA_SOLVE_THREADS``; one BLAS thread
 inside either way) and the raw SuperLU solve with the process's BLAS threads (two
 OpenBLAS threads on this machine: the setting before the solves were limited to one),
-alternating, medians of wall and CPU over ``--repeat`` rounds, and whether the two
-thread counts give the same bits.
+alternating (each timed call after an untimed one of the same setting, so that every
+setting finds the factor in cache), medians of wall and CPU over ``--repeat`` rounds,
+and whether the two thread counts give the same bits. Up to 11 columns the solver
+does not split (``qsma.linalg.SOLVE_MIN_COLUMNS``): those rows are the control.
 
 ``--combine N ...`` times only the dense two-body combination on random SPD
 matrices of size N: the direct ``Kc1 (Kc1 + Kc2)^-1 Kc2`` (Cholesky solve and
@@ -111,6 +113,7 @@ def measure_solves(refine, repeat, widths=(2, 6, 12, 24)):
                 else:
                     os.environ["QSMA_SOLVE_THREADS"] = setting[0]
                     f = lambda: body.solve_EE(B)
+                f()                               # warm: the factor back in cache
                 out, wall, cpu = _timed(f)
                 times.setdefault(setting, []).append((wall, cpu))
                 results[setting] = out
