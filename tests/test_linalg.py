@@ -386,7 +386,7 @@ def test_solve_threads_default_and_setting(monkeypatch):
     import os
     from qsma._threads import solve_threads
     monkeypatch.delenv("QSMA_SOLVE_THREADS", raising=False)
-    assert solve_threads() == max(1, min(2, os.cpu_count() or 1))
+    assert solve_threads() == max(1, min(2, len(os.sched_getaffinity(0))))
     monkeypatch.setenv("QSMA_SOLVE_THREADS", " 3 ")
     assert solve_threads() == 3
     assert solve_threads(np.int64(4)) == 4

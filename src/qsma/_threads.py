@@ -77,16 +77,25 @@ def threads_for(n_unknowns: int):
 #: Environment variable with the number of threads of a multi-RHS sparse solve
 #: (a positive integer; 1: serial).
 SOLVE_THREADS_ENV = "QSMA_SOLVE_THREADS"
-#: Default thread count of a multi-RHS solve at most: the machines of issue 14 have two
-#: cores, and a SuperLU solve of few columns is bound by reading the factor, which two
-#: threads share (docs/performance.md, "Condensation and tied modes on two cores").
+#: Default thread count of a multi-RHS solve at most (fewer on a machine with fewer
+#: usable cores): the targets of issue 14 are two cores. On a machine whose other cores
+#: are busy, one thread is faster (docs/performance.md, "Condensation and tied modes on
+#: two cores"): set the variable to 1 there.
 DEFAULT_SOLVE_THREADS = 2
+
+
+def _usable_cores() -> int:
+    """Cores this process may run on (its CPU affinity where the OS tells it)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
 
 
 def solve_threads(value=None) -> int:
     """The number of threads of a multi-RHS sparse solve: ``value`` if given, else the
     environment variable :data:`SOLVE_THREADS_ENV`, else
-    ``min(DEFAULT_SOLVE_THREADS, cores)``.
+    ``min(DEFAULT_SOLVE_THREADS, usable cores)``.
 
     Raises
     ------
@@ -98,7 +107,7 @@ def solve_threads(value=None) -> int:
         value = os.environ.get(SOLVE_THREADS_ENV)
         source = f"environment variable {SOLVE_THREADS_ENV}"
         if value is None or value.strip() == "":
-            return max(1, min(DEFAULT_SOLVE_THREADS, os.cpu_count() or 1))
+            return max(1, min(DEFAULT_SOLVE_THREADS, _usable_cores()))
         try:
             value = int(value.strip())
         except ValueError:
