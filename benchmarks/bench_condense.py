@@ -1,12 +1,30 @@
 """Time the static condensation of sandwich-2d per stage and refinement level.
 
 Usage: python benchmarks/bench_condense.py [--refine 1 2 4 8] [--repeat 5]
+       python benchmarks/bench_condense.py --solves 1 [--repeat 15]
+       python benchmarks/bench_condense.py --memory 2
        python benchmarks/bench_condense.py --combine 1000 3000 [--repeat 3]
 
 Prints, per refinement: DOFs per body, interface DOFs, the Schur backend chosen
 by "auto", and the median over ``--repeat`` runs of the factorisation, the Schur
 complement, the rotation into pair frames (both bodies added) and the two-body
 combination (K = Kc1 S^-1 Kc2, welded forces).
+
+``--solves R`` times the K_EE solves of one sandwich-3d body at refine R (the
+factor of the condensation, ``metis_superlu``) for several numbers of columns: the
+solver as qsma calls it on 1 and 2 threads (``QSMA_SOLVE_THREADS``; one BLAS thread
+inside either way) and the raw SuperLU solve with the process's BLAS threads (two
+OpenBLAS threads on this machine: the setting before the solves were limited to one),
+alternating (each timed call after an untimed one of the same setting, so that every
+setting finds the factor in cache), medians of wall and CPU over ``--repeat`` rounds,
+and whether the two thread counts give the same bits. Up to 11 columns the solver
+does not split (``qsma.linalg.SOLVE_MIN_COLUMNS``): those rows are the control.
+
+``--memory R`` condenses the two bodies of sandwich-3d at refine R
+(``reduce_two_bodies``) and prints the resident memory sampled every 20 ms, the
+highest value per step (ordering, SuperLU factorisation, reading the factor until
+scipy's copies are emptied, Schur update, the rest: rotation, loads and the two-body
+combination) and the process peak (Linux ``VmHWM``).
 
 ``--combine N ...`` times only the dense two-body combination on random SPD
 matrices of size N: the direct ``Kc1 (Kc1 + Kc2)^-1 Kc2`` (Cholesky solve and
@@ -72,12 +90,128 @@ def measure_combination(n, repeat):
     return med(0, 1), med(0, 2), med(1, 1), med(1, 2), diff
 
 
+def measure_solves(refine, repeat, widths=(2, 6, 12, 24)):
+    """Rows ``(width, {setting: (wall, cpu)}, same_bits)`` of :func:`main`'s
+    ``--solves`` table."""
+    import os
+    from threadpoolctl import threadpool_limits
+    from qsma.condense import condense_body
+    from qsma.examples import sandwich_3d
+    from qsma.linalg import nested_dissection
+    import scipy.sparse.linalg as spla
+    model = sandwich_3d(refine)
+    a = assemble_body(model.bodies[0])
+    body = condense_body(a, make_pairing(model).nodes1, make_pairing(model).frames)
+    K = a.K.tocsr()[body.E][:, body.E]
+    p = nested_dissection(K)
+    with threadpool_limits(limits=1, user_api="blas"):
+        lu = spla.splu(K[p][:, p].tocsc(), permc_spec="NATURAL", diag_pivot_thresh=0.0,
+                       options={"SymmetricMode": True})
+    rng = np.random.default_rng(0)
+    rows = []
+    for w in widths:
+        B = rng.standard_normal((body.solve_EE.n, w))
+        Bp = np.asfortranarray(B[p])
+        times, results = {}, {}
+        for _ in range(repeat):
+            for setting in ("1 thread", "2 threads", "raw, process BLAS"):
+                if setting == "raw, process BLAS":
+                    f = lambda: lu.solve(Bp)
+                else:
+                    os.environ["QSMA_SOLVE_THREADS"] = setting[0]
+                    f = lambda: body.solve_EE(B)
+                f()                               # warm: the factor back in cache
+                out, wall, cpu = _timed(f)
+                times.setdefault(setting, []).append((wall, cpu))
+                results[setting] = out
+        os.environ.pop("QSMA_SOLVE_THREADS", None)
+        med = {k: (statistics.median(t[0] for t in v), statistics.median(t[1] for t in v))
+               for k, v in times.items()}
+        rows.append((w, med, bool(np.array_equal(results["1 thread"],
+                                                 results["2 threads"]))))
+    return body.solve_EE.n, rows
+
+
+def measure_memory(refine):
+    """``(peaks per step in MiB, process peak in MiB, seconds)`` of condensing the
+    two bodies of sandwich-3d at ``refine`` (steps named by wrapping functions of
+    qsma.linalg)."""
+    import threading
+    from qsma import _resources, linalg
+    from qsma.examples import sandwich_3d
+    model = sandwich_3d(refine)
+    A = [assemble_body(b) for b in model.bodies]
+    pairing = make_pairing(model)
+    step, peaks, done = ["before"], {}, threading.Event()
+
+    def sample():
+        while not done.is_set():
+            rss = _resources.current_memory_mb() or 0.0
+            peaks[step[0]] = max(peaks.get(step[0], 0.0), rss)
+            time.sleep(0.02)
+
+    def labelled(name, function, after):
+        def run(*args, **kwargs):
+            step[0] = name
+            try:
+                return function(*args, **kwargs)
+            finally:
+                step[0] = after
+        return run
+    saved = {n: getattr(linalg, n) for n in
+             ("nested_dissection", "_drop_extracted_factors", "_low_rank_sum")}
+    saved_splu = linalg.spla.splu
+    linalg.nested_dissection = labelled("ordering", saved["nested_dissection"], "ordering")
+    linalg.spla.splu = labelled("factorisation", saved_splu, "reading the factor")
+    linalg._drop_extracted_factors = labelled("reading the factor",
+                                              saved["_drop_extracted_factors"], "schur")
+    linalg._low_rank_sum = labelled("schur", saved["_low_rank_sum"], "the rest")
+    sampler = threading.Thread(target=sample, daemon=True)
+    try:
+        _resources.reset_peak()
+        sampler.start()
+        t0 = time.perf_counter()
+        reduce_two_bodies(A[0], A[1], pairing)
+        seconds = time.perf_counter() - t0
+    finally:
+        done.set()
+        sampler.join()
+        for n, f in saved.items():
+            setattr(linalg, n, f)
+        linalg.spla.splu = saved_splu
+    return peaks, _resources.peak_memory_mb(), seconds
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--refine", type=int, nargs="+", default=[1, 2, 4, 8])
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--combine", type=int, nargs="+", default=None)
+    ap.add_argument("--solves", type=int, default=None, metavar="REFINE")
+    ap.add_argument("--memory", type=int, default=None, metavar="REFINE")
     args = ap.parse_args()
+    if args.memory:
+        peaks, peak, seconds = measure_memory(args.memory)
+        print(f"sandwich-3d refine {args.memory}, reduce_two_bodies: {seconds:.1f} s, "
+              f"process peak (VmHWM) {peak:.0f} MiB\n")
+        print("| step | highest resident memory sampled [MiB] |")
+        print("|---|---|")
+        for name, mb in peaks.items():
+            print(f"| {name} | {mb:.0f} |")
+        return
+    if args.solves:
+        n, rows = measure_solves(args.solves, args.repeat)
+        print(f"sandwich-3d refine {args.solves}, K_EE of one body ({n} DOFs); wall / CPU "
+              f"[ms], median of {args.repeat}\n")
+        print("| columns | 1 thread | 2 threads | raw SuperLU, process BLAS threads | "
+              "2 threads / 1 thread (wall) | same bits |")
+        print("|---|---|---|---|---|---|")
+        for w, med, same in rows:
+            cell = lambda k: f"{1e3 * med[k][0]:.0f} / {1e3 * med[k][1]:.0f}"
+            print(f"| {w} | {cell('1 thread')} | {cell('2 threads')} | "
+                  f"{cell('raw, process BLAS')} | "
+                  f"{med['2 threads'][0] / med['1 thread'][0]:.2f} | {same} |", flush=True)
+        return
     if args.combine:
         print("| n | direct wall [s] | direct CPU [s] | Kc - Y^T Y wall [s] | "
               "Kc - Y^T Y CPU [s] | CPU ratio | rel. diff |")

@@ -297,3 +297,163 @@ def test_dropping_scipys_cached_factor_copies_keeps_the_solver():
         assert lu.L.nnz == 0 and lu.U.nnz == 0
     fresh = spla.splu(A.tocsc())
     assert fresh.L.nnz > 0                             # the copies are not shared
+
+
+# ----------------------------------------------------------------------------------
+# Multi-RHS solves in column blocks on several threads
+
+def laplacian_3d(n, shift=1e-2):
+    """7-point Laplacian on an n x n x n grid plus ``shift * I`` (SPD, a 3D fill)."""
+    lap = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(n, n))
+    eye = sp.identity(n)
+    K = (sp.kron(sp.kron(lap, eye), eye) + sp.kron(sp.kron(eye, lap), eye)
+         + sp.kron(sp.kron(eye, eye), lap))
+    return (K + shift * sp.identity(n ** 3)).tocsr()
+
+
+@pytest.mark.parametrize("backend", ["metis_superlu", "splu", "superlu_schur"])
+def test_threaded_solves_equal_serial_ones_bit_for_bit(backend, monkeypatch):
+    """The K_EE solver of a backend on 1, 2 and 3 threads (QSMA_SOLVE_THREADS) gives
+    the same bits for every column (the solves run on one BLAS thread whatever the
+    process setting: with several the bits of a solve depend on its width), also in
+    another block of even offset, and solves the system (residual)."""
+    _backend(backend)
+    K = laplacian_3d(14)
+    C = np.arange(0, K.shape[0], 37)
+    _, solve = schur_complement(K, C, backend=backend)
+    B = np.random.default_rng(4).standard_normal((solve.n, 25))
+    results = {}
+    for threads in ("1", "2", "3"):
+        monkeypatch.setenv("QSMA_SOLVE_THREADS", threads)
+        results[threads] = solve(B)
+    monkeypatch.setenv("QSMA_SOLVE_THREADS", "1")
+    other = solve(B[:, 6:18])
+    assert np.array_equal(results["1"], results["2"])
+    assert np.array_equal(results["1"], results["3"])
+    assert np.array_equal(other, results["1"][:, 6:18])
+    K_EE = K[solve.E][:, solve.E]
+    X = results["2"]
+    assert np.abs(K_EE @ X - B).max() < 1e-12 * np.abs(B).max() * 100
+
+
+def test_solved_by_columns_splits_and_passes_errors_on():
+    """Blocks of at least SOLVE_MIN_COLUMNS columns, one per thread, in order; a vector
+    or a narrow block is one plain call; an exception in a worker thread reaches the
+    caller."""
+    seen = []
+
+    def solve(b):
+        seen.append(b.shape[1] if b.ndim == 2 else 0)
+        return 2.0 * b
+
+    B = np.arange(60.0).reshape(4, 15)
+    assert np.array_equal(linalg.solved_by_columns(solve, B, threads=2), 2.0 * B)
+    assert sorted(seen) == [7, 8]
+    seen.clear()
+    narrow = B[:, :2 * linalg.SOLVE_MIN_COLUMNS - 1]
+    linalg.solved_by_columns(solve, narrow, threads=4)
+    assert seen == [narrow.shape[1]]
+    seen.clear()
+    linalg.solved_by_columns(solve, B[:, 0], threads=2)
+    assert seen == [0]
+
+    def failing(b):
+        if b[0, 0] > 0:                                  # the second block only
+            raise ValueError("worker failed")
+        return b
+    with pytest.raises(ValueError, match="worker failed"):
+        linalg.solved_by_columns(failing, B, threads=2)
+
+
+@pytest.mark.parametrize("value", ["0", "-2", "two", "1.5"])
+def test_bad_solve_thread_setting_is_refused(value, monkeypatch):
+    from qsma._threads import solve_threads
+    monkeypatch.setenv("QSMA_SOLVE_THREADS", value)
+    with pytest.raises(InputError, match="QSMA_SOLVE_THREADS must be a positive integer"):
+        solve_threads()
+    with pytest.raises(InputError, match="QSMA_SOLVE_THREADS"):      # at the solve
+        linalg.solved_by_columns(lambda b: b, np.ones((3, 12)))
+
+
+@pytest.mark.parametrize("value", [0, -1, 1.5, True, "2"])
+def test_bad_solve_thread_argument_is_refused(value):
+    from qsma._threads import solve_threads
+    with pytest.raises(InputError, match="solve threads must be a positive integer"):
+        solve_threads(value)
+
+
+def test_solve_threads_default_and_setting(monkeypatch):
+    import os
+    from qsma._threads import solve_threads
+    monkeypatch.delenv("QSMA_SOLVE_THREADS", raising=False)
+    assert solve_threads() == max(1, min(2, len(os.sched_getaffinity(0))))
+    monkeypatch.setenv("QSMA_SOLVE_THREADS", " 3 ")
+    assert solve_threads() == 3
+    assert solve_threads(np.int64(4)) == 4
+
+
+@pytest.mark.parametrize("problem", ["laplacian_3d", "elasticity"])
+def test_coupling_read_from_the_columns_of_U_equals_the_sliced_one(problem, monkeypatch):
+    """``_coupling_transposed`` (U_EC^T read from the arrays of U's interface columns)
+    gives the same Schur complement as slicing ``U[:nE, nE:]`` (the former path, kept
+    as its fallback): the same entries in the same order, so the same bits; and it
+    equals the dense reference."""
+    _backend("metis_superlu")
+    if problem == "laplacian_3d":
+        K = laplacian_3d(12)
+        C = np.random.default_rng(5).permutation(K.shape[0])[:150]
+    else:
+        K, C = PROBLEMS["elasticity"]
+    seen = []
+    original = linalg._coupling_transposed
+
+    def spy(U, nE):
+        L_CE = original(U, nE)
+        sliced = U[:nE, nE:].tocsr().T.tocsr()
+        seen.append(abs(L_CE - sliced).max())
+        return L_CE
+    monkeypatch.setattr(linalg, "_coupling_transposed", spy)
+    Kc_new, _ = schur_complement(K, C, backend="metis_superlu")
+    assert seen == [0.0]
+    monkeypatch.setattr(linalg, "_coupling_transposed",
+                        lambda U, nE: U[:nE, nE:].tocsr().T.tocsr())
+    Kc_old, _ = schur_complement(K, C, backend="metis_superlu")
+    assert np.array_equal(Kc_new, Kc_old)
+    ref, _, _ = dense_reference(K, C)
+    assert np.abs(Kc_new - ref).max() < RTOL * np.abs(ref).max()
+
+
+def test_coupling_falls_back_to_slicing_when_the_trailing_block_is_not_identity():
+    U = sp.csc_matrix(np.array([[2.0, 0.5, 0.3],
+                                [0.0, 3.0, 0.7],
+                                [0.0, 0.1, 1.0]]))       # an entry below the unit
+    L_CE = linalg._coupling_transposed(U, 1)
+    assert np.array_equal(L_CE.toarray(), np.array([[0.5], [0.3]]))
+    U = sp.csc_matrix(np.array([[2.0, 0.5, 0.3],
+                                [0.0, 1.0, 0.0],
+                                [0.0, 0.0, 1.0]]))
+    assert np.array_equal(linalg._coupling_transposed(U, 1).toarray(),
+                          np.array([[0.5], [0.3]]))
+
+
+def test_one_blas_thread_nests_and_restores_the_setting():
+    """Inside ``one_blas_thread`` BLAS has one thread, also in a nested block and in a
+    worker thread; leaving the outermost block restores the previous limit."""
+    import threading
+    from threadpoolctl import threadpool_info, threadpool_limits
+    from qsma._threads import one_blas_thread
+
+    def blas_threads():
+        return {i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"}
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = blas_threads()
+        seen = []
+        with one_blas_thread():
+            with one_blas_thread():
+                seen.append(blas_threads())
+            worker = threading.Thread(target=lambda: seen.append(blas_threads()))
+            worker.start()
+            worker.join()
+            seen.append(blas_threads())
+        assert seen == [{1}, {1}, {1}]
+        assert blas_threads() == before

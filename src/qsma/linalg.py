@@ -41,6 +41,7 @@ from __future__ import annotations
 import ctypes
 from dataclasses import dataclass, field
 import importlib.util
+import threading
 import time
 import weakref
 
@@ -49,6 +50,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.linalg import blas as sla_blas
 
+from ._threads import one_blas_thread, solve_threads
 from .errors import AnalysisError, InputError
 
 #: Smallest accepted ``d_i / (K_EE)_ii`` over the pivots ``d_i`` of ``K_EE``. It is
@@ -241,8 +243,10 @@ def _validated(K, C):
         raise InputError(f"C holds positions outside 0..{n - 1}: {C.min()}..{C.max()}")
     if len(np.unique(C)) != len(C):
         raise InputError("C holds repeated positions")
-    K = sp.csr_matrix(K, dtype=float, copy=True)
-    K.sum_duplicates()
+    K = sp.csr_matrix(K, dtype=float)             # shares the caller's arrays where
+    if not K.has_canonical_format:                # it can: not modified below
+        K = K.copy()
+        K.sum_duplicates()
     scale = abs(K).max()
     if not np.isfinite(scale) or scale == 0:
         raise InputError(f"K must have finite, not all zero entries (max |K| = {scale})")
@@ -287,8 +291,9 @@ def _superlu(A, ordering="MMD_AT_PLUS_A"):
     """LU of the SPD matrix ``A`` without row pivoting (symmetric fill-reducing
     ordering ``ordering``, by default MMD on A + A^T), and its smallest pivot ratio."""
     try:
-        lu = spla.splu(A.tocsc(), permc_spec=ordering, diag_pivot_thresh=0.0,
-                       options={"SymmetricMode": True})
+        with one_blas_thread():
+            lu = spla.splu(A.tocsc(), permc_spec=ordering, diag_pivot_thresh=0.0,
+                           options={"SymmetricMode": True})
     except RuntimeError as exc:      # "Factor is exactly singular"
         return None, -np.inf, exc
     if not np.array_equal(lu.perm_r, lu.perm_c):
@@ -310,9 +315,79 @@ def _drop_extracted_factors(lu):
         copy.indptr = np.zeros(copy.shape[1] + 1, dtype=copy.indptr.dtype)
 
 
+#: Fewest columns a thread of :func:`solved_by_columns` is given. Measured on the
+#: sandwich-3d refine-1 factor (15,810 DOFs, one BLAS thread): 8 columns take 41 ms
+#: serially and 52 ms as two threads of 4 (the two threads share the reading of the
+#: factor), 12 columns 71 ms and 45 ms as two of 6 (docs/performance.md).
+SOLVE_MIN_COLUMNS = 6
+
+
+def solved_by_columns(solve, b, threads=None) -> np.ndarray:
+    r"""``solve(b)`` for a multi-RHS ``solve`` (a sparse factor's triangular solves),
+    with the columns of ``b`` split into ``t`` consecutive blocks solved by ``t``
+    threads at once:
+
+    .. math:: X = [\,\mathrm{solve}(B_1), \dots, \mathrm{solve}(B_t)\,],
+              \qquad B = [B_1, \dots, B_t] .
+
+    The columns of a solve are independent, so the result has the bits of the serial
+    solve of the same blocks. SuperLU (``nrhs >= 2``) works on the columns with BLAS
+    ``trsm`` and ``gemm``, whose kernels (OpenBLAS 0.3.31, one BLAS thread) treat
+    columns in pairs and a last odd column by another path (a different rounding,
+    measured ~5e-16 relative): the blocks therefore start at even offsets, so that every
+    column keeps its partner and the threaded solve has the bits of the serial one
+    (tests/test_linalg.py). With several BLAS threads the bits of a solve depend on its
+    width (OpenBLAS splits the columns among its threads), so the blocks are solved with
+    BLAS limited to one thread (:func:`qsma._threads.one_blas_thread`), which is also
+    the fast setting: SuperLU calls BLAS on small supernode blocks, where OpenBLAS
+    threads spin (a 12-column solve at sandwich-3d refine 1: 506 ms with two BLAS
+    threads, 66 ms with one). The threads pay only where the solve releases the GIL
+    (scipy's SuperLU does).
+
+    Parameters
+    ----------
+    solve : callable on (n, k) arrays returning (n, k) arrays
+    b : (n,) or (n, k) array
+    threads : thread count (:func:`qsma._threads.solve_threads`: validated, default
+        from the environment or ``min(2, cores)``); ``t = min(threads,
+        k // SOLVE_MIN_COLUMNS)`` blocks, one block (a plain call) below that.
+    """
+    t = min(solve_threads(threads), b.shape[1] // SOLVE_MIN_COLUMNS if b.ndim == 2 else 1)
+    with one_blas_thread():
+        return solve(b) if t <= 1 else _threaded(solve, b, t)
+
+
+def _threaded(solve, b, t):
+    """:func:`solved_by_columns` on ``t >= 2`` threads."""
+    edges = 2 * np.round(np.linspace(0, b.shape[1] / 2, t + 1)).astype(int)
+    edges[-1] = b.shape[1]                       # even offsets: see the docstring
+    blocks = [b[:, i:j] for i, j in zip(edges[:-1], edges[1:])]
+    out = [None] * t
+    errors = []
+
+    def work(k):
+        try:
+            out[k] = solve(blocks[k])
+        except BaseException as exc:            # re-raised in the calling thread
+            errors.append(exc)
+
+    workers = [threading.Thread(target=work, args=(k,), daemon=True) for k in range(1, t)]
+    for w in workers:
+        w.start()
+    work(0)
+    for w in workers:
+        w.join()
+    if errors:
+        raise errors[0]
+    return np.hstack(out)
+
+
 def _superlu_solver(lu):
-    def solve(b):
+    def whole(b):
         return lu.solve(b if b.ndim == 1 else np.asfortranarray(b))
+
+    def solve(b):
+        return solved_by_columns(whole, b)
     return solve
 
 
@@ -469,8 +544,9 @@ def _schur_metis_superlu(K, C, E) -> SchurParts:
     del K_EE, A                      # not held next to the factor and scipy's copies
     t1 = time.perf_counter()
     try:
-        lu = spla.splu(M, permc_spec="NATURAL", diag_pivot_thresh=0.0,
-                       options={"SymmetricMode": True})
+        with one_blas_thread():      # small supernode blocks: see solved_by_columns
+            lu = spla.splu(M, permc_spec="NATURAL", diag_pivot_thresh=0.0,
+                           options={"SymmetricMode": True})
     except RuntimeError:             # "Factor is exactly singular"
         return SchurParts(np.zeros((nC, nC)), None, -np.inf, {})
     identity = np.arange(nE + nC)
@@ -483,17 +559,42 @@ def _schur_metis_superlu(K, C, E) -> SchurParts:
     t2 = time.perf_counter()
     if not ratio > PIVOT_RATIO_MIN:
         return SchurParts(np.zeros((nC, nC)), None, ratio, {})
-    U_EC = U[:nE, nE:].tocsr()                    # rows E: its transpose is CSC
+    L_CE = _coupling_transposed(U, nE)             # U_EC^T, CSR: one copy of U_EC
     del U
     _drop_extracted_factors(lu)
-    Kc = _low_rank_sum(U_EC.T, 1.0 / d)
-    del U_EC
+    Kc = _low_rank_sum(L_CE, 1.0 / d)             # its CSC conversion, copies gone
+    del L_CE
     Kc *= -1.0
     K_CC = K[C][:, C].tocoo()                     # added entry by entry: no dense copy
     Kc[K_CC.row, K_CC.col] += K_CC.data           # (canonical: no repeated entries)
     t3 = time.perf_counter()
     return SchurParts(Kc, _bordered_solver(lu, p, nC), ratio,
                       {"ordering": t1 - t0, "factorization": t2 - t1, "schur": t3 - t2})
+
+
+def _coupling_transposed(U, nE):
+    r"""``U_EC^T`` (CSR, |C| x |E|) from the CSC ``U`` of the bordered factorisation of
+    :func:`_schur_metis_superlu`, read from the arrays of U's last |C| columns.
+
+    Those columns hold ``U_EC`` and the unit diagonal of ``U_CC = I`` (nothing updates
+    the trailing identity block): one entry of row ``>= nE`` per column, in its own
+    column, which is dropped; the CSC arrays of ``U_EC`` that remain are the CSR arrays
+    of its transpose. One copy of ``U_EC`` (data and row indices) is made, where
+    slicing ``U[:nE, nE:]`` and converting it made three while scipy's copies of both
+    triangles were held (the peak of the condensation). Falls back to that slicing if
+    the trailing block is not the identity pattern."""
+    nC = U.shape[1] - nE
+    start = U.indptr[nE]
+    rows = U.indices[start:]
+    keep = rows < nE
+    dropped = np.flatnonzero(~keep)
+    colptr = U.indptr[nE:] - start
+    own = np.searchsorted(colptr, dropped, side="right") - 1
+    if len(dropped) != nC or not (np.array_equal(own, np.arange(nC))
+                                  and np.array_equal(rows[dropped], nE + own)):
+        return U[:nE, nE:].tocsr().T.tocsr()
+    indptr = colptr - np.arange(nC + 1, dtype=colptr.dtype)
+    return sp.csr_matrix((U.data[start:][keep], rows[keep], indptr), shape=(nC, nE))
 
 
 def _low_rank_sum(L_CE, d):
@@ -532,12 +633,15 @@ def _bordered_solver(lu, p, nC):
     """``K_EE^-1 b`` from the LU of ``[[A, 0], [B, I]]``, ``A = K_EE[p][:, p]``."""
     nE = len(p)
 
-    def solve(b):
+    def whole(b):
         rhs = np.zeros((nE + nC,) + b.shape[1:], order="F")
         rhs[:nE] = b[p]
         x = np.empty_like(b)
         x[p] = lu.solve(rhs)[:nE]
         return x
+
+    def solve(b):
+        return solved_by_columns(whole, b)
     return solve
 
 
