@@ -195,3 +195,35 @@ def test_a_run_imports_only_what_it_needs(tmp_path, plots):
     files = {p.name for p in out.iterdir()}
     assert {"results.json", "results.csv", "fields.vtu", "manifest.json"} <= files
     assert ({"report.html", "backbone.png", "interface.png"} <= files) == plots
+
+
+def test_a_level_whose_loop_failed_is_written_as_null_beside_its_flag(tmp_path):
+    """A level flagged loop_not_stabilised (or not_finite, loop_failed) has no f and
+    zeta: results.json/csv write null / empty there and keep every other level (seen
+    on stack-2d, whose whole output used to be refused); a NaN that no flag explains
+    is still refused."""
+    import dataclasses
+
+    import qsma
+    from qsma.errors import AnalysisError
+    from qsma.examples import sandwich_2d
+    from qsma.levels import Levels
+    from qsma.results import results_dict, write_csv
+
+    res = qsma.run(sandwich_2d(1), levels=Levels.log("tip", 1e-6, 1e-4, 4),
+                   refine_levels=False)
+    nan_at_1 = dict(f_hz=res.f_hz.copy(), zeta=res.zeta.copy())
+    for v in nan_at_1.values():
+        v[1] = np.nan
+    flags = list(res.flags)
+    flags[1] = tuple(flags[1]) + ("loop_not_stabilised",)
+    flagged = dataclasses.replace(res, flags=tuple(flags), **nan_at_1)
+    levels = results_dict(flagged)["levels"]
+    assert levels["f_hz"][1] is None and levels["zeta"][1] is None
+    assert levels["f_hz"][0] == pytest.approx(res.f_hz[0], rel=1e-15)
+    assert levels["zeta"][2:] == pytest.approx(list(res.zeta[2:]), rel=1e-15)
+    write_csv(flagged, tmp_path / "r.csv")
+    rows = list(csv.DictReader(open(tmp_path / "r.csv")))
+    assert rows[1]["f_hz"] == "" and rows[1]["zeta"] == "" and rows[0]["f_hz"] != ""
+    with pytest.raises(AnalysisError, match="non-finite value in results.levels.f_hz"):
+        results_dict(dataclasses.replace(res, **nan_at_1))

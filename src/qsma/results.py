@@ -42,16 +42,28 @@ OPTIONAL_FIELDS = ("q_neg", "asymmetry", "f_hz_loop", "zeta_loop", "dissipation_
                    "dissipation_first_cycle", "dissipation_error")
 
 
+#: Flags of a level whose frequency and damping could not be computed (its loop did
+#: not stabilise or failed, or a value came out non-finite): that level's NaN values
+#: are written as null / empty beside the flag that says why, the other levels kept.
+NAN_FLAGS = ("not_finite", "loop_failed", "loop_not_stabilised")
+
+
 def _level_columns(res) -> dict:
-    """Per-level values by name, JSON-ready: optional NaN -> None, flags as lists."""
+    """Per-level values by name, JSON-ready: optional NaN -> None, NaN of a level
+    flagged with one of :data:`NAN_FLAGS` -> None, flags as lists. Any other NaN is
+    kept (and refused by :func:`_clean`)."""
     table = {}
-    for name, values in res.levels_table().items():
+    levels = res.levels_table()
+    explained = [any(f in NAN_FLAGS for f in flags) for flags in levels["flags"]]
+    for name, values in levels.items():
         if name == "flags":
             table[name] = [list(f) for f in values]
         elif name in OPTIONAL_FIELDS:
             table[name] = [None if not np.isfinite(v) else float(v) for v in values]
         else:
-            table[name] = np.asarray(values).tolist()
+            column = np.asarray(values).tolist()
+            table[name] = [None if ok and isinstance(v, float) and not np.isfinite(v)
+                           else v for v, ok in zip(column, explained)]
     return table
 
 

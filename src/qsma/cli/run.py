@@ -97,10 +97,18 @@ def _outcome(res, options, out, quiet=False) -> int:
                   f"residual is above tol are flagged by 'residual' in {out})",
                   file=sys.stderr)
             return 0
-        print(f"qsma: analysis failed: {res.message}; the {res.n_levels} levels solved "
-              f"before it are in {out}", file=sys.stderr)
+        print(f"qsma: analysis failed: {res.message}; {_written(res)} in {out}",
+              file=sys.stderr)
         return 1
     return 0
+
+
+def _written(res) -> str:
+    """What the result folder holds of a failed run: the levels before a failed
+    contact solve, or every level with the failing ones flagged."""
+    if res.failed_levels:
+        return f"all {res.n_levels} levels, the failing ones flagged ('flags'), are"
+    return f"the {res.n_levels} levels solved before the failure are"
 
 
 def parse_levels_spec(spec: str):
