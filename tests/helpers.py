@@ -89,3 +89,31 @@ _first, s3
 *SURFACE, NAME=s4
 _FIRST, S4
 """
+
+
+#: OpenBLAS kernels on which a multi-RHS SuperLU solve split at even column offsets
+#: has the bits of the serial solve (measured: Haswell, SandyBridge, Zen, Prescott);
+#: the Nehalem kernel rounds columns in wider groups (~1e-16 apart).
+PAIRWISE_KERNELS = ("haswell", "sandybridge", "zen", "prescott", "skylakex", "cooperlake")
+
+
+def scipy_blas_kernel() -> str:
+    """The kernel (architecture) of the BLAS that scipy's SuperLU calls, lower case, or
+    "" where threadpoolctl does not say."""
+    import scipy.sparse.linalg  # noqa: F401  (loads scipy's BLAS)
+    from threadpoolctl import threadpool_info
+    for info in threadpool_info():
+        if "scipy" in info.get("filepath", "") and "numpy" not in info.get("filepath", ""):
+            return str(info.get("architecture", "")).lower()
+    return ""
+
+
+def assert_same_solve_bits(a, b, rtol=1e-14):
+    """``a`` and ``b`` (computed with threaded and with serial solves) equal bit for bit
+    on the kernels of :data:`PAIRWISE_KERNELS`; elsewhere to ``rtol`` of the largest
+    entry (the kernel's own rounding of a column depends on its neighbours there, and
+    an iterative method built on the solves carries that round-off on)."""
+    if scipy_blas_kernel() in PAIRWISE_KERNELS:
+        assert np.array_equal(a, b)
+    else:
+        assert np.abs(np.asarray(a) - np.asarray(b)).max() <= rtol * np.abs(a).max()

@@ -13,7 +13,7 @@ import pytest
 import qsma
 from qsma.examples import sandwich_2d
 import qsma.report
-from qsma.report import REPORT_NAME, mesh_svg, nice_ticks, run_report_html
+from qsma.report import REPORT_NAME, mesh_svg, nice_ticks, run_report_html, tick_labels
 
 LEVELS = qsma.Levels.log("tip", 1e-6, 1e-3, 5)
 #: Debian's chromium and its driver (apt-get install chromium chromium-driver; .ci/run
@@ -108,6 +108,26 @@ def test_mesh_figure_shows_every_cell_and_pair_where_it_is(run_result):
     assert f"{res.model.n_nodes} nodes, {res.pairing.n_pairs} interface pairs" in legend
 
 
+def test_every_cell_of_a_mixed_mesh_is_drawn():
+    """A body meshed with a quadrilateral and two triangles (two cell blocks) draws
+    three cells in each panel (found in review: only the first block was drawn), and
+    its outline is the strip's rectangle: 6 edges."""
+    from types import SimpleNamespace as NS
+
+    from qsma.model.mesh import CellBlock, Mesh
+    pts = np.array([[0, 0], [1, 0], [2, 0], [0, 1], [1, 1], [2, 1]], float)
+    mesh = Mesh(pts, np.array([[0, 1, 4, 3]]), "quad",
+                extra_blocks=(CellBlock("triangle", np.array([[1, 2, 5], [1, 5, 4]]),
+                                        None),))
+    model = NS(bodies=[NS(mesh=mesh, name="strip")], name="mixed", n_nodes=6, dim=2)
+    res = NS(model=model, pairing=NS(x=np.array([[0.5, 0.0], [1.5, 0.0]]), n_pairs=2),
+             preload=NS(status=np.array([0, 2])))
+    paths = ET.fromstring(mesh_svg(res)).iter("{http://www.w3.org/2000/svg}path")
+    drawn = [p.get("d").count("M") for p in paths if p.get("class") == "cells"]
+    assert drawn == [3, 3]
+    assert len(qsma.report._outline_edges(qsma.report._body_corner_blocks(mesh))) == 6
+
+
 def test_a_fine_mesh_is_drawn_by_its_outline(run_result, monkeypatch):
     """Beyond MAX_SVG_CELLS cells a body is drawn by the edges of one cell only: on a
     structured grid of nx x ny cells the 2 (nx + ny) edges of its rectangle."""
@@ -115,7 +135,7 @@ def test_a_fine_mesh_is_drawn_by_its_outline(run_result, monkeypatch):
     node = np.arange((nx + 1) * (ny + 1)).reshape(ny + 1, nx + 1)
     cells = np.array([[node[j, i], node[j, i + 1], node[j + 1, i + 1], node[j + 1, i]]
                       for j in range(ny) for i in range(nx)])
-    edges = qsma.report._outline_edges(cells)
+    edges = qsma.report._outline_edges([cells])
     assert len(edges) == 2 * (nx + ny)
     rows, cols = np.divmod(edges, nx + 1)
     on_side = ((rows == 0).all(1) | (rows == ny).all(1) | (cols == 0).all(1)
@@ -164,6 +184,19 @@ def test_nice_ticks_are_1_2_5_steps_inside_the_interval(lo, hi, n, expected):
     """The smallest step of 1, 2 or 5 times a power of ten that is at least
     ``(hi - lo) / n``; its multiples inside ``[lo, hi]``."""
     assert np.allclose(nice_ticks(lo, hi, n), expected, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("lo, hi, expected", [
+    (123456.0, 123458.0, ["123456.0", "123456.5", "123457.0", "123457.5", "123458.0"]),
+    (1e6, 1e6 + 1.0, ["1000000.0", "1000000.2", "1000000.4", "1000000.6", "1000000.8",
+                      "1000001.0"]),
+    (0.0, 0.2032, ["0.00", "0.05", "0.10", "0.15", "0.20"]),
+    (175.0, 215.0, ["180", "190", "200", "210"])])
+def test_tick_labels_keep_the_digits_their_step_needs(lo, hi, expected):
+    """Labels of a mesh far from the origin stay distinct (six significant digits,
+    the general format, printed 123456 for every tick of a two-metre span there)."""
+    labels = tick_labels(nice_ticks(lo, hi, 5 if hi - lo < 10 else 4))
+    assert labels == expected and len(set(labels)) == len(labels)
 
 
 def test_report_names_the_warnings(run_result):

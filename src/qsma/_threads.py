@@ -50,7 +50,9 @@ def one_blas_thread():
     2-core machine). The limit is process-wide (threadpoolctl); nested or concurrent
     blocks share it, the last one out restores the previous setting. A cached
     controller makes entering cheap (0.04 ms, where ``threadpool_limits`` rescans the
-    loaded libraries: 2.7 ms)."""
+    loaded libraries: 2.7 ms). A caller's own ``threadpool_limits`` in another thread
+    that is entered inside this block and left after it leaves BLAS at one thread
+    (each restores what it found): the two must nest. Only the speed is affected."""
     with _ONE_THREAD_LOCK:
         if _ONE_THREAD["depth"] == 0:
             if _ONE_THREAD["controller"] is None:

@@ -332,11 +332,15 @@ def solved_by_columns(solve, b, threads=None) -> np.ndarray:
 
     The columns of a solve are independent, so the result has the bits of the serial
     solve of the same blocks. SuperLU (``nrhs >= 2``) works on the columns with BLAS
-    ``trsm`` and ``gemm``, whose kernels (OpenBLAS 0.3.31, one BLAS thread) treat
-    columns in pairs and a last odd column by another path (a different rounding,
-    measured ~5e-16 relative): the blocks therefore start at even offsets, so that every
-    column keeps its partner and the threaded solve has the bits of the serial one
-    (tests/test_linalg.py). With several BLAS threads the bits of a solve depend on its
+    ``trsm`` and ``gemm``, whose kernels (scipy's OpenBLAS 0.3.30, one BLAS thread;
+    Haswell, SandyBridge, Zen, Prescott) treat columns in pairs and a last odd column
+    by another path (a different rounding, measured ~5e-16 relative): the blocks
+    therefore start at even offsets, so that every column keeps its partner and the
+    threaded solve has the bits of the serial one (tests/test_linalg.py). OpenBLAS's
+    Nehalem kernel (older CPUs, virtual machines without AVX) rounds a column with
+    wider groups: there the threaded solve differs from the serial one by round-off
+    (~1e-16 relative; tied modes 3e-13), so results can depend on the thread count
+    at that level; ``QSMA_SOLVE_THREADS=1`` gives the serial bits. With several BLAS threads the bits of a solve depend on its
     width (OpenBLAS splits the columns among its threads), so the blocks are solved with
     BLAS limited to one thread (:func:`qsma._threads.one_blas_thread`), which is also
     the fast setting: SuperLU calls BLAS on small supernode blocks, where OpenBLAS
@@ -410,7 +414,8 @@ def _schur_splu(K, C, E) -> SchurParts:
     if ratio > PIVOT_RATIO_MIN:
         width = max(1, SPLU_BLOCK_BYTES // (8 * len(E)))
         for j in range(0, len(C), width):
-            X = lu.solve(np.asfortranarray(K_EC[:, j:j + width].toarray()))
+            with one_blas_thread():
+                X = lu.solve(np.asfortranarray(K_EC[:, j:j + width].toarray()))
             Kc[:, j:j + width] -= K_EC.T @ X
     t2 = time.perf_counter()
     return SchurParts(Kc, _superlu_solver(lu), ratio,
@@ -443,8 +448,9 @@ def _superlu_trailing_schur(Kp, nE):
     order (``None`` if SuperLU's elimination-tree postorder mixed the two blocks)."""
     n = Kp.shape[0]
     try:
-        lu = spla.splu(Kp.tocsc(), permc_spec="NATURAL", diag_pivot_thresh=0.0,
-                       options={"SymmetricMode": True})
+        with one_blas_thread():
+            lu = spla.splu(Kp.tocsc(), permc_spec="NATURAL", diag_pivot_thresh=0.0,
+                           options={"SymmetricMode": True})
     except RuntimeError:
         return None
     pc = lu.perm_c

@@ -152,6 +152,17 @@ def nice_ticks(lo, hi, n=5) -> np.ndarray:
     return np.where(np.abs(ticks) < 1e-12 * span, 0.0, ticks)
 
 
+def tick_labels(ticks) -> list[str]:
+    """Labels of :func:`nice_ticks` with as many decimals as their step needs, so
+    that neighbouring ticks never read the same (a mesh far from the origin: ticks
+    123456.5 and 123457 m keep their half metre)."""
+    ticks = np.asarray(ticks, float)
+    step = np.min(np.diff(ticks)) if len(ticks) > 1 else max(abs(ticks[0]), 1.0) \
+        if len(ticks) else 1.0
+    decimals = max(0, int(-np.floor(np.log10(step) + 1e-9)))
+    return [f"{t:.{decimals}f}" for t in ticks]
+
+
 @dataclass(frozen=True)
 class _Panel:
     """One panel of an SVG figure: the data window ``(x0, x1, y0, y1)`` shown at equal
@@ -188,36 +199,52 @@ def _fit_panel(window, left, top, width, max_height) -> _Panel:
 MAX_SVG_CELLS = 20000
 
 
-def _svg_cells(panel, points, cells, colour, inside=False) -> str:
-    """One ``<path>`` of the outlines of the ``cells`` (corner node indices into
-    ``points``) in ``panel``; when ``inside``, only the cells whose bounding box meets
-    the window (the rest would be clipped away whole). Beyond :data:`MAX_SVG_CELLS`
-    cells, the edges that belong to one cell only (the outline of the body)."""
-    polys = points[cells]
-    if inside:
-        x0, x1, y0, y1 = panel.window
-        lo, hi = polys.min(axis=1), polys.max(axis=1)
-        keep = (hi[:, 0] >= x0) & (lo[:, 0] <= x1) & (hi[:, 1] >= y0) & (lo[:, 1] <= y1)
-        polys, cells = polys[keep], cells[keep]
-    if len(cells) > MAX_SVG_CELLS:
-        edges = _outline_edges(cells)
+#: Corner nodes of the 2D cell types (the first ones of quadratic cells, in order).
+CORNERS_2D = {"triangle": 3, "triangle6": 3, "quad": 4, "quad8": 4, "quad9": 4}
+
+
+def _body_corner_blocks(mesh) -> list:
+    """Corner node indices of a 2D mesh, one array per cell block (mixed meshes hold
+    triangles and quadrilaterals side by side)."""
+    return [block.cells[:, :CORNERS_2D[block.cell_type]] for block in mesh.cell_blocks]
+
+
+def _svg_cells(panel, points, blocks, colour, inside=False) -> str:
+    """One ``<path>`` of the outlines of the cells of ``blocks`` (arrays of corner node
+    indices into ``points``, one per cell type) in ``panel``; when ``inside``, only
+    the cells whose bounding box meets the window (the rest would be clipped away
+    whole). Beyond :data:`MAX_SVG_CELLS` cells, the edges that belong to one cell only
+    (the outline of the body)."""
+    kept = []
+    for cells in blocks:
+        if inside:
+            polys = points[cells]
+            x0, x1, y0, y1 = panel.window
+            lo, hi = polys.min(axis=1), polys.max(axis=1)
+            cells = cells[(hi[:, 0] >= x0) & (lo[:, 0] <= x1) & (hi[:, 1] >= y0)
+                          & (lo[:, 1] <= y1)]
+        kept.append(cells)
+    if sum(len(c) for c in kept) > MAX_SVG_CELLS:
+        edges = _outline_edges(kept)
         px = panel.pixels(points[edges]).reshape(len(edges), -1)
         d = "".join("M%.1f %.1fL%.1f %.1f" % tuple(row) for row in px.tolist())
         kind = "outline"
     else:
-        corners = polys.shape[1]
-        move = "M%.1f %.1f" + "L%.1f %.1f" * (corners - 1) + "Z"
-        px = panel.pixels(polys).reshape(len(polys), -1)
-        d = "".join(move % tuple(row) for row in px.tolist())
+        d = ""
+        for cells in kept:
+            move = "M%.1f %.1f" + "L%.1f %.1f" * (cells.shape[1] - 1) + "Z"
+            px = panel.pixels(points[cells]).reshape(len(cells), -1)
+            d += "".join(move % tuple(row) for row in px.tolist())
         kind = "cells"
     return (f'<path d="{d}" fill="none" stroke="{colour}" stroke-width="0.5" '
             f'class="{kind}"/>')
 
 
-def _outline_edges(cells) -> np.ndarray:
-    """The edges (node pairs) of ``cells`` (corner nodes in cyclic order) that belong
-    to one cell only: the boundary of the meshed region."""
-    edges = np.stack([cells, np.roll(cells, -1, axis=1)], axis=-1).reshape(-1, 2)
+def _outline_edges(blocks) -> np.ndarray:
+    """The edges (node pairs) of the cells of ``blocks`` (arrays of corner nodes in
+    cyclic order) that belong to one cell only: the boundary of the meshed region."""
+    edges = np.concatenate([np.stack([c, np.roll(c, -1, axis=1)], axis=-1).reshape(-1, 2)
+                            for c in blocks])
     _, first, count = np.unique(np.sort(edges, axis=1), axis=0, return_index=True,
                                 return_counts=True)
     return edges[first[count == 1]]
@@ -233,16 +260,18 @@ def _svg_axes(panel, clip_id) -> str:
            f'<rect x="{left:.1f}" y="{top:.1f}" width="{w:.1f}" height="{h:.1f}" '
            f'fill="none" stroke="#000" stroke-width="0.8"/>']
     nx = max(2, min(8, int(w // 70)))
-    for t in nice_ticks(x0, x1, nx):
+    xt = nice_ticks(x0, x1, nx)
+    for t, label in zip(xt, tick_labels(xt)):
         x = panel.pixels(np.array([t, y0]))[0]
         out.append(f'<line x1="{x:.1f}" y1="{top + h:.1f}" x2="{x:.1f}" '
                    f'y2="{top + h + 4:.1f}" stroke="#000"/><text x="{x:.1f}" '
-                   f'y="{top + h + 15:.1f}" text-anchor="middle">{t:g}</text>')
-    for t in nice_ticks(y0, y1, max(2, min(5, int(h // 25)))):
+                   f'y="{top + h + 15:.1f}" text-anchor="middle">{label}</text>')
+    yt = nice_ticks(y0, y1, max(2, min(5, int(h // 25))))
+    for t, label in zip(yt, tick_labels(yt)):
         y = panel.pixels(np.array([x0, t]))[1]
         out.append(f'<line x1="{left - 4:.1f}" y1="{y:.1f}" x2="{left:.1f}" '
                    f'y2="{y:.1f}" stroke="#000"/><text x="{left - 6:.1f}" '
-                   f'y="{y + 4:.1f}" text-anchor="end">{t:g}</text>')
+                   f'y="{y + 4:.1f}" text-anchor="end">{label}</text>')
     return "\n".join(out)
 
 
@@ -287,8 +316,7 @@ def mesh_svg(res) -> str:
         parts.append(_svg_axes(panel, clip))
         parts.append(f'<g clip-path="url(#{clip})">')
         for i, b in enumerate(model.bodies):
-            corners = 3 if b.mesh.cells.shape[1] in (3, 6) else 4
-            parts.append(_svg_cells(panel, b.mesh.points[:, :2], b.mesh.cells[:, :corners],
+            parts.append(_svg_cells(panel, b.mesh.points[:, :2], _body_corner_blocks(b.mesh),
                                     BODY_COLOURS[i % len(BODY_COLOURS)], inside=k == 1))
         if panel is zoom:
             parts.append(_svg_pairs(zoom, xy, res.preload.status))
@@ -465,4 +493,4 @@ def write_study_report(parameters, cases, table, figures, path):
 
 
 __all__ = ["write_report", "run_report_html", "write_study_report", "study_report_html",
-           "mesh_figure", "mesh_svg", "nice_ticks", "run_warnings", "REPORT_NAME"]
+           "mesh_figure", "mesh_svg", "nice_ticks", "tick_labels", "run_warnings", "REPORT_NAME"]
