@@ -58,6 +58,30 @@ def test_a_guess_that_is_the_answer_is_accepted_without_iterating(dim):
     np.testing.assert_array_equal(zoned.d, first.d)
 
 
+def test_the_zone_after_an_accepted_guess_holds_every_closed_pair():
+    """An accepted guess on a zone that lacks some of its closed pairs returns a zone
+    grown by them, judged by the answer's own classification even when the guess
+    labels every pair open (found in review: the next level then needed 13 block
+    steps instead of 4); the answer is not a view of the guess's arrays."""
+    from qsma.contact import ContactState
+    from qsma.contact.state import OPEN
+    from qsma.contact.zone import ContactZone
+    p, base = _problem()
+    pre = solve(p, base)
+    first = solve(p, _level(base, 1.0), pre.state)
+    closed = first.status != OPEN
+    keep = closed.copy()
+    keep[np.flatnonzero(closed)[:4]] = False          # four closed pairs left out
+    mislabelled = ContactState(first.d.copy(), first.lam.copy(),
+                               np.full_like(first.status, OPEN))
+    got, zone = solve_in_zone(ContactZone.build(p, keep), _level(base, 1.0), pre.state,
+                              guess=mislabelled)
+    assert got.nit == 0 and got.success
+    np.testing.assert_array_equal(got.status, first.status)
+    assert zone.keep[closed].all()
+    assert not np.shares_memory(got.d, mislabelled.d)
+
+
 @pytest.mark.parametrize("on_zone", [False, True])
 def test_a_guess_that_meets_the_law_but_not_equilibrium_is_solved_from(on_zone):
     """The product-free filter looks at the contact law only: a guess whose forces obey
@@ -107,6 +131,36 @@ def test_early_end_of_a_3d_pass_gives_the_answer_of_the_confirming_step(monkeypa
         np.testing.assert_allclose(a.d, b.d, rtol=0, atol=1e-12 * np.abs(b.d).max())
         np.testing.assert_allclose(a.lam, b.lam, rtol=0, atol=1e-12 * np.abs(b.lam).max())
     assert sum(r.nit for r in fast) < sum(r.nit for r in slow)
+
+
+def test_early_end_of_a_3d_pass_needs_the_residual(monkeypatch):
+    """Every pair passing its check is not enough: an iterate whose residual is above
+    tol (here the measured residual raised to 10 tol) is not accepted early, the pass
+    goes on (a verdict of None), and the ramp still converges to the same answers."""
+    p, base = _problem()
+    levels = np.linspace(0.2, 2.0, 8)
+    plain = _ramp(p, base, levels)
+    original, real = basket._BasketRun._accepted_early, basket.measures
+    verdicts = []
+
+    def above_tol(self, tr):
+        def raised(*args):
+            m = real(*args)
+            return (max(m[0], 10 * self.tol),) + tuple(m[1:])
+        monkeypatch.setattr(basket, "measures", raised)
+        try:
+            verdicts.append(original(self, tr))
+        finally:
+            monkeypatch.setattr(basket, "measures", real)
+        return verdicts[-1]
+
+    monkeypatch.setattr(basket._BasketRun, "_accepted_early", above_tol)
+    slower = _ramp(p, base, levels)
+    assert verdicts and all(v is None for v in verdicts)
+    assert all(r.success and r.residual <= TOL for r in slower)
+    for a, b in zip(slower, plain):
+        np.testing.assert_array_equal(a.status, b.status)
+        np.testing.assert_allclose(a.d, b.d, rtol=0, atol=1e-12 * np.abs(b.d).max())
 
 
 def test_line_search_products_handed_on_give_the_same_ramp(monkeypatch):

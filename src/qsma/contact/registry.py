@@ -196,7 +196,7 @@ def guess_measures(problem, lam_w, previous, guess, tol):
 def accepted_guess(guess):
     """The :class:`Iterate` of a guess that passed :func:`guess_measures`: no
     iteration."""
-    return Iterate(guess.d, guess.lam, 0, True,
+    return Iterate(np.array(guess.d, dtype=float), np.array(guess.lam, dtype=float), 0, True,
                    "converged: the starting guess meets the check of this level")
 
 

@@ -446,16 +446,18 @@ def solve_in_zone(zone: ContactZone, lam_w, state: ContactState, *, method="bask
 def _held_guess(zone, lam_w, state, guess, method, tol):
     """``(result, zone)`` of ``guess`` if it already is this level's answer on the full
     problem (:func:`qsma.contact.registry.guess_measures`), the zone grown by the
-    guess's closed pairs outside it (the next level starts from a zone that holds
-    them); else None."""
+    closed pairs outside it, of the answer as classified or as the guess labels them
+    (the next level starts from a zone that holds them); else None."""
     checked = guess_measures(zone.full, lam_w, state, guess, tol)
     if checked is None:
         return None
-    outside = (np.asarray(guess.status) != OPEN) & ~zone.keep
+    res = _result(zone.full, lam_w, state, accepted_guess(guess), method, tol,
+                  measures=checked)
+    closed = (np.asarray(res.status) != OPEN) | (np.asarray(guess.status) != OPEN)
+    outside = closed & ~zone.keep
     if outside.any():
         zone = zone.grown(outside)
-    return _result(zone.full, lam_w, state, accepted_guess(guess), method, tol,
-                   measures=checked), zone
+    return res, zone
 
 
 def _closed_in_either(state, guess):
