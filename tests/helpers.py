@@ -94,7 +94,7 @@ _FIRST, S4
 #: OpenBLAS kernels on which a multi-RHS SuperLU solve split at even column offsets
 #: has the bits of the serial solve (measured: Haswell, SandyBridge, Zen, Prescott);
 #: the Nehalem kernel rounds columns in wider groups (~1e-16 apart).
-PAIRWISE_KERNELS = ("haswell", "sandybridge", "zen", "prescott", "skylakex", "cooperlake")
+PAIRWISE_KERNELS = ("haswell", "sandybridge", "zen", "prescott")
 
 
 def scipy_blas_kernel() -> str:

@@ -227,3 +227,31 @@ def test_a_level_whose_loop_failed_is_written_as_null_beside_its_flag(tmp_path):
     assert rows[1]["f_hz"] == "" and rows[1]["zeta"] == "" and rows[0]["f_hz"] != ""
     with pytest.raises(AnalysisError, match="non-finite value in results.levels.f_hz"):
         results_dict(dataclasses.replace(res, **nan_at_1))
+    q = res.q.copy()
+    q[1] = np.nan                       # the backbone is never excused by a loop's flag
+    with pytest.raises(AnalysisError, match="non-finite value in results.levels.q"):
+        results_dict(dataclasses.replace(flagged, q=q))
+
+
+@pytest.mark.parametrize("keep_going", [False, True])
+def test_a_level_whose_loop_failed_fails_the_run_even_with_continue(tmp_path, capsys,
+                                                                   monkeypatch, keep_going):
+    """Loops that cannot stabilise (one cycle allowed, no repeat or agreement counts,
+    no extension): every file is written, the levels are flagged, and the CLI exits 1
+    with or without --continue (which covers failed contact solves only)."""
+    import qsma.hysteresis as hysteresis
+    cycles = hysteresis._cycles
+    monkeypatch.setattr(hysteresis, "CONTRACTION", 0.0)
+    monkeypatch.setattr(hysteresis, "_same", lambda *args: False)
+    monkeypatch.setattr(hysteresis, "_cycles",
+                        lambda step, modal, A, start, u, k_ref, max_cycles, rtol, atol:
+                        cycles(step, modal, A, start, u, k_ref, 1, 0.0, 0.0))
+    argv = ["run", "--example", "sandwich-2d", "--out", str(tmp_path), "--no-plots",
+            "--no-vtu", "--dissipation", "loop", "--levels", "tip:log:1e-4:1e-3:3"]
+    code = main(argv + (["--continue"] if keep_going else []))
+    err = capsys.readouterr().err
+    data = json.loads((tmp_path / "results.json").read_text())
+    flagged = [k for k, f in enumerate(data["levels"]["flags"]) if "loop_not_stabilised" in f]
+    assert code == 1 and flagged and "analysis failed" in err
+    assert all(data["levels"]["zeta"][k] is None for k in flagged)
+    assert data["success"] is False and len(data["levels"]["alpha"]) == 3

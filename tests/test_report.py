@@ -197,6 +197,7 @@ def test_tick_labels_keep_the_digits_their_step_needs(lo, hi, expected):
     the general format, printed 123456 for every tick of a two-metre span there)."""
     labels = tick_labels(nice_ticks(lo, hi, 5 if hi - lo < 10 else 4))
     assert labels == expected and len(set(labels)) == len(labels)
+    assert tick_labels(nice_ticks(0.0031, 0.0052, 2)) == ["0.004"]   # a lone tick
 
 
 def test_report_names_the_warnings(run_result):

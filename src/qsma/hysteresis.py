@@ -353,12 +353,20 @@ def _cycles(step, modal, A, start, u, k_ref, max_cycles, rtol, atol):
         drifts.append(float(np.abs(state.d - state0.d).max(initial=0.0)))
         previous, state0 = (qs, D), state
     return Loop(A, path, qs, D, first, cycle_area_error(path, qs, k_ref), qs[0], qs[len(u)],
-                cycle, n_solves, "not_stabilised",
-                f"loop at A = {A:.6g} not stabilised after {cycle} cycles (the state "
-                f"at +A still changes and does not converge geometrically: ratcheting, "
-                f"a cycle alternating between two states, or a slow shakedown); "
-                f"raise max_cycles"), \
+                cycle, n_solves, "not_stabilised", _not_stabilised(A, cycle, max_cycles)), \
         _changed(out.status, len(u)), state
+
+
+def _not_stabilised(A, cycles, max_cycles):
+    """Why a loop stopped without repeating: still converging at the ceiling of
+    ``2 max_cycles``, or a drift that does not contract."""
+    if cycles >= 2 * max_cycles:
+        return (f"loop at A = {A:.6g} not stabilised after {cycles} cycles: its drift at "
+                f"+A still contracts but the cycles do not agree within the tolerance "
+                f"yet; raise max_cycles")
+    return (f"loop at A = {A:.6g} not stabilised after {cycles} cycles (the state at +A "
+            f"still changes and does not converge geometrically: ratcheting, a cycle "
+            f"alternating between two states, or a slow shakedown); raise max_cycles")
 
 
 def _contracting(drifts):

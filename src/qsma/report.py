@@ -157,9 +157,9 @@ def tick_labels(ticks) -> list[str]:
     that neighbouring ticks never read the same (a mesh far from the origin: ticks
     123456.5 and 123457 m keep their half metre)."""
     ticks = np.asarray(ticks, float)
-    step = np.min(np.diff(ticks)) if len(ticks) > 1 else max(abs(ticks[0]), 1.0) \
-        if len(ticks) else 1.0
-    decimals = max(0, int(-np.floor(np.log10(step) + 1e-9)))
+    if len(ticks) < 2:                   # no step to read: the value's own digits
+        return [f"{t:g}" for t in ticks]
+    decimals = max(0, int(-np.floor(np.log10(np.min(np.diff(ticks))) + 1e-9)))
     return [f"{t:.{decimals}f}" for t in ticks]
 
 

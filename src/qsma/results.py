@@ -43,15 +43,20 @@ OPTIONAL_FIELDS = ("q_neg", "asymmetry", "f_hz_loop", "zeta_loop", "dissipation_
 
 
 #: Flags of a level whose frequency and damping could not be computed (its loop did
-#: not stabilise or failed, or a value came out non-finite): that level's NaN values
-#: are written as null / empty beside the flag that says why, the other levels kept.
+#: not stabilise or failed, or a value came out non-finite): that level's NaN values of
+#: :data:`LOOP_DERIVED` are written as null / empty beside the flag that says why, the
+#: other levels kept.
 NAN_FLAGS = ("not_finite", "loop_failed", "loop_not_stabilised")
+#: The per-level columns that come from the frequency, the damping or the loop, and so
+#: may be NaN at a level flagged with one of :data:`NAN_FLAGS`; the backbone (alpha,
+#: q, tip, residual) and the Masing values never may.
+LOOP_DERIVED = ("f_hz", "zeta", "dissipation", "tip_velocity")
 
 
 def _level_columns(res) -> dict:
-    """Per-level values by name, JSON-ready: optional NaN -> None, NaN of a level
-    flagged with one of :data:`NAN_FLAGS` -> None, flags as lists. Any other NaN is
-    kept (and refused by :func:`_clean`)."""
+    """Per-level values by name, JSON-ready: optional NaN -> None, NaN of
+    :data:`LOOP_DERIVED` at a level flagged with one of :data:`NAN_FLAGS` -> None,
+    flags as lists. Any other NaN or Inf is kept (and refused by :func:`_clean`)."""
     table = {}
     levels = res.levels_table()
     explained = [any(f in NAN_FLAGS for f in flags) for flags in levels["flags"]]
@@ -60,10 +65,11 @@ def _level_columns(res) -> dict:
             table[name] = [list(f) for f in values]
         elif name in OPTIONAL_FIELDS:
             table[name] = [None if not np.isfinite(v) else float(v) for v in values]
+        elif name in LOOP_DERIVED:
+            table[name] = [None if ok and np.isnan(v) else float(v)
+                           for v, ok in zip(np.asarray(values, float), explained)]
         else:
-            column = np.asarray(values).tolist()
-            table[name] = [None if ok and isinstance(v, float) and not np.isfinite(v)
-                           else v for v, ok in zip(column, explained)]
+            table[name] = np.asarray(values).tolist()
     return table
 
 

@@ -92,7 +92,7 @@ def _outcome(res, options, out, quiet=False) -> int:
             return 1
         print(f"qsma: warning: {dl.message}", file=sys.stderr)
     if not res.success:
-        if options.continue_on_failure:
+        if options.continue_on_failure and not res.failed_levels:
             print(f"qsma: warning: {res.message} (continued as asked: the levels whose "
                   f"residual is above tol are flagged by 'residual' in {out})",
                   file=sys.stderr)
@@ -104,10 +104,12 @@ def _outcome(res, options, out, quiet=False) -> int:
 
 
 def _written(res) -> str:
-    """What the result folder holds of a failed run: the levels before a failed
-    contact solve, or every level with the failing ones flagged."""
+    """What the result folder holds of a failed run: the levels solved (all of them
+    unless a contact solve stopped the ramp), those with a failure flag named as such.
+    ``--continue`` covers failed contact solves only: a level with a failure flag
+    (:data:`qsma.result.FAILURE_FLAGS`) makes the run fail with it too."""
     if res.failed_levels:
-        return f"all {res.n_levels} levels, the failing ones flagged ('flags'), are"
+        return f"the {res.n_levels} levels solved, the failing ones flagged ('flags'), are"
     return f"the {res.n_levels} levels solved before the failure are"
 
 
