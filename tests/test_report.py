@@ -210,6 +210,22 @@ def test_report_names_the_warnings(run_result):
     assert "level 4 holds a negative dissipation" in html
 
 
+def test_a_level_without_f_and_zeta_shows_dashes(run_result):
+    """A level whose loop did not stabilise has no f and zeta: the levels table shows
+    a dash there (not "nan") and the flag in the same row."""
+    f, zeta = run_result.f_hz.copy(), run_result.zeta.copy()
+    f[1] = zeta[1] = np.nan
+    flags = list(run_result.flags)
+    flags[1] = ("loop_not_stabilised",)
+    html = run_report_html(replace(run_result, f_hz=f, zeta=zeta, flags=tuple(flags),
+                                   success=False), figures={})
+    levels = html[html.index("<h2>Levels</h2>"):]
+    row = levels[levels.index("<tr><td>1</td>"):]
+    row = row[:row.index("</tr>")]
+    assert row.count("\u2014") == 2 and "loop_not_stabilised" in row
+    assert "nan" not in levels[:levels.index("</table>")]
+
+
 def test_study_report_lists_the_cases(study_report):
     html = study_report.read_text()
     assert "2 of 2 cases ok" in html

@@ -416,7 +416,7 @@ def run_report_html(res, figures=None) -> str:
         "tied frequencies [Hz]": ", ".join(f"{f:.2f}" for f in res.modes.f_hz)}))
     parts.append("<h2>Figures</h2>" + "\n".join(
         _figure_html(image, cap, mime) for cap, image, mime in _run_figures(res, figures)))
-    rows = [[k] + [fmt.format(getattr(res, name)[k]) for name, _, fmt in LEVEL_TABLE]
+    rows = [[k] + [_level_cell(getattr(res, name)[k], fmt) for name, _, fmt in LEVEL_TABLE]
             + [", ".join(res.flags[k])] for k in range(res.n_levels)]
     parts.append("<h2>Levels</h2>" + _table(
         ["level"] + [h for _, h, _ in LEVEL_TABLE] + ["flags"], rows,
@@ -479,6 +479,14 @@ def study_report_html(parameters, cases, table, figures) -> str:
         _figure_html(Path(p).read_bytes(), f"Study over {name}")
         for name, p in figures.items()))
     return _page(f"QSMA study over {', '.join(parameters)}", "\n".join(parts))
+
+
+def _level_cell(v, fmt):
+    """A cell of the levels table: a value that was not computed (NaN: a level whose
+    loop failed, named in its flags) is shown as a dash, not as "nan"."""
+    if isinstance(v, (float, np.floating)) and np.isnan(v):
+        return "\u2014"
+    return fmt.format(v)
 
 
 def _fmt(v):
