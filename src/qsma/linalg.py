@@ -340,8 +340,9 @@ def solved_by_columns(solve, b, threads=None) -> np.ndarray:
     Nehalem kernel (older CPUs, virtual machines without AVX) rounds a column with
     wider groups: there the threaded solve differs from the serial one by round-off
     (~1e-16 relative; tied modes 3e-13), so results can depend on the thread count
-    at that level; ``QSMA_SOLVE_THREADS=1`` gives the serial bits. With several BLAS threads the bits of a solve depend on its
-    width (OpenBLAS splits the columns among its threads), so the blocks are solved with
+    at that level; ``QSMA_SOLVE_THREADS=1`` gives the serial bits. With several BLAS
+    threads the bits of a solve depend on its width (OpenBLAS splits the columns among
+    its threads), so the blocks are solved with
     BLAS limited to one thread (:func:`qsma._threads.one_blas_thread`), which is also
     the fast setting: SuperLU calls BLAS on small supernode blocks, where OpenBLAS
     threads spin (a 12-column solve at sandwich-3d refine 1: 506 ms with two BLAS

@@ -595,9 +595,10 @@ class _Basis:
         k, m = self.size, V.shape[1]
         arrays = self.arrays
         if k + m > arrays[0].shape[1]:             # not expected: grow
-            arrays = tuple(np.concatenate([a[:, :k], np.zeros((a.shape[0], m))], axis=1,
-                                          dtype=float) for a in arrays)
-            arrays = tuple(np.asfortranarray(a) for a in arrays)
+            grown = tuple(np.zeros((a.shape[0], k + m), order="F") for a in arrays)
+            for g, a in zip(grown, arrays):
+                g[:, :k] = a[:, :k]
+            arrays = grown
         for a, new in zip(arrays, (V, MV, W, MW)):
             a[:, k:k + m] = new
         return _Basis(arrays, k + m)

@@ -149,18 +149,22 @@ class _BasketRun:
 
     @property
     def lam(self):
+        self._kd()
+        return self._lam
+
+    def _kd(self):
+        """``K d`` of the current iterate, formed once (with ``lam = K d + lw``)."""
         if self._lam is None:
             self._Kd = self.problem.product(self.d)
             self._lam = self._Kd + self.lw
-        return self._lam
+        return self._Kd
 
     def _products(self):
         """``(K d, |K| |d|)`` of the current iterate, each formed once (the threshold of
         the checks and the residual of the end of a pass share them)."""
         if self._abs_Kd is None:
             self._abs_Kd = self.problem.abs_product(self.d, symmetric=True)
-        self.lam                                   # sets self._Kd
-        return self._Kd, self._abs_Kd
+        return self._kd(), self._abs_Kd
 
     @property
     def lam2(self):
@@ -436,8 +440,7 @@ class _BasketRun:
         law = self._slip_law(target, K_target + self.lw)
         if law[2].sum() <= (1.0 - 2.0 * ARMIJO) * misfit0:
             return _Step(1.0, target, K_target, law)
-        self.lam                                   # sets self._Kd of the iterate
-        delta, K_delta, t = target - self.d, K_target - self._Kd, 0.5
+        delta, K_delta, t = target - self.d, K_target - self._kd(), 0.5
         while t >= MIN_STEP:
             trial = self._slip_law(self.d + t * delta, self.lam + t * K_delta)[2].sum()
             if trial <= (1.0 - 2.0 * ARMIJO * t) * misfit0:
