@@ -198,3 +198,40 @@ def test_contact_problem_holds_the_reduced_stiffness_without_a_copy():
     assert not K.flags.writeable
     problem = analysis._contact_problem(prep.model, prep.pairing, K)
     assert np.shares_memory(problem.K, K)
+
+
+def _blas_threads():
+    """Threads of the BLAS that numpy and scipy call (the largest count reported)."""
+    from threadpoolctl import threadpool_info
+    return max(i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas")
+
+
+def test_auto_blas_threads_keep_the_contact_stage_on_one_thread(monkeypatch):
+    """Above SMALL_PROBLEM unknowns ``blas_threads="auto"`` leaves the condensation
+    on the process's BLAS threads but solves the ramps on one
+    (:data:`qsma._threads.CONTACT_BLAS_THREADS`; two threads there made sandwich-3d
+    refine 2's contact stage 1.7x slower); an explicit setting applies everywhere."""
+    from threadpoolctl import threadpool_limits
+    import qsma.analysis as analysis
+    import qsma._threads as threads
+    seen = {"condensation": [], "contact": []}
+    solve, reduce = analysis._solve, analysis.reduce_two_bodies
+
+    def counted(stage, function):
+        def wrapper(*args, **kwargs):
+            seen[stage].append(_blas_threads())
+            return function(*args, **kwargs)
+        return wrapper
+    monkeypatch.setattr(analysis, "_solve", counted("contact", solve))
+    monkeypatch.setattr(analysis, "reduce_two_bodies", counted("condensation", reduce))
+    monkeypatch.setattr(threads, "SMALL_PROBLEM", 0)       # sandwich-2d counts as large
+    levels = qsma.Levels.log("tip", 1e-6, 1e-4, 3)
+    with threadpool_limits(limits=2, user_api="blas"):
+        process = _blas_threads()
+        qsma.run(sandwich_2d(1), levels=levels)
+        assert set(seen["condensation"]) == {process}
+        assert set(seen["contact"]) == {threads.CONTACT_BLAS_THREADS} == {1}
+        for stage in seen.values():
+            stage.clear()
+        qsma.run(sandwich_2d(1), levels=levels, blas_threads=None)
+        assert set(seen["contact"]) == set(seen["condensation"]) == {process}

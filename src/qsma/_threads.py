@@ -76,6 +76,17 @@ def threads_for(n_unknowns: int):
     return 1 if n_unknowns <= SMALL_PROBLEM else None
 
 
+#: BLAS threads of the contact ramps and loops under ``blas_threads="auto"``, whatever
+#: the interface size. Their dense work is many small products and factorisations of
+#: zone blocks plus the symmetric products of the checks (memory-bound: 10.3 against
+#: 8.0-9.1 ms at 6,435 unknowns on two threads), on which a second OpenBLAS thread
+#: mostly spins: sandwich-3d refine 2, quiet machine, contact stage 110.5 s wall /
+#: 218.7 s CPU on two BLAS threads against 64.8 / 64.8 s on one (docs/performance.md,
+#: "BLAS threads of the contact stage"). The condensation's dense products keep the
+#: process's threads (50.4 against 64.0 s there).
+CONTACT_BLAS_THREADS = 1
+
+
 #: Environment variable with the number of threads of a multi-RHS sparse solve
 #: (a positive integer; 1: serial).
 SOLVE_THREADS_ENV = "QSMA_SOLVE_THREADS"

@@ -18,7 +18,7 @@ import warnings
 
 import numpy as np
 
-from ._threads import blas_threads as threads_limited, threads_for
+from ._threads import CONTACT_BLAS_THREADS, blas_threads as threads_limited, threads_for
 from .condense import reduce_two_bodies
 from .contact import DEFAULT_TOL, ContactProblem, ContactState, OPEN, SLIPPING, STUCK
 from .contact import solve as contact_solve
@@ -228,7 +228,8 @@ class Prepared:
         if key not in self.cache:
             self.cache[key] = preload(self.model, self.assembled, self.pairing,
                                       method=opts.method, opts=opts.solver_options,
-                                      clock=clock, reduced=self.reduced)
+                                      clock=clock, reduced=self.reduced,
+                                      contact_threads=_contact_threads(opts))
         return self.cache[key]
 
     def mode(self, closed, opts, clock, reduced=None):
@@ -315,13 +316,15 @@ def _warn_closed_gaps(model, pairing):
 
 
 def preload(model, assembled, pairing, *, method="basket", opts=None, schur_backend="auto",
-            clock=None, reduced=None, eliminate_open=True):
+            clock=None, reduced=None, eliminate_open=True,
+            contact_threads=CONTACT_BLAS_THREADS):
     """Condense the assembled bodies and solve the bolt preload with frictional contact.
 
     ``reduced``: the condensed model if already made (:func:`prepare`), else it is made.
     ``eliminate_open``: solve on the predicted contact zone, the other pairs eliminated
     exactly (:func:`qsma.contact.zone.solve_preload`; the answer is judged on the whole
-    interface either way). Returns ``(reduced, problem, result)``. Raises
+    interface either way). ``contact_threads``: BLAS thread limit of the contact solve
+    (``None``: as set around the call). Returns ``(reduced, problem, result)``. Raises
     :class:`AnalysisError` if the solve fails or leaves no pair in contact (tied modes
     of a disconnected assembly would be meaningless).
     """
@@ -331,7 +334,7 @@ def preload(model, assembled, pairing, *, method="basket", opts=None, schur_back
     with clock.stage("condensation"):
         problem = _contact_problem(model, pairing, reduced.K)
     zone = "preload" if eliminate_open else None
-    with clock.stage("contact"):
+    with clock.stage("contact"), threads_limited(contact_threads):
         pre, _ = _solve(problem, reduced, 0.0, None, method, opts or {}, "preload", zone)
         for _ in range(ANCHOR_ROUNDS if getattr(reduced, "ghost", None) else 0):
             if not pre.success:                    # docs/theory.md section 10
@@ -439,6 +442,12 @@ def _mode(model, assembled, pairing, closed, opts, clock, reduced=None):
     return modes, phi, phi_tip, float(modes.omega[modes.n_rigid + mode]), ltip
 
 
+def _contact_threads(opts):
+    """BLAS thread limit of the contact solves: one under ``blas_threads="auto"``
+    (:data:`qsma._threads.CONTACT_BLAS_THREADS`), else the run's own setting."""
+    return CONTACT_BLAS_THREADS if opts.blas_threads == "auto" else None
+
+
 def _run(model, pairing, opts, progress, clock, prepared=None):
     order = body_order(model, pairing)
     sopts = opts.solver_options
@@ -446,7 +455,7 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
         assembled = _assemble(model, clock)
         reduced, problem, pre = preload(model, assembled, pairing, method=opts.method,
                                         opts=sopts, schur_backend=opts.schur_backend,
-                                        clock=clock)
+                                        clock=clock, contact_threads=_contact_threads(opts))
         closed = pre.status != OPEN
         modes, phi, phi_tip, omega0, ltip = _mode(model, assembled, pairing, closed, opts,
                                                   clock, reduced)
@@ -469,8 +478,9 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
     alpha = levels.alpha(omega0, phi_tip)
     k_ref = omega0 ** 2
 
+    contact_limit = _contact_threads(opts)
     try:
-        with clock.stage("contact"):
+        with clock.stage("contact"), threads_limited(contact_limit):
             solver = _Solver(problem, reduced, opts.method, sopts,
                              zone_from_state(problem, pre.state) if opts.eliminate_open
                              else None)
@@ -480,7 +490,7 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
             neg = _ramp(solver, -grid[:pos.n], pre, True, None, "negative load level",
                         response=response)
 
-        with clock.stage("hysteresis"):
+        with clock.stage("hysteresis"), threads_limited(contact_limit):
             hyst = _hysteresis(solver, response, grid[:pos.n], user, pos, neg, pre, opts,
                                k_ref)
     finally:
@@ -510,7 +520,7 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
 
     loop = None
     if opts.direct_loop and n_ok:
-        with clock.stage("hysteresis"):
+        with clock.stage("hysteresis"), threads_limited(contact_limit):
             loop = _direct_loop(solver, response, grid[:pos.n], user[-1], pos,
                                 float(hyst["dissipation_masing"][-1]))
 

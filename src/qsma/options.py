@@ -65,7 +65,10 @@ class RunOptions:
     schur_backend : str
         Static condensation backend (:data:`qsma.linalg.SCHUR_BACKENDS` or ``"auto"``).
     blas_threads : "auto", int or None
-        BLAS thread limit; ``"auto"``: one thread for small interface problems.
+        BLAS thread limit; ``"auto"``: one thread for small interface problems and,
+        whatever the size, for the contact ramps and loops
+        (:data:`qsma._threads.CONTACT_BLAS_THREADS`); an integer or ``None`` (as the
+        process is set) applies to the whole run.
     loop_steps : int
         Largest number of increments per loop branch before refinement (the branch
         mirrors the backbone levels below the amplitude, thinned to this count); the
