@@ -185,3 +185,35 @@ def test_figures_hold_the_plotted_data(results, tmp_path, monkeypatch):
     p = res.pairing
     np.testing.assert_allclose(data(pressure), (p.x[:, 0], res.preload.lam[:, -1] / p.area
                                                 / 1e6))
+
+
+def test_a_level_whose_loop_failed_stays_in_the_figures(results, tmp_path, monkeypatch):
+    """A level without a used frequency (its loop failed: f, zeta and the velocity are
+    NaN) is drawn with its Masing values at Masing's velocity and marked, not dropped;
+    loops.png says why a level shows Masing's construction."""
+    from dataclasses import replace
+    from types import SimpleNamespace
+    res = results["sandwich-2d"]
+    n = res.n_levels
+    k = n - 1                                   # a level loops.png shows
+    nan_at = lambda a: np.where(np.arange(n) == k, np.nan, a)
+    failed = SimpleNamespace(success=False)     # what the figures read of a failed Loop
+    bad = replace(res, f_hz=nan_at(res.f_hz), zeta=nan_at(res.zeta),
+                  tip_velocity=nan_at(res.tip_velocity),
+                  dissipation_method=np.where(np.arange(n) == k, "loop",
+                                              res.dissipation_method),
+                  loops={**res.loops, k: failed})
+    figures = _capture(bad, tmp_path, monkeypatch)
+    v_masing = 2 * np.pi * res.f_hz_masing[k] * abs(res.tip[k])
+    for ax, y in zip(figures["damping_frequency.png"].axes,
+                     (res.f_hz_masing[k], res.zeta_masing[k])):
+        marked = [l for l in ax.get_lines() if l.get_label().startswith("loop failed")]
+        assert len(marked) == 1
+        np.testing.assert_allclose(np.asarray(marked[0].get_data(), float).ravel(),
+                                   [v_masing, y])
+        masing = [l for l in ax.get_lines() if l.get_label() == "Masing"][0]
+        assert np.isfinite(np.asarray(masing.get_xdata(), float)).all()
+    labels = [l.get_label() for l in figures["loops.png"].axes[0].get_lines()]
+    assert f"Masing, level {k} (its computed loop failed)" in labels
+    for name, fig in figures.items():
+        assert not _check_figure(name, fig)

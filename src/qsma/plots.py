@@ -129,7 +129,8 @@ def plot_loops(res, path):
             ax.plot(lp.q, lp.alpha - k0 * lp.q, lw=1.2, label=f"computed loop, level {k}")
         else:
             q, f = masing_loop(res.alpha, res.q, k)
-            ax.plot(q, f - k0 * q, lw=1.2, label=f"Masing, level {k}")
+            why = " (its computed loop failed)" if lp is not None else ""
+            ax.plot(q, f - k0 * q, lw=1.2, label=f"Masing, level {k}{why}")
     if res.direct_loop is not None:
         dl = res.direct_loop
         label = (f"direct loop (D = {dl.dissipation:.3g} vs Masing "
@@ -153,17 +154,32 @@ ZETA_LINEAR = 1e-6
 
 def plot_damping_frequency(res, path):
     """Secant frequency and damping ratio versus peak tip velocity: the values used
-    (filled), Masing's and the loops' where they differ, hardening levels marked."""
+    (filled), Masing's and the loops' where they differ, hardening levels marked.
+
+    A level whose loop failed has no used frequency, hence no velocity; its Masing
+    values are drawn at Masing's own velocity ``2 pi f_masing |tip|`` and marked, so
+    that no level leaves the figure unseen."""
     fig, (a1, a2) = _figure(2, 1, figsize=(6, 6.5), hspace=0.08, sharex=True)
     v = np.abs(res.tip_velocity)
     loop = res.dissipation_method == "loop"
     hard = np.array(["hardening" in f or "masing_on_hardening" in f for f in res.flags])
+    unused = ~np.isfinite(v)
+    v_masing = np.where(unused, 2 * np.pi * res.f_hz_masing * np.abs(res.tip), v)
     a1.semilogx(v, res.f_hz, "o-", ms=3, label="used")
     a2.plot(v, res.zeta, "o-", ms=3, label="used")
     if loop.any():
-        a1.semilogx(v, res.f_hz_masing, "x--", ms=3, lw=0.8, label="Masing")
-        a2.plot(v, res.zeta_masing, "x--", ms=3, lw=0.8, label="Masing")
-        a2.plot(v[loop], res.zeta_loop[loop], "s", ms=4, mfc="none", label="computed loop")
+        a1.semilogx(v_masing, res.f_hz_masing, "x--", ms=3, lw=0.8, label="Masing")
+        a2.plot(v_masing, res.zeta_masing, "x--", ms=3, lw=0.8, label="Masing")
+        done = loop & np.isfinite(res.zeta_loop)
+        if done.any():
+            a2.plot(v[done], res.zeta_loop[done], "s", ms=4, mfc="none",
+                    label="computed loop")
+    if unused.any():
+        label = "loop failed: Masing shown, not used"
+        a1.plot(v_masing[unused], res.f_hz_masing[unused], "X", color="tab:gray", ms=6,
+                label=label)
+        a2.plot(v_masing[unused], res.zeta_masing[unused], "X", color="tab:gray", ms=6,
+                label=label)
     if hard.any():
         a1.plot(v[hard], res.f_hz[hard], "^", color="tab:red", ms=6, label="hardening")
         a2.plot(v[hard], res.zeta[hard], "^", color="tab:red", ms=6, label="hardening")
@@ -171,7 +187,7 @@ def plot_damping_frequency(res, path):
     a1.set_ylabel("secant frequency [Hz]")
     a2.set_yscale("symlog", linthresh=ZETA_LINEAR)
     a2.axhline(0.0, color="gray", lw=0.8)
-    shown = np.concatenate([res.zeta, res.zeta_masing if loop.any() else []])
+    shown = np.concatenate([res.zeta, res.zeta_masing if loop.any() or unused.any() else []])
     lowest = np.nanmin(shown) if np.isfinite(shown).any() else 0.0
     a2.set_ylim(bottom=min(-ZETA_LINEAR, 3 * lowest))
     a2.set_ylabel("damping ratio \u03b6 [-]")
