@@ -34,6 +34,7 @@ plane of the slave facet along the slave facet normal and clipped against it
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import chain
 
 import numpy as np
 import scipy.sparse as sp
@@ -110,10 +111,10 @@ def mortar_operator(slave_mesh, slave_facets, master_mesh, master_facets,
     dim = xs.shape[1]
     ns = _outward(slave_mesh, slave_facets)
     nm = _outward(master_mesh, master_facets)
-    same_way = set()          # slave facets facing a master facet with a same-way normal
     build = _pieces_2d if dim == 2 else _pieces_3d
-    pieces = build(xs, slave_facets, ns, xm, master_facets, nm, same_way)
-    return _assemble(xs, slave_facets, ns, xm, master_facets, pieces, names, same_way)
+    # same_way: slave facets facing a master facet whose normal points the same way
+    pieces, same_way = build(xs, slave_facets, ns, xm, master_facets, nm)
+    return _assemble(xs, slave_facets, ns, xm, pieces, names, same_way)
 
 
 def _outward(mesh, facets):
@@ -172,14 +173,15 @@ def _inverse_map(polys, q):
 
 
 # ---------------------------------------------------------------- 2D pieces
-def _pieces_2d(xs, sf, ns, xm, mf, nm, same_way):
-    """Integration points of each slave segment: (slave facet, master facet, xi, eta, w)."""
+def _pieces_2d(xs, sf, ns, xm, mf, nm):
+    """Integration points of each slave segment against the master segments it faces:
+    ``(_Pieces, same_way)``."""
     gx, gw = np.polynomial.legendre.leggauss(GAUSS_POINTS)
     gx, gw = 0.5 * (gx + 1.0), 0.5 * gw
     mnorm = _nodal_normals(len(xm), mf, nm)
     hm = _facet_size(xm, mf)
     tree = cKDTree(xm[mf].mean(axis=1))
-    out = []
+    out, same_way = [], set()
     for e, (a, b) in enumerate(sf):
         x0, x1 = xs[a], xs[b]
         edge = x1 - x0
@@ -199,7 +201,12 @@ def _pieces_2d(xs, sf, ns, xm, mf, nm, same_way):
             xg = lo + (hi - lo) * gx
             eta = _along_normal(x0 + xg[:, None] * edge, xm[ka], xm[kb], mnorm[ka], mnorm[kb])
             out.append((e, f, xg[:, None], eta[:, None], (hi - lo) * gw * length))
-    return out
+    e, f = (np.array([p[k] for p in out], dtype=int) for k in (0, 1))
+    join = lambda k, shape: (np.concatenate([p[k] for p in out]) if out
+                             else np.zeros(shape))
+    return _Pieces(e, f, sf[e], mf[f], np.repeat(np.arange(len(out)), GAUSS_POINTS),
+                   join(2, (0, 1)), join(3, (0, 1)), join(4, 0)), \
+        np.array(sorted(same_way), dtype=int)
 
 
 def _cross_line(x0, edge, y, n):
@@ -230,39 +237,112 @@ def _along_normal(x, y0, y1, n0, n1):
     return np.clip(eta, 0.0, 1.0)
 
 
+# ---------------------------------------------------------------- pieces
+@dataclass(frozen=True, eq=False)
+class _Pieces:
+    """Integration points of the pieces (the part of a slave facet that faces one
+    master facet): pieces in slave facet order, points in piece order.
+
+    Attributes
+    ----------
+    facet, master : (n_pieces,) slave and master facet of each piece
+    slave_nodes, master_nodes : (n_pieces, k) the two facets' nodes in the order their
+        local coordinates refer to (3D: counter-clockwise seen from the master side)
+    piece : (n_points,) piece of each point (non-decreasing)
+    r_slave, r_master : (n_points, dim - 1) local coordinates of the points in the two
+        facets (:func:`_shape`)
+    weight : (n_points,) integration weights (area; length per unit depth in 2D)
+    """
+
+    facet: np.ndarray
+    master: np.ndarray
+    slave_nodes: np.ndarray
+    master_nodes: np.ndarray
+    piece: np.ndarray
+    r_slave: np.ndarray
+    r_master: np.ndarray
+    weight: np.ndarray
+
+
 # ---------------------------------------------------------------- 3D pieces
-def _plane_basis(n):
-    ref = np.array([0.0, 0.0, 1.0]) if abs(n[0]) > 0.9 else np.array([1.0, 0.0, 0.0])
-    t1 = ref - (ref @ n) * n
-    t1 /= np.linalg.norm(t1)
-    return np.stack([t1, np.cross(n, t1)])
+def _plane_bases(n):
+    """Orthonormal in-plane axes ``(t1, t2)`` of each unit normal ``n`` (m, 3): (m, 2, 3),
+    ``t1`` the projection of z (of x when ``n`` is far from x) and ``t2 = n x t1``."""
+    ref = np.where(np.abs(n[:, :1]) > 0.9, [0.0, 0.0, 1.0], [1.0, 0.0, 0.0])
+    t1 = ref - np.einsum("ij,ij->i", ref, n)[:, None] * n
+    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    return np.stack([t1, np.cross(n, t1)], axis=1)
 
 
-def _clip(subject, clipper):
-    """Sutherland-Hodgman: the part of polygon ``subject`` inside the convex
-    counter-clockwise polygon ``clipper`` (both (k, 2))."""
-    out = list(subject)
-    for i in range(len(clipper)):
-        a, b = clipper[i], clipper[(i + 1) % len(clipper)]
-        edge = b - a
-        side = lambda p: edge[0] * (p[1] - a[1]) - edge[1] * (p[0] - a[0])
-        src, out = out, []
-        for j in range(len(src)):
-            p, q = src[j], src[(j + 1) % len(src)]
-            sp_, sq = side(p), side(q)
-            if sp_ >= 0:
-                out.append(p)
-            if (sp_ >= 0) != (sq >= 0):
-                out.append(p + (q - p) * (sp_ / (sp_ - sq)))
-        if not out:
-            return np.zeros((0, 2))
-    return np.array(out)
+def _shoelace(poly, count=None):
+    r"""Signed areas of polygons ``poly`` (m, k, 2), positive when counter-clockwise:
+    :math:`A = \tfrac12 \sum_i (x_i y_{i+1} - x_{i+1} y_i)`, over the first
+    ``count[j]`` vertices of polygon j (default all ``k``)."""
+    if count is None:
+        nxt = np.roll(poly, -1, axis=1)
+        return 0.5 * (poly[..., 0] * nxt[..., 1] - nxt[..., 0] * poly[..., 1]).sum(axis=1)
+    slot = np.arange(poly.shape[1])[None, :]
+    nxt = np.where(slot + 1 < count[:, None], slot + 1, 0)
+    x, y = poly[..., 0], poly[..., 1]
+    terms = x * np.take_along_axis(y, nxt, 1) - np.take_along_axis(x, nxt, 1) * y
+    return 0.5 * np.where(slot < count[:, None], terms, 0.0).sum(axis=1)
 
 
-def _ccw(poly):
-    """Signed area of a polygon (k, 2), positive when counter-clockwise (shoelace)."""
-    x, y = poly[:, 0], poly[:, 1]
-    return 0.5 * float(x[:-1] @ y[1:] - x[1:] @ y[:-1] + x[-1] * y[0] - x[0] * y[-1])
+def clip_polygons(subject, clipper, count=None):
+    r"""Sutherland-Hodgman clipping, batched: the part of each polygon ``subject[j]``
+    inside the convex counter-clockwise polygon ``clipper[j]``.
+
+    Each clipper edge ``a -> b`` keeps the vertices ``p`` with
+    :math:`s(p) = (b - a) \times (p - a) \ge 0` and inserts
+    :math:`p + (q - p)\, s(p) / (s(p) - s(q))` where the subject's edge ``p -> q``
+    crosses the line. The vertices live in fixed slots, the first ``count[j]`` used;
+    the loop runs over the clipper's edges only (a convex subject of ``k`` vertices
+    ends with at most ``k`` plus the clipper's count).
+
+    Parameters
+    ----------
+    subject : (m, k, 2) polygons, vertices in order
+    clipper : (m, kc, 2) convex polygons, counter-clockwise
+    count : (m,) vertices used in ``subject`` (default ``k``)
+
+    Returns
+    -------
+    vertices : (m, c, 2) the clipped polygons, in order, unused slots zero
+    count : (m,) their numbers of vertices (0 when disjoint)
+    """
+    poly = np.asarray(subject, dtype=float)
+    count = np.full(len(poly), poly.shape[1]) if count is None else np.asarray(count)
+    kc = clipper.shape[1]
+    for i in range(kc):
+        a = clipper[:, i, None, :]
+        edge = clipper[:, (i + 1) % kc, None, :] - a
+        side = (edge[..., 0] * (poly[..., 1] - a[..., 1])
+                - edge[..., 1] * (poly[..., 0] - a[..., 0]))
+        poly, count = _clip_step(poly, count, side)
+    return poly, count
+
+
+def _clip_step(poly, count, side):
+    """One Sutherland-Hodgman pass of polygons in slots against one line, given the
+    ``side`` of each vertex (>= 0 inside): each vertex emits itself if inside, then the
+    crossing point if its edge to the next vertex crosses the line."""
+    slot = np.arange(poly.shape[1])[None, :]
+    used = slot < count[:, None]
+    nxt = np.where(slot + 1 < count[:, None], slot + 1, 0)
+    inside = side >= 0
+    keep = used & inside
+    cross = used & (inside != np.take_along_axis(inside, nxt, 1))
+    emit = keep.astype(int) + cross
+    pos = np.cumsum(emit, axis=1) - emit
+    count = emit.sum(axis=1)
+    out = np.zeros((len(poly), int(count.max(initial=0)), 2))
+    r, j = np.nonzero(keep)
+    out[r, pos[r, j]] = poly[r, j]
+    r, j = np.nonzero(cross)
+    k = nxt[r, j]
+    p, q, sp_, sq = poly[r, j], poly[r, k], side[r, j], side[r, k]
+    out[r, pos[r, j] + keep[r, j]] = p + (q - p) * (sp_ / (sp_ - sq))[:, None]
+    return out, count
 
 
 def _triangle_rule():
@@ -276,125 +356,130 @@ def _triangle_rule():
     return np.stack([r, s], axis=1), (wu * wv * (1 - u)).ravel()
 
 
-def _pieces_3d(xs, sf, ns, xm, mf, nm, same_way):
+def _candidates(tree, centres, reach):
+    """``(slave facet, master facet)`` index pairs with the master centre within
+    ``reach[e]`` of slave centre ``e``: one multi-point query, in slave facet order."""
+    lists = tree.query_ball_point(centres, reach, return_sorted=False)
+    n = np.fromiter(map(len, lists), dtype=int, count=len(lists))
+    f = np.fromiter(chain.from_iterable(lists), dtype=int, count=int(n.sum()))
+    return np.repeat(np.arange(len(centres)), n), f
+
+
+def _counter_clockwise(poly, nodes):
+    """Polygons (m, k, 2) and their node rows reversed where clockwise."""
+    cw = _shoelace(poly) < 0
+    return (np.where(cw[:, None, None], poly[:, ::-1], poly),
+            np.where(cw[:, None], nodes[:, ::-1], nodes))
+
+
+def _pieces_3d(xs, sf, ns, xm, mf, nm):
+    """Each master facet near a slave facet, projected onto the slave facet's plane
+    along its normal and clipped against it; the pieces fan-triangulated and
+    integrated by the collapsed Gauss rule. Batched over all candidate pairs:
+    ``(_Pieces, same_way)``."""
+    n = ns / np.linalg.norm(ns, axis=1, keepdims=True)
+    c = xs[sf].mean(axis=1)
+    B = _plane_bases(n)
+    spoly, snodes = _counter_clockwise(np.einsum("fkd,fjd->fkj", xs[sf] - c[:, None], B),
+                                       sf)
+    hs, hm = _facet_size(xs, sf), _facet_size(xm, mf)
+    e, f = _candidates(cKDTree(xm[mf].mean(axis=1)), c,
+                       hs + hm.max() + GAP_FRACTION * hs)
+    opposed = np.einsum("ij,ij->i", n[e], nm[f]) < 0
+    same_way = np.unique(e[~opposed])
+    e, f = e[opposed], f[opposed]
+    mpoly = np.einsum("pkd,pjd->pkj", xm[mf[f]] - c[e][:, None], B[e])
+    lo, hi = spoly.min(axis=1)[e], spoly.max(axis=1)[e]
+    near = ~((mpoly.max(axis=1) <= lo).any(axis=1) | (mpoly.min(axis=1) >= hi).any(axis=1))
+    e, f = e[near], f[near]
+    mpoly, mnodes = _counter_clockwise(mpoly[near], mf[f])
+    piece, count = clip_polygons(mpoly, spoly[e])
+    big = (count >= 3) & (_shoelace(piece, count) > 1e-12 * _shoelace(spoly)[e])
+    e, f, mpoly, mnodes, piece, count = (a[big] for a in (e, f, mpoly, mnodes, piece,
+                                                           count))
+    which, q, w = _fan_points(piece, count)
+    r_s = _inverse_map(spoly[e[which]], q) if len(q) else np.zeros((0, 2))
+    r_m = _inverse_map(mpoly[which], q) if len(q) else np.zeros((0, 2))
+    return _Pieces(e, f, snodes[e], mnodes, which, r_s, r_m, w), same_way
+
+
+def _fan_points(piece, count):
+    """Points and weights of the collapsed Gauss rule on the fan triangles
+    ``(v0, vk, vk+1)`` of each polygon (those of positive area): ``(polygon of each
+    point, points (n, 2), weights (n,))``, in polygon, triangle, rule point order."""
     rule, rw = _triangle_rule()
-    hm = _facet_size(xm, mf)
-    hs = _facet_size(xs, sf)
-    tree = cKDTree(xm[mf].mean(axis=1))
-    out = []
-    for e, face in enumerate(sf):
-        n = ns[e] / np.linalg.norm(ns[e])
-        c = xs[face].mean(axis=0)
-        B = _plane_basis(n)
-        spoly = (xs[face] - c) @ B.T
-        if _ccw(spoly) < 0:
-            spoly, face_order = spoly[::-1], face[::-1]
-        else:
-            face_order = face
-        reach = hs[e] + hm.max() + GAP_FRACTION * hs[e]
-        lo, hi = spoly.min(axis=0), spoly.max(axis=0)
-        for f in tree.query_ball_point(c, reach):
-            if n @ nm[f] >= 0:
-                same_way.add(e)
-                continue
-            mpoly = (xm[mf[f]] - c) @ B.T
-            if (mpoly.max(axis=0) <= lo).any() or (mpoly.min(axis=0) >= hi).any():
-                continue                                   # bounding boxes apart
-            morder = mf[f]
-            if _ccw(mpoly) < 0:
-                mpoly, morder = mpoly[::-1], morder[::-1]
-            piece = _clip(mpoly, spoly)
-            if len(piece) < 3 or _ccw(piece) <= 1e-12 * _ccw(spoly):
-                continue
-            q, w = [], []
-            for k in range(1, len(piece) - 1):
-                tri = piece[[0, k, k + 1]]
-                area2 = 2.0 * _ccw(tri)
-                if area2 <= 0:
-                    continue
-                q.append(tri[0] + rule @ np.stack([tri[1] - tri[0], tri[2] - tri[0]]))
-                w.append(rw * area2)
-            q, w = np.concatenate(q), np.concatenate(w)
-            out.append([e, f, (spoly, q), (mpoly, q), w, face_order, morder])
-    for side in (2, 3):                       # local coordinates, batched over pieces
-        for k in (3, 4):
-            sel = [p for p in out if len(p[side][0]) == k]
-            if not sel:
-                continue
-            polys = np.concatenate([np.broadcast_to(p[side][0], (len(p[side][1]), k, 2))
-                                    for p in sel])
-            r = _inverse_map(polys, np.concatenate([p[side][1] for p in sel]))
-            ends = np.cumsum([len(p[side][1]) for p in sel])[:-1]
-            for p, rr in zip(sel, np.split(r, ends)):
-                p[side] = rr
-    return [tuple(p) for p in out]
+    v0, v1, v2 = piece[:, :1], piece[:, 1:-1], piece[:, 2:]
+    area2 = ((v1[..., 0] - v0[..., 0]) * (v2[..., 1] - v0[..., 1])
+             - (v2[..., 0] - v0[..., 0]) * (v1[..., 1] - v0[..., 1]))
+    k = np.arange(1, piece.shape[1] - 1)
+    poly, tri = np.nonzero((k[None, :] + 1 < count[:, None]) & (area2 > 0))
+    t0 = piece[poly, 0]
+    d1, d2 = piece[poly, tri + 1] - t0, piece[poly, tri + 2] - t0
+    q = t0[:, None] + rule[None, :, :1] * d1[:, None] + rule[None, :, 1:] * d2[:, None]
+    w = rw[None, :] * area2[poly, tri][:, None]
+    return np.repeat(poly, len(rw)), q.reshape(-1, 2), w.ravel()
 
 
 # ---------------------------------------------------------------- assembly
-def _assemble(xs, sf, ns, xm, mf, pieces, names, same_way):
-    """Dual basis per slave facet, then ``D``, ``M`` and the weighted gap."""
+def _assemble(xs, sf, ns, xm, pieces, names, same_way):
+    """Dual basis per slave facet, then ``D``, ``M`` and the weighted gap, batched over
+    the facets (stacked dense solves of the small facet mass matrices)."""
     sbody, sset, mbody, mset = names
-    dim = xs.shape[1]
-    by_facet = {}
-    for piece in pieces:
-        by_facet.setdefault(piece[0], []).append(piece)
-    snodes = np.unique(sf)
-    mnodes_all = np.unique(mf)
+    pc = pieces
+    point_facet = pc.facet[pc.piece]
     # covered fraction of each slave facet (the clipped pieces' area over the facet's,
     # exact for planar polygons), and of each node: the least of its facets
-    covered = np.zeros(len(sf))
-    for piece in pieces:
-        covered[piece[0]] += piece[4].sum()
-    covered /= np.linalg.norm(ns, axis=1)
+    covered = (np.bincount(point_facet, weights=pc.weight, minlength=len(sf))
+               / np.linalg.norm(ns, axis=1))
     node_cover = np.full(len(xs), np.inf)
     np.minimum.at(node_cover, sf.ravel(), np.repeat(covered, sf.shape[1]))
-    hs = _facet_size(xs, sf)
-    facets = []                        # per slave facet: nodes, pieces, N_s, N_m, weights
-    D = np.zeros(len(xs))
-    for e, plist in by_facet.items():
-        sfn = plist[0][5] if dim == 3 else sf[e]
-        Ns = [_shape(len(sfn), p[2]) for p in plist]
-        Nm = [_shape(len(p[6]) if dim == 3 else 2, p[3]) for p in plist]
-        W = [p[4] for p in plist]
-        Me = sum((N * w[:, None]).T @ N for N, w in zip(Ns, W))
-        D[sfn] += Me.sum(axis=1)                 # D_e = diag(int N_i) = row sums of M_e
-        facets.append((e, sfn, plist, Ns, Nm, W, Me))
-    _check_coverage(xs, snodes, node_cover, names, np.unique(sf[sorted(same_way)]))
-    weighted_gap = np.zeros(len(xs))
-    rows, cols, vals = [], [], []
-    worst = (0.0, None)
-    for e, sfn, plist, Ns, Nm, W, Me in facets:
-        # dual basis psi = A N with A = D_e M_e^-1 (M_e symmetric: A^T = M_e^-1 D_e)
-        A = np.linalg.solve(Me, np.diag(Me.sum(axis=1))).T
-        normal = ns[e] / np.linalg.norm(ns[e])
-        for p, N, Nmk, w in zip(plist, Ns, Nm, W):
-            mnodes = p[6] if dim == 3 else mf[p[1]]
-            psi = N @ A.T
-            xg_s = N @ xs[sfn]
-            gap = (Nmk @ xm[mnodes] - xg_s) @ normal
-            k = int(np.argmax(np.abs(gap)))
-            if abs(gap[k]) / hs[e] > worst[0]:
-                worst = (abs(gap[k]) / hs[e], (gap[k], xg_s[k]))
-            np.add.at(weighted_gap, sfn, psi.T @ (w * gap))
-            rows.append(np.repeat(sfn, len(mnodes)))
-            cols.append(np.tile(mnodes, len(sfn)))
-            vals.append(((psi * w[:, None]).T @ Nmk).ravel())
-    if worst[0] > GAP_FRACTION:
-        g, x = worst[1]
+    snodes = np.unique(sf)
+    _check_coverage(xs, snodes, node_cover, names, np.unique(sf[same_way]))
+    Ns = _shape(sf.shape[1], pc.r_slave)
+    Nm = _shape(pc.master_nodes.shape[1], pc.r_master)
+    w = pc.weight
+    # per slave facet with pieces: M_e = int N N^T (its row sums: D_e = diag(int N_i)),
+    # the dual basis psi = A N with A = D_e M_e^-1 (M_e symmetric: A^T = M_e^-1 D_e)
+    first = np.flatnonzero(np.r_[True, np.diff(point_facet) != 0])
+    facet_of = point_facet[first]
+    slot = np.repeat(np.arange(len(first)), np.diff(np.r_[first, len(w)]))
+    nodes_of = pc.slave_nodes[pc.piece[first]]
+    Me = np.add.reduceat((Ns * w[:, None])[:, :, None] * Ns[:, None, :], first, axis=0)
+    rowsum = Me.sum(axis=2)
+    D = np.bincount(nodes_of.ravel(), weights=rowsum.ravel(), minlength=len(xs))
+    A = np.linalg.solve(Me, rowsum[:, :, None] * np.eye(sf.shape[1])).transpose(0, 2, 1)
+    psi = np.einsum("pk,pik->pi", Ns, A[slot])
+    # the gap along the slave normal at every point; the worst one against the size
+    normal = ns[facet_of] / np.linalg.norm(ns[facet_of], axis=1, keepdims=True)
+    xg_s = np.einsum("pk,pkd->pd", Ns, xs[pc.slave_nodes[pc.piece]])
+    xg_m = np.einsum("pk,pkd->pd", Nm, xm[pc.master_nodes[pc.piece]])
+    gap = np.einsum("pd,pd->p", xg_m - xg_s, normal[slot])
+    ratio = np.abs(gap) / _facet_size(xs, sf)[point_facet]
+    k = int(np.argmax(ratio)) if len(ratio) else 0
+    if len(ratio) and ratio[k] > GAP_FRACTION:
+        g, x = gap[k], xg_s[k]
         what = "apart" if g > 0 else "overlap (interpenetrate)"
         raise InputError(
             f"interface body {sbody!r} set {sset!r} / body {mbody!r} set {mset!r}: the two "
             f"surfaces are {abs(g):.3e} m {what} at {np.round(x, 12).tolist()}, "
-            f"{worst[0]:.2f} of the local element size (at most {GAP_FRACTION} is taken "
+            f"{ratio[k]:.2f} of the local element size (at most {GAP_FRACTION} is taken "
             f"as touching). Fix: move the bodies so that the interface surfaces touch in "
             f"the undeformed configuration, or check that the sets name the facing "
             f"surfaces.")
+    point_nodes = pc.slave_nodes[pc.piece]
+    weighted_gap = np.bincount(point_nodes.ravel(), weights=(psi * (w * gap)[:, None]).ravel(),
+                               minlength=len(xs))
+    # M_ik = int psi_i N_k^m per piece: rows the slave facet's nodes, columns the master's
+    starts = np.flatnonzero(np.r_[True, np.diff(pc.piece) != 0])
+    vals = np.add.reduceat((psi * w[:, None])[:, :, None] * Nm[:, None, :], starts, axis=0)
+    shape = vals.shape
+    rows = np.broadcast_to(pc.slave_nodes[:, :, None], shape)
+    cols = np.broadcast_to(pc.master_nodes[:, None, :], shape)
     order = snodes[np.lexsort(xs[snodes].T[::-1])]
-    M = sp.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+    M = sp.coo_matrix((vals.ravel(), (rows.ravel(), cols.ravel())),
                       shape=(len(xs), len(xm))).tocsr()
     M = M[order]
-    used = np.flatnonzero(np.abs(M).sum(axis=0).A1 > 0)
-    mnodes = np.intersect1d(mnodes_all, used)
+    mnodes = np.flatnonzero(np.abs(M).sum(axis=0).A1 > 0)   # seen by some slave point
     P = sp.diags(1.0 / D[order]) @ M[:, mnodes]
     P.eliminate_zeros()
     nrm = _nodal_normals(len(xs), sf, ns)[order]
