@@ -268,8 +268,8 @@ class ReducedModel:
     S_cho : Cholesky factor of ``S``, the condensed stiffness of the welded pair
     Fc : per body, condensed load patterns
     functionals : name -> (c_d, c_a) with value ``c_d @ d + c_a @ a``
-    P : None, or the dense (n, n_master dofs) projection, slave local frames from
-        master global components
+    P : None, or the sparse (n, n_master dofs) projection, slave local frames from
+        master global components (:func:`projection_matrix`)
     slave : 0 or 1, index of the slave body in ``bodies`` (0 for node-to-node)
     ghost : None, or the :class:`qsma.rigid.Ghost` spring added to ``K`` along the
         relative rigid motions of bodies held only by the joint (``S`` then carries
@@ -286,7 +286,7 @@ class ReducedModel:
     dim: int
     functionals: dict
     definitions: dict
-    P: np.ndarray | None = None
+    P: sp.csr_matrix | None = None
     slave: int = 0
     ghost: object = None          # qsma.rigid.Ghost: K holds its spring, or None
     gauge: np.ndarray | None = None   # rigid motions of a free-free assembly in S
@@ -429,12 +429,13 @@ def minus_gram(A, S_cho, B) -> np.ndarray:
     return symmetrised(G)
 
 
-def projection_matrix(pairing, R_slave) -> np.ndarray:
-    """Dense ``P`` over DOFs: ``(P u_m)`` in the slave's local frames from master global
-    components, ``P = R_s^T (N kron I_dim)`` with ``N`` the pairing's projection."""
+def projection_matrix(pairing, R_slave) -> sp.csr_matrix:
+    """Sparse ``P`` over DOFs: ``(P u_m)`` in the slave's local frames from master global
+    components, ``P = R_s^T (N kron I_dim)`` with ``N`` the pairing's projection (a slave
+    DOF couples to the master DOFs of the few facets it faces)."""
     dim = pairing.frames.shape[1]
     N = sp.kron(pairing.projection, sp.identity(dim), format="csr")
-    return np.asarray((R_slave.T @ N).todense())
+    return sp.csr_matrix(R_slave.T @ N)
 
 
 def combine(slave, master, P, Z=None):
@@ -449,12 +450,16 @@ def combine(slave, master, P, Z=None):
 
     Only ``S`` (SPD when the welded pair is held) is factorised; for ``P = I`` this is
     ``Kc_s S^-1 Kc_m`` of the node-to-node formula (which the node coupling uses as is).
+    ``P`` is sparse (:func:`projection_matrix`): ``Kc_s P = (P^T Kc_s^T)^T`` and
+    ``P^T (Kc_s P)`` are sparse-times-dense products, ``nnz(P)`` multiply-adds per
+    column of the dense factor instead of a dense product's ``n_m``.
     """
-    S_cho = _factor_S(master.Kc + P.T @ slave.Kc @ P, Z)
-    KP = slave.Kc @ P
+    Ks = np.asarray(slave.Kc)
+    KP = np.ascontiguousarray((P.T @ Ks.T).T)       # Kc_s P
+    S_cho = _factor_S(np.asarray(master.Kc) + P.T @ KP, Z)
     if Z is None:                                   # Kc_s - (Kc_s P) S^-1 (Kc_s P)^T
-        return minus_gram(slave.Kc, S_cho, KP), S_cho
-    K = slave.Kc - KP @ sla.cho_solve(S_cho, KP.T)  # gauged S: the product form
+        return minus_gram(Ks, S_cho, KP), S_cho
+    K = Ks - KP @ sla.cho_solve(S_cho, KP.T)        # gauged S: the product form
     return 0.5 * (K + K.T), S_cho
 
 

@@ -156,7 +156,7 @@ def _inverse_map(polys, q):
     quads (exact in one step for parallelograms)."""
     if polys.shape[1] == 3:
         A = np.stack([polys[:, 1] - polys[:, 0], polys[:, 2] - polys[:, 0]], axis=2)
-        return np.linalg.solve(A, (q - polys[:, 0])[:, :, None])[:, :, 0]
+        return _solve_2x2(A, q - polys[:, 0])
     r = np.zeros((len(q), 2))
     scale = np.abs(polys).max()
     for _ in range(30):
@@ -168,8 +168,15 @@ def _inverse_map(polys, q):
         res = q - np.einsum("nk,nkd->nd", _shape(4, r), polys)
         if np.abs(res).max() <= 1e-15 * scale:
             break
-        r += np.linalg.solve(J, res[:, :, None])[:, :, 0]
+        r += _solve_2x2(J, res)
     return r
+
+
+def _solve_2x2(A, b):
+    """``x`` with ``A[i] x[i] = b[i]`` for (n, 2, 2) ``A``, by Cramer's rule."""
+    det = A[:, 0, 0] * A[:, 1, 1] - A[:, 0, 1] * A[:, 1, 0]
+    return np.stack([A[:, 1, 1] * b[:, 0] - A[:, 0, 1] * b[:, 1],
+                     A[:, 0, 0] * b[:, 1] - A[:, 1, 0] * b[:, 0]], axis=1) / det[:, None]
 
 
 # ---------------------------------------------------------------- 2D pieces

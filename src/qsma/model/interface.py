@@ -251,7 +251,20 @@ def facet_normals(mesh: Mesh, facets: np.ndarray) -> np.ndarray:
 
 
 def _owner_centroids(mesh, facets):
-    """Centroid of the cell that owns each facet."""
+    """Centroid of the cell that owns each facet: boundary facets through the mesh's
+    cached facet index, any other facet (internal, or of no cell) by the lookup below."""
+    from .mesh import facet_index
+    index = facet_index(mesh)
+    row = index.find(facets)
+    if len(row) and (row >= 0).all():
+        cells = index.cell[row]
+        cent = np.concatenate([mesh.points[b.cells].mean(axis=1) for b in mesh.cell_blocks])
+        return cent[cells]
+    return _owner_centroids_by_lookup(mesh, facets)
+
+
+def _owner_centroids_by_lookup(mesh, facets):
+    """Centroid of a cell holding each facet (the last one listed for an internal facet)."""
     from .mesh import CELL_FACETS
     owner, cent = {}, []
     for b in mesh.cell_blocks:                      # mixed meshes: every cell block
