@@ -5,7 +5,7 @@ stages of a whole run.
 
 Usage: python benchmarks/bench_tet_lap.py [--size 1.0] [--top-size 1.15]
            [--outer-size 2.5] [--order 1] [--dissipation masing] [--repeat 1]
-           [--levels tip:log:1e-6:1e-3:51] [--keep DIR]
+           [--levels tip:log:1e-6:1e-3:51] [--keep DIR] [--mortar-only]
 
 Needs the ``gmsh`` Python package (``pip install gmsh``; not a qsma dependency).
 
@@ -22,6 +22,10 @@ nodes and 730 interface pairs).
 did; ``auto`` lets qsma compute the loops where Masing's assumptions fail (they do
 on this joint, docs/validation.md), which is the trustworthy answer and costs much
 more.
+
+``--mortar-only`` times the mortar coupling alone (``qsma.model.make_pairing``, the
+whole pairing of the interface: slave choice, projection, frames), ``--repeat`` times,
+and prints each run and the median instead of running the analysis.
 """
 import argparse
 import statistics
@@ -132,12 +136,16 @@ def main():
     ap.add_argument("--levels", default=None, help="as qsma run --levels")
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--keep", default=None, help="write the .msh files here")
+    ap.add_argument("--mortar-only", action="store_true",
+                    help="time the mortar pairing alone (--repeat times)")
     args = ap.parse_args()
     folder = Path(args.keep or tempfile.mkdtemp(prefix="tet_lap_"))
     folder.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     model = tet_lap_model(folder, args.size, args.top_size, args.outer_size, args.order)
     meshing = time.perf_counter() - t0
+    if args.mortar_only:
+        return time_mortar(model, args.repeat, meshing)
     levels = parse_levels_spec(args.levels) if args.levels else None
     runs = []
     for _ in range(args.repeat):
@@ -164,6 +172,23 @@ def main():
     print(f"success {res.success}: f0 = {res.f0_hz:.10g} Hz, last level q = "
           f"{res.q[-1]:.10g}, zeta = {res.zeta[-1]:.10g}, stuck/slip/open = {counts}; "
           f"{res.message}")
+
+
+def time_mortar(model, repeat, meshing):
+    """Print the wall time of each of ``repeat`` mortar pairings and their median."""
+    from qsma.model import make_pairing
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        pairing = make_pairing(model)
+        times.append(time.perf_counter() - t0)
+    N = pairing.projection
+    print(f"{model.name}: {sum(b.mesh.n_nodes for b in model.bodies)} nodes, "
+          f"{pairing.n_pairs} interface pairs ({pairing.coupling}, slave body "
+          f"{pairing.slave}), {len(pairing.master_nodes)} master nodes, projection "
+          f"nnz {N.nnz}; meshing and reading {meshing:.1f} s")
+    print("mortar pairing [s]: " + ", ".join(f"{t:.3f}" for t in times)
+          + f"; median {statistics.median(times):.3f}")
 
 
 if __name__ == "__main__":

@@ -415,6 +415,8 @@ def _fan_points(piece, count):
     ``(v0, vk, vk+1)`` of each polygon (those of positive area): ``(polygon of each
     point, points (n, 2), weights (n,))``, in polygon, triangle, rule point order."""
     rule, rw = _triangle_rule()
+    if piece.shape[1] < 3:                       # no polygon (no pieces at all)
+        return np.zeros(0, dtype=int), np.zeros((0, 2)), np.zeros(0)
     v0, v1, v2 = piece[:, :1], piece[:, 1:-1], piece[:, 2:]
     area2 = ((v1[..., 0] - v0[..., 0]) * (v2[..., 1] - v0[..., 1])
              - (v2[..., 0] - v0[..., 0]) * (v1[..., 1] - v0[..., 1]))
