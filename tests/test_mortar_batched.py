@@ -212,7 +212,8 @@ def test_mortar_identities_on_jittered_nonmatching_surfaces(slave_tetra, master_
 # ---------------------------------------------------------------- combination
 def _spd(rng, n):
     A = rng.standard_normal((n, n))
-    return A @ A.T + n * np.eye(n)
+    S = A @ A.T + n * np.eye(n)
+    return 0.5 * (S + S.T)                    # exactly symmetric, as condense_body's
 
 
 def test_sparse_combination_equals_the_dense_formula_and_woodbury():

@@ -450,12 +450,13 @@ def combine(slave, master, P, Z=None):
 
     Only ``S`` (SPD when the welded pair is held) is factorised; for ``P = I`` this is
     ``Kc_s S^-1 Kc_m`` of the node-to-node formula (which the node coupling uses as is).
-    ``P`` is sparse (:func:`projection_matrix`): ``Kc_s P = (P^T Kc_s^T)^T`` and
-    ``P^T (Kc_s P)`` are sparse-times-dense products, ``nnz(P)`` multiply-adds per
-    column of the dense factor instead of a dense product's ``n_m``.
+    ``P`` is sparse (:func:`projection_matrix`) and ``Kc_s`` symmetric (symmetrised by
+    :func:`condense_body`): ``Kc_s P = (P^T Kc_s)^T`` and ``P^T (Kc_s P)`` are
+    sparse-times-dense products, ``nnz(P)`` multiply-adds per column of the dense
+    factor instead of a dense product's ``n_m``.
     """
     Ks = np.asarray(slave.Kc)
-    KP = np.ascontiguousarray((P.T @ Ks.T).T)       # Kc_s P
+    KP = (P.T @ Ks).T                               # Kc_s P (a transposed view)
     S_cho = _factor_S(np.asarray(master.Kc) + P.T @ KP, Z)
     if Z is None:                                   # Kc_s - (Kc_s P) S^-1 (Kc_s P)^T
         return minus_gram(Ks, S_cho, KP), S_cho

@@ -30,6 +30,9 @@ into one master segment end where the normal line of a master node crosses it.
 plane of the slave facet along the slave facet normal and clipped against it
 (Sutherland-Hodgman), as in the segment-based integration of Puso and Laursen
 (2004); the pieces are triangulated and integrated with collapsed Gauss rules.
+The 3D pieces and the assembly are computed for all facet pairs at once (numpy
+arrays; the clipped polygons in fixed vertex slots, :func:`clip_polygons`), not
+pair by pair: a Gmsh lap joint of 800 slave nodes takes ~0.3 s.
 """
 from __future__ import annotations
 
