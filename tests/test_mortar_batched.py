@@ -258,3 +258,43 @@ def test_reduced_model_keeps_the_projection_sparse():
     Ks, Km, Pd = np.asarray(rm.bodies[1].Kc), np.asarray(rm.bodies[0].Kc), rm.P.toarray()
     wood = np.linalg.inv(np.linalg.inv(Ks) + Pd @ np.linalg.inv(Km) @ Pd.T)
     np.testing.assert_allclose(rm.K, wood, rtol=0, atol=1e-8 * np.abs(wood).max())
+
+
+# ---------------------------------------------------------------- refusals in 3D
+def _block_3d(y0, n, clamped):
+    """A block [0, 1] x [y0, y0 + 0.25] x [0, 1], ``n`` cells along x and z; facet
+    sets 'lower' and 'upper'; clamped on its lower face if ``clamped``."""
+    m = structured_mesh(np.linspace(0, 1, n + 1), np.linspace(y0, y0 + 0.25, 3),
+                        np.linspace(0, 1, n + 1))
+    y = m.points[:, 1]
+    m = m.with_sets(node_sets={"base": np.flatnonzero(np.abs(y - y0) < 1e-9)},
+                    facet_sets={"lower": m.boundary_facets_where(
+                                    lambda p: np.abs(p[:, 1] - y0) < 1e-9),
+                                "upper": m.boundary_facets_where(
+                                    lambda p: np.abs(p[:, 1] - y0 - 0.25) < 1e-9)})
+    return m, (Clamp("base"),) if clamped else ()
+
+
+def _two_blocks(top_y0, top_set):
+    from qsma.model import make_pairing
+    mb, cb = _block_3d(0.0, 4, True)
+    mt, ct = _block_3d(top_y0, 3, False)
+    model = Model((Body("bottom", mb, STEEL, clamps=cb), Body("top", mt, STEEL, clamps=ct)),
+                  Interface("bottom", "upper", "top", top_set, coupling="mortar"))
+    return lambda: make_pairing(model)
+
+
+@pytest.mark.parametrize("top_y0, top_set, match", [
+    (0.0, "upper", r"body 'bottom' set 'upper' / body 'top' set 'upper'.*point the "
+                   r"same way.*Fix"),
+    (0.25 - 0.125, "lower", r"0\.50 of the local element size(.|\n)*Fix: move the bodies"),
+    (0.25 + 0.075, "lower", r"7\.500e-02 m apart at \[[0-9.]+, 0\.25, [0-9.]+\], 0\.30 of "
+                            r"the local element size"),
+])
+def test_3d_refusals_name_the_problem(top_y0, top_set, match):
+    """Facing facets with same-way normals, surfaces sunk half an element into each
+    other, surfaces 0.3 of an element apart (reported at a point of the slave surface:
+    the first of the worst gap, here uniform)."""
+    from qsma.errors import InputError
+    with pytest.raises(InputError, match=match):
+        _two_blocks(top_y0, top_set)()

@@ -184,57 +184,58 @@ def _solve_2x2(A, b):
 
 # ---------------------------------------------------------------- 2D pieces
 def _pieces_2d(xs, sf, ns, xm, mf, nm):
-    """Integration points of each slave segment against the master segments it faces:
-    ``(_Pieces, same_way)``."""
+    """Integration points of each slave segment against the master segments it faces,
+    batched over all candidate pairs: ``(_Pieces, same_way)``. A piece spans the
+    parameters ``xi`` of the slave segment between the crossings of the normal lines
+    of the master segment's two nodes, clipped to [0, 1]."""
     gx, gw = np.polynomial.legendre.leggauss(GAUSS_POINTS)
     gx, gw = 0.5 * (gx + 1.0), 0.5 * gw
     mnorm = _nodal_normals(len(xm), mf, nm)
     hm = _facet_size(xm, mf)
-    tree = cKDTree(xm[mf].mean(axis=1))
-    out, same_way = [], set()
-    for e, (a, b) in enumerate(sf):
-        x0, x1 = xs[a], xs[b]
-        edge = x1 - x0
-        length = np.linalg.norm(edge)
-        reach = 0.5 * length + 0.5 * hm.max() + GAP_FRACTION * length
-        for f in tree.query_ball_point(0.5 * (x0 + x1), reach):
-            if ns[e] @ nm[f] >= 0:
-                same_way.add(e)
-                continue
-            ka, kb = mf[f]
-            xi = [_cross_line(x0, edge, xm[k], mnorm[k]) for k in (ka, kb)]
-            if None in xi:
-                continue
-            lo, hi = max(min(xi), 0.0), min(max(xi), 1.0)
-            if hi - lo <= 1e-12:
-                continue
-            xg = lo + (hi - lo) * gx
-            eta = _along_normal(x0 + xg[:, None] * edge, xm[ka], xm[kb], mnorm[ka], mnorm[kb])
-            out.append((e, f, xg[:, None], eta[:, None], (hi - lo) * gw * length))
-    e, f = (np.array([p[k] for p in out], dtype=int) for k in (0, 1))
-    join = lambda k, shape: (np.concatenate([p[k] for p in out]) if out
-                             else np.zeros(shape))
-    return _Pieces(e, f, sf[e], mf[f], np.repeat(np.arange(len(out)), GAUSS_POINTS),
-                   join(2, (0, 1)), join(3, (0, 1)), join(4, 0)), \
-        np.array(sorted(same_way), dtype=int)
+    x0 = xs[sf[:, 0]]
+    edge = xs[sf[:, 1]] - x0
+    length = np.linalg.norm(edge, axis=1)
+    e, f = _candidates(cKDTree(xm[mf].mean(axis=1)), x0 + 0.5 * edge,
+                       0.5 * length + 0.5 * hm.max() + GAP_FRACTION * length)
+    opposed = np.einsum("ij,ij->i", ns[e], nm[f]) < 0
+    same_way = np.unique(e[~opposed])
+    e, f = e[opposed], f[opposed]
+    ka, kb = mf[f, 0], mf[f, 1]
+    xi_a, ok_a = _cross_line(x0[e], edge[e], xm[ka], mnorm[ka])
+    xi_b, ok_b = _cross_line(x0[e], edge[e], xm[kb], mnorm[kb])
+    lo = np.maximum(np.minimum(xi_a, xi_b), 0.0)
+    hi = np.minimum(np.maximum(xi_a, xi_b), 1.0)
+    keep = ok_a & ok_b & (hi - lo > 1e-12)
+    e, f, ka, kb, lo, hi = (v[keep] for v in (e, f, ka, kb, lo, hi))
+    xg = lo[:, None] + (hi - lo)[:, None] * gx[None, :]              # (pieces, points)
+    at = lambda v: np.repeat(v, GAUSS_POINTS, axis=0)
+    eta = _along_normal(at(x0[e]) + xg.reshape(-1, 1) * at(edge[e]), at(xm[ka]),
+                        at(xm[kb]), at(mnorm[ka]), at(mnorm[kb]))
+    w = (hi - lo)[:, None] * gw[None, :] * length[e][:, None]
+    return _Pieces(e, f, sf[e], mf[f], np.repeat(np.arange(len(e)), GAUSS_POINTS),
+                   xg.reshape(-1, 1), eta.reshape(-1, 1), w.ravel()), same_way
 
 
 def _cross_line(x0, edge, y, n):
-    """Parameter ``xi`` where the line ``y + t n`` crosses the line ``x0 + xi edge``."""
-    A = np.column_stack([edge, -n])
-    if abs(np.linalg.det(A)) < 1e-12 * np.linalg.norm(edge):
-        return None
-    return float(np.linalg.solve(A, y - x0)[0])
+    """Parameters ``xi`` where the lines ``y + t n`` cross the lines ``x0 + xi edge``
+    (rows), and whether they do (not parallel to 1e-12 of the edge length)."""
+    det = n[:, 0] * edge[:, 1] - edge[:, 0] * n[:, 1]
+    ok = np.abs(det) >= 1e-12 * np.linalg.norm(edge, axis=1)
+    d = y - x0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xi = (n[:, 0] * d[:, 1] - d[:, 0] * n[:, 1]) / det
+    return np.where(ok, xi, 0.0), ok
 
 
 def _along_normal(x, y0, y1, n0, n1):
     """``eta`` with ``x - y(eta)`` parallel to ``n(eta)``, ``y``, ``n`` linear in eta:
-    the root of ``cross(a - eta b, n0 + eta c) = 0`` (quadratic) nearest the chord's."""
+    the root of ``cross(a - eta b, n0 + eta c) = 0`` (quadratic) nearest the chord's;
+    every argument (m, 2), row by row."""
     cr = lambda u, v: u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
     a, b, c = x - y0, y1 - y0, n1 - n0
     c0, c1 = cr(a, n0), cr(a, c) - cr(b, n0)
-    c2 = np.broadcast_to(-cr(b, c), c0.shape)
-    guess = (a @ b) / (b @ b)
+    c2 = -cr(b, c)
+    guess = np.einsum("ij,ij->i", a, b) / np.einsum("ij,ij->i", b, b)
     linear = np.abs(c2) < 1e-14 * (np.abs(c1) + np.abs(c0))
     disc = np.sqrt(np.maximum(c1 ** 2 - 4 * c2 * c0, 0.0))
     q = -0.5 * (c1 + np.copysign(disc, c1))               # stable roots q / c2, c0 / q
@@ -467,8 +468,9 @@ def _assemble(xs, sf, ns, xm, pieces, names, same_way):
     xg_m = np.einsum("pk,pkd->pd", Nm, xm[pc.master_nodes[pc.piece]])
     gap = np.einsum("pd,pd->p", xg_m - xg_s, normal[slot])
     ratio = np.abs(gap) / _facet_size(xs, sf)[point_facet]
-    k = int(np.argmax(ratio)) if len(ratio) else 0
-    if len(ratio) and ratio[k] > GAP_FRACTION:
+    if len(ratio) and ratio.max() > GAP_FRACTION:
+        # the first point (slave facet order) of the worst gap, ties to round-off
+        k = int(np.flatnonzero(ratio >= ratio.max() * (1.0 - 1e-12))[0])
         g, x = gap[k], xg_s[k]
         what = "apart" if g > 0 else "overlap (interpenetrate)"
         raise InputError(
