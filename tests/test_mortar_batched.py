@@ -138,9 +138,9 @@ def _jittered_plate(n, y0, lower, seed, tetra):
     m = structured_mesh(*ax)
     p = m.points.copy()
     rng = np.random.default_rng(seed)
-    inner = (p[:, 0] > 1e-9) & (p[:, 0] < 1 - 1e-9) & (p[:, 2] > 1e-9) & (p[:, 2] < 1 - 1e-9)
-    p[inner] += np.column_stack([rng.uniform(-0.3, 0.3, inner.sum()) / n, np.zeros(inner.sum()),
-                                 rng.uniform(-0.3, 0.3, inner.sum()) / n])
+    inner = np.all((p[:, [0, 2]] > 1e-9) & (p[:, [0, 2]] < 1 - 1e-9), axis=1)
+    shift = rng.uniform(-0.3, 0.3, (inner.sum(), 2)) / n
+    p[np.ix_(inner, [0, 2])] += shift
     cells = m.cells
     kind = m.cell_type
     if tetra:
@@ -188,8 +188,8 @@ def test_mortar_identities_on_jittered_nonmatching_surfaces(slave_tetra, master_
 
     The last two are exact for triangles (polynomial integrands on the pieces); on a
     general quad ``N`` is rational in the physical coordinates and the 4 x 4 collapsed
-    rule leaves up to 3.1e-6 at this distortion (measured; nodes moved by up to 0.3 of
-    the element size), asserted at 1e-5."""
+    rule leaves up to 1.3e-5 at this distortion (measured; nodes moved by up to 0.3 of
+    the element size), asserted at 1e-4."""
     ms, fs = _jittered_plate(7, 0.2, True, 1, slave_tetra)      # slave: lower face of top
     mm, fm = _jittered_plate(5, 0.0, False, 2, master_tetra)    # master: upper of bottom
     op = mortar_operator(ms, fs, mm, fm)
@@ -197,7 +197,7 @@ def test_mortar_identities_on_jittered_nonmatching_surfaces(slave_tetra, master_
     np.testing.assert_allclose(P.sum(axis=1).A1, 1.0, rtol=0, atol=1e-13)
     xs, xm = ms.points[op.slave_nodes], mm.points[op.master_nodes]
     np.testing.assert_allclose(P @ xm[:, [0, 2]], xs[:, [0, 2]], rtol=0, atol=1e-14)
-    tol = lambda tetra: 1e-12 if tetra else 1e-5
+    tol = lambda tetra: 1e-12 if tetra else 1e-4
     np.testing.assert_allclose(op.area, _consistent_areas(ms, fs)[op.slave_nodes],
                                rtol=tol(slave_tetra))
     np.testing.assert_allclose(P.T @ op.area, _consistent_areas(mm, fm)[op.master_nodes],

@@ -30,9 +30,9 @@ into one master segment end where the normal line of a master node crosses it.
 plane of the slave facet along the slave facet normal and clipped against it
 (Sutherland-Hodgman), as in the segment-based integration of Puso and Laursen
 (2004); the pieces are triangulated and integrated with collapsed Gauss rules.
-The 3D pieces and the assembly are computed for all facet pairs at once (numpy
-arrays; the clipped polygons in fixed vertex slots, :func:`clip_polygons`), not
-pair by pair: a Gmsh lap joint of 800 slave nodes takes ~0.3 s.
+The pieces (2D and 3D) and the assembly are computed for all facet pairs at once
+(numpy arrays; the clipped polygons in fixed vertex slots, :func:`clip_polygons`),
+not pair by pair (a Gmsh lap joint of 800 slave nodes: 0.3-0.5 s).
 """
 from __future__ import annotations
 
@@ -437,7 +437,6 @@ def _fan_points(piece, count):
 def _assemble(xs, sf, ns, xm, pieces, names, same_way):
     """Dual basis per slave facet, then ``D``, ``M`` and the weighted gap, batched over
     the facets (stacked dense solves of the small facet mass matrices)."""
-    sbody, sset, mbody, mset = names
     pc = pieces
     point_facet = pc.facet[pc.piece]
     # covered fraction of each slave facet (the clipped pieces' area over the facet's,
@@ -451,44 +450,21 @@ def _assemble(xs, sf, ns, xm, pieces, names, same_way):
     Ns = _shape(sf.shape[1], pc.r_slave)
     Nm = _shape(pc.master_nodes.shape[1], pc.r_master)
     w = pc.weight
-    # per slave facet with pieces: M_e = int N N^T (its row sums: D_e = diag(int N_i)),
-    # the dual basis psi = A N with A = D_e M_e^-1 (M_e symmetric: A^T = M_e^-1 D_e)
-    first = np.flatnonzero(np.r_[True, np.diff(point_facet) != 0])
-    facet_of = point_facet[first]
-    slot = np.repeat(np.arange(len(first)), np.diff(np.r_[first, len(w)]))
-    nodes_of = pc.slave_nodes[pc.piece[first]]
-    Me = np.add.reduceat((Ns * w[:, None])[:, :, None] * Ns[:, None, :], first, axis=0)
-    rowsum = Me.sum(axis=2)
-    D = np.bincount(nodes_of.ravel(), weights=rowsum.ravel(), minlength=len(xs))
-    A = np.linalg.solve(Me, rowsum[:, :, None] * np.eye(sf.shape[1])).transpose(0, 2, 1)
-    psi = np.einsum("pk,pik->pi", Ns, A[slot])
-    # the gap along the slave normal at every point; the worst one against the size
-    normal = ns[facet_of] / np.linalg.norm(ns[facet_of], axis=1, keepdims=True)
-    xg_s = np.einsum("pk,pkd->pd", Ns, xs[pc.slave_nodes[pc.piece]])
-    xg_m = np.einsum("pk,pkd->pd", Nm, xm[pc.master_nodes[pc.piece]])
-    gap = np.einsum("pd,pd->p", xg_m - xg_s, normal[slot])
-    ratio = np.abs(gap) / _facet_size(xs, sf)[point_facet]
-    if len(ratio) and ratio.max() > GAP_FRACTION:
-        # the first point (slave facet order) of the worst gap, ties to round-off
-        k = int(np.flatnonzero(ratio >= ratio.max() * (1.0 - 1e-12))[0])
-        g, x = gap[k], xg_s[k]
-        what = "apart" if g > 0 else "overlap (interpenetrate)"
-        raise InputError(
-            f"interface body {sbody!r} set {sset!r} / body {mbody!r} set {mset!r}: the two "
-            f"surfaces are {abs(g):.3e} m {what} at {np.round(x, 12).tolist()}, "
-            f"{ratio[k]:.2f} of the local element size (at most {GAP_FRACTION} is taken "
-            f"as touching). Fix: move the bodies so that the interface surfaces touch in "
-            f"the undeformed configuration, or check that the sets name the facing "
-            f"surfaces.")
+    D, psi = _dual_basis(Ns, w, point_facet, pc.slave_nodes[pc.piece], len(xs))
     point_nodes = pc.slave_nodes[pc.piece]
-    weighted_gap = np.bincount(point_nodes.ravel(), weights=(psi * (w * gap)[:, None]).ravel(),
-                               minlength=len(xs))
+    # the gap along the slave normal at every point, the worst one against the size
+    normal = ns / np.linalg.norm(ns, axis=1, keepdims=True)
+    xg_s = np.einsum("pk,pkd->pd", Ns, xs[point_nodes])
+    xg_m = np.einsum("pk,pkd->pd", Nm, xm[pc.master_nodes[pc.piece]])
+    gap = np.einsum("pd,pd->p", xg_m - xg_s, normal[point_facet])
+    _check_gap(gap, xg_s, _facet_size(xs, sf)[point_facet], names)
+    weighted_gap = np.bincount(point_nodes.ravel(), minlength=len(xs),
+                               weights=(psi * (w * gap)[:, None]).ravel())
     # M_ik = int psi_i N_k^m per piece: rows the slave facet's nodes, columns the master's
     starts = np.flatnonzero(np.r_[True, np.diff(pc.piece) != 0])
     vals = np.add.reduceat((psi * w[:, None])[:, :, None] * Nm[:, None, :], starts, axis=0)
-    shape = vals.shape
-    rows = np.broadcast_to(pc.slave_nodes[:, :, None], shape)
-    cols = np.broadcast_to(pc.master_nodes[:, None, :], shape)
+    rows = np.broadcast_to(pc.slave_nodes[:, :, None], vals.shape)
+    cols = np.broadcast_to(pc.master_nodes[:, None, :], vals.shape)
     order = snodes[np.lexsort(xs[snodes].T[::-1])]
     M = sp.coo_matrix((vals.ravel(), (rows.ravel(), cols.ravel())),
                       shape=(len(xs), len(xm))).tocsr()
@@ -499,6 +475,43 @@ def _assemble(xs, sf, ns, xm, pieces, names, same_way):
     nrm = _nodal_normals(len(xs), sf, ns)[order]
     return MortarOperator(order, mnodes, P.tocsr(), D[order], nrm,
                           weighted_gap[order] / D[order])
+
+
+def _dual_basis(Ns, w, point_facet, point_nodes, n_points):
+    r"""``(D, psi)``: the tributary areas ``D_i = int N_i`` (over all nodes) and the
+    dual basis at every point, per slave facet ``e`` (the points come sorted by facet)
+
+    .. math:: M_e = \int N N^T, \quad D_e = \mathrm{diag}(M_e \mathbf{1}), \quad
+              \psi = A N, \quad A = D_e M_e^{-1}
+
+    so that :math:`\int \psi_i N_j = \delta_{ij} D_i` (``M_e`` symmetric:
+    :math:`A^T = M_e^{-1} D_e`, one stacked solve for all facets)."""
+    first = np.flatnonzero(np.r_[True, np.diff(point_facet) != 0])
+    slot = np.repeat(np.arange(len(first)), np.diff(np.r_[first, len(w)]))
+    Me = np.add.reduceat((Ns * w[:, None])[:, :, None] * Ns[:, None, :], first, axis=0)
+    rowsum = Me.sum(axis=2)
+    D = np.bincount(point_nodes[first].ravel(), weights=rowsum.ravel(), minlength=n_points)
+    A = np.linalg.solve(Me, rowsum[:, :, None] * np.eye(Ns.shape[1])).transpose(0, 2, 1)
+    return D, np.einsum("pk,pik->pi", Ns, A[slot])
+
+
+def _check_gap(gap, x, size, names):
+    """Refuse surfaces farther apart (or overlapping) than :data:`GAP_FRACTION` of the
+    local element ``size`` at some point, named at the first point of the worst gap
+    (slave facet order; ties to round-off)."""
+    ratio = np.abs(gap) / size
+    if not len(ratio) or ratio.max() <= GAP_FRACTION:
+        return
+    sbody, sset, mbody, mset = names
+    k = int(np.flatnonzero(ratio >= ratio.max() * (1.0 - 1e-12))[0])
+    what = "apart" if gap[k] > 0 else "overlap (interpenetrate)"
+    raise InputError(
+        f"interface body {sbody!r} set {sset!r} / body {mbody!r} set {mset!r}: the two "
+        f"surfaces are {abs(gap[k]):.3e} m {what} at {np.round(x[k], 12).tolist()}, "
+        f"{ratio[k]:.2f} of the local element size (at most {GAP_FRACTION} is taken "
+        f"as touching). Fix: move the bodies so that the interface surfaces touch in "
+        f"the undeformed configuration, or check that the sets name the facing "
+        f"surfaces.")
 
 
 def _check_coverage(xs, snodes, node_cover, names, same_way_nodes):
