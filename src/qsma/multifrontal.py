@@ -79,7 +79,7 @@ class SeparatorTree:
         return out
 
 
-def separator_tree(G, leaf_nodes: int = LEAF_NODES) -> SeparatorTree:
+def separator_tree(G, leaf_nodes: int | None = None) -> SeparatorTree:
     r"""Nested dissection of the graph ``G`` (symmetric CSR adjacency, no diagonal)
     into a tree of fronts by recursive METIS bisection.
 
@@ -95,6 +95,7 @@ def separator_tree(G, leaf_nodes: int = LEAF_NODES) -> SeparatorTree:
     SeparatorTree with the fronts in postorder (children before their parent).
     """
     G = sp.csr_matrix(G)
+    leaf_nodes = LEAF_NODES if leaf_nodes is None else leaf_nodes
     fronts, parents = [], []
     _build(G, np.arange(G.shape[0]), leaf_nodes, fronts, parents)
     order = np.concatenate(fronts) if fronts else np.zeros(0, dtype=np.int64)
@@ -159,8 +160,13 @@ class FrontStructure:
     parent : parent front (``-1``: a root)
     boundary : per front, the positions (sorted, all ``>= start[t + 1]``) of the
         ancestors' DOFs its update couples
-    interface : per front, the interface DOFs (sorted positions in the caller's C)
-        its update couples
+    interface : per front, the interface DOFs its update couples, as sorted numbers
+        of the interface order
+    interface_order : the interface order: ``interface_order[i]`` is the position in
+        the caller's C of interface DOF number ``i``. The DOFs are numbered by the
+        last front that couples them (postorder), so that those of a subtree form
+        one run of numbers, apart from the few that later fronts also couple: the
+        extend-add and the C x C update then work mostly on slices.
     """
 
     perm: np.ndarray
@@ -168,6 +174,7 @@ class FrontStructure:
     parent: np.ndarray
     boundary: tuple
     interface: tuple
+    interface_order: np.ndarray
 
     @property
     def n_fronts(self) -> int:
@@ -180,7 +187,7 @@ class FrontStructure:
         return int(np.sum(nV * (nV + 1) // 2 + nV * nB))
 
 
-def front_structure(K_EE, K_CE, leaf_nodes: int = LEAF_NODES) -> FrontStructure:
+def front_structure(K_EE, K_CE, leaf_nodes: int | None = None) -> FrontStructure:
     """Separator tree and front sets of the sparse ``K_EE`` with interface coupling
     ``K_CE`` (|C| x n_E), on the node graph of ``K_EE``
     (:func:`qsma.linalg.node_graph`)."""
@@ -202,6 +209,7 @@ def front_structure(K_EE, K_CE, leaf_nodes: int = LEAF_NODES) -> FrontStructure:
         if p >= 0:
             children[p].append(t)
     bgroups = [None] * tree.n_fronts
+    last = np.full(GC.shape[1], -1, dtype=np.int64)      # last front coupling a C DOF
     for t in range(tree.n_fronts):
         mine = tree.order[tree.start[t]:tree.start[t + 1]]
         near = np.unique(np.concatenate(
@@ -213,11 +221,17 @@ def front_structure(K_EE, K_CE, leaf_nodes: int = LEAF_NODES) -> FrontStructure:
             bgroups[c] = None
         near = near[np.argsort(position[near])]
         boundary.append(_expanded(position[near], size[near]))
+        own = np.concatenate([GC.indices[GC.indptr[g]:GC.indptr[g + 1]] for g in mine]
+                             + [np.zeros(0, dtype=np.int64)])
+        last[own] = t
         interface.append(np.unique(np.concatenate(
-            [GC.indices[GC.indptr[g]:GC.indptr[g + 1]] for g in mine]
-            + [interface[c] for c in children[t]] + [np.zeros(0, dtype=np.int64)])))
+            [own] + [interface[c] for c in children[t]])))
+    order = np.argsort(last, kind="stable")
+    number = np.empty(len(order), dtype=np.int64)
+    number[order] = np.arange(len(order))
+    interface = tuple(np.sort(number[c]) for c in interface)
     return FrontStructure(perm, start.astype(np.int64), tree.parent, tuple(boundary),
-                          tuple(interface))
+                          interface, order)
 
 
 def _expanded(first, size) -> np.ndarray:
@@ -296,80 +310,149 @@ def multifrontal_schur(K_EE, K_CE, structure: FrontStructure):
     s = structure
     A = sp.csc_matrix(K_EE)[s.perm][:, s.perm].tocsc()
     A.sort_indices()
-    B = sp.csc_matrix(sp.csr_matrix(K_CE)[:, s.perm])
+    B = sp.csc_matrix(sp.csr_matrix(K_CE)[s.interface_order][:, s.perm])
     B.sort_indices()
     diag = A.diagonal()
     nC = K_CE.shape[0]
     out = np.zeros((nC, nC), order="F")
     n_children = np.bincount(s.parent[s.parent >= 0], minlength=s.n_fronts)
-    L11, L21, updates = [], [], []
+    L11, L21, updates = [], [], []        # updates: a stack, children on top
     ratio = np.inf
     for t in range(s.n_fronts):
-        F11, F21, F22 = _assembled_front(A, B, s, t)
+        front = _assembled_front(A, B, s, t)
         for child in updates[len(updates) - n_children[t]:]:
-            _extend_add(F11, F21, F22, child, s, t)
+            _extend_add(front, child, s, t)
         del updates[len(updates) - n_children[t]:]
-        a, e = s.start[t], s.start[t + 1]
-        L, info = lapack.dpotrf(F11, lower=1, clean=1, overwrite_a=1)
-        if info != 0:
+        L, LB, update, ratio_t = _partial_cholesky(*front, s, t, out, diag)
+        del front
+        if L is None:
             return None, out, -np.inf
-        if e > a:
-            ratio = min(ratio, float(np.min(np.diag(L) ** 2 / diag[a:e])))
-        nB = len(s.boundary[t])
-        if F21.shape[0] and e > a:
-            F21 = blas.dtrsm(1.0, L, F21, side=1, lower=1, trans_a=1, overwrite_b=1)
-        LB = np.asfortranarray(F21[:nB])
-        if nB and e > a:
-            F22 = blas.dgemm(-1.0, F21, LB, trans_b=1, beta=1.0, c=F22, overwrite_c=1)
-        updates.append((F22, s.boundary[t], s.interface[t]) if nB else None)
-        if len(s.interface[t]) and e > a:
-            _interface_update(out, np.asfortranarray(F21[nB:]), s.interface[t])
-        del F21, F22
+        ratio = min(ratio, ratio_t)
+        updates.append(update)
         L11.append(L)
         L21.append(LB)
     from .linalg import mirror_triangle
-    G = mirror_triangle(out.T, "lower")          # C order, no copy
+    G = _reordered(mirror_triangle(out.T, "lower"), s.interface_order)
     return MultifrontalFactor(s, tuple(L11), tuple(L21)), G, ratio
 
 
+def _reordered(G, order, rows_per_block=512):
+    """``H`` with ``H[order[i], order[j]] = G[i, j]`` (a new C-ordered array; ``G``
+    square, C-ordered), by blocks of rows (no second temporary of full size)."""
+    rank = np.empty(len(order), dtype=np.int64)
+    rank[order] = np.arange(len(order))
+    if np.array_equal(rank, np.arange(len(rank))):
+        return G
+    H = np.empty_like(G)
+    for i in range(0, len(rank), rows_per_block):
+        H[i:i + rows_per_block] = G[rank[i:i + rows_per_block]][:, rank]
+    return H
+
+
 def _assembled_front(A, B, s, t):
-    """The front of ``t`` with ``K``'s entries in its columns: ``F11`` (V x V),
-    ``F21`` ([B, C] x V) and ``F22`` ([B, C] x B, zero)."""
+    """The front of ``t`` with ``K``'s entries in its columns ``V``: ``F11`` (V x V),
+    ``FB`` (rows ``B``, columns ``[V, B]``) and ``FC`` (rows ``C``, columns
+    ``[V, B]``), Fortran arrays; the ``B`` columns are zero."""
     a, e = s.start[t], s.start[t + 1]
     nV, bnd, itf = e - a, s.boundary[t], s.interface[t]
-    nB = len(bnd)
     F11 = np.zeros((nV, nV), order="F")
-    F21 = np.zeros((nB + len(itf), nV), order="F")
-    F22 = np.zeros((nB + len(itf), nB), order="F")
+    FB = np.zeros((len(bnd), nV + len(bnd)), order="F")
+    FC = np.zeros((len(itf), nV + len(bnd)), order="F")
     lo, hi = A.indptr[a], A.indptr[e]
     rows, vals = A.indices[lo:hi], A.data[lo:hi]
     cols = np.repeat(np.arange(nV), np.diff(A.indptr[a:e + 1]))
     inside = (rows >= a) & (rows < e)
     F11[rows[inside] - a, cols[inside]] = vals[inside]
     above = rows >= e
-    F21[np.searchsorted(bnd, rows[above]), cols[above]] = vals[above]
+    FB[np.searchsorted(bnd, rows[above]), cols[above]] = vals[above]
     lo, hi = B.indptr[a], B.indptr[e]
     cols = np.repeat(np.arange(nV), np.diff(B.indptr[a:e + 1]))
-    F21[nB + np.searchsorted(itf, B.indices[lo:hi]), cols] = B.data[lo:hi]
-    return F11, F21, F22
+    FC[np.searchsorted(itf, B.indices[lo:hi]), cols] = B.data[lo:hi]
+    return F11, FB, FC
 
 
-def _extend_add(F11, F21, F22, child, s, t):
-    """Add a child's update (rows ``[B_c, C_c]``, columns ``B_c``) to the front of
-    ``t``. ``B_c`` is sorted and the positions of ``t``'s own DOFs precede all its
-    ancestors', so the first ``k`` entries of ``B_c`` are ``t``'s."""
+def _partial_cholesky(F11, FB, FC, s, t, out, diag):
+    r"""Eliminate the DOFs ``V`` of front ``t``:
+
+    .. math:: F_{11} = L_{11} L_{11}^T, \quad L_{B} = F_{BV} L_{11}^{-T}, \quad
+              L_{C} = F_{CV} L_{11}^{-T}, \quad
+              U_{BB} = F_{BB} - L_B L_B^T, \quad U_{CB} = F_{CB} - L_C L_B^T,
+
+    and ``out[C, C] -= L_C L_C^T`` (upper triangle). ``U_BB`` is valid in its lower
+    triangle only (``dsyrk``), which is all its ancestors read. Returns ``(L11, L_B,
+    (U_BB, U_CB, B, C) or None, ratio)``, ``L11 = None`` if ``F11`` is not positive
+    definite."""
+    a, e = s.start[t], s.start[t + 1]
+    nV, nB = e - a, len(s.boundary[t])
+    L, info = lapack.dpotrf(F11, lower=1, clean=1, overwrite_a=1)
+    if info != 0:
+        return None, None, None, -np.inf
+    ratio = float(np.min(np.diag(L) ** 2 / diag[a:e])) if nV else np.inf
+    LB, UB = FB[:, :nV], FB[:, nV:]               # column blocks: Fortran-contiguous
+    LC, UC = FC[:, :nV], FC[:, nV:]
+    if nV and nB:
+        LB = blas.dtrsm(1.0, L, LB, side=1, lower=1, trans_a=1, overwrite_b=1)
+        UB = blas.dsyrk(-1.0, LB, beta=1.0, c=UB, lower=1, overwrite_c=1)
+    if nV and len(LC):
+        LC = blas.dtrsm(1.0, L, LC, side=1, lower=1, trans_a=1, overwrite_b=1)
+        if nB:
+            UC = blas.dgemm(-1.0, LC, LB, trans_b=1, beta=1.0, c=UC, overwrite_c=1)
+        _interface_update(out, LC, s.interface[t])
+    update = None
+    if nB:
+        update = (np.array(UB, order="F"), np.array(UC, order="F"), s.boundary[t],
+                  s.interface[t])
+    return L, np.array(LB, order="F"), update, ratio
+
+
+def _extend_add(front, child, s, t):
+    """Add a child's update (``U_BB``: rows and columns ``B_c``, lower triangle;
+    ``U_CB``: rows ``C_c``, columns ``B_c``) to the front of ``t``. ``B_c`` is sorted
+    and the positions of ``t``'s own DOFs precede all its ancestors', so the first
+    ``k`` entries of ``B_c`` are ``t``'s."""
     if child is None:
         return
-    U, bc, cc = child
+    F11, FB, FC = front
+    UB, UC, bc, cc = child
     a, e = s.start[t], s.start[t + 1]
     k = int(np.searchsorted(bc, e))
     own = bc[:k] - a
-    rows = np.concatenate([np.searchsorted(s.boundary[t], bc[k:]),
-                           len(s.boundary[t]) + np.searchsorted(s.interface[t], cc)])
-    F11[np.ix_(own, own)] += U[:k, :k]
-    if len(rows):
-        F21[np.ix_(rows, own)] += U[k:, :k]
-        F22[np.ix_(rows, rows[:len(bc) - k])] += U[k:, k:]
+    up = np.searchsorted(s.boundary[t], bc[k:])
+    cols = np.concatenate([own, (e - a) + up])
+    _add_block(F11, own, own, UB[:k, :k])
+    _add_block(FB, up, cols, UB[k:])
+    _add_block(FC, np.searchsorted(s.interface[t], cc), cols, UC)
+
+
+#: Shortest run of consecutive rows that :func:`_add_block` adds through a slice.
+RUN_ROWS = 16
+
+
+def _add_block(F, rows, cols, X):
+    """``F[ix_(rows, cols)] += X`` (``rows`` and ``cols`` increasing). Runs of at
+    least :data:`RUN_ROWS` consecutive rows are added through slices; the other rows
+    are gathered, added to and put back. numpy's 2-D fancy indexing costs ~40 ns an
+    entry, a slice ~5 ns."""
+    if len(rows) == 0 or len(cols) == 0:
+        return
+    if cols[-1] - cols[0] == len(cols) - 1:
+        cols = slice(cols[0], cols[-1] + 1)
+    breaks = np.flatnonzero(np.diff(rows) != 1) + 1
+    first = np.concatenate([[0], breaks])
+    end = np.concatenate([breaks, [len(rows)]])
+    long = end - first >= RUN_ROWS
+    for i, j in zip(first[long], end[long]):
+        F[rows[i]:rows[i] + (j - i), cols] += X[i:j]
+    if long.all():
+        return
+    rest = np.repeat(~long, end - first)
+    r = rows[rest]
+    if isinstance(cols, slice) or 2 * len(cols) < F.shape[1]:
+        F[np.ix_(r, np.arange(F.shape[1])[cols])] += X[rest]
+    else:
+        block = F[r]
+        block[:, cols] += X[rest]
+        F[r] = block
 
 
 def _interface_update(out, LC, itf):
@@ -377,7 +460,7 @@ def _interface_update(out, LC, itf):
     if len(itf) == out.shape[0]:
         blas.dsyrk(-1.0, LC, beta=1.0, c=out, overwrite_c=1, lower=0)
     else:
-        out[np.ix_(itf, itf)] += blas.dsyrk(-1.0, LC, lower=0)
+        _add_block(out, itf, itf, blas.dsyrk(-1.0, LC, lower=0))
 
 
 def schur_parts(K, C, E):
