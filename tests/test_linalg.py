@@ -312,7 +312,8 @@ def laplacian_3d(n, shift=1e-2):
     return (K + shift * sp.identity(n ** 3)).tocsr()
 
 
-@pytest.mark.parametrize("backend", ["metis_superlu", "splu", "superlu_schur"])
+@pytest.mark.parametrize("backend", ["metis_superlu", "multifrontal", "splu",
+                                     "superlu_schur"])
 def test_threaded_solves_equal_serial_ones_bit_for_bit(backend, monkeypatch):
     """The K_EE solver of a backend on 1, 2 and 3 threads (QSMA_SOLVE_THREADS) gives
     the same bits for every column (the solves run on one BLAS thread whatever the

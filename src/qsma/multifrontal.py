@@ -130,7 +130,7 @@ def _bisection(sub):
     if sub.nnz == 0:                       # no edges: two halves, nothing between
         half = n // 2
         return np.arange(half), np.arange(half, n), np.zeros(0, dtype=np.int64)
-    part = np.asarray(pymetis.part_graph(2, xadj=sub.indptr, adjncy=sub.indices)
+    part = np.asarray(pymetis.part_graph(2, pymetis.CSRAdjacency(sub.indptr, sub.indices))
                       .vertex_part, dtype=np.int8)
     rows = np.repeat(np.arange(n), np.diff(sub.indptr))
     cut = part[rows] != part[sub.indices]
@@ -302,10 +302,11 @@ def multifrontal_schur(K_EE, K_CE, structure: FrontStructure):
 
     Returns
     -------
-    (factor, G, ratio) : the :class:`MultifrontalFactor` (``None`` if ``K_EE`` is not
-        positive definite), ``G = -K_CE K_EE^{-1} K_EC`` (dense, |C| x |C|, caller's C
-        order, symmetric) and ``min_i L_ii^2 / (K_EE)_ii`` (``-inf`` when ``dpotrf``
-        meets a non-positive pivot).
+    (factor, G, ratio, seconds) : the :class:`MultifrontalFactor` (``None`` if
+        ``K_EE`` is not positive definite), ``G = -K_CE K_EE^{-1} K_EC`` (dense,
+        |C| x |C|, caller's C order, symmetric), ``min_i L_ii^2 / (K_EE)_ii``
+        (``-inf`` when ``dpotrf`` meets a non-positive pivot) and the seconds spent
+        on the C x C updates (included in the factorisation's time).
     """
     s = structure
     A = sp.csc_matrix(K_EE)[s.perm][:, s.perm].tocsc()
@@ -318,22 +319,23 @@ def multifrontal_schur(K_EE, K_CE, structure: FrontStructure):
     n_children = np.bincount(s.parent[s.parent >= 0], minlength=s.n_fronts)
     L11, L21, updates = [], [], []        # updates: a stack, children on top
     ratio = np.inf
+    clock = [0.0]                          # seconds of the C x C updates
     for t in range(s.n_fronts):
         front = _assembled_front(A, B, s, t)
         for child in updates[len(updates) - n_children[t]:]:
             _extend_add(front, child, s, t)
         del updates[len(updates) - n_children[t]:]
-        L, LB, update, ratio_t = _partial_cholesky(*front, s, t, out, diag)
+        L, LB, update, ratio_t = _partial_cholesky(*front, s, t, out, diag, clock)
         del front
         if L is None:
-            return None, out, -np.inf
+            return None, out, -np.inf, clock[0]
         ratio = min(ratio, ratio_t)
         updates.append(update)
         L11.append(L)
         L21.append(LB)
     from .linalg import mirror_triangle
     G = _reordered(mirror_triangle(out.T, "lower"), s.interface_order)
-    return MultifrontalFactor(s, tuple(L11), tuple(L21)), G, ratio
+    return MultifrontalFactor(s, tuple(L11), tuple(L21)), G, ratio, clock[0]
 
 
 def _reordered(G, order, rows_per_block=512):
@@ -371,7 +373,7 @@ def _assembled_front(A, B, s, t):
     return F11, FB, FC
 
 
-def _partial_cholesky(F11, FB, FC, s, t, out, diag):
+def _partial_cholesky(F11, FB, FC, s, t, out, diag, clock):
     r"""Eliminate the DOFs ``V`` of front ``t``:
 
     .. math:: F_{11} = L_{11} L_{11}^T, \quad L_{B} = F_{BV} L_{11}^{-T}, \quad
@@ -397,7 +399,9 @@ def _partial_cholesky(F11, FB, FC, s, t, out, diag):
         LC = blas.dtrsm(1.0, L, LC, side=1, lower=1, trans_a=1, overwrite_b=1)
         if nB:
             UC = blas.dgemm(-1.0, LC, LB, trans_b=1, beta=1.0, c=UC, overwrite_c=1)
+        t0 = time.perf_counter()
         _interface_update(out, LC, s.interface[t])
+        clock[0] += time.perf_counter() - t0
     update = None
     if nB:
         update = (np.array(UB, order="F"), np.array(UC, order="F"), s.boundary[t],
@@ -464,19 +468,20 @@ def _interface_update(out, LC, itf):
 
 
 def schur_parts(K, C, E):
-    """The ``"multifrontal"`` backend: ``(Kc, solve, ratio, timings)`` for
-    :class:`qsma.linalg.SchurParts`."""
+    """The ``"multifrontal"`` backend on the canonical CSR ``K``: ``(Kc, factor,
+    ratio, timings)``, ``Kc`` in the order of ``C`` (not yet symmetrised: its two
+    triangles are equal by construction), ``factor`` a :class:`MultifrontalFactor` or
+    ``None`` when ``K_EE`` is not positive definite (then ``ratio = -inf``)."""
     t0 = time.perf_counter()
-    KE = K[E]
-    K_EE = KE[:, E].tocsr()
+    K_EE = K[E][:, E].tocsr()
     K_CE = K[C][:, E].tocsr()
     structure = front_structure(K_EE, K_CE)
     t1 = time.perf_counter()
-    factor, G, ratio = multifrontal_schur(K_EE, K_CE, structure)
+    factor, G, ratio, update = multifrontal_schur(K_EE, K_CE, structure)
     t2 = time.perf_counter()
     if factor is not None:
         K_CC = K[C][:, C].tocoo()
         G[K_CC.row, K_CC.col] += K_CC.data
     t3 = time.perf_counter()
-    return G, factor, ratio, {"ordering": t1 - t0, "factorization": t2 - t1,
-                              "schur": t3 - t2}
+    return G, factor, ratio, {"ordering": t1 - t0, "factorization": t2 - t1 - update,
+                              "schur": t3 - t2 + update}
