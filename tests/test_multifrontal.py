@@ -215,3 +215,20 @@ def test_same_kc_as_metis_superlu_on_the_3d_block():
     assert np.abs(Kc_m - Kc_s).max() <= 1e-12 * np.abs(Kc_s).max()
     B = np.random.default_rng(5).standard_normal((s_m.n, 4))
     assert np.abs(s_m(B) - s_s(B)).max() <= 1e-10 * np.abs(s_s(B)).max()
+
+
+def test_minimum_cover_is_a_smallest_vertex_cover():
+    """Koenig's construction against exhaustive search on small bipartite graphs."""
+    from itertools import combinations
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        n_left, n_right, m = rng.integers(1, 7), rng.integers(1, 7), rng.integers(1, 12)
+        left, right = rng.integers(0, n_left, m), 100 + rng.integers(0, n_right, m)
+        cover = set(mf.minimum_cover(left, right).tolist())
+        assert all(a in cover or b in cover for a, b in zip(left, right))
+        vertices = sorted(set(left.tolist()) | set(right.tolist()))
+        smallest = next(k for k in range(len(vertices) + 1)
+                        if any(all(a in S or b in S for a, b in zip(left, right))
+                               for S in map(set, combinations(vertices, k))))
+        assert len(cover) == smallest
+    assert len(mf.minimum_cover(np.zeros(0, int), np.zeros(0, int))) == 0

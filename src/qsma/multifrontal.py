@@ -84,8 +84,8 @@ def separator_tree(G, leaf_nodes: int | None = None) -> SeparatorTree:
     into a tree of fronts by recursive METIS bisection.
 
     A bisection ``P_0 \cup P_1`` from ``pymetis.part_graph(2, ...)`` is turned into a
-    vertex separator ``S``: the vertices of one part with a neighbour in the other
-    (the smaller of the two such sets). The front of a tree node eliminates ``S``;
+    vertex separator ``S``: a minimum vertex cover of the cut edges
+    (:func:`minimum_cover`). The front of a tree node eliminates ``S``;
     its children are the trees of ``P_0 \setminus S`` and ``P_1 \setminus S``, which no
     edge joins. Sets of at most ``leaf_nodes`` vertices, without edges to cut or that
     METIS does not split, are leaves.
@@ -133,9 +133,8 @@ def _bisection(sub):
     part = np.asarray(pymetis.part_graph(2, pymetis.CSRAdjacency(sub.indptr, sub.indices))
                       .vertex_part, dtype=np.int8)
     rows = np.repeat(np.arange(n), np.diff(sub.indptr))
-    cut = part[rows] != part[sub.indices]
-    sides = [np.unique(rows[cut & (part[rows] == k)]) for k in (0, 1)]
-    sep = min(sides, key=len)
+    cut = (part[rows] == 0) & (part[sub.indices] == 1)
+    sep = minimum_cover(rows[cut], sub.indices[cut])
     keep = np.ones(n, dtype=bool)
     keep[sep] = False
     a = np.flatnonzero(keep & (part == 0))
@@ -143,6 +142,39 @@ def _bisection(sub):
     if max(len(a), len(b)) == n:
         return None
     return a, b, sep
+
+
+def minimum_cover(left, right) -> np.ndarray:
+    r"""Smallest set of vertices that touches every edge ``left[i] - right[i]`` of a
+    bipartite graph (the two lists name disjoint vertex sets): a vertex separator
+    from the cut edges of a bisection.
+
+    By Koenig's theorem its size is that of a maximum matching ``M``
+    (``scipy.sparse.csgraph.maximum_bipartite_matching``). With ``Z`` the vertices
+    reachable from the unmatched left vertices by alternating paths (any edge from
+    left to right, a matched edge from right to left), the cover is
+    ``(L \setminus Z) \cup (R \cap Z)``.
+    """
+    from scipy.sparse.csgraph import breadth_first_order, maximum_bipartite_matching
+    if len(left) == 0:
+        return np.zeros(0, dtype=np.int64)
+    L, li = np.unique(left, return_inverse=True)
+    R, ri = np.unique(right, return_inverse=True)
+    nL, nR = len(L), len(R)
+    edges = sp.csr_matrix((np.ones(len(li)), (li, ri)), shape=(nL, nR))
+    match = maximum_bipartite_matching(edges, perm_type="column")   # left -> right
+    matched = match >= 0
+    # directed graph on [source, L, R]: source -> unmatched left, left -> right,
+    # right -> its matched left
+    src = np.concatenate([np.zeros(int(np.sum(~matched)), dtype=np.int64),
+                          1 + li, 1 + nL + match[matched]])
+    dst = np.concatenate([1 + np.flatnonzero(~matched), 1 + nL + ri,
+                          1 + np.flatnonzero(matched)])
+    graph = sp.csr_matrix((np.ones(len(src)), (src, dst)), shape=(1 + nL + nR,) * 2)
+    reached = np.zeros(1 + nL + nR, dtype=bool)
+    reached[breadth_first_order(graph, 0, directed=True, return_predecessors=False)] = True
+    cover = np.concatenate([L[~reached[1:1 + nL]], R[reached[1 + nL:]]])
+    return np.sort(cover)
 
 
 # ----------------------------------------------------------------------------------
