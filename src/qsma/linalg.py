@@ -15,11 +15,16 @@ the numbers are in ``docs/schur.md``):
     Intel MKL PARDISO through ``pypardiso``'s ``mkl_rt``: nested-dissection
     ordering and the Schur complement computed during the factorisation
     (``iparm(36) = 1``), plus a plain Cholesky of ``K_EE`` for the solver.
+``"multifrontal"``
+    our own Cholesky of ``K_EE`` with dense fronts on a METIS separator tree of its
+    node graph (:mod:`qsma.multifrontal`, ``pymetis``): the interface rows ride along
+    in every front and their updates sum to ``K_CE K_EE^-1 K_EC``; the factor (one
+    triangle) solves with ``K_EE`` (the default without PARDISO).
 ``"metis_superlu"``
     METIS nested dissection of ``K_EE`` (``pymetis``) on its node graph and one SuperLU
     factorisation of the bordered matrix ``[[K_EE, K_EC], [0, I]]`` in that order,
     without pivoting: ``Kc = K_CC - U_EC^T D^-1 U_EC`` by blocked BLAS products, and
-    the same factor solves with ``K_EE`` (the default without PARDISO).
+    the same factor solves with ``K_EE``.
 ``"cholmod"``
     CHOLMOD (supernodal Cholesky, from the ``cvxopt`` wheel) of ``K`` ordered
     ``[E by AMD, C last]``: ``K = L L^T`` with ``Kc = L_CC L_CC^T``.
@@ -71,7 +76,12 @@ SPLU_BLOCK_BYTES = 128 * 2**20
 SCHUR_BACKENDS: dict = {}
 
 #: Order in which ``backend="auto"`` tries the backends (fastest first, docs/schur.md).
-AUTO_ORDER = ("pardiso", "metis_superlu", "cholmod", "superlu_schur", "splu")
+#: ``multifrontal`` beats ``metis_superlu`` at both sizes measured (one body of
+#: sandwich-3d, one BLAS thread, medians of 3 alternating): refine 1 1.04 s against
+#: 1.63 s, refine 2 13.7 s against 34.5 s and 1.4 GB against 3.1 GB peak, with solves
+#: as fast or faster (``python benchmarks/bench_schur.py --stages --cases 3d-1 3d-2``).
+AUTO_ORDER = ("pardiso", "multifrontal", "metis_superlu", "cholmod", "superlu_schur",
+              "splu")
 
 
 @dataclass(frozen=True)
