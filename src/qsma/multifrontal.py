@@ -8,8 +8,8 @@ with one Cholesky factorisation ``K_EE = L L^T`` done front by front with dense
 BLAS-3 (LAPACK ``dpotrf``, BLAS ``dtrsm``, ``dgemm``, ``dsyrk``):
 
 1. **Separator tree.** The node graph of ``K_EE`` (supervariables: the DOFs of one
-   mesh node) is cut in two by METIS (``pymetis.part_graph``); the vertices of the
-   smaller side that touch the other side form a vertex separator ``S``. Both sides
+   mesh node) is cut in two by METIS (``pymetis.part_graph``); a minimum vertex
+   cover of the cut edges is a vertex separator ``S``. Both sides
    without ``S`` are cut again, down to leaves of at most :data:`LEAF_NODES` nodes.
    Every tree node ``t`` (a *front*) eliminates its vertices ``V_t`` (a separator or a
    leaf); no edge joins two sibling subtrees, so the rows that ``V_t`` couples to after
@@ -48,8 +48,10 @@ from scipy.linalg import blas, lapack
 
 #: Most graph vertices (mesh nodes) in a leaf of the separator tree. A leaf is one
 #: dense front: larger leaves mean fewer fronts (less Python work per factorisation
-#: and solve) but more dense arithmetic. Measured on sandwich-3d refine 1 and 2
-#: (docs/schur.md, section "A multifrontal Cholesky of our own").
+#: and solve) but more dense arithmetic. One body of sandwich-3d refine 1 (one BLAS
+#: thread, single runs on a loaded machine): 16, 32, 64, 128 nodes gave 1.23, 1.07,
+#: 0.82, 0.74 s; refine 2: 32, 64, 128 gave 6.05e7, 6.45e7, 7.51e7 factor entries and
+#: times within the noise of the machine (docs/schur.md).
 LEAF_NODES = 64
 
 
@@ -315,15 +317,17 @@ class MultifrontalFactor:
         for t in range(s.n_fronts):
             a, e = start[t], start[t + 1]
             yV = y[a:e].T                     # F-contiguous view: trsm in place
-            blas.dtrsm(1.0, self.L11[t], yV, side=1, lower=1, trans_a=1, overwrite_b=1)
+            yV[...] = blas.dtrsm(1.0, self.L11[t], yV, side=1, lower=1, trans_a=1,
+                                 overwrite_b=1)
             if len(s.boundary[t]):
                 y[s.boundary[t]] -= self.L21[t] @ y[a:e]
         for t in range(s.n_fronts - 1, -1, -1):
             a, e = start[t], start[t + 1]
             if len(s.boundary[t]):
                 y[a:e] -= self.L21[t].T @ y[s.boundary[t]]
-            blas.dtrsm(1.0, self.L11[t], y[a:e].T, side=1, lower=1, trans_a=0,
-                       overwrite_b=1)
+            yV = y[a:e].T
+            yV[...] = blas.dtrsm(1.0, self.L11[t], yV, side=1, lower=1, trans_a=0,
+                                 overwrite_b=1)
         x = np.empty_like(y)
         x[s.perm] = y
         return x[:, 0] if one else x
