@@ -309,28 +309,42 @@ class MultifrontalFactor:
     def solve(self, b) -> np.ndarray:
         r"""``K_EE^{-1} b`` for ``b`` of shape (n_E,) or (n_E, k): ``L y = b[perm]``
         front by front in postorder (``y_V = L_11^{-1} y_V``, ``y_B -= L_21 y_V``),
-        then ``L^T x = y`` in reverse order (``x_V = L_11^{-T}(y_V - L_21^T x_B)``)."""
+        then ``L^T x = y`` in reverse order (``x_V = L_11^{-T}(y_V - L_21^T x_B)``).
+
+        The right-hand sides are the columns of Fortran blocks passed to BLAS
+        ``dtrsm`` and ``dgemm`` as their ``n`` dimension, as in SuperLU's solves: the
+        OpenBLAS kernels treat such columns in pairs, so a solve of columns split at
+        even offsets (:func:`qsma.linalg.solved_by_columns`) has the bits of the
+        whole one."""
         s = self.structure
         one = b.ndim == 1
-        y = np.ascontiguousarray(b.reshape(len(b), -1)[s.perm], dtype=float)
-        start = s.start
-        for t in range(s.n_fronts):
-            a, e = start[t], start[t + 1]
-            yV = y[a:e].T                     # F-contiguous view: trsm in place
-            yV[...] = blas.dtrsm(1.0, self.L11[t], yV, side=1, lower=1, trans_a=1,
-                                 overwrite_b=1)
+        y = np.asfortranarray(b.reshape(len(b), -1)[s.perm], dtype=float)
+        fronts = np.flatnonzero(np.diff(s.start) > 0)    # (a separator may be empty)
+        for t in fronts:
+            yV = self._front_solve(y, t, trans=0)
             if len(s.boundary[t]):
-                y[s.boundary[t]] -= self.L21[t] @ y[a:e]
-        for t in range(s.n_fronts - 1, -1, -1):
-            a, e = start[t], start[t + 1]
+                yB = np.asfortranarray(y[s.boundary[t]])
+                y[s.boundary[t]] = blas.dgemm(-1.0, self.L21[t], yV, beta=1.0, c=yB,
+                                              overwrite_c=1)
+        for t in fronts[::-1]:
             if len(s.boundary[t]):
-                y[a:e] -= self.L21[t].T @ y[s.boundary[t]]
-            yV = y[a:e].T
-            yV[...] = blas.dtrsm(1.0, self.L11[t], yV, side=1, lower=1, trans_a=0,
-                                 overwrite_b=1)
+                a, e = s.start[t], s.start[t + 1]
+                yV = np.asfortranarray(y[a:e])
+                y[a:e] = blas.dgemm(-1.0, self.L21[t], np.asfortranarray(y[s.boundary[t]]),
+                                    trans_a=1, beta=1.0, c=yV, overwrite_c=1)
+            self._front_solve(y, t, trans=1)
         x = np.empty_like(y)
         x[s.perm] = y
         return x[:, 0] if one else x
+
+    def _front_solve(self, y, t, trans):
+        """``y_V = L_11^{-1} y_V`` (``trans = 0``) or ``L_11^{-T} y_V`` (1) in place
+        for the rows ``V`` of front ``t``; returns the new ``y_V`` (Fortran)."""
+        a, e = self.structure.start[t], self.structure.start[t + 1]
+        yV = blas.dtrsm(1.0, self.L11[t], np.asfortranarray(y[a:e]), lower=1,
+                        trans_a=trans, overwrite_b=1)
+        y[a:e] = yV
+        return yV
 
 
 def multifrontal_schur(K_EE, K_CE, structure: FrontStructure):
