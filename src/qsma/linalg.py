@@ -75,13 +75,31 @@ SPLU_BLOCK_BYTES = 128 * 2**20
 #: name -> :class:`SchurBackend`, filled by :func:`register_backend`.
 SCHUR_BACKENDS: dict = {}
 
-#: Order in which ``backend="auto"`` tries the backends (fastest first, docs/schur.md).
-#: ``multifrontal`` beats ``metis_superlu`` at both sizes measured (one body of
-#: sandwich-3d, one BLAS thread, medians of 3 alternating): refine 1 1.04 s against
-#: 1.63 s, refine 2 13.7 s against 34.5 s and 1.4 GB against 3.1 GB peak, with solves
-#: as fast or faster (``python benchmarks/bench_schur.py --stages --cases 3d-1 3d-2``).
+#: Order in which ``backend="auto"`` tries the backends (fastest first, docs/schur.md);
+#: ``multifrontal`` only where :func:`suits_multifrontal` says so.
 AUTO_ORDER = ("pardiso", "multifrontal", "metis_superlu", "cholmod", "superlu_schur",
               "splu")
+
+#: Fewest DOFs per node on average (supervariables of ``K``) for which ``auto`` takes
+#: ``multifrontal``: 3D solids (3 DOFs per node) yes, 2D (2) and scalar problems (1)
+#: no. Measured with benchmarks/bench_schur.py, one BLAS thread, CPU seconds of one
+#: body against ``metis_superlu``: 3D blocks 0.78 s against 1.05 s (15,810 DOFs) and
+#: 14.6 s against 34.4 s (110,484 DOFs, 1.4 GB against 3.1 GB peak); the sandwich-2d
+#: beams 0.041 against 0.017 s (2,232 DOFs), 0.65 against 0.33 s (32,736) and 2.8
+#: against 1.7 s (128,960): in 2D the separators are short, SuperLU's supernodes do
+#: well and the fronts' Python work does not pay (docs/schur.md).
+MULTIFRONTAL_MIN_DOFS_PER_NODE = 2.5
+
+
+def suits_multifrontal(K) -> bool:
+    """Whether ``auto`` condenses ``K`` (sparse, canonical CSR) with ``multifrontal``:
+    its rows average at least :data:`MULTIFRONTAL_MIN_DOFS_PER_NODE` per supervariable
+    (:func:`supervariables`, the DOFs of a node)."""
+    n = K.shape[0]
+    if n == 0:
+        return False
+    groups = int(supervariables(K)[-1]) + 1
+    return n >= MULTIFRONTAL_MIN_DOFS_PER_NODE * groups
 
 
 @dataclass(frozen=True)
@@ -189,7 +207,7 @@ def schur_complement(K, C, *, backend: str = "auto"):
         definite (smallest pivot ratio below :data:`PIVOT_RATIO_MIN`).
     """
     K, C, E = _validated(K, C)
-    name = _chosen_backend(backend)
+    name = _chosen_backend(backend, K)
     t0 = time.perf_counter()
     parts = SCHUR_BACKENDS[name].function(K, C, E)
     _check_pivots(parts.min_pivot_ratio, name)
@@ -267,9 +285,13 @@ def _validated(K, C):
     return K, C.astype(np.int64), np.setdiff1d(np.arange(n), C)
 
 
-def _chosen_backend(backend):
+def _chosen_backend(backend, K=None):
+    """The backend to run: ``backend`` itself (checked), or for ``"auto"`` the first
+    available one of :data:`AUTO_ORDER` (``multifrontal`` only if
+    :func:`suits_multifrontal` of ``K``)."""
     if backend == "auto":
-        return next(n for n in AUTO_ORDER if n in SCHUR_BACKENDS and SCHUR_BACKENDS[n].available)
+        return next(n for n in AUTO_ORDER if n in SCHUR_BACKENDS and SCHUR_BACKENDS[n].available
+                    and (n != "multifrontal" or (K is not None and suits_multifrontal(K))))
     if backend not in SCHUR_BACKENDS:
         raise InputError(f"unknown Schur backend {backend!r}; registered: "
                          f"{sorted(SCHUR_BACKENDS)}")
