@@ -19,12 +19,13 @@ the numbers are in ``docs/schur.md``):
     our own Cholesky of ``K_EE`` with dense fronts on a METIS separator tree of its
     node graph (:mod:`qsma.multifrontal`, ``pymetis``): the interface rows ride along
     in every front and their updates sum to ``K_CE K_EE^-1 K_EC``; the factor (one
-    triangle) solves with ``K_EE`` (the default without PARDISO).
+    triangle) solves with ``K_EE`` (the default for 3D solids without PARDISO).
 ``"metis_superlu"``
     METIS nested dissection of ``K_EE`` (``pymetis``) on its node graph and one SuperLU
     factorisation of the bordered matrix ``[[K_EE, K_EC], [0, I]]`` in that order,
     without pivoting: ``Kc = K_CC - U_EC^T D^-1 U_EC`` by blocked BLAS products, and
-    the same factor solves with ``K_EE``.
+    the same factor solves with ``K_EE`` (the default for 2D and scalar problems
+    without PARDISO).
 ``"cholmod"``
     CHOLMOD (supernodal Cholesky, from the ``cvxopt`` wheel) of ``K`` ordered
     ``[E by AMD, C last]``: ``K = L L^T`` with ``Kc = L_CC L_CC^T``.
