@@ -2,7 +2,7 @@
 
 Usage: python benchmarks/bench_condense.py [--refine 1 2 4 8] [--repeat 5]
        python benchmarks/bench_condense.py --solves 1 [--repeat 15]
-       python benchmarks/bench_condense.py --memory 2
+       python benchmarks/bench_condense.py --memory 2 [--backend multifrontal]
        python benchmarks/bench_condense.py --combine 1000 3000 [--repeat 3]
 
 Prints, per refinement: DOFs per body, interface DOFs, the Schur backend chosen
@@ -24,7 +24,9 @@ does not split (``qsma.linalg.SOLVE_MIN_COLUMNS``): those rows are the control.
 (``reduce_two_bodies``) and prints the resident memory sampled every 20 ms, the
 highest value per step (ordering, SuperLU factorisation, reading the factor until
 scipy's copies are emptied, Schur update, the rest: rotation, loads and the two-body
-combination) and the process peak (Linux ``VmHWM``).
+combination) and the process peak (Linux ``VmHWM``). ``--backend`` chooses the
+Schur backend (default ``auto``); with ``multifrontal`` the steps are the separator
+tree, the factorisation with the Schur update, and the rest.
 
 ``--combine N ...`` times only the dense two-body combination on random SPD
 matrices of size N: the direct ``Kc1 (Kc1 + Kc2)^-1 Kc2`` (Cholesky solve and
@@ -132,12 +134,12 @@ def measure_solves(refine, repeat, widths=(2, 6, 12, 24)):
     return body.solve_EE.n, rows
 
 
-def measure_memory(refine):
+def measure_memory(refine, backend="auto"):
     """``(peaks per step in MiB, process peak in MiB, seconds)`` of condensing the
     two bodies of sandwich-3d at ``refine`` (steps named by wrapping functions of
-    qsma.linalg)."""
+    qsma.linalg and qsma.multifrontal)."""
     import threading
-    from qsma import _resources, linalg
+    from qsma import _resources, linalg, multifrontal
     from qsma.examples import sandwich_3d
     model = sandwich_3d(refine)
     A = [assemble_body(b) for b in model.bodies]
@@ -166,20 +168,28 @@ def measure_memory(refine):
     linalg._drop_extracted_factors = labelled("reading the factor",
                                               saved["_drop_extracted_factors"], "schur")
     linalg._low_rank_sum = labelled("schur", saved["_low_rank_sum"], "the rest")
+    saved_mf = {n: getattr(multifrontal, n) for n in ("front_structure",
+                                                      "multifrontal_schur")}
+    multifrontal.front_structure = labelled("separator tree",
+                                            saved_mf["front_structure"], "the rest")
+    multifrontal.multifrontal_schur = labelled(
+        "factorisation and Schur update", saved_mf["multifrontal_schur"], "the rest")
     sampler = threading.Thread(target=sample, daemon=True)
     try:
         _resources.reset_peak()
         sampler.start()
         t0 = time.perf_counter()
-        reduce_two_bodies(A[0], A[1], pairing)
+        rm = reduce_two_bodies(A[0], A[1], pairing, backend=backend)
         seconds = time.perf_counter() - t0
     finally:
         done.set()
         sampler.join()
         for n, f in saved.items():
             setattr(linalg, n, f)
+        for n, f in saved_mf.items():
+            setattr(multifrontal, n, f)
         linalg.spla.splu = saved_splu
-    return peaks, _resources.peak_memory_mb(), seconds
+    return peaks, _resources.peak_memory_mb(), seconds, rm.bodies[0].timings["backend"]
 
 
 def main():
@@ -189,11 +199,12 @@ def main():
     ap.add_argument("--combine", type=int, nargs="+", default=None)
     ap.add_argument("--solves", type=int, default=None, metavar="REFINE")
     ap.add_argument("--memory", type=int, default=None, metavar="REFINE")
+    ap.add_argument("--backend", default="auto", help="Schur backend of --memory")
     args = ap.parse_args()
     if args.memory:
-        peaks, peak, seconds = measure_memory(args.memory)
-        print(f"sandwich-3d refine {args.memory}, reduce_two_bodies: {seconds:.1f} s, "
-              f"process peak (VmHWM) {peak:.0f} MiB\n")
+        peaks, peak, seconds, used = measure_memory(args.memory, args.backend)
+        print(f"sandwich-3d refine {args.memory}, reduce_two_bodies ({used}): "
+              f"{seconds:.1f} s, process peak (VmHWM) {peak:.0f} MiB\n")
         print("| step | highest resident memory sampled [MiB] |")
         print("|---|---|")
         for name, mb in peaks.items():

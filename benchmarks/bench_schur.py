@@ -2,6 +2,8 @@
 
 Usage: python benchmarks/bench_schur.py [--cases 2d-1 2d-2 2d-4 2d-8 3d-1 3d-2]
                                         [--repeat 3] [--backends ...] [--max-seconds 60]
+       python benchmarks/bench_schur.py --stages --cases 3d-1 3d-2
+                                        [--backends metis_superlu multifrontal] [--repeat 3]
 
 Cases: ``2d-R`` is the bottom beam of sandwich-2d at refine R (free DOFs, C = its
 interface DOFs); ``3d-R`` is a clamped hexahedral block of the 3D sandwich size (63 x 5
@@ -15,6 +17,15 @@ memory above the level before the call (Linux ``VmHWM`` after resetting it throu
 does not see). A backend whose first call exceeds ``--max-seconds`` is run once and
 skipped at the larger cases of the same dimension. Kc is checked against the first
 backend of the row set (max |difference| / max |Kc|).
+
+``--stages`` prints, per case, one row per backend with the medians of the stage
+times that the backend reports (ordering, factorisation, Schur update), the total
+wall and CPU time of ``schur_complement``, the peak memory, the Kc difference and the
+wall time of ``K_EE`` solves of 1, 12 and 24 random columns through the returned
+solver (as qsma calls it: ``QSMA_SOLVE_THREADS`` and one BLAS thread inside; each
+median of 3 calls after an untimed one). The backends alternate within every round
+(round 1: all backends, round 2: all backends, ...), so that a change in the load of
+a shared machine reaches them alike.
 """
 import argparse
 import statistics
@@ -69,6 +80,63 @@ def measured_call(K, C, backend):
     return seconds, peak / 1024, Kc, cpu
 
 
+def solve_times(solver, widths=(1, 12, 24), calls=3):
+    """Median wall seconds of ``solver(B)`` per width (after one untimed call)."""
+    rng = np.random.default_rng(0)
+    out = {}
+    for w in widths:
+        B = rng.standard_normal((solver.n, w)) if w > 1 else rng.standard_normal(solver.n)
+        solver(B)
+        times = []
+        for _ in range(calls):
+            t0 = time.perf_counter()
+            solver(B)
+            times.append(time.perf_counter() - t0)
+        out[w] = statistics.median(times)
+    return out
+
+
+def staged_call(K, C, backend):
+    """``measured_call`` plus the backend's stage times and the solve times."""
+    with open("/proc/self/clear_refs", "w") as f:
+        f.write("5")
+    rss0 = _status_kb("VmRSS")
+    t0, c0 = time.perf_counter(), time.process_time()
+    Kc, solver = schur_complement(K, C, backend=backend)
+    seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
+    peak = (_status_kb("VmHWM") - rss0) / 1024
+    return dict(solver.timings, wall=seconds, cpu=cpu, peak=peak,
+                **{f"solve {w}": v for w, v in solve_times(solver).items()}), Kc
+
+
+def main_stages(args):
+    cols = ["ordering", "factorization", "schur", "wall", "cpu", "solve 1", "solve 12",
+            "solve 24"]
+    print("| case | backend | ordering [s] | factorisation [s] | Schur update [s] | total "
+          "[s] | CPU [s] | peak memory [MB] | Kc rel. diff | solve 1 col [ms] | 12 cols "
+          "[ms] | 24 cols [ms] |")
+    print("|---" * 12 + "|")
+    for case in args.cases:
+        dim, refine = case.split("-")
+        K, C = (case_2d if dim == "2d" else case_3d)(int(refine))
+        runs = {b: [] for b in args.backends}
+        ref, diff = None, {}
+        for _ in range(args.repeat):
+            for b in args.backends:
+                row, Kc = staged_call(K, C, b)
+                runs[b].append(row)
+                ref = Kc if ref is None else ref
+                diff[b] = max(diff.get(b, 0.0), np.abs(Kc - ref).max() / np.abs(ref).max())
+                del Kc
+        for b in args.backends:
+            med = {c: statistics.median(r.get(c, 0.0) for r in runs[b]) for c in cols}
+            peak = max(r["peak"] for r in runs[b])
+            print(f"| {case} | {b} | {med['ordering']:.2f} | {med['factorization']:.2f} | "
+                  f"{med['schur']:.2f} | {med['wall']:.2f} | {med['cpu']:.2f} | {peak:.0f} | "
+                  f"{diff[b]:.1e} | {1e3 * med['solve 1']:.0f} | {1e3 * med['solve 12']:.0f} "
+                  f"| {1e3 * med['solve 24']:.0f} |", flush=True)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", nargs="+", default=["2d-1", "2d-2", "2d-4", "2d-8", "3d-1"])
@@ -76,10 +144,14 @@ def main():
     ap.add_argument("--backends", nargs="+",
                     default=[b for b in AUTO_ORDER if b in available_backends()])
     ap.add_argument("--max-seconds", type=float, default=60.0)
+    ap.add_argument("--stages", action="store_true",
+                    help="stage times, peak memory and K_EE solve times per backend")
     args = ap.parse_args()
     K, C = case_2d(1)
     for b in args.backends:                           # warm-up: load libraries, threads
         schur_complement(K, C, backend=b)
+    if args.stages:
+        return main_stages(args)
     slow = set()
     print("| case | DOFs | interface DOFs | backend | time [s] (median) | CPU [s] (median) "
           "| runs | peak memory [MB] | Kc rel. diff |")

@@ -116,9 +116,22 @@ def test_singular_K_EE_raises_input_error(name, C):
 
 
 def test_auto_takes_the_first_available_backend_in_auto_order():
-    _, solver = schur_complement(*PROBLEMS["random"])
-    assert solver.backend == next(n for n in AUTO_ORDER if n in available_backends())
+    """multifrontal only for matrices of at least 2.5 DOFs per node (3D solids): the
+    random matrix (one DOF per supervariable) and the sandwich-2d beam go to the next
+    backend, the 3D Laplacian's Kronecker product with a 3 x 3 block does not."""
+    first = lambda skip: next(n for n in AUTO_ORDER if n in available_backends()
+                              and n not in skip)
+    skip = {"multifrontal"}
+    for name in ("random", "elasticity"):
+        _, solver = schur_complement(*PROBLEMS[name])
+        assert solver.backend == first(skip)
     assert {"splu", "superlu_schur"} <= set(available_backends())
+    K3 = sp.kron(laplacian_3d(6), sp.csr_matrix(np.array([[4.0, 1, 0], [1, 4, 1],
+                                                            [0, 1, 4]]))).tocsr()
+    assert linalg.suits_multifrontal(K3)
+    assert not linalg.suits_multifrontal(PROBLEMS["elasticity"][0])
+    _, solver = schur_complement(K3, np.arange(0, K3.shape[0], 7))
+    assert solver.backend == first(set())
 
 
 def test_superlu_schur_falls_back_to_the_dense_solve(monkeypatch):
@@ -312,7 +325,8 @@ def laplacian_3d(n, shift=1e-2):
     return (K + shift * sp.identity(n ** 3)).tocsr()
 
 
-@pytest.mark.parametrize("backend", ["metis_superlu", "splu", "superlu_schur"])
+@pytest.mark.parametrize("backend", ["metis_superlu", "multifrontal", "splu",
+                                     "superlu_schur"])
 def test_threaded_solves_equal_serial_ones_bit_for_bit(backend, monkeypatch):
     """The K_EE solver of a backend on 1, 2 and 3 threads (QSMA_SOLVE_THREADS) gives
     the same bits for every column (the solves run on one BLAS thread whatever the

@@ -15,11 +15,17 @@ the numbers are in ``docs/schur.md``):
     Intel MKL PARDISO through ``pypardiso``'s ``mkl_rt``: nested-dissection
     ordering and the Schur complement computed during the factorisation
     (``iparm(36) = 1``), plus a plain Cholesky of ``K_EE`` for the solver.
+``"multifrontal"``
+    our own Cholesky of ``K_EE`` with dense fronts on a METIS separator tree of its
+    node graph (:mod:`qsma.multifrontal`, ``pymetis``): the interface rows ride along
+    in every front and their updates sum to ``K_CE K_EE^-1 K_EC``; the factor (one
+    triangle) solves with ``K_EE`` (the default for 3D solids without PARDISO).
 ``"metis_superlu"``
     METIS nested dissection of ``K_EE`` (``pymetis``) on its node graph and one SuperLU
     factorisation of the bordered matrix ``[[K_EE, K_EC], [0, I]]`` in that order,
     without pivoting: ``Kc = K_CC - U_EC^T D^-1 U_EC`` by blocked BLAS products, and
-    the same factor solves with ``K_EE`` (the default without PARDISO).
+    the same factor solves with ``K_EE`` (the default for 2D and scalar problems
+    without PARDISO).
 ``"cholmod"``
     CHOLMOD (supernodal Cholesky, from the ``cvxopt`` wheel) of ``K`` ordered
     ``[E by AMD, C last]``: ``K = L L^T`` with ``Kc = L_CC L_CC^T``.
@@ -70,8 +76,31 @@ SPLU_BLOCK_BYTES = 128 * 2**20
 #: name -> :class:`SchurBackend`, filled by :func:`register_backend`.
 SCHUR_BACKENDS: dict = {}
 
-#: Order in which ``backend="auto"`` tries the backends (fastest first, docs/schur.md).
-AUTO_ORDER = ("pardiso", "metis_superlu", "cholmod", "superlu_schur", "splu")
+#: Order in which ``backend="auto"`` tries the backends (fastest first, docs/schur.md);
+#: ``multifrontal`` only where :func:`suits_multifrontal` says so.
+AUTO_ORDER = ("pardiso", "multifrontal", "metis_superlu", "cholmod", "superlu_schur",
+              "splu")
+
+#: Fewest DOFs per node on average (supervariables of ``K``) for which ``auto`` takes
+#: ``multifrontal``: 3D solids (3 DOFs per node) yes, 2D (2) and scalar problems (1)
+#: no. Measured with benchmarks/bench_schur.py, one BLAS thread, CPU seconds of one
+#: body against ``metis_superlu``: 3D blocks 0.78 s against 1.05 s (15,810 DOFs) and
+#: 14.6 s against 34.4 s (110,484 DOFs, 1.4 GB against 3.1 GB peak); the sandwich-2d
+#: beams 0.041 against 0.017 s (2,232 DOFs), 0.65 against 0.33 s (32,736) and 2.8
+#: against 1.7 s (128,960): in 2D the separators are short, SuperLU's supernodes do
+#: well and the fronts' Python work does not pay (docs/schur.md).
+MULTIFRONTAL_MIN_DOFS_PER_NODE = 2.5
+
+
+def suits_multifrontal(K) -> bool:
+    """Whether ``auto`` condenses ``K`` (sparse, canonical CSR) with ``multifrontal``:
+    its rows average at least :data:`MULTIFRONTAL_MIN_DOFS_PER_NODE` per supervariable
+    (:func:`supervariables`, the DOFs of a node)."""
+    n = K.shape[0]
+    if n == 0:
+        return False
+    groups = int(supervariables(K)[-1]) + 1
+    return n >= MULTIFRONTAL_MIN_DOFS_PER_NODE * groups
 
 
 @dataclass(frozen=True)
@@ -179,7 +208,7 @@ def schur_complement(K, C, *, backend: str = "auto"):
         definite (smallest pivot ratio below :data:`PIVOT_RATIO_MIN`).
     """
     K, C, E = _validated(K, C)
-    name = _chosen_backend(backend)
+    name = _chosen_backend(backend, K)
     t0 = time.perf_counter()
     parts = SCHUR_BACKENDS[name].function(K, C, E)
     _check_pivots(parts.min_pivot_ratio, name)
@@ -257,9 +286,13 @@ def _validated(K, C):
     return K, C.astype(np.int64), np.setdiff1d(np.arange(n), C)
 
 
-def _chosen_backend(backend):
+def _chosen_backend(backend, K=None):
+    """The backend to run: ``backend`` itself (checked), or for ``"auto"`` the first
+    available one of :data:`AUTO_ORDER` (``multifrontal`` only if
+    :func:`suits_multifrontal` of ``K``)."""
     if backend == "auto":
-        return next(n for n in AUTO_ORDER if n in SCHUR_BACKENDS and SCHUR_BACKENDS[n].available)
+        return next(n for n in AUTO_ORDER if n in SCHUR_BACKENDS and SCHUR_BACKENDS[n].available
+                    and (n != "multifrontal" or (K is not None and suits_multifrontal(K))))
     if backend not in SCHUR_BACKENDS:
         raise InputError(f"unknown Schur backend {backend!r}; registered: "
                          f"{sorted(SCHUR_BACKENDS)}")
@@ -481,6 +514,21 @@ def nested_dissection(A) -> np.ndarray:
     On a 3D body of 15,810 DOFs (sandwich-3d refine 1) this is 7x faster than METIS
     on the DOF graph, with the same fill (docs/performance.md)."""
     import pymetis
+    group, G = node_graph(A)
+    n_groups = G.shape[0]
+    if G.nnz == 0:
+        return np.arange(A.shape[0])
+    order, _ = pymetis.nested_dissection(pymetis.CSRAdjacency(G.indptr, G.indices))
+    rank = np.empty(n_groups, dtype=np.int64)
+    rank[np.asarray(order, dtype=np.int64)] = np.arange(n_groups)
+    return np.argsort(rank[group], kind="stable")
+
+
+def node_graph(A):
+    """``(group, G)``: the supervariable of each row of the symmetric sparse ``A``
+    (:func:`supervariables`) and the quotient graph ``G`` of the groups (CSR, sorted
+    indices, no diagonal): an edge ``g - h`` where ``A`` couples a row of ``g`` with
+    one of ``h``."""
     A = sp.csr_matrix(A)
     A.sort_indices()
     group = supervariables(A)
@@ -492,12 +540,7 @@ def nested_dissection(A) -> np.ndarray:
     G.setdiag(0)
     G.eliminate_zeros()
     G.sort_indices()
-    if G.nnz == 0:
-        return np.arange(A.shape[0])
-    order, _ = pymetis.nested_dissection(pymetis.CSRAdjacency(G.indptr, G.indices))
-    rank = np.empty(n_groups, dtype=np.int64)
-    rank[np.asarray(order, dtype=np.int64)] = np.arange(n_groups)
-    return np.argsort(rank[group], kind="stable")
+    return group, G
 
 
 def supervariables(A) -> np.ndarray:
@@ -650,6 +693,25 @@ def _bordered_solver(lu, p, nC):
     def solve(b):
         return solved_by_columns(whole, b)
     return solve
+
+
+# ----------------------------------------------------------------------------------
+# Multifrontal Cholesky on a METIS separator tree (numpy/scipy + pymetis)
+
+@register_backend("multifrontal", requires="pymetis")
+def _schur_multifrontal(K, C, E) -> SchurParts:
+    r"""Dense-front Cholesky ``K_EE = L L^T`` on a nested-dissection tree of the node
+    graph (:mod:`qsma.multifrontal`); the interface rows are carried in every front
+    and never eliminated, so their updates sum to ``K_CE K_EE^{-1} K_EC``. The factor
+    (one triangle) is the solver."""
+    from . import multifrontal
+    Kc, factor, ratio, timings = multifrontal.schur_parts(K, C, E)
+    if factor is None or not ratio > PIVOT_RATIO_MIN:
+        return SchurParts(Kc, None, ratio, timings)
+
+    def solve(b):
+        return solved_by_columns(factor.solve, b)
+    return SchurParts(Kc, solve, ratio, timings)
 
 
 # ----------------------------------------------------------------------------------
