@@ -15,6 +15,11 @@ components ``D`` are known. Writing the ``U`` equations as rows of ``d``,
 ``R d = b``, the block step is the small dense solve
 ``R[:, U] d_U = b - R[:, D] d_D``; with every pair stuck it is empty and
 ``lam = K d + lam_w`` is immediate.
+
+Of that system only the slip-law rows depend on the slip directions, so the 3D
+Newton steps on the directions of one set of states (:class:`BlockSystem`) reuse the
+LU factors of an earlier step: iterative refinement with them, accepted only when the
+step's own residual is at round-off, else a new factorisation.
 """
 from __future__ import annotations
 
@@ -270,9 +275,9 @@ class BlockSystem:
 
 def _may_converge(sizes):
     """Whether refinement can still succeed: ``sizes[0]`` is the largest residual at
-    which the acceptance test can pass, the rest the largest residuals so far, the
-    last one not yet corrected. Each correction must shrink it
-    by :data:`REFINE_RATE`, and at the rate of the last one the corrections left of
+    which the acceptance test can pass, the rest the largest residuals so far (the
+    last one not yet corrected). Each correction must shrink it by
+    :data:`REFINE_RATE`, and at the rate of the last one the corrections left of
     :data:`REFINE_STEPS` must suffice."""
     goal, done = sizes[0], len(sizes) - 2
     if done >= REFINE_STEPS:
