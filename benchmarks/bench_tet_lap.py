@@ -4,7 +4,7 @@ mortar coupling joins them), read back from .msh files. Prints its size and the
 stages of a whole run.
 
 Usage: python benchmarks/bench_tet_lap.py [--size 1.0] [--top-size 1.15]
-           [--outer-size 2.5] [--order 1] [--dissipation masing] [--repeat 1]
+           [--outer-size 2.5] [--dissipation masing] [--repeat 1]
            [--levels tip:log:1e-6:1e-3:51] [--keep DIR] [--mortar-only]
 
 Needs the ``gmsh`` Python package (``pip install gmsh``; not a qsma dependency).
@@ -51,7 +51,7 @@ def _cuts(s):
             [0.0, b / 2 - a / 2, b / 2 + a / 2, b])
 
 
-def mesh_plate(path, xs, y0, zs, t, size_overlap, size_outer, overlap, order):
+def mesh_plate(path, xs, y0, zs, t, size_overlap, size_outer, overlap):
     """Tetrahedra of the plate ``xs[0]..xs[-1] x y0..y0+t x zs[0]..zs[-1]`` (mm
     sizes, m coordinates), written to ``path`` (Gmsh 4.1)."""
     import gmsh
@@ -78,7 +78,6 @@ def mesh_plate(path, xs, y0, zs, t, size_overlap, size_outer, overlap, order):
         for key in ("MeshSizeExtendFromBoundary", "MeshSizeFromPoints",
                     "MeshSizeFromCurvature"):
             gmsh.option.setNumber(f"Mesh.{key}", 0)
-        gmsh.option.setNumber("Mesh.ElementOrder", order)
         gmsh.model.mesh.generate(3)
         gmsh.write(str(path))
     finally:
@@ -86,8 +85,9 @@ def mesh_plate(path, xs, y0, zs, t, size_overlap, size_outer, overlap, order):
     return path
 
 
-def tet_lap_model(folder, size=1.0, top_size=1.15, outer_size=2.5, order=1, mu=None):
-    """The lap joint from two Gmsh files written into ``folder``."""
+def tet_lap_model(folder, size=1.0, top_size=1.15, outer_size=2.5, mu=None):
+    """The lap joint from two Gmsh files written into ``folder``: linear tetrahedra
+    (qsma's mortar coupling takes linear facets only)."""
     s = LAP_3D
     L, t, c, b, a = s["L"], s["t"], s["c"], s["b"], s["a_washer"]
     xs_bottom, xs_top, zs = _cuts(s)
@@ -97,7 +97,7 @@ def tet_lap_model(folder, size=1.0, top_size=1.15, outer_size=2.5, order=1, mu=N
     bodies = []
     for name, xs, y0, h in (("bottom", xs_bottom, 0.0, size), ("top", xs_top, t, top_size)):
         path = mesh_plate(Path(folder) / f"{name}.msh", xs, y0, zs, t, h, outer_size,
-                          (L - c, L), order)
+                          (L - c, L))
         mesh = qsma.read_mesh(path)
         p = mesh.points
         y_out, x_clamp = (0.0, 0.0) if name == "bottom" else (2 * t, 2 * L - c)
@@ -131,7 +131,6 @@ def main():
     ap.add_argument("--size", type=float, default=1.0, help="bottom overlap [mm]")
     ap.add_argument("--top-size", type=float, default=1.15, help="top overlap [mm]")
     ap.add_argument("--outer-size", type=float, default=2.5, help="outside [mm]")
-    ap.add_argument("--order", type=int, default=1, choices=(1, 2))
     ap.add_argument("--dissipation", default="masing", choices=("masing", "auto", "loop"))
     ap.add_argument("--levels", default=None, help="as qsma run --levels")
     ap.add_argument("--repeat", type=int, default=1)
@@ -139,10 +138,11 @@ def main():
     ap.add_argument("--mortar-only", action="store_true",
                     help="time the mortar pairing alone (--repeat times)")
     args = ap.parse_args()
-    folder = Path(args.keep or tempfile.mkdtemp(prefix="tet_lap_"))
+    scratch = None if args.keep else tempfile.TemporaryDirectory(prefix="tet_lap_")
+    folder = Path(args.keep or scratch.name)
     folder.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    model = tet_lap_model(folder, args.size, args.top_size, args.outer_size, args.order)
+    model = tet_lap_model(folder, args.size, args.top_size, args.outer_size)
     meshing = time.perf_counter() - t0
     if args.mortar_only:
         return time_mortar(model, args.repeat, meshing)
@@ -157,7 +157,7 @@ def main():
     print(f"{model.name}: {info['n_nodes']} nodes, {info['n_dofs']} DOFs, "
           f"{info['n_pairs']} interface pairs ({info['coupling']}), "
           f"{info['n_closed_after_preload']} closed after the preload; "
-          f"meshing and reading {meshing:.1f} s; order {args.order}, "
+          f"meshing and reading {meshing:.1f} s; "
           f"dissipation {args.dissipation}")
     print()
     print("| run | " + " | ".join(STAGES) + " | total wall | total CPU |")

@@ -217,3 +217,19 @@ def test_a_level_whose_loop_failed_stays_in_the_figures(results, tmp_path, monke
     assert f"Masing, level {k} (its computed loop failed)" in labels
     for name, fig in figures.items():
         assert not _check_figure(name, fig)
+
+
+def test_a_masing_level_without_values_is_not_called_a_failed_loop(results, tmp_path,
+                                                                    monkeypatch):
+    """Only a level that computed a loop can be marked 'loop failed'."""
+    from dataclasses import replace
+    res = results["sandwich-2d"]
+    n = res.n_levels
+    nan_at = lambda a: np.where(np.arange(n) == 1, np.nan, a)
+    bad = replace(res, f_hz=nan_at(res.f_hz), zeta=nan_at(res.zeta),
+                  f_hz_masing=nan_at(res.f_hz_masing), zeta_masing=nan_at(res.zeta_masing),
+                  tip_velocity=nan_at(res.tip_velocity),
+                  dissipation_method=np.full(n, "masing", dtype=object), loops={})
+    figures = _capture(bad, tmp_path, monkeypatch)
+    for ax in figures["damping_frequency.png"].axes:
+        assert not [l for l in ax.get_lines() if l.get_label().startswith("loop failed")]

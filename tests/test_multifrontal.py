@@ -232,3 +232,31 @@ def test_minimum_cover_is_a_smallest_vertex_cover():
                                for S in map(set, combinations(vertices, k))))
         assert len(cover) == smallest
     assert len(mf.minimum_cover(np.zeros(0, int), np.zeros(0, int))) == 0
+
+
+@pytest.mark.parametrize("backend", ["multifrontal", "metis_superlu"])
+def test_pattern_not_symmetric_values_symmetric(backend):
+    """A stored zero on one side of the diagonal only (symmetric values, asymmetric
+    pattern) once crashed the multifrontal fronts (IndexError) and METIS (a segfault):
+    the node graph is built from the symmetrised pattern."""
+    L = laplacian(12, 12, 3).tocoo()
+    K = sp.csr_matrix((np.append(L.data, 0.0), (np.append(L.row, 396),
+                                                 np.append(L.col, 35))), shape=L.shape)
+    assert K.nnz == L.nnz + 1                     # (396, 35) stored as 0, (35, 396) not
+    assert (K != K.T).nnz == 0
+    C = np.arange(30)
+    Kc, _ = schur_complement(K, C, backend=backend)
+    Kc_ref, _ = reference(K, C)
+    assert np.abs(Kc - Kc_ref).max() <= 1e-10 * np.abs(Kc_ref).max()
+
+
+@pytest.mark.parametrize("backend", ["multifrontal", "metis_superlu", "splu"])
+def test_negative_diagonal_is_refused_by_every_backend(backend):
+    """An isolated E DOF with a negative diagonal: the LU pivot ratio d_i / a_i is 1
+    there, so only the input check can see that K is not positive definite."""
+    K = laplacian(6, 6).tolil()
+    K[5, :] = 0.0
+    K[:, 5] = 0.0
+    K[5, 5] = -1.0
+    with pytest.raises(InputError, match="not positive definite.*K\\[5, 5\\]"):
+        schur_complement(K.tocsr(), np.arange(30, 36), backend=backend)

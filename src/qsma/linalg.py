@@ -283,6 +283,14 @@ def _validated(K, C):
     if asym > SYMMETRY_TOL:
         raise InputError(f"K must be symmetric: max|K - K^T| / max|K| = {asym:.3g} > "
                          f"{SYMMETRY_TOL}")
+    diagonal = K.diagonal()
+    negative = np.flatnonzero(diagonal < 0)
+    if len(negative):                 # the LU pivot ratios d_i / a_i would not see it
+        i = int(negative[0])
+        raise InputError(f"K is singular or not positive definite: diagonal entry "
+                         f"K[{i}, {i}] = {diagonal[i]:.3g} < 0 ({len(negative)} such "
+                         f"entries); a stiffness matrix has a positive diagonal: check the "
+                         f"material constants and the elements' orientation")
     return K, C.astype(np.int64), np.setdiff1d(np.arange(n), C)
 
 
@@ -536,6 +544,7 @@ def node_graph(A):
     P = sp.csr_matrix((np.ones(len(group)), (np.arange(len(group)), group)),
                       shape=(len(group), n_groups))
     pattern = sp.csr_matrix((np.ones(A.nnz), A.indices, A.indptr), shape=A.shape)
+    pattern = pattern + pattern.T     # values symmetric, pattern maybe not: stored zeros
     G = (P.T @ pattern @ P).tocsr()
     G.setdiag(0)
     G.eliminate_zeros()

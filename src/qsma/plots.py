@@ -163,7 +163,7 @@ def plot_damping_frequency(res, path):
     v = np.abs(res.tip_velocity)
     loop = res.dissipation_method == "loop"
     hard = np.array(["hardening" in f or "masing_on_hardening" in f for f in res.flags])
-    unused = ~np.isfinite(v)
+    unused = loop & ~np.isfinite(v)
     v_masing = np.where(unused, 2 * np.pi * res.f_hz_masing * np.abs(res.tip), v)
     a1.semilogx(v, res.f_hz, "o-", ms=3, label="used")
     a2.plot(v, res.zeta, "o-", ms=3, label="used")
@@ -187,7 +187,7 @@ def plot_damping_frequency(res, path):
     a1.set_ylabel("secant frequency [Hz]")
     a2.set_yscale("symlog", linthresh=ZETA_LINEAR)
     a2.axhline(0.0, color="gray", lw=0.8)
-    shown = np.concatenate([res.zeta, res.zeta_masing if loop.any() or unused.any() else []])
+    shown = np.concatenate([res.zeta, res.zeta_masing if loop.any() else []])
     lowest = np.nanmin(shown) if np.isfinite(shown).any() else 0.0
     a2.set_ylim(bottom=min(-ZETA_LINEAR, 3 * lowest))
     a2.set_ylabel("damping ratio \u03b6 [-]")

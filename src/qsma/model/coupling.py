@@ -500,9 +500,16 @@ def _check_gap(gap, x, size, names):
     local element ``size`` at some point, named at the first point of the worst gap
     (slave facet order; ties to round-off)."""
     ratio = np.abs(gap) / size
+    sbody, sset, mbody, mset = names
+    if not np.all(np.isfinite(ratio)):
+        k = int(np.flatnonzero(~np.isfinite(ratio))[0])
+        raise InputError(
+            f"interface body {sbody!r} set {sset!r} / body {mbody!r} set {mset!r}: the gap "
+            f"between the surfaces is not finite at {np.round(x[k], 12).tolist()} (a "
+            f"degenerate facet: zero area or collapsed edges). Fix: check the mesh of the "
+            f"interface surfaces there.")
     if not len(ratio) or ratio.max() <= GAP_FRACTION:
         return
-    sbody, sset, mbody, mset = names
     k = int(np.flatnonzero(ratio >= ratio.max() * (1.0 - 1e-12))[0])
     what = "apart" if gap[k] > 0 else "overlap (interpenetrate)"
     raise InputError(
