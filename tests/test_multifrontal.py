@@ -208,6 +208,28 @@ def test_solver_shapes():
         solver(np.ones(n + 1))
 
 
+def test_many_columns_are_one_solve_whatever_the_thread_setting(monkeypatch):
+    """The factor's loop over the fronts holds the GIL, so splitting the columns among
+    Python threads only made the solves wait for each other (linalg docstring): the
+    solver takes all the columns in one call, and its answer has the bits of the
+    column-by-column solves whatever QSMA_SOLVE_THREADS says."""
+    K, C = block_3d()
+    _, solver = schur_complement(K, C, backend="multifrontal")
+    B = np.random.default_rng(7).standard_normal((solver.n, 24))
+
+    def refused(*args):
+        raise AssertionError("the multifrontal solve was split among threads")
+    monkeypatch.setattr(linalg, "_threaded", refused)
+    monkeypatch.setenv("QSMA_SOLVE_THREADS", "2")
+    X = solver(B)
+    X1 = solver(B[:, :1])[:, 0]
+    A = K.toarray()
+    E = np.setdiff1d(np.arange(K.shape[0]), C)
+    residual = A[np.ix_(E, E)] @ X - B
+    assert np.abs(residual).max() <= 1e-10 * np.abs(B).max()
+    assert np.abs(X[:, 0] - X1).max() <= 1e-14 * np.abs(X1).max()
+
+
 def test_same_kc_as_metis_superlu_on_the_3d_block():
     K, C = block_3d((9, 4, 5))
     Kc_m, s_m = schur_complement(K, C, backend="multifrontal")

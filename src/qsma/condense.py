@@ -26,7 +26,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from .errors import InputError
-from .linalg import mirror_triangle, schur_complement, symmetrised
+from .linalg import cho_solved, mirror_triangle, schur_complement, symmetrised
 
 log = logging.getLogger("qsma")
 
@@ -362,13 +362,13 @@ def _welded(bodies, S_cho, Fc, P=None, slave=0, gauged=False):
     assembly in ``S`` (``gauged``) only ``S^-1`` of the self-equilibrated sum is exact:
     node-to-node then ``Kc_2 S^-1 (Fc_1 + Fc_2) - Fc_2``."""
     if P is None and gauged:
-        return bodies[1].Kc @ sla.cho_solve(S_cho, Fc[0] + Fc[1]) - Fc[1]
+        return bodies[1].Kc @ cho_solved(S_cho, Fc[0] + Fc[1]) - Fc[1]
     if P is None:
         Kc1, Kc2 = bodies[0].Kc, bodies[1].Kc
-        return Kc2 @ sla.cho_solve(S_cho, Fc[0]) - Kc1 @ sla.cho_solve(S_cho, Fc[1])
+        return Kc2 @ cho_solved(S_cho, Fc[0]) - Kc1 @ cho_solved(S_cho, Fc[1])
     s, m = slave, 1 - slave
     sigma = 1.0 if slave == 1 else -1.0
-    y = sla.cho_solve(S_cho, P.T @ Fc[s] + Fc[m])
+    y = cho_solved(S_cho, P.T @ Fc[s] + Fc[m])
     return sigma * (bodies[s].Kc @ (P @ y) - Fc[s])
 
 
@@ -382,13 +382,13 @@ def _functional(rm, l1, l2):
     """
     (h1, e1), (h2, e2) = (b.functional(l, L) for b, l, L in zip(rm.bodies, (l1, l2), rm.loads))
     if rm.P is None:
-        y = sla.cho_solve(rm.S_cho, h1 + h2)
+        y = cho_solved(rm.S_cho, h1 + h2)
         c_d = h2 - rm.bodies[1].Kc @ y
         c_a = (rm.Fc[0] + rm.Fc[1]).T @ y + e1 + e2
         return c_d, c_a
     s, m, P = rm.slave, 1 - rm.slave, rm.P
     h = (h1, h2)
-    y = sla.cho_solve(rm.S_cho, P.T @ h[s] + h[m])
+    y = cho_solved(rm.S_cho, P.T @ h[s] + h[m])
     c_d = rm.sigma * (h[s] - rm.bodies[s].Kc @ (P @ y))
     c_a = (P.T @ rm.Fc[s] + rm.Fc[m]).T @ y + e1 + e2
     return c_d, c_a
@@ -460,7 +460,7 @@ def combine(slave, master, P, Z=None):
     S_cho = _factor_S(np.asarray(master.Kc) + P.T @ KP, Z)
     if Z is None:                                   # Kc_s - (Kc_s P) S^-1 (Kc_s P)^T
         return minus_gram(Ks, S_cho, KP), S_cho
-    K = Ks - KP @ sla.cho_solve(S_cho, KP.T)        # gauged S: the product form
+    K = Ks - KP @ cho_solved(S_cho, KP.T)        # gauged S: the product form
     return 0.5 * (K + K.T), S_cho
 
 
@@ -514,7 +514,7 @@ def _node_to_node(Kc1, Kc2, Z):
     if Z is None:
         soft = min((Kc1, Kc2), key=lambda Kc: np.trace(Kc))
         return minus_gram(soft, S_cho, soft), S_cho      # = Kc_1 S^-1 Kc_2
-    K = Kc1 @ sla.cho_solve(S_cho, Kc2)
+    K = Kc1 @ cho_solved(S_cho, Kc2)
     return 0.5 * (K + K.T), S_cho
 
 
@@ -577,7 +577,7 @@ class TiedSolver:
         d = np.zeros((rm.K.shape[0], Fc[0].shape[1]))
         if len(self.G):
             w = _welded(rm.bodies, rm.S_cho, Fc, rm.P, rm.slave, rm.gauge is not None)
-            d[self.G] = -sla.cho_solve(self.KGG_cho, w[self.G])
+            d[self.G] = -cho_solved(self.KGG_cho, w[self.G])
         u = _released_interface(rm, d, Fc)
         if np.ndim(F1) == 1:
             u = tuple(v[:, 0] for v in u)
@@ -613,10 +613,10 @@ def _released_interface(rm, d, Fc, a=None):
     factors ``a`` if given: the formulas of :meth:`ReducedModel.interface_displacements`."""
     applied = (lambda F: F) if a is None else (lambda F: F @ a)
     if rm.P is None:
-        u1 = sla.cho_solve(rm.S_cho, applied(Fc[0] + Fc[1]) - rm.bodies[1].Kc @ d)
+        u1 = cho_solved(rm.S_cho, applied(Fc[0] + Fc[1]) - rm.bodies[1].Kc @ d)
         return u1, u1 + d
     s, m, P = rm.slave, 1 - rm.slave, rm.P
-    um = sla.cho_solve(rm.S_cho, P.T @ (applied(Fc[s]) - rm.sigma * (rm.bodies[s].Kc @ d))
+    um = cho_solved(rm.S_cho, P.T @ (applied(Fc[s]) - rm.sigma * (rm.bodies[s].Kc @ d))
                        + applied(Fc[m]))
     us = P @ um + rm.sigma * d
     return (us, um) if s == 0 else (um, us)

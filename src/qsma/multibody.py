@@ -43,6 +43,7 @@ import scipy.sparse as sp
 
 from .condense import condense_bodies, condensed_loads
 from .errors import InputError, InterfaceGapWarning
+from .linalg import cho_solved
 
 
 @dataclass(frozen=True)
@@ -116,7 +117,7 @@ class MultiReducedModel:
         """``u = T_r S^-1 T_r^T (Fc a - Kc T_d d) + T_d d``, split per body."""
         d = np.asarray(d, dtype=float).ravel()
         a = np.asarray(a, dtype=float)
-        ur = sla.cho_solve(self.S_cho, self.T_r.T @ (self.Fc @ a - self.Kc @ (self.T_d @ d)))
+        ur = cho_solved(self.S_cho, self.T_r.T @ (self.Fc @ a - self.Kc @ (self.T_d @ d)))
         u = self.T_r @ ur + self.T_d @ d
         return tuple(u[self.offsets[j]:self.offsets[j + 1]] for j in range(len(self.bodies)))
 
@@ -140,7 +141,7 @@ class MultiReducedModel:
             raise InputError(f"load pattern {name!r}: {len(loads)} load vectors for "
                              f"{len(self.bodies)} bodies")
         fc = np.concatenate([b.condensed_load(F) for b, F in zip(self.bodies, loads)])
-        y = sla.cho_solve(self.S_cho, self.T_r.T @ fc)
+        y = cho_solved(self.S_cho, self.T_r.T @ fc)
         w = self.T_d.T @ (self.Kc @ (self.T_r @ y) - fc)
         new = replace(self, W=np.column_stack([self.W, w]), patterns=self.patterns + (name,),
                       loads=tuple(np.column_stack([L, F]) for L, F in zip(self.loads, loads)),
@@ -155,7 +156,7 @@ class MultiReducedModel:
         for name, ls in definitions.items():
             parts = [b.functional(l, L) for b, l, L in zip(self.bodies, ls, self.loads)]
             h = np.concatenate([p[0] for p in parts])
-            y = sla.cho_solve(self.S_cho, self.T_r.T @ h)
+            y = cho_solved(self.S_cho, self.T_r.T @ h)
             funcs[name] = (self.T_d.T @ (h - self.Kc @ (self.T_r @ y)),
                            self.Fc.T @ (self.T_r @ y) + sum(p[1] for p in parts))
         return replace(self, functionals=funcs, definitions={**self.definitions,
@@ -253,9 +254,9 @@ def reduce_bodies(assembled, couplings, patterns=("preload",), backend="auto",
                          "clamps") from exc
     KT_d = Kc @ T_d
     # lam = Q^T (Kc u - Fc)_s = T_d^T (Kc u - Fc): T_d is zero outside the slave rows
-    K = T_d.T @ (KT_d - KT_r @ sla.cho_solve(S_cho, KT_r.T @ T_d))
+    K = T_d.T @ (KT_d - KT_r @ cho_solved(S_cho, KT_r.T @ T_d))
     K = 0.5 * (K + K.T)
-    W = T_d.T @ (KT_r @ sla.cho_solve(S_cho, T_r.T @ Fc) - Fc)
+    W = T_d.T @ (KT_r @ cho_solved(S_cho, T_r.T @ Fc) - Fc)
     rows = np.concatenate([[0], np.cumsum([c.pairing.n_pairs for c in couplings])])
     return MultiReducedModel(K, W, tuple(patterns), bodies, loads, Fc, G, offsets, rows,
                              T_r, T_d, S_cho, Kc, dim, {}, {})
