@@ -4,6 +4,7 @@ Usage: python benchmarks/bench_schur.py [--cases 2d-1 2d-2 2d-4 2d-8 3d-1 3d-2]
                                         [--repeat 3] [--backends ...] [--max-seconds 60]
        python benchmarks/bench_schur.py --stages --cases 3d-1 3d-2
                                         [--backends metis_superlu multifrontal] [--repeat 3]
+       python benchmarks/bench_schur.py --solve-split --cases 3d-1 3d-2 [--repeat 5]
 
 Cases: ``2d-R`` is the bottom beam of sandwich-2d at refine R (free DOFs, C = its
 interface DOFs); ``3d-R`` is a clamped hexahedral block of the 3D sandwich size (63 x 5
@@ -26,6 +27,13 @@ solver (as qsma calls it: ``QSMA_SOLVE_THREADS`` and one BLAS thread inside; eac
 median of 3 calls after an untimed one). The backends alternate within every round
 (round 1: all backends, round 2: all backends, ...), so that a change in the load of
 a shared machine reaches them alike.
+
+``--solve-split`` factorises each case once with the ``multifrontal`` backend and
+times its ``K_EE`` solve of 12, 16 and 24 random columns two ways, alternating: one
+call on all the columns (what the backend does) and the columns split between two
+Python threads (:func:`qsma.linalg.solved_by_columns` with ``threads=2``, what it did
+before), both with one BLAS thread; medians of ``--repeat`` calls each. The factor's
+loop over the fronts holds the GIL between BLAS calls, so the split can only lose.
 """
 import argparse
 import statistics
@@ -137,6 +145,32 @@ def main_stages(args):
                   f"| {1e3 * med['solve 24']:.0f} |", flush=True)
 
 
+def main_solve_split(args):
+    import scipy.sparse as sp
+    from qsma import multifrontal
+    from qsma.linalg import solved_by_columns
+    print("| case | columns | one call [ms] | two threads [ms] | two threads / one call |")
+    print("|---|---|---|---|---|")
+    rng = np.random.default_rng(0)
+    for case in args.cases:
+        dim, refine = case.split("-")
+        K, C = (case_2d if dim == "2d" else case_3d)(int(refine))
+        K = sp.csr_matrix(K)
+        E = np.setdiff1d(np.arange(K.shape[0]), C)
+        factor = multifrontal.schur_parts(K, C, E)[1]
+        for width in (12, 16, 24):
+            B = rng.standard_normal((len(E), width))
+            times = {1: [], 2: []}
+            for _ in range(args.repeat):
+                for threads in (1, 2):
+                    t0 = time.perf_counter()
+                    solved_by_columns(factor.solve, B, threads=threads)
+                    times[threads].append(time.perf_counter() - t0)
+            one, two = (statistics.median(times[t]) for t in (1, 2))
+            print(f"| {case} | {width} | {1e3 * one:.0f} | {1e3 * two:.0f} | "
+                  f"{two / one:.2f} |", flush=True)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", nargs="+", default=["2d-1", "2d-2", "2d-4", "2d-8", "3d-1"])
@@ -146,7 +180,11 @@ def main():
     ap.add_argument("--max-seconds", type=float, default=60.0)
     ap.add_argument("--stages", action="store_true",
                     help="stage times, peak memory and K_EE solve times per backend")
+    ap.add_argument("--solve-split", action="store_true",
+                    help="multifrontal K_EE solves: one call against two column threads")
     args = ap.parse_args()
+    if args.solve_split:
+        return main_solve_split(args)
     K, C = case_2d(1)
     for b in args.backends:                           # warm-up: load libraries, threads
         schur_complement(K, C, backend=b)
