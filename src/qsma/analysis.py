@@ -13,11 +13,13 @@ from __future__ import annotations
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
 import logging
+import os
 import time
 import warnings
 
 import numpy as np
 
+from ._forked import ChildFailed, ForkedCall, fork_refusal
 from ._threads import CONTACT_BLAS_THREADS, blas_threads as threads_limited, threads_for
 from .condense import reduce_two_bodies
 from .contact import DEFAULT_TOL, ContactProblem, ContactState, OPEN, SLIPPING, STUCK
@@ -484,11 +486,14 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
             solver = _Solver(problem, reduced, opts.method, sopts,
                              zone_from_state(problem, pre.state) if opts.eliminate_open
                              else None)
-            grid, user, pos = _refined_backbone(solver, alpha, pre, opts, progress, response,
-                                                k_ref)
-            n_ok = len(user)
-            neg = _ramp(solver, -grid[:pos.n], pre, True, None, "negative load level",
-                        response=response)
+            negative = _NegativeRamp(solver, response, pre, opts.parallel_ramps)
+            try:
+                grid, user, pos = _refined_backbone(solver, alpha, pre, opts, progress,
+                                                    response, k_ref, negative.start)
+                n_ok = len(user)
+                neg = negative.result(grid[:pos.n])
+            finally:
+                negative.cancel()
 
         with clock.stage("hysteresis"), threads_limited(contact_limit):
             hyst = _hysteresis(solver, response, grid[:pos.n], user, pos, neg, pre, opts,
@@ -723,21 +728,84 @@ def _ramp(solver, alpha, start, keep_going, progress, where="load level", respon
                     arr["tip"].astype(float), fallback, success, message, failed)
 
 
-def _refined_backbone(solver, alpha, pre, opts, progress, response, k_ref):
+class _NegativeRamp:
+    """The -alpha ramp on the final backbone grid, from the contact zone that the
+    +alpha ramp had when it chose that grid.
+
+    The last refinement round of the +alpha ramp and this ramp need the same grid and
+    nothing of each other. :meth:`start`, called with the grid of the last round before
+    that round is solved, forks a child process that solves this ramp while the round
+    runs here (``RunOptions.parallel_ramps``, where :func:`qsma._forked.fork_refusal`
+    allows it: Linux and macOS). :meth:`result` takes the child's ramp if it was
+    solved on the grid finally kept, and otherwise (no last round, a round that failed
+    and kept the coarser grid, no fork, a child that failed) solves it here from the
+    same zone: either way the same floating-point operations, the same bits. The ramp
+    has a solver of its own, so the +alpha ramp's zone is what the loops start from."""
+
+    def __init__(self, solver, response, pre, fork):
+        self.solver, self.response, self.pre, self.fork = solver, response, pre, fork
+        self.zone, self.grid, self.child = solver.zone, None, None
+
+    def start(self, grid):
+        self.zone, self.grid = self.solver.zone, np.array(grid, dtype=float)
+        why_not = (fork_refusal() or _one_core()) if self.fork else None
+        if why_not is not None:
+            log.info("negative ramp solved after the positive one: %s", why_not)
+        elif self.fork:
+            self.child = ForkedCall(lambda: self._solved(self.grid))
+
+    def result(self, grid):
+        """The -alpha ramp on ``grid``."""
+        if self.grid is None:                    # no last round: the zone is the last one
+            self.zone = self.solver.zone
+        if self.child is not None and np.array_equal(grid, self.grid):
+            try:
+                return self.child.result()
+            except ChildFailed as exc:
+                log.warning("negative ramp solved again in this process: %s", exc)
+            finally:
+                self.child = None
+        self.cancel()
+        return self._solved(grid)
+
+    def cancel(self):
+        if self.child is not None:
+            self.child.cancel()
+            self.child = None
+
+    def _solved(self, grid):
+        s = self.solver
+        solver = _Solver(s.problem, s.reduced, s.method, s.opts, self.zone)
+        return _ramp(solver, -np.asarray(grid, dtype=float), self.pre, True, None,
+                     "negative load level", response=self.response)
+
+
+def _one_core():
+    """Why a second process would not run beside this one (a single usable core), or
+    None."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return "this process may use a single core" if (cores or 1) < 2 else None
+
+
+def _refined_backbone(solver, alpha, pre, opts, progress, response, k_ref, last_round=None):
     """The +alpha ramp on the user's levels, then on a grid refined where the Masing
     integral needs it (pair states change in an interval, or the error estimate exceeds
     ``dissipation_rtol``). Returns ``(grid, user_index, ramp)``: ``grid[user_index]``
-    are the user's levels that were solved."""
+    are the user's levels that were solved. ``last_round(grid)``, optional, is called
+    with the grid of the last refinement round before that round is solved (the
+    grid kept unless the round fails)."""
     grid = np.asarray(alpha, float)
     tick = (lambda k, n: progress(min(k, len(alpha)), len(alpha))) if progress else None
     out = _ramp(solver, grid, pre.state, opts.continue_on_failure, tick, response=response)
     rounds = LEVEL_REFINE_ROUNDS if opts.refine_levels and out.success else 0
-    for _ in range(rounds):
+    for r in range(rounds):
         new = _insert_levels(grid, out, k_ref, opts.dissipation_rtol, pre.status)
         if new is None:
             break
         first = int(np.flatnonzero(new[:len(grid)] != grid)[0]) if not np.array_equal(
             new[:len(grid)], grid) else len(grid)
+        if last_round is not None and r == rounds - 1:
+            last_round(new)
         trial = _ramp(solver, new, pre.state, False, None, response=response,
                       prefix=(out, first),
                       guesses={float(grid[j]): out.state(j) for j in range(first, out.n)

@@ -26,10 +26,12 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 import logging
 import multiprocessing
-import threading
 import warnings
 
 import numpy as np
+
+from ._forked import (fork_refusal, parallel_available,  # noqa: F401 (re-exported)
+                      raise_again, recorded_warnings)
 
 log = logging.getLogger("qsma")
 
@@ -414,27 +416,7 @@ def _call_job(i):
     with warnings.catch_warnings(record=True) as seen:
         warnings.simplefilter("always")
         out = _JOB(i)
-    return out, [(w.message, w.category, w.filename, w.lineno) for w in seen]
-
-
-def parallel_available() -> bool:
-    """Whether worker processes can inherit a loop job (the ``fork`` start method)."""
-    return "fork" in multiprocessing.get_all_start_methods()
-
-
-def _may_fork():
-    """``None`` if this call may fork loop workers, else why not: the ``fork`` start
-    method must exist (not on Windows); a daemonic process (a Dask or multiprocessing
-    worker) may not have children; and only the main thread forks, so that two calls
-    from two threads never share :data:`_JOB` and no other thread of this process is
-    copied half-way through holding a lock."""
-    if not parallel_available():
-        return "the fork start method is not available"
-    if multiprocessing.current_process().daemon:
-        return "this is a daemonic process (e.g. a sweep worker), which may not fork"
-    if threading.current_thread() is not threading.main_thread():
-        return "this is not the main thread of the process"
-    return None
+    return out, recorded_warnings(seen)
 
 
 def map_loops(job, indices, workers=1) -> list:
@@ -450,14 +432,15 @@ def map_loops(job, indices, workers=1) -> list:
     goes to a worker and its :class:`Loop` comes back, with the warnings it raised
     (raised again here, in the order of ``indices``). The largest amplitudes, whose
     loops take the most solves, are handed out first. The loops run in this process
-    instead where forking is not possible or not safe (:func:`_may_fork`: Windows, a
-    daemonic sweep worker, a thread other than the main one). An exception, or a
+    instead where forking is not possible or not safe
+    (:func:`qsma._forked.fork_refusal`: Windows, a daemonic sweep worker, a thread
+    other than the main one). An exception, or a
     signal handled here, stops the workers at once (their loops are abandoned).
     """
     global _JOB
     indices = [int(i) for i in indices]
     workers = min(int(workers), len(indices))
-    why_not = _may_fork() if workers > 1 else None
+    why_not = fork_refusal() if workers > 1 else None
     if why_not is not None:
         log.info("loops computed in this process, not on %d workers: %s", workers, why_not)
     if workers <= 1 or why_not is not None:
@@ -469,8 +452,7 @@ def map_loops(job, indices, workers=1) -> list:
         out = []
         for i in indices:
             result, raised = pending[i].get()
-            for message, category, filename, lineno in raised:
-                warnings.warn_explicit(message, category, filename, lineno)
+            raise_again(raised)
             out.append(result)
         return out
     finally:

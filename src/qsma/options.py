@@ -80,6 +80,10 @@ class RunOptions:
         Processes that compute the levels' loops (1: in this process). The loops of the
         levels are independent given the backbone; the results are the same bits for
         any count (:func:`qsma.hysteresis.map_loops`; forked workers, Linux and macOS).
+    parallel_ramps : bool
+        Solve the -alpha ramp on a second process (forked: Linux and macOS) while the
+        last refinement round of the +alpha ramp runs in this one; the results are the
+        same bits either way (``qsma.analysis._NegativeRamp``).
     """
 
     mode: int = 0
@@ -99,6 +103,7 @@ class RunOptions:
     blas_threads: typing.Any = "auto"
     eliminate_open: bool = True
     loop_workers: int = 1
+    parallel_ramps: bool = True
 
     def __post_init__(self):
         from .contact import METHODS
@@ -127,7 +132,8 @@ class RunOptions:
         _integer("loop_workers", self.loop_workers, minimum=1, maximum=MAX_LOOP_WORKERS)
         if self.n_modes is not None:
             _integer("n_modes", self.n_modes, minimum=1)
-        for name in ("refine_levels", "direct_loop", "continue_on_failure", "eliminate_open"):
+        for name in ("refine_levels", "direct_loop", "continue_on_failure", "eliminate_open",
+                     "parallel_ramps"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise InputError(f"{name} must be true or false, got {getattr(self, name)!r}")
         if not isinstance(self.schur_backend, str):

@@ -58,14 +58,14 @@ DONE_SUFFIX = ".done.json"
 #: this package is developed on; ``workers=`` or ``--workers`` changes it.
 DEFAULT_WORKERS = 2
 CASE_FILES = ("plots", "vtu", "rom", "report")
-#: Run options a sweep does not vary: the BLAS thread count and the loop workers do
-#: not change results (a sweep's workers compute their loops themselves: a daemonic
-#: process may not fork), the condensation backend is fixed when the shared
-#: preparation is made.
-NOT_SWEPT = ("blas_threads", "schur_backend", "loop_workers")
+#: Run options a sweep does not vary: the BLAS thread count, the loop workers and the
+#: parallel ramps do not change results (a sweep's workers compute their loops and
+#: ramps themselves: a daemonic process may not fork), the condensation backend is
+#: fixed when the shared preparation is made.
+NOT_SWEPT = ("blas_threads", "schur_backend", "loop_workers", "parallel_ramps")
 #: Run options left out of a study's fingerprint: they change no result, so a study
 #: resumes whatever they are (and studies started before they existed still resume).
-NOT_FINGERPRINTED = ("loop_workers",)
+NOT_FINGERPRINTED = ("loop_workers", "parallel_ramps")
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,122 @@
+"""The -alpha ramp on a forked process beside the last refinement round
+(qsma.analysis._NegativeRamp) and the forked call it uses (qsma._forked)."""
+import os
+import threading
+import warnings
+
+import numpy as np
+import pytest
+
+import qsma
+from qsma import _forked, analysis
+from qsma.errors import ContactConvergenceWarning, InputError
+from qsma.examples import sandwich_2d
+from qsma.options import RunOptions
+
+pytestmark = pytest.mark.skipif(not _forked.parallel_available(),
+                                reason="no fork start method (Windows)")
+
+FIELDS = ("q", "q_neg", "asymmetry", "tip", "f_hz", "zeta", "dissipation",
+          "dissipation_error", "zeta_masing", "n_stuck", "n_slip", "n_open")
+
+
+def _same_bits(a, b):
+    for name in FIELDS:
+        x, y = np.asarray(getattr(a, name), float), np.asarray(getattr(b, name), float)
+        assert np.array_equal(x, y, equal_nan=True), name
+    assert np.array_equal(a.backbone_alpha, b.backbone_alpha)
+    assert a.flags == b.flags
+
+
+class _Counted(_forked.ForkedCall):
+    made = []
+
+    def __init__(self, job):
+        _Counted.made.append(os.getpid())
+        super().__init__(job)
+
+
+@pytest.fixture(scope="module")
+def serial():
+    return qsma.run(sandwich_2d(1), parallel_ramps=False)
+
+
+def test_forked_negative_ramp_gives_the_serial_bits(serial, monkeypatch):
+    """sandwich-2d refines its backbone three times; the -alpha ramp of the final grid
+    is solved by a child while the third round runs, and every result is the serial
+    one bit for bit (q_neg and the asymmetry come from the child)."""
+    monkeypatch.setattr(analysis, "ForkedCall", _Counted)
+    _Counted.made.clear()
+    forked = qsma.run(sandwich_2d(1))
+    assert _Counted.made == [os.getpid()]
+    assert forked.success and serial.success
+    assert len(forked.backbone_alpha) > 51          # the grid was refined
+    _same_bits(forked, serial)
+
+
+class _Dying(_forked.ForkedCall):
+    def __init__(self, job):
+        super().__init__(lambda: os._exit(3))
+
+
+class _Raising(_forked.ForkedCall):
+    def __init__(self, job):
+        def job_that_fails():
+            raise MemoryError("no room in the child")
+        super().__init__(job_that_fails)
+
+
+@pytest.mark.parametrize("child", [_Dying, _Raising])
+def test_a_failed_child_is_replaced_by_the_serial_ramp(serial, monkeypatch, caplog, child):
+    monkeypatch.setattr(analysis, "ForkedCall", child)
+    with caplog.at_level("WARNING", logger="qsma"):
+        res = qsma.run(sandwich_2d(1))
+    assert "negative ramp solved again in this process" in caplog.text
+    _same_bits(res, serial)
+
+
+def test_no_fork_outside_the_main_thread(serial, monkeypatch):
+    monkeypatch.setattr(analysis, "ForkedCall", _Counted)
+    _Counted.made.clear()
+    out = {}
+    t = threading.Thread(target=lambda: out.update(res=qsma.run(sandwich_2d(1))))
+    t.start()
+    t.join()
+    assert _Counted.made == []
+    _same_bits(out["res"], serial)
+
+
+@pytest.mark.parametrize("bad", [1, "yes", None])
+def test_parallel_ramps_must_be_true_or_false(bad):
+    with pytest.raises(InputError, match="parallel_ramps must be true or false"):
+        RunOptions(parallel_ramps=bad)
+
+
+def test_forked_call_returns_the_value_and_raises_the_warnings_here():
+    def job():
+        warnings.warn("level 3 did not converge", ContactConvergenceWarning)
+        return np.arange(5.0) * os.getpid()
+    call = _forked.ForkedCall(job)
+    with pytest.warns(ContactConvergenceWarning, match="level 3 did not converge"):
+        value = call.result()
+    child = value[1]
+    assert child != os.getpid()
+    assert np.array_equal(value, np.arange(5.0) * child)
+
+
+def test_forked_call_reports_a_child_that_raises_or_dies():
+    def raising():
+        raise ValueError("bad level")
+    with pytest.raises(_forked.ChildFailed, match="raised ValueError"):
+        _forked.ForkedCall(raising).result()
+    with pytest.raises(_forked.ChildFailed, match="exit code 7"):
+        _forked.ForkedCall(lambda: os._exit(7)).result()
+
+
+def test_cancel_stops_a_running_child():
+    import time
+    call = _forked.ForkedCall(lambda: time.sleep(60))
+    t0 = time.monotonic()
+    call.cancel()
+    assert time.monotonic() - t0 < 10
+    assert not call._process.is_alive()
