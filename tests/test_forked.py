@@ -50,6 +50,9 @@ def test_forked_negative_ramp_gives_the_serial_bits(serial, monkeypatch):
     forked = qsma.run(sandwich_2d(1))
     assert _Counted.made == [os.getpid()]
     assert forked.success and serial.success
+    # the child's CPU time and memory are reported beside the process's own
+    assert forked.resources["children_cpu_s"] > serial.resources["children_cpu_s"] >= 0
+    assert forked.resources["children_peak_memory_mb"] > 0
     assert len(forked.backbone_alpha) > 51          # the grid was refined
     _same_bits(forked, serial)
 

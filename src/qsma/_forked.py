@@ -79,6 +79,7 @@ class ForkedCall:
             try:
                 kind, value, raised = self._receive.recv()
             except (EOFError, OSError) as exc:
+                self._process.join(timeout=60)          # its exit code, once reaped
                 raise ChildFailed(f"the child process ended without an answer "
                                   f"(exit code {self._process.exitcode})") from exc
             if kind != "ok":
