@@ -123,3 +123,11 @@ def test_cancel_stops_a_running_child():
     call.cancel()
     assert time.monotonic() - t0 < 10
     assert not call._process.is_alive()
+
+
+def test_loops_use_two_workers_by_default_where_two_cores_are_usable(monkeypatch):
+    assert RunOptions(loop_workers=3).loop_worker_count == 3
+    monkeypatch.setattr(_forked, "usable_cores", lambda: 1)
+    assert RunOptions().loop_worker_count == 1
+    monkeypatch.setattr(_forked, "usable_cores", lambda: 8)
+    assert RunOptions().loop_worker_count == 2

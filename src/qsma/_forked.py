@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import logging
 import multiprocessing
+import os
 import threading
 import warnings
 
@@ -23,6 +24,13 @@ log = logging.getLogger("qsma")
 def parallel_available() -> bool:
     """Whether worker processes can inherit a job (the ``fork`` start method)."""
     return "fork" in multiprocessing.get_all_start_methods()
+
+
+def usable_cores() -> int:
+    """Cores this process may run on (its CPU affinity where the platform tells it)."""
+    if hasattr(os, "sched_getaffinity"):
+        return max(1, len(os.sched_getaffinity(0)))
+    return max(1, os.cpu_count() or 1)
 
 
 def fork_refusal() -> str | None:

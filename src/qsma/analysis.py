@@ -13,13 +13,12 @@ from __future__ import annotations
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
 import logging
-import os
 import time
 import warnings
 
 import numpy as np
 
-from ._forked import ChildFailed, ForkedCall, fork_refusal
+from ._forked import ChildFailed, ForkedCall, fork_refusal, usable_cores
 from ._threads import CONTACT_BLAS_THREADS, blas_threads as threads_limited, threads_for
 from .condense import reduce_two_bodies
 from .contact import DEFAULT_TOL, ContactProblem, ContactState, OPEN, SLIPPING, STUCK
@@ -783,8 +782,7 @@ class _NegativeRamp:
 def _one_core():
     """Why a second process would not run beside this one (a single usable core), or
     None."""
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    return "this process may use a single core" if (cores or 1) < 2 else None
+    return "this process may use a single core" if usable_cores() < 2 else None
 
 
 def _refined_backbone(solver, alpha, pre, opts, progress, response, k_ref, last_round=None):
@@ -896,7 +894,7 @@ def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref):
                             max_cycles=opts.max_cycles, rtol=opts.dissipation_rtol,
                             atol=ZETA_ZERO * 2 * np.pi * A * abs(pos.q[g]))
 
-    for i, lp in zip(todo, map_loops(level_loop, todo, opts.loop_workers)):
+    for i, lp in zip(todo, map_loops(level_loop, todo, opts.loop_worker_count)):
         out["loops"][i] = lp
         out["n_solves"] += lp.n_solves
         log.info("level %d: loop at A=%.4g, %s, %d solves, D=%.4g +- %.1g", i,

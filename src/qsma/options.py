@@ -76,10 +76,13 @@ class RunOptions:
     eliminate_open : bool
         Solve the ramp on the pairs closed after the preload, the open ones eliminated
         exactly (a pair that would close joins the zone).
-    loop_workers : int
-        Processes that compute the levels' loops (1: in this process). The loops of the
-        levels are independent given the backbone; the results are the same bits for
-        any count (:func:`qsma.hysteresis.map_loops`; forked workers, Linux and macOS).
+    loop_workers : int or None
+        Processes that compute the levels' loops (1: in this process; ``None``, the
+        default: two where this process may use two cores or more, see
+        :attr:`loop_worker_count`). The loops of the levels are independent given the
+        backbone; the results are the same bits for any count
+        (:func:`qsma.hysteresis.map_loops`; forked workers, Linux and macOS; elsewhere
+        the loops run in this process).
     parallel_ramps : bool
         Solve the -alpha ramp on a second process (forked: Linux and macOS) while the
         last refinement round of the +alpha ramp runs in this one; the results are the
@@ -102,7 +105,7 @@ class RunOptions:
     schur_backend: str = "auto"
     blas_threads: typing.Any = "auto"
     eliminate_open: bool = True
-    loop_workers: int = 1
+    loop_workers: int | None = None
     parallel_ramps: bool = True
 
     def __post_init__(self):
@@ -129,7 +132,8 @@ class RunOptions:
                              f"{self.dissipation_rtol:g}")
         _integer("max_cycles", self.max_cycles, minimum=1, maximum=MAX_CYCLES_LIMIT)
         _integer("loop_steps", self.loop_steps, minimum=2, maximum=MAX_LOOP_STEPS)
-        _integer("loop_workers", self.loop_workers, minimum=1, maximum=MAX_LOOP_WORKERS)
+        if self.loop_workers is not None:
+            _integer("loop_workers", self.loop_workers, minimum=1, maximum=MAX_LOOP_WORKERS)
         if self.n_modes is not None:
             _integer("n_modes", self.n_modes, minimum=1)
         for name in ("refine_levels", "direct_loop", "continue_on_failure", "eliminate_open",
@@ -141,6 +145,15 @@ class RunOptions:
         bt = self.blas_threads
         if not (bt is None or bt == "auto"):
             _integer("blas_threads", bt, minimum=1)
+
+    @property
+    def loop_worker_count(self) -> int:
+        """``loop_workers``, or for ``None`` two processes where this one may use two
+        cores or more (one elsewhere): the machines qsma is measured on have two."""
+        if self.loop_workers is not None:
+            return int(self.loop_workers)
+        from ._forked import usable_cores
+        return min(2, usable_cores())
 
     @property
     def solver_options(self) -> dict:
