@@ -47,8 +47,18 @@ def test_forked_negative_ramp_gives_the_serial_bits(serial, monkeypatch):
     one bit for bit (q_neg and the asymmetry come from the child)."""
     monkeypatch.setattr(analysis, "ForkedCall", _Counted)
     _Counted.made.clear()
+    here = []                            # -alpha ramps solved in this process
+    solved = analysis._NegativeRamp._solved
+
+    def counted(self, grid):
+        if os.getpid() == parent:
+            here.append(len(grid))
+        return solved(self, grid)
+    parent = os.getpid()
+    monkeypatch.setattr(analysis._NegativeRamp, "_solved", counted)
     forked = qsma.run(sandwich_2d(1))
-    assert _Counted.made == [os.getpid()]
+    assert _Counted.made == [parent]
+    assert here == []                    # the child's ramp was used
     assert forked.success and serial.success
     # the child's CPU time and memory are reported beside the process's own
     assert forked.resources["children_cpu_s"] > serial.resources["children_cpu_s"] >= 0
@@ -131,3 +141,40 @@ def test_loops_use_two_workers_by_default_where_two_cores_are_usable(monkeypatch
     assert RunOptions().loop_worker_count == 1
     monkeypatch.setattr(_forked, "usable_cores", lambda: 8)
     assert RunOptions().loop_worker_count == 2
+
+
+def test_a_child_ends_when_its_parent_is_killed(tmp_path):
+    """A child whose parent died (killed, out of memory) exits instead of computing on
+    and holding what it inherited (the result folder's lock)."""
+    import signal
+    import subprocess
+    import sys
+    import time
+    script = tmp_path / "parent.py"
+    pidfile = tmp_path / "child.pid"
+    script.write_text(
+        "import os, sys, time\n"
+        "from qsma import _forked\n"
+        "def job():\n"
+        f"    open({str(pidfile)!r}, 'w').write(str(os.getpid()))\n"
+        "    time.sleep(120)\n"
+        "call = _forked.ForkedCall(job)\n"
+        "time.sleep(120)\n")
+    parent = subprocess.Popen([sys.executable, str(script)])
+    try:
+        for _ in range(300):
+            if pidfile.exists() and pidfile.read_text():
+                break
+            time.sleep(0.1)
+        child = int(pidfile.read_text())
+    finally:
+        parent.send_signal(signal.SIGKILL)
+        parent.wait()
+    for _ in range(100):
+        try:
+            os.kill(child, 0)
+        except ProcessLookupError:
+            return
+        time.sleep(0.1)
+    os.kill(child, signal.SIGKILL)
+    raise AssertionError("the child outlived its killed parent by 10 s")

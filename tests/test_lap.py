@@ -67,7 +67,7 @@ def test_loops_on_two_processes_give_the_serial_results_bit_for_bit():
     on the default lap-2d run, too slow for this test, it moves three levels by
     7e-15 against the ramps' zone.)"""
     levels = Levels.log("tip", 1e-4, 1e-3, 4)
-    a = qsma.run(lap_2d(1), levels=levels, dissipation="loop")
+    a = qsma.run(lap_2d(1), levels=levels, dissipation="loop", loop_workers=1)
     b = qsma.run(lap_2d(1), levels=levels, dissipation="loop", loop_workers=2)
     assert a.success and b.success and len(a.loops) == 4
     for name in LEVEL_FIELDS:

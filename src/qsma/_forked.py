@@ -12,9 +12,12 @@ callers then do the same work in this process, with the same results.
 """
 from __future__ import annotations
 
+from contextlib import contextmanager
 import logging
 import multiprocessing
 import os
+import signal
+import sys
 import threading
 import warnings
 
@@ -44,7 +47,18 @@ def fork_refusal() -> str | None:
         return "this is a daemonic process (e.g. a sweep worker), which may not fork"
     if threading.current_thread() is not threading.main_thread():
         return "this is not the main thread of the process"
+    if threading.active_count() > 1:
+        return "other threads are running in this process"
     return None
+
+
+def forks_by_default() -> bool:
+    """Whether qsma forks without being asked to (the -alpha ramp beside the +alpha
+    one, two loop workers): on Linux, where the fork of a process with BLAS threads is
+    what the loop workers have done from the start. macOS's Accelerate BLAS (numpy's
+    wheels there) is not known to be safe after a fork; there qsma forks only for an
+    explicit ``loop_workers``."""
+    return sys.platform.startswith("linux")
 
 
 def recorded_warnings(seen) -> list:
@@ -78,8 +92,10 @@ class ForkedCall:
     def __init__(self, job):
         ctx = multiprocessing.get_context("fork")
         self._receive, send = ctx.Pipe(duplex=False)
-        self._process = ctx.Process(target=_child, args=(job, send), daemon=True)
-        self._process.start()
+        self._process = ctx.Process(target=_child, args=(job, send, self._receive),
+                                    daemon=True)
+        with quiet_fork():
+            self._process.start()
         send.close()                    # the child holds the only writing end now
 
     def result(self):
@@ -105,7 +121,31 @@ class ForkedCall:
         self._receive.close()
 
 
-def _child(job, send):
+@contextmanager
+def quiet_fork():
+    """Python 3.12 warns at every fork of a process with threads (BLAS keeps some);
+    the forks of qsma are made knowingly (:func:`fork_refusal`), the warning would
+    only reach the caller's warnings."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", category=DeprecationWarning,
+                                message=r".*fork\(\) may lead to deadlocks")
+        yield
+
+
+def default_signals():
+    """In a forked child: SIGTERM back to its default action (the parent stops its
+    children with it; a handler inherited from the command line, which raises
+    KeyboardInterrupt to unwind the run, left an idle pool worker alive and its parent
+    waiting for it) and SIGINT ignored (Ctrl-C reaches the whole process group; the
+    parent handles it and stops its children)."""
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _child(job, send, receive):
+    default_signals()
+    receive.close()                    # the parent's end: a write to a dead parent fails
+    threading.Thread(target=_exit_with_parent, daemon=True).start()
     try:
         with warnings.catch_warnings(record=True) as seen:
             warnings.simplefilter("always")
@@ -117,3 +157,13 @@ def _child(job, send):
         send.send(message)
     finally:
         send.close()
+
+
+def _exit_with_parent():
+    """End this child when its parent ends (killed, or gone without collecting the
+    answer): it would otherwise compute on, and hold what it inherited, such as the
+    lock of the result folder."""
+    parent = multiprocessing.parent_process()
+    if parent is not None:
+        parent.join()
+        os._exit(1)

@@ -18,7 +18,7 @@ import warnings
 
 import numpy as np
 
-from ._forked import ChildFailed, ForkedCall, fork_refusal, usable_cores
+from ._forked import ChildFailed, ForkedCall, fork_refusal, forks_by_default, usable_cores
 from ._threads import CONTACT_BLAS_THREADS, blas_threads as threads_limited, threads_for
 from .condense import reduce_two_bodies
 from .contact import DEFAULT_TOL, ContactProblem, ContactState, OPEN, SLIPPING, STUCK
@@ -227,11 +227,20 @@ class Prepared:
         key = ("preload", float(self.model.mu), self.preload_scale, opts.method,
                tuple(sorted(opts.solver_options.items())))
         if key not in self.cache:
-            self.cache[key] = preload(self.model, self.assembled, self.pairing,
-                                      method=opts.method, opts=opts.solver_options,
-                                      clock=clock, reduced=self.reduced,
-                                      contact_threads=_contact_threads(opts))
-        return self.cache[key]
+            out = preload(self.model, self.assembled, self.pairing, method=opts.method,
+                          opts=opts.solver_options, clock=clock, reduced=self.reduced,
+                          contact_threads=_contact_threads(opts))
+            self.cache[key] = out, out[1].__dict__.get("_zone_outer")
+        out, zone = self.cache[key]
+        # every run starts from the elimination of the preload, whatever the zones of
+        # earlier runs grew to (qsma.contact.zone.zone_from_state reads the last one
+        # cached on the problem): the same bits in every run, in any order, whether
+        # its ramps and loops grew the zones in this process or in forked ones
+        if zone is None:
+            out[1].__dict__.pop("_zone_outer", None)
+        else:
+            out[1].__dict__["_zone_outer"] = zone
+        return out
 
     def mode(self, closed, opts, clock, reduced=None):
         """:func:`_mode` cached by the mask of closed pairs, the mode and ``n_modes``."""
@@ -493,6 +502,7 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
                 neg = negative.result(grid[:pos.n])
             finally:
                 negative.cancel()
+            solver.zone = _with_closed(solver.zone, neg.status)
 
         with clock.stage("hysteresis"), threads_limited(contact_limit):
             hyst = _hysteresis(solver, response, grid[:pos.n], user, pos, neg, pre, opts,
@@ -734,8 +744,8 @@ class _NegativeRamp:
     The last refinement round of the +alpha ramp and this ramp need the same grid and
     nothing of each other. :meth:`start`, called with the grid of the last round before
     that round is solved, forks a child process that solves this ramp while the round
-    runs here (``RunOptions.parallel_ramps``, where :func:`qsma._forked.fork_refusal`
-    allows it: Linux and macOS). :meth:`result` takes the child's ramp if it was
+    runs here (``RunOptions.parallel_ramps``, on Linux where
+    :func:`qsma._forked.fork_refusal` allows it). :meth:`result` takes the child's ramp if it was
     solved on the grid finally kept, and otherwise (no last round, a round that failed
     and kept the coarser grid, no fork, a child that failed) solves it here from the
     same zone: either way the same floating-point operations, the same bits. The ramp
@@ -747,7 +757,8 @@ class _NegativeRamp:
 
     def start(self, grid):
         self.zone, self.grid = self.solver.zone, np.array(grid, dtype=float)
-        why_not = (fork_refusal() or _one_core()) if self.fork else None
+        why_not = (fork_refusal() or _one_core()
+                   or (None if forks_by_default() else "not on Linux")) if self.fork else None
         if why_not is not None:
             log.info("negative ramp solved after the positive one: %s", why_not)
         elif self.fork:
@@ -909,6 +920,17 @@ def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref):
             out["shakedown"][i] = lp.shakedown
     solver.zone = zone
     return out
+
+
+def _with_closed(zone, status):
+    """``zone`` grown by the pairs closed at some point of ``status`` (a ramp's states,
+    levels x pairs) outside it: the -alpha ramp is solved with a solver of its own
+    (:class:`_NegativeRamp`), so the pairs only it closed join the ramps' zone here,
+    before the loops are carved out of it (:func:`_loop_zone`)."""
+    if zone is None or isinstance(zone, str) or len(status) == 0:
+        return zone
+    outside = np.any(np.asarray(status) != OPEN, axis=0) & ~zone.keep
+    return zone.grown(outside) if outside.any() else zone
 
 
 def _loop_zone(zone, *statuses):

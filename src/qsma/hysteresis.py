@@ -30,8 +30,9 @@ import warnings
 
 import numpy as np
 
-from ._forked import (fork_refusal, parallel_available,  # noqa: F401 (re-exported)
-                      raise_again, recorded_warnings)
+from ._forked import (default_signals, fork_refusal,
+                      parallel_available,  # noqa: F401 (re-exported)
+                      quiet_fork, raise_again, recorded_warnings)
 
 log = logging.getLogger("qsma")
 
@@ -446,7 +447,8 @@ def map_loops(job, indices, workers=1) -> list:
     if workers <= 1 or why_not is not None:
         return [job(i) for i in indices]
     _JOB = job
-    pool = multiprocessing.get_context("fork").Pool(workers)
+    with quiet_fork():
+        pool = multiprocessing.get_context("fork").Pool(workers, initializer=default_signals)
     try:
         pending = {i: pool.apply_async(_call_job, (i,)) for i in reversed(indices)}
         out = []

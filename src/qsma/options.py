@@ -78,13 +78,13 @@ class RunOptions:
         exactly (a pair that would close joins the zone).
     loop_workers : int or None
         Processes that compute the levels' loops (1: in this process; ``None``, the
-        default: two where this process may use two cores or more, see
+        default: two on Linux where this process may use two cores or more, see
         :attr:`loop_worker_count`). The loops of the levels are independent given the
         backbone; the results are the same bits for any count
         (:func:`qsma.hysteresis.map_loops`; forked workers, Linux and macOS; elsewhere
         the loops run in this process).
     parallel_ramps : bool
-        Solve the -alpha ramp on a second process (forked: Linux and macOS) while the
+        Solve the -alpha ramp on a second process (forked, on Linux) while the
         last refinement round of the +alpha ramp runs in this one; the results are the
         same bits either way (``qsma.analysis._NegativeRamp``).
     """
@@ -148,12 +148,13 @@ class RunOptions:
 
     @property
     def loop_worker_count(self) -> int:
-        """``loop_workers``, or for ``None`` two processes where this one may use two
-        cores or more (one elsewhere): the machines qsma is measured on have two."""
+        """``loop_workers``, or for ``None`` two processes on Linux where this one may
+        use two cores or more (one elsewhere): the machines qsma is measured on have
+        two (:func:`qsma._forked.forks_by_default`)."""
         if self.loop_workers is not None:
             return int(self.loop_workers)
-        from ._forked import usable_cores
-        return min(2, usable_cores())
+        from ._forked import forks_by_default, usable_cores
+        return min(2, usable_cores()) if forks_by_default() else 1
 
     @property
     def solver_options(self) -> dict:
