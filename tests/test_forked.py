@@ -178,3 +178,20 @@ def test_a_child_ends_when_its_parent_is_killed(tmp_path):
         time.sleep(0.1)
     os.kill(child, signal.SIGKILL)
     raise AssertionError("the child outlived its killed parent by 10 s")
+
+
+def test_runs_of_one_preparation_do_not_depend_on_earlier_runs():
+    """A preparation keeps one contact problem for all its runs (sweeps, fits, several
+    modes); the zones an earlier run grew, in this process or in forked ones, must not
+    change the next: every run starts from the preload's elimination."""
+    from qsma.analysis import prepare, run_prepared
+    from qsma.examples import lap_2d
+    levels = qsma.Levels.log("tip", 1e-4, 1e-3, 4)
+    prep = prepare(lap_2d(1))
+    first = run_prepared(prep, levels=levels, dissipation="loop", loop_workers=1,
+                         parallel_ramps=False)
+    again = [run_prepared(prep, levels=levels, dissipation="loop", loop_workers=w,
+                          parallel_ramps=p) for w, p in ((2, True), (1, False))]
+    for res in again:
+        _same_bits(res, first)
+        assert np.array_equal(res.backbone_states.d, first.backbone_states.d)
