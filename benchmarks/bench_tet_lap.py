@@ -208,8 +208,9 @@ def time_mortar(model, repeat, meshing):
 
 def time_contact(model, levels, args, meshing):
     """Print the contact-stage wall seconds and the CPU seconds of ``args.repeat`` runs
-    on one preparation (each with its own preload and contact problem) and their medians; the last run's levels
-    to ``args.save``, its profile to ``args.profile``."""
+    on one preparation (each with its own preload and contact problem) and their
+    medians; the last run's levels to ``args.save``, its profile to ``args.profile``.
+    The CPU seconds are this process's (a forked ramp's child is not counted)."""
     from dataclasses import replace
     from qsma.analysis import prepare, run_prepared
     t0 = time.perf_counter()
