@@ -167,8 +167,9 @@ class BlockSystem:
         n_o, k = len(self.open) * dim, len(self.slip)
         rows = np.concatenate([self.unknown[:n_o], problem.tangent_index[self.slip].ravel(),
                                problem.normal_index[self.slip]])
-        self.K_RU = problem.K[np.ix_(rows, self.unknown)]
-        f = (problem.K[rows] @ self.d_known if self.d_known.any() else 0.0) + lam_w[rows]
+        K_R = problem.K[rows]          # whole rows once: K_RU from them (no second
+        self.K_RU = K_R.take(self.unknown, axis=1)   # gather from K; C order), and f
+        f = (K_R @ self.d_known if self.d_known.any() else 0.0) + lam_w[rows]
         K_RU = self.K_RU
         self.K_open, self.f_open = K_RU[:n_o], f[:n_o]
         self.K_t = K_RU[n_o:n_o + k * m].reshape(k, m, len(self.unknown))

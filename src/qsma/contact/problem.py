@@ -84,12 +84,17 @@ class ContactProblem:
                     **_derived_fields(K, dim))
 
     @classmethod
-    def derived(cls, K, mu, gap0, dim):
+    def derived(cls, K, mu, gap0, dim, *, overwrite=False):
         """A problem the package derived from a validated one (the Schur complement of
         an SPD ``K`` on a zone, with that zone's ``mu`` and ``gap0``): ``K`` is
         symmetrised and nothing else is checked again (the Cholesky test alone costs
-        ``n^3/3``)."""
-        K = _frozen(0.5 * (K + K.T))
+        ``n^3/3``).
+
+        ``overwrite=True``: ``K`` is the caller's own C-ordered float64 array, symmetrised
+        in place (:func:`_symmetrise`, the same bits as ``(K + K^T) / 2``), frozen and
+        held: no copy of the zone's size."""
+        K = _symmetrise(K) if overwrite else 0.5 * (K + K.T)
+        K = _frozen(K)
         new = object.__new__(cls)
         _set_fields(new, K=K, mu=_frozen(np.array(mu, dtype=float)),
                     gap0=_frozen(np.array(gap0, dtype=float)), dim=int(dim),
@@ -201,6 +206,32 @@ def _symmetric_product(A, x):
     copy), reading one triangle."""
     symv = sla_blas.ssymv if A.dtype == np.float32 else sla_blas.dsymv
     return symv(1.0, A.T, x)
+
+
+#: Tile edge of :func:`_symmetrise` (two tiles of 128 x 128 doubles, 256 KB, stay in cache).
+SYMMETRISE_TILE = 128
+
+
+def _symmetrise(A):
+    r"""``A`` overwritten by ``(A + A^T) / 2``, tile by tile, and returned.
+
+    Each pair of tiles ``A_IJ``, ``A_JI`` (``I <= J``) is replaced by ``M = (A_IJ +
+    A_JI^T) / 2`` and ``M^T``: the same floating-point operations entry by entry as
+    ``0.5 * (A + A.T)`` (addition commutes exactly), so the same bits, without the two
+    temporaries of the size of ``A`` and the transposed pass over all of it."""
+    if not (isinstance(A, np.ndarray) and A.dtype == np.float64 and A.flags.c_contiguous
+            and A.flags.writeable and A.ndim == 2 and A.shape[0] == A.shape[1]):
+        raise ValueError("_symmetrise: a writeable square C-ordered float64 array")
+    n, b = A.shape[0], SYMMETRISE_TILE
+    for i in range(0, n, b):
+        rows = slice(i, min(i + b, n))
+        for j in range(i, n, b):
+            cols = slice(j, min(j + b, n))
+            mean = A[rows, cols] + A[cols, rows].T
+            mean *= 0.5
+            A[rows, cols] = mean
+            A[cols, rows] = mean.T
+    return A
 
 
 def _power_of_two(x):

@@ -53,6 +53,9 @@ MAX_BORDERS = 16
 #: its opened pairs (3 unknowns each in 3D) into every block step. lap-3d refine 2
 #: (651 pairs): zones of 233 to 304 pairs of which about 140 closed.
 NARROW_FRACTION = 0.25
+#: Most blocks (row runs x column runs) that :func:`_place` copies as slices; above,
+#: one fancy-indexed assignment is cheaper than the Python loop over the blocks.
+PLACE_MAX_BLOCKS = 256
 
 
 @dataclass(frozen=True, eq=False)
@@ -145,10 +148,12 @@ class Elimination:
         L = sla.cholesky(K[np.ix_(iO, iO)], lower=True, overwrite_a=True, check_finite=False)
         W = sla.solve_triangular(L, K[np.ix_(iO, iA)], lower=True, overwrite_b=True,
                                  check_finite=False)
-        S = K[np.ix_(iA, iA)] - W.T @ W
+        S = K[np.ix_(iA, iA)]
+        S -= W.T @ W
         Bt = sla.solve_triangular(L, W, lower=True, trans="T", overwrite_b=True,
                                   check_finite=False)
-        sub = ContactProblem.derived(S, problem.mu[keep], problem.gap0[keep], problem.dim)
+        sub = ContactProblem.derived(S, problem.mu[keep], problem.gap0[keep], problem.dim,
+                                     overwrite=True)
         return cls(problem, keep, sub, iA, iO, _CholeskyInverse(L), Bt)
 
     def bordered(self, pairs) -> "Elimination":
@@ -189,15 +194,19 @@ class Elimination:
         HG = H[rows]
         at_A = np.searchsorted(iA, self.iA)                      # old zone within the new
         at_G = np.searchsorted(iA, self.iO[g])
+        S_AA = self.Bt[g].T @ CB
+        S_AA += self.sub.K
         S = np.empty((len(iA), len(iA)))
-        S[np.ix_(at_A, at_A)] = self.sub.K + self.Bt[g].T @ CB
-        S[np.ix_(at_A, at_G)] = CB.T
-        S[np.ix_(at_G, at_A)] = CB
-        S[np.ix_(at_G, at_G)] = C
+        _place(S, at_A, at_A, S_AA)
+        _place(S, at_A, at_G, CB.T)
+        _place(S, at_G, at_A, CB)
+        _place(S, at_G, at_G, C)
+        B_A = HG @ CB
+        np.subtract(self.Bt[rows], B_A, out=B_A)
         Bt = np.empty((len(iO), len(iA)))
-        Bt[:, at_A] = self.Bt[rows] - HG @ CB
-        Bt[:, at_G] = -HG @ C
-        sub = ContactProblem.derived(S, p.mu[keep], p.gap0[keep], p.dim)
+        _place(Bt, None, at_A, B_A)
+        _place(Bt, None, at_G, -HG @ C)
+        sub = ContactProblem.derived(S, p.mu[keep], p.gap0[keep], p.dim, overwrite=True)
         inverse = (_BorderedInverse(self.inverse, rows, HG, C, len(self.iO))
                    if len(iO) else None)
         return Elimination(p, keep, sub, iA, iO, inverse, Bt)
@@ -234,6 +243,34 @@ class Elimination:
         if len(self.iO):
             d[self.iO] = -(self.Bt @ d_A) - u
         return d
+
+
+def _runs(positions):
+    """Runs of consecutive values in the increasing ``positions``: a list of
+    ``(first index in positions, first value, length)``."""
+    positions = np.asarray(positions)
+    if positions.size == 0:
+        return []
+    starts = np.concatenate(([0], np.flatnonzero(np.diff(positions) != 1) + 1))
+    lengths = np.diff(np.concatenate((starts, [positions.size])))
+    return list(zip(starts.tolist(), positions[starts].tolist(), lengths.tolist()))
+
+
+def _place(out, rows, cols, block):
+    """``out[np.ix_(rows, cols)] = block`` (``rows = None``: all rows), block by block
+    over the runs of ``rows`` and ``cols`` (:func:`_runs`) as slices: the same numbers
+    moved without numpy's element-wise fancy indexing, several times faster when the
+    index sets are a few runs (a zone bordered by a few pairs: the old zone is as many
+    runs as there are groups of new pairs, plus one). Many runs: fancy indexing."""
+    row_runs = [(0, 0, out.shape[0])] if rows is None else _runs(rows)
+    col_runs = _runs(cols)
+    if len(row_runs) * len(col_runs) > PLACE_MAX_BLOCKS:
+        out[np.ix_(np.arange(out.shape[0]) if rows is None else rows, cols)] = block
+        return
+    for at_r, first_r, n_r in row_runs:
+        for at_c, first_c, n_c in col_runs:
+            out[first_r:first_r + n_r, first_c:first_c + n_c] = \
+                block[at_r:at_r + n_r, at_c:at_c + n_c]
 
 
 def _spd_inverse(A):
