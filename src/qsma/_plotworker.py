@@ -146,7 +146,9 @@ class PlotWorker:
         for message, category, filename, lineno in raised:
             warnings.warn_explicit(message, category, filename, lineno)
         if kind == "error":
-            raise PlotWorkerFailed(f"the figure process raised:\n{value}")
+            log.debug("the figure process raised:\n%s", value)
+            last = value.strip().splitlines()[-1] if value.strip() else "an error"
+            raise PlotWorkerFailed(f"the figure process raised {last}")
         return value
 
     def close(self):
