@@ -22,8 +22,16 @@ from qsma.levels import Levels, spec_levels
 from qsma.results import write_all
 from qsma.rundir import verify_run_folder
 
-needs_fork = pytest.mark.skipif(pw.why_not_fork() is not None,
+from qsma.hysteresis import parallel_available
+
+needs_fork = pytest.mark.skipif(not parallel_available(),
                                 reason="no fork start method (Windows)")
+
+
+@pytest.fixture(autouse=True)
+def worker_on(monkeypatch):
+    """The worker as by default, whatever the environment of the test run."""
+    monkeypatch.setenv(pw.ENV, "1")
 
 
 @pytest.fixture(scope="module")

@@ -57,13 +57,8 @@ def why_not_fork():
                          f"unset it or set e.g. {ENV}=0")
     if value == "0":
         return f"{ENV}=0"
-    if "fork" not in multiprocessing.get_all_start_methods():
-        return "the fork start method is not available"
-    if multiprocessing.current_process().daemon:
-        return "this is a daemonic process (e.g. a sweep worker), which may not fork"
-    if threading.current_thread() is not threading.main_thread():
-        return "this is not the main thread of the process"
-    return None
+    from .hysteresis import _may_fork       # the rules of the loop workers
+    return _may_fork()
 
 
 class PlotWorkerFailed(Exception):
