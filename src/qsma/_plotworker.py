@@ -137,6 +137,9 @@ class PlotWorker:
             self._process.join()
             raise PlotWorkerFailed(f"the figure process ended without answering "
                                    f"(exit code {self._process.exitcode})") from None
+        except Exception as exc:            # an answer that cannot be read back
+            raise PlotWorkerFailed(f"the figure process's answer cannot be read "
+                                   f"({type(exc).__name__}: {exc})") from None
         kind, value, raised = _checked(answer)
         for message, category, filename, lineno in raised:
             warnings.warn_explicit(message, category, filename, lineno)
@@ -163,6 +166,8 @@ def _checked(answer):
             and isinstance(answer[2], list)):
         raise PlotWorkerFailed(f"the figure process answered {type(answer).__name__}")
     kind, value, raised = answer
+    if kind == "error" and not isinstance(value, str):
+        raise PlotWorkerFailed("the figure process failed without saying why")
     if kind == "ok" and not (isinstance(value, dict) and all(
             isinstance(k, str) and isinstance(v, bytes) for k, v in value.items())):
         raise PlotWorkerFailed("the figure process answered without PNG bytes")
@@ -183,13 +188,13 @@ def _serve(conn, parents_end):
     except Exception:               # reported with the job (the parent draws instead)
         pass
     try:
-        data = pickle.loads(conn.recv_bytes())
+        payload = conn.recv_bytes()
     except (EOFError, OSError):     # the parent ended or gave up: nothing to draw
         return
     with warnings.catch_warnings(record=True) as seen:
         warnings.simplefilter("always")
         try:
-            answer = ("ok", _draw(data, conn))
+            answer = ("ok", _draw(pickle.loads(payload), conn))
         except Exception:
             answer = ("error", traceback.format_exc())
     raised = [(w.message, w.category, w.filename, w.lineno) for w in seen]
