@@ -107,7 +107,11 @@ class PlotWorker:
         sent by a thread, so that a worker still importing matplotlib (not reading
         yet) does not hold this process up once the pipe's buffer is full."""
         from .plots import plot_data
-        payload = pickle.dumps(plot_data(res), protocol=pickle.HIGHEST_PROTOCOL)
+        try:
+            payload = pickle.dumps(plot_data(res), protocol=pickle.HIGHEST_PROTOCOL)
+        except Exception as exc:            # collect() finds nothing submitted
+            log.debug("the figures' data cannot be sent: %s", exc)
+            return
         self._sender = threading.Thread(target=self._send, args=(payload,), daemon=True,
                                         name="qsma-plots-send")
         self._sender.start()
@@ -129,7 +133,7 @@ class PlotWorker:
             (its exit code in the message) or answered something else.
         """
         if self._sender is None:
-            raise PlotWorkerFailed("nothing was submitted")
+            raise PlotWorkerFailed("the figures' data were not handed to it")
         self._sender.join()
         try:
             answer = self._conn.recv()

@@ -335,11 +335,11 @@ def write_all(res, out, plots=True, vtu=True, folder=None, report=None,
         if vtu and res.n_levels:
             paths["vtu"] = stage / "fields.vtu"
             write_vtu(res, paths["vtu"])
+        write_json(res, paths["json"])
         figures = None
         if draw:
             figures = _write_figures(res, stage, plot_worker)
             paths.update(figures)
-        write_json(res, paths["json"])
         if plots if report is None else report:
             from .report import REPORT_NAME, write_report
             paths["report"] = write_report(res, stage / REPORT_NAME, figures)
