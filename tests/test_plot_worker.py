@@ -247,3 +247,17 @@ def test_qsma_run_draws_in_the_worker_or_here(tmp_path, worker):
     manifest = verify_run_folder(out)
     assert {"backbone.png", "loops.png", "damping_frequency.png", "interface.png",
             "report.html"} <= set(manifest["files"])
+
+
+def test_no_plots_starts_no_worker(tmp_path, monkeypatch):
+    """``qsma run --no-plots`` forks nothing (and so never imports matplotlib)."""
+    from qsma.cli import main
+
+    def refuse():
+        raise AssertionError("a plot worker was started")
+
+    monkeypatch.setattr(pw.PlotWorker, "start", staticmethod(refuse))
+    out = tmp_path / "run"
+    assert main(["run", "--example", "sandwich-2d", "--levels", "tip:log:1e-6:1e-4:3",
+                 "--quiet", "--no-plots", "--out", str(out)]) == 0
+    assert not any(p.suffix == ".png" for p in out.iterdir())
