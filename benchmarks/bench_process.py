@@ -1,4 +1,4 @@
-"""CPU time of the whole ``qsma run --example sandwich-2d`` process, per stage.
+"""CPU and wall time of the whole ``qsma run --example sandwich-2d`` process, per stage.
 
 Usage: python benchmarks/bench_process.py [--repeat 5] [--example sandwich-2d]
        [--baseline SRC]
@@ -9,8 +9,12 @@ Two measurements, each the median of ``--repeat`` fresh processes:
   thread): interpreter start-up, the imports the run needs, model, analysis, results
   tables (CSV, JSON), VTU, figures, report.html;
 * the real command line ``python -m qsma run --example NAME --out DIR``, timed by the
-  kernel (user + system CPU of the child process, ``os.wait4``), with the figures and
-  report.html and without them (``--no-plots``, which never imports matplotlib).
+  kernel (user + system CPU of the child process and of the processes it waited for,
+  such as the figure worker, ``os.wait4``) and by the clock (wall seconds from the
+  start of the process to its end), with the figures and report.html and without
+  them (``--no-plots``, which never imports matplotlib); for this tree also with the
+  figures drawn in the qsma process (``QSMA_PLOT_WORKER=0``, as on Windows), so that
+  the worker's gain is a ratio measured in the same session.
 
 The analysis row is also split by the run's own stages (pairing, assembly,
 condensation, tied modes, contact ramps, hysteresis, post-processing), in CPU seconds
@@ -108,16 +112,18 @@ def _cpu_per_stage(analysis):
 
 
 def _cpu_of(cmd, env=None):
-    """User + system CPU seconds of the process ``cmd`` (its output kept, its stderr
-    discarded)."""
+    """User + system CPU seconds of the process ``cmd`` (with its waited-for children)
+    and its wall seconds (its output kept, its stderr discarded)."""
+    start = time.perf_counter()
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
                             env=env)
     stdout = proc.stdout.read()
     _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - start
     proc.returncode = os.waitstatus_to_exitcode(status)
     if proc.returncode != 0:
         raise RuntimeError(f"{cmd} exited with {proc.returncode}")
-    return usage.ru_utime + usage.ru_stime, stdout
+    return usage.ru_utime + usage.ru_stime, wall, stdout
 
 
 def _environment(src):
@@ -133,29 +139,44 @@ def _environment(src):
     return env
 
 
-def _measure(example, env, tmp, tag):
-    """One fresh process of each kind: (stages, process total, qsma run, --no-plots)."""
-    cpu, out = _cpu_of([sys.executable, __file__, "--example", example, "--child", tmp],
-                       env)
-    stages = json.loads(out)
+#: The command lines timed (name, extra arguments, extra environment; ``None``: this
+#: tree only).
+COMMANDS = (("qsma run", [], {}),
+            ("qsma run --no-plots", ["--no-plots"], {}),
+            ("QSMA_PLOT_WORKER=0 qsma run", [], None))
+
+
+def _measure(example, env, tmp, tag, this_tree):
+    """One fresh process of each kind: the stages, their process's CPU total and
+    (CPU, wall) of every command of :data:`COMMANDS`."""
+    cpu, _, out = _cpu_of([sys.executable, __file__, "--example", example, "--child",
+                           tmp], env)
+    sample = {"stages": json.loads(out), "stages total": cpu}
     run = [sys.executable, "-m", "qsma", "run", "--example", example, "--out"]
-    cli, _ = _cpu_of(run + [os.path.join(tmp, f"run-{tag}")], env)
-    bare, _ = _cpu_of(run + [os.path.join(tmp, f"bare-{tag}"), "--no-plots"], env)
-    return stages, cpu, cli, bare
+    for k, (name, extra, more_env) in enumerate(COMMANDS):
+        if more_env is None and not this_tree:
+            continue
+        env_k = dict(env, **(more_env or {"QSMA_PLOT_WORKER": "0"}))
+        sample[name] = _cpu_of(run + [os.path.join(tmp, f"cmd{k}-{tag}")] + extra,
+                               env_k)[:2]
+    return sample
 
 
 def _rows(samples):
-    """Table rows (name, median CPU s) of the samples of one source tree."""
-    stages = [s[0] for s in samples]
-    rows = [(k, statistics.median(s[k] for s in stages)) for k in STAGES]
-    at = [k for k, _ in rows].index("analysis") + 1
-    rows[at:at] = [(f"analysis: {name}",
+    """Table rows (name, median s) of the samples of one source tree."""
+    stages = [s["stages"] for s in samples]
+    rows = [(f"{k} (CPU)", statistics.median(s[k] for s in stages)) for k in STAGES]
+    at = [k for k, _ in rows].index("analysis (CPU)") + 1
+    rows[at:at] = [(f"analysis: {name} (CPU)",
                     statistics.median(s["analysis_stages"].get(name, 0.0) for s in stages))
                    for name in stages[0]["analysis_stages"]]
-    rows += [("stages, process total", statistics.median(s[1] for s in samples)),
-             ("`qsma run` process total", statistics.median(s[2] for s in samples)),
-             ("`qsma run --no-plots` process total",
-              statistics.median(s[3] for s in samples))]
+    rows.append(("stages, process total (CPU)",
+                 statistics.median(s["stages total"] for s in samples)))
+    for name, _, _ in COMMANDS:
+        if name in samples[0]:
+            for i, what in enumerate(("CPU", "wall")):
+                rows.append((f"`{name}` process ({what})",
+                             statistics.median(s[name][i] for s in samples)))
     return rows
 
 
@@ -178,17 +199,18 @@ def main():
         for i in range(args.repeat):
             order = list(trees) if i % 2 == 0 else list(trees)[::-1]
             for name in order:
-                samples[name].append(_measure(args.example, trees[name], tmp, f"{name}{i}"))
+                samples[name].append(_measure(args.example, trees[name], tmp, f"{name}{i}",
+                                              name == "this"))
             loads.append(os.getloadavg()[0])
     _print_table(args, samples, loads)
 
 
 def _print_table(args, samples, loads):
     names = list(samples)
-    print(f"{args.example}: CPU seconds (user + system), median of {args.repeat} fresh "
-          f"processes" + (", baseline and this tree alternating" if len(names) > 1 else ""))
+    print(f"{args.example}: seconds, median of {args.repeat} fresh processes"
+          + (", baseline and this tree alternating" if len(names) > 1 else ""))
     tables = {name: dict(_rows(samples[name])) for name in names}
-    heads = ["baseline CPU s", "this CPU s"] if len(names) > 1 else ["CPU s"]
+    heads = ["baseline s", "this s"] if len(names) > 1 else ["s"]
     order = ["baseline", "this"] if len(names) > 1 else ["this"]
     print("| stage | " + " | ".join(heads) + " |")
     print("|---" * (len(heads) + 1) + "|")
@@ -196,14 +218,23 @@ def _print_table(args, samples, loads):
         print(f"| {row} | " + " | ".join(
             f"{tables[n][row]:.3f}" if row in tables[n] else "-" for n in order) + " |")
     for name in order:
-        runs = samples[name]
-        print(f"({name}: qsma run, every run: {', '.join(f'{s[2]:.2f}' for s in runs)}; "
-              f"--no-plots: {', '.join(f'{s[3]:.2f}' for s in runs)})")
+        for cmd, _, _ in COMMANDS:
+            runs = [s[cmd] for s in samples[name] if cmd in s]
+            if runs:
+                print(f"({name}: {cmd}, every run, CPU/wall: "
+                      f"{', '.join(f'{c:.2f}/{w:.2f}' for c, w in runs)})")
     if len(names) > 1:          # the pairs ran one after the other: the load is shared
-        for i, what in ((2, "qsma run"), (3, "qsma run --no-plots")):
-            diff = [t[i] - b[i] for t, b in zip(samples["this"], samples["baseline"])]
-            print(f"({what}: this - baseline, median of the {len(diff)} paired "
-                  f"differences {statistics.median(diff):+.3f} s)")
+        for cmd, _, _ in COMMANDS[:2]:
+            for i, what in enumerate(("CPU", "wall")):
+                pairs = [(t[cmd][i], b[cmd][i])
+                         for t, b in zip(samples["this"], samples["baseline"])]
+                print(f"({cmd}, {what}: this / baseline, median of the {len(pairs)} "
+                      f"paired ratios {statistics.median(t / b for t, b in pairs):.2f})")
+    this = samples["this"]
+    for i, what in enumerate(("CPU", "wall")):
+        ratios = [s["qsma run"][i] / s["QSMA_PLOT_WORKER=0 qsma run"][i] for s in this]
+        print(f"(this tree, {what}: worker / in-process figures, median of the "
+              f"{len(ratios)} paired ratios {statistics.median(ratios):.2f})")
     print(f"(load average {min(loads):.1f} to {max(loads):.1f} on {os.cpu_count()} cores)")
 
 

@@ -1,6 +1,7 @@
 """The command line, end to end in temporary folders."""
 import csv
 import json
+import os
 import sys
 
 import meshio
@@ -172,7 +173,9 @@ NOT_IMPORTED_BY_A_RUN = ("qsma.study", "qsma.rom", "qsma.model.io",
 def test_a_run_imports_only_what_it_needs(tmp_path, plots):
     """In a fresh process: ``qsma run --no-plots`` never imports matplotlib (nor
     Pillow), and no run imports the modules of :data:`NOT_IMPORTED_BY_A_RUN`; the run
-    still writes its files (with the figures and report.html when plotting)."""
+    still writes its files (with the figures and report.html when plotting). The
+    figures are drawn in this process here (``QSMA_PLOT_WORKER=0``); with the worker
+    the qsma process imports no matplotlib at all (tests/test_plot_worker.py)."""
     import subprocess
     code = ("import json, sys\nfrom qsma.cli import main\ncode = main(sys.argv[1:])\n"
             "print(json.dumps([code, sorted(sys.modules)]))")
@@ -180,7 +183,7 @@ def test_a_run_imports_only_what_it_needs(tmp_path, plots):
     args = ["run", "--example", "sandwich-2d", "--levels", "tip:log:1e-6:1e-4:3",
             "--quiet", "--out", str(out)] + ([] if plots else ["--no-plots"])
     proc = subprocess.run([sys.executable, "-c", code, *args], capture_output=True,
-                          text=True)
+                          text=True, env=dict(os.environ, QSMA_PLOT_WORKER="0"))
     assert proc.returncode == 0, proc.stderr
     exit_code, modules = json.loads(proc.stdout.splitlines()[-1])
     assert exit_code == 0

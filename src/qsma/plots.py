@@ -1,12 +1,14 @@
 """Figures of a QSMA run (matplotlib, Agg backend; imported only when plotting)."""
 from __future__ import annotations
 
+from dataclasses import dataclass
+import io
 from pathlib import Path
 
 import numpy as np
 
 from .masing import masing_loop
-from .rundir import atomic_path
+from .rundir import atomic_write
 
 
 #: Figure margins in inches (left, right, bottom, top): room for the tick labels, the
@@ -35,10 +37,20 @@ def _figure(nrows=1, ncols=1, figsize=(6, 4.5), hspace=0.2, wspace=0.2,
 PNG_COMPRESSION = 1
 
 
+#: Resolution of the run's figures [dots per inch].
+DPI = 120
+
+
+def png_bytes(fig) -> bytes:
+    """The PNG file of ``fig`` (:data:`DPI`, :data:`PNG_COMPRESSION`) as bytes: the same
+    bytes whichever process draws it (:mod:`qsma._plotworker`)."""
+    buf = io.BytesIO()
+    fig.savefig(buf, dpi=DPI, format="png", pil_kwargs={"compress_level": PNG_COMPRESSION})
+    return buf.getvalue()
+
+
 def _save(fig, path):
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=120, format="png",
-                    pil_kwargs={"compress_level": PNG_COMPRESSION})
+    atomic_write(path, png_bytes(fig), "wb")
     return Path(path)
 
 
@@ -91,18 +103,17 @@ def _set_ticks(*axes):
                                                    steps=[1, 2, 2.5, 5, 10]))
 
 
-def plot_backbone(res, path):
+def draw_backbone(res):
     """The modal backbone: modal force alpha versus modal amplitude q (log-log), with
     the tied linear line ``alpha = omega0^2 q`` that it leaves where the joint slips.
 
     Parameters
     ----------
-    res : :class:`qsma.result.QSMAResult`
-    path : PNG file to write (atomically)
+    res : :class:`qsma.result.QSMAResult` or its :class:`PlotData`
 
     Returns
     -------
-    pathlib.Path
+    matplotlib.figure.Figure
     """
     fig, ax = _figure(figsize=(6, 4.5))
     ax.loglog(res.q, res.alpha, "o-", ms=3, label="QSMA backbone")
@@ -113,10 +124,10 @@ def plot_backbone(res, path):
     ax.set_title(f"Backbone, mode {res.mode_index} (f0 = {res.f0_hz:.2f} Hz)")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend()
-    return _save(fig, path)
+    return fig
 
 
-def plot_loops(res, path):
+def draw_loops(res):
     """Hysteresis loops at three amplitudes: the computed stabilised loops where they
     exist, Masing's construction elsewhere (and the direct loop if asked for). The
     tied linear force w0^2 q is subtracted so that thin loops are visible."""
@@ -144,7 +155,7 @@ def plot_loops(res, path):
     ax.set_title("Hysteresis loops")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
-    return _save(fig, path)
+    return fig
 
 
 #: Damping ratios below this are drawn on the linear part of the symmetric-log axis, so
@@ -152,7 +163,7 @@ def plot_loops(res, path):
 ZETA_LINEAR = 1e-6
 
 
-def plot_damping_frequency(res, path):
+def draw_damping_frequency(res):
     """Secant frequency and damping ratio versus peak tip velocity: the values used
     (filled), Masing's and the loops' where they differ, hardening levels marked.
 
@@ -197,22 +208,21 @@ def plot_damping_frequency(res, path):
         a.grid(True, which="both", alpha=0.3)
         a.legend(fontsize=7)
     a1.set_title("Amplitude-dependent frequency and damping")
-    return _save(fig, path)
+    return fig
 
 
-def plot_interface(res, path, levels=None):
+def draw_interface(res, levels=None):
     """2D: contact pressure and shear along the interface (preload and chosen levels)
     and the pair states, pressures as ``lam / area`` in MPa.
 
     Parameters
     ----------
-    res : :class:`qsma.result.QSMAResult` of a 2D model
-    path : PNG file to write (atomically)
+    res : :class:`qsma.result.QSMAResult` of a 2D model or its :class:`PlotData`
     levels : level indices; default the first, middle, three-quarter and last level
 
     Returns
     -------
-    pathlib.Path
+    matplotlib.figure.Figure
     """
     n = res.n_levels
     levels = sorted({0, n // 2, (3 * n) // 4, n - 1}) if levels is None else levels
@@ -238,10 +248,10 @@ def plot_interface(res, path, levels=None):
         a.grid(True, alpha=0.3)
     axes[0].legend(fontsize=7)
     axes[0].set_title("Interface tractions and states")
-    return _save(fig, path)
+    return fig
 
 
-def plot_interface_map(res, path, levels=None):
+def draw_interface_map(res, levels=None):
     """3D: maps over the interface plane (first two in-plane coordinates of the pair
     frames, x and z for sandwich-3d) of pressure, shear magnitude and state."""
     from matplotlib.colors import ListedColormap
@@ -272,26 +282,185 @@ def plot_interface_map(res, path, levels=None):
             ax.set_xlabel("t1 coordinate [m]")
             ax.set_ylabel("t2 coordinate [m]")
             ax.label_outer()            # coordinates once per row and column
-    return _save(fig, path)
+    return fig
+
+
+def plot_backbone(res, path):
+    """:func:`draw_backbone` written to the PNG file ``path`` (atomically); returns it."""
+    return _save(draw_backbone(res), path)
+
+
+def plot_loops(res, path):
+    """:func:`draw_loops` written to the PNG file ``path`` (atomically); returns it."""
+    return _save(draw_loops(res), path)
+
+
+def plot_damping_frequency(res, path):
+    """:func:`draw_damping_frequency` written to the PNG file ``path`` (atomically)."""
+    return _save(draw_damping_frequency(res), path)
+
+
+def plot_interface(res, path, levels=None):
+    """:func:`draw_interface` written to the PNG file ``path`` (atomically)."""
+    return _save(draw_interface(res, levels), path)
+
+
+def plot_interface_map(res, path, levels=None):
+    """:func:`draw_interface_map` written to the PNG file ``path`` (atomically)."""
+    return _save(draw_interface_map(res, levels), path)
+
+
+# -- What the figures read of a result ---------------------------------------------------
+
+@dataclass(frozen=True)
+class LoopCurve:
+    """A computed loop as the figures draw it: the path ``(q, alpha)`` (``None`` for a
+    loop that failed) and whether the loop closed (:class:`qsma.hysteresis.Loop`
+    without the solver's details)."""
+
+    q: np.ndarray | None
+    alpha: np.ndarray | None
+    success: bool
+
+
+@dataclass(frozen=True)
+class DirectCurve:
+    """The directly computed loop (:class:`qsma.result.DirectLoop`) as drawn."""
+
+    q: np.ndarray
+    alpha: np.ndarray
+    dissipation: float | None
+    dissipation_masing: float
+    success: bool
+
+
+@dataclass(frozen=True)
+class PairsView:
+    """The interface pairs as drawn: positions ``x`` ``(n, dim)``, tributary areas
+    ``area`` ``(n,)`` and the pair frames ``frames`` ``(n, dim, dim)``."""
+
+    x: np.ndarray
+    area: np.ndarray
+    frames: np.ndarray
+
+
+@dataclass(frozen=True)
+class ContactView:
+    """Contact forces ``lam`` (per level or of one solve) and pair states ``status``."""
+
+    lam: np.ndarray
+    status: np.ndarray
+
+
+@dataclass(frozen=True)
+class ModelView:
+    """The model as the figures need it: its dimension."""
+
+    dim: int
+
+
+@dataclass(frozen=True)
+class PlotData:
+    """Everything the figures read of a :class:`qsma.result.QSMAResult`, under the same
+    attribute names, and nothing else: small, picklable without the model, the
+    condensed matrices or the solver objects, so that another process can draw the
+    figures (:mod:`qsma._plotworker`). :func:`write_plots` draws from it in-process
+    too, so both paths draw the same data."""
+
+    mode_index: int
+    f0_hz: float
+    omega0: float
+    alpha: np.ndarray
+    q: np.ndarray
+    tip: np.ndarray
+    tip_velocity: np.ndarray
+    f_hz: np.ndarray
+    zeta: np.ndarray
+    f_hz_masing: np.ndarray
+    zeta_masing: np.ndarray
+    zeta_loop: np.ndarray
+    dissipation_method: np.ndarray
+    flags: tuple
+    loops: dict
+    direct_loop: DirectCurve | None
+    pairing: PairsView
+    preload: ContactView
+    states: ContactView
+    model: ModelView
+
+    @property
+    def n_levels(self) -> int:
+        return len(self.alpha)
+
+
+def _loop_curve(loop) -> LoopCurve:
+    """A computed loop as drawn: its path if it closed (a failed loop is named in the
+    figure, not drawn)."""
+    if loop.success:
+        return LoopCurve(loop.q, loop.alpha, True)
+    return LoopCurve(None, None, False)
+
+
+def plot_data(res) -> PlotData:
+    """The :class:`PlotData` of ``res`` (a :class:`PlotData` is returned as it is)."""
+    if isinstance(res, PlotData):
+        return res
+    dl = res.direct_loop
+    p = res.pairing
+    return PlotData(
+        mode_index=res.mode_index, f0_hz=res.f0_hz, omega0=res.omega0, alpha=res.alpha,
+        q=res.q, tip=res.tip, tip_velocity=res.tip_velocity, f_hz=res.f_hz,
+        zeta=res.zeta, f_hz_masing=res.f_hz_masing, zeta_masing=res.zeta_masing,
+        zeta_loop=res.zeta_loop, dissipation_method=res.dissipation_method,
+        flags=tuple(res.flags),
+        loops={k: _loop_curve(lp) for k, lp in res.loops.items()},
+        direct_loop=None if dl is None else DirectCurve(
+            dl.q, dl.alpha, dl.dissipation, dl.dissipation_masing, dl.success),
+        pairing=PairsView(p.x, p.area, p.frames),
+        preload=ContactView(res.preload.lam, res.preload.status),
+        states=ContactView(res.states.lam, res.states.status),
+        model=ModelView(res.model.dim))
+
+
+# -- Every figure of a run -----------------------------------------------------------------
+
+def figure_files(dim) -> dict:
+    """The figures of a run of a ``dim``-dimensional model: name -> (file name,
+    plotting function ``f(res, path)``), in the order they are drawn."""
+    interface = (("interface.png", plot_interface) if dim == 2
+                 else ("interface_map.png", plot_interface_map))
+    return {"backbone": ("backbone.png", plot_backbone),
+            "loops": ("loops.png", plot_loops),
+            "damping": ("damping_frequency.png", plot_damping_frequency),
+            "interface": interface}
 
 
 def write_plots(res, out) -> dict:
     """Every figure of a run into folder ``out``: backbone.png, loops.png,
-    damping_frequency.png and interface.png (2D) or interface_map.png (3D).
+    damping_frequency.png and interface.png (2D) or interface_map.png (3D), drawn from
+    :func:`plot_data` of ``res``.
 
     Returns
     -------
     dict
         figure name -> path written.
     """
+    data = plot_data(res)
     out = Path(out)
-    paths = {
-        "backbone": plot_backbone(res, out / "backbone.png"),
-        "loops": plot_loops(res, out / "loops.png"),
-        "damping": plot_damping_frequency(res, out / "damping_frequency.png"),
-    }
-    if res.model.dim == 2:
-        paths["interface"] = plot_interface(res, out / "interface.png")
-    else:
-        paths["interface"] = plot_interface_map(res, out / "interface_map.png")
-    return paths
+    return {name: plot(data, out / file)
+            for name, (file, plot) in figure_files(data.model.dim).items()}
+
+
+#: The drawing function of each figure name (:func:`figure_files`), by dimension.
+_DRAW = {"backbone": draw_backbone, "loops": draw_loops, "damping": draw_damping_frequency}
+
+
+def figure_pngs(res, names=None) -> dict:
+    """The PNG bytes of the figures ``names`` (default all, :func:`figure_files`) of
+    ``res`` (a result or its :class:`PlotData`), nothing written: name -> bytes, the
+    same bytes :func:`write_plots` writes."""
+    data = plot_data(res)
+    dim = data.model.dim
+    draw = dict(_DRAW, interface=draw_interface if dim == 2 else draw_interface_map)
+    names = list(figure_files(dim)) if names is None else names
+    return {name: png_bytes(draw[name](data)) for name in names}

@@ -289,7 +289,8 @@ def _interface_point_data(res, k, offsets, n):
     return out
 
 
-def write_all(res, out, plots=True, vtu=True, folder=None, report=None):
+def write_all(res, out, plots=True, vtu=True, folder=None, report=None,
+              plot_worker=None):
     """Write every result file of a run as one run into folder ``out``.
 
     The files are written into a private staging folder, listed with their SHA-256 in
@@ -304,6 +305,10 @@ def write_all(res, out, plots=True, vtu=True, folder=None, report=None):
     folder : a :class:`~qsma.rundir.RunFolder` already entered for ``out`` (the CLI
         takes it before computing); ``None`` takes and releases one here
     report : also write report.html (:mod:`qsma.report`); ``None``: when ``plots``
+    plot_worker : a started :class:`qsma._plotworker.PlotWorker` that draws the
+        figures while the other files are written (``None``: drawn here). Its PNG
+        bytes are written here; if it fails, the figures are drawn here instead (the
+        same files). The caller closes it.
 
     Returns
     -------
@@ -319,20 +324,22 @@ def write_all(res, out, plots=True, vtu=True, folder=None, report=None):
     """
     if folder is None:
         with RunFolder(out) as folder:
-            return write_all(res, out, plots, vtu, folder, report)
+            return write_all(res, out, plots, vtu, folder, report, plot_worker)
     stage = folder.staging
     paths = {"json": stage / "results.json", "csv": stage / "results.csv"}
+    draw = plots and res.n_levels > 0
+    if draw and plot_worker is not None:
+        plot_worker.submit(res)                 # drawn while the files below are written
     try:
         write_csv(res, paths["csv"])
         if vtu and res.n_levels:
             paths["vtu"] = stage / "fields.vtu"
             write_vtu(res, paths["vtu"])
-        figures = None
-        if plots and res.n_levels:
-            from .plots import write_plots
-            figures = write_plots(res, stage)
-            paths.update(figures)
         write_json(res, paths["json"])
+        figures = None
+        if draw:
+            figures = _write_figures(res, stage, plot_worker)
+            paths.update(figures)
         if plots if report is None else report:
             from .report import REPORT_NAME, write_report
             paths["report"] = write_report(res, stage / REPORT_NAME, figures)
@@ -341,3 +348,26 @@ def write_all(res, out, plots=True, vtu=True, folder=None, report=None):
     folder.commit()
     paths["manifest"] = stage / "manifest.json"
     return {k: folder.path / Path(p).name for k, p in paths.items()}
+
+
+def _write_figures(res, stage, plot_worker=None) -> dict:
+    """The figures of ``res`` written into ``stage``: the PNG bytes of ``plot_worker``
+    (:mod:`qsma._plotworker`) if it delivers every figure, else drawn here
+    (:func:`qsma.plots.write_plots`, the same files); name -> path."""
+    from .plots import figure_files, write_plots
+    files = figure_files(res.model.dim)
+    if plot_worker is not None:
+        from ._plotworker import PlotWorkerFailed, log
+        try:
+            pngs = plot_worker.collect()
+            if set(pngs) != set(files):
+                raise PlotWorkerFailed(f"the figure process drew {sorted(pngs)}, not "
+                                       f"{sorted(files)}")
+        except PlotWorkerFailed as exc:
+            log.warning("figures drawn in the qsma process instead: %s", exc)
+        else:
+            paths = {name: stage / file for name, (file, _) in files.items()}
+            for name, path in paths.items():
+                atomic_write(path, pngs[name], "wb")
+            return paths
+    return write_plots(res, stage)

@@ -35,8 +35,8 @@ def add_arguments(p):
                         "stabilised loop elsewhere (auto, the default), or one of them at "
                         "every level")
     p.add_argument("--loop-workers", type=int, metavar="N",
-                   help="processes that compute the loops (default 1; same results for "
-                        "any N)")
+                   help="processes that compute the loops (default: 2 on Linux with two "
+                        "usable cores, else 1; same results for any N)")
     p.add_argument("--direct-loop", action="store_true", default=None,
                    help="also compute the hysteresis loop directly (check of Masing)")
     p.add_argument("--continue", dest="continue_on_failure", action="store_true",
@@ -54,16 +54,34 @@ def execute(args) -> int:
         from .modes import execute_modes
         return execute_modes(args)
 
-    with RunFolder(args.out) as folder:          # locked and checked before computing
-        res, paths, options = _run_into(args, folder)
+    worker = _plot_worker(args)
+    try:
+        with RunFolder(args.out) as folder:      # locked and checked before computing
+            res, paths, options = _run_into(args, folder, worker)
+    finally:
+        if worker is not None:
+            worker.close()
     out = folder.path
     if not args.quiet:
         _summary(res, paths, args.verbose)
     return _outcome(res, options, out, args.quiet)
 
 
-def _run_into(args, folder):
-    """Load the model, run the analysis and write every file into ``folder``."""
+def _plot_worker(args):
+    """The process that draws the figures beside the analysis
+    (:class:`qsma._plotworker.PlotWorker`), forked now: before the result folder's
+    lock is taken (the worker holds no copy of it) and before any BLAS call. ``None``
+    with ``--no-plots`` (matplotlib is never imported then) or where no worker may be
+    forked (Windows, ``QSMA_PLOT_WORKER=0``): the figures are drawn in this process."""
+    if args.no_plots:
+        return None
+    from .._plotworker import PlotWorker
+    return PlotWorker.start()
+
+
+def _run_into(args, folder, worker=None):
+    """Load the model, run the analysis and write every file into ``folder`` (the
+    figures by ``worker`` if given, :func:`qsma.results.write_all`)."""
     from ..analysis import run
     from ..results import write_all
 
@@ -76,7 +94,7 @@ def _run_into(args, folder):
     if progress:
         print(file=sys.stderr)
     paths = write_all(res, folder.path, plots=not args.no_plots, vtu=not args.no_vtu,
-                      folder=folder)
+                      folder=folder, plot_worker=worker)
     return res, paths, options
 
 
