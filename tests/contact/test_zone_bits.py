@@ -8,7 +8,8 @@ import scipy.linalg as sla
 from qsma.contact import ContactProblem
 from qsma.contact import zone as zone_module
 from qsma.contact.linear import BlockSystem, free_components, known_displacement
-from qsma.contact.problem import SYMMETRISE_TILE, _symmetrise
+from qsma.contact.problem import _symmetrise
+from qsma.linalg import SYMMETRISE_ROWS
 from qsma.contact.state import OPEN, SLIPPING, STUCK
 from qsma.contact.zone import ContactZone, Elimination, _place, _runs, _spd_inverse
 
@@ -95,8 +96,8 @@ def test_place_equals_fancy_assignment(n_runs, monkeypatch):
             assert np.array_equal(got, expected, equal_nan=True)
 
 
-@pytest.mark.parametrize("n", [1, 2, SYMMETRISE_TILE - 1, SYMMETRISE_TILE,
-                               SYMMETRISE_TILE + 1, 3 * SYMMETRISE_TILE + 17])
+@pytest.mark.parametrize("n", [1, 2, SYMMETRISE_ROWS - 1, SYMMETRISE_ROWS,
+                               SYMMETRISE_ROWS + 1, 2 * SYMMETRISE_ROWS + 17])
 def test_symmetrise_in_place_has_the_bits_of_the_copy(n):
     rng = np.random.default_rng(n)
     A = rng.normal(size=(n, n)) * 10.0 ** rng.integers(-8, 8, size=(n, n))

@@ -208,30 +208,15 @@ def _symmetric_product(A, x):
     return symv(1.0, A.T, x)
 
 
-#: Tile edge of :func:`_symmetrise` (two tiles of 128 x 128 doubles, 256 KB, stay in cache).
-SYMMETRISE_TILE = 128
-
-
 def _symmetrise(A):
-    r"""``A`` overwritten by ``(A + A^T) / 2``, tile by tile, and returned.
-
-    Each pair of tiles ``A_IJ``, ``A_JI`` (``I <= J``) is replaced by ``M = (A_IJ +
-    A_JI^T) / 2`` and ``M^T``: the same floating-point operations entry by entry as
-    ``0.5 * (A + A.T)`` (addition commutes exactly), so the same bits, without the two
-    temporaries of the size of ``A`` and the transposed pass over all of it."""
+    r"""``A`` overwritten by ``(A + A^T) / 2`` and returned: :func:`qsma.linalg.symmetrised`
+    (block by block, the same bits as ``0.5 * (A + A.T)`` without its two temporaries
+    of the size of ``A``) on an array it may overwrite."""
     if not (isinstance(A, np.ndarray) and A.dtype == np.float64 and A.flags.c_contiguous
             and A.flags.writeable and A.ndim == 2 and A.shape[0] == A.shape[1]):
         raise ValueError("_symmetrise: a writeable square C-ordered float64 array")
-    n, b = A.shape[0], SYMMETRISE_TILE
-    for i in range(0, n, b):
-        rows = slice(i, min(i + b, n))
-        for j in range(i, n, b):
-            cols = slice(j, min(j + b, n))
-            mean = A[rows, cols] + A[cols, rows].T
-            mean *= 0.5
-            A[rows, cols] = mean
-            A[cols, rows] = mean.T
-    return A
+    from ..linalg import symmetrised
+    return symmetrised(A)
 
 
 def _power_of_two(x):
