@@ -745,11 +745,12 @@ class _NegativeRamp:
     nothing of each other. :meth:`start`, called with the grid of the last round before
     that round is solved, forks a child process that solves this ramp while the round
     runs here (``RunOptions.parallel_ramps``, on Linux where
-    :func:`qsma._forked.fork_refusal` allows it). :meth:`result` takes the child's ramp if it was
-    solved on the grid finally kept, and otherwise (no last round, a round that failed
-    and kept the coarser grid, no fork, a child that failed) solves it here from the
-    same zone: either way the same floating-point operations, the same bits. The ramp
-    has a solver of its own, so the +alpha ramp's zone is what the loops start from."""
+    :func:`qsma._forked.fork_refusal` allows it). :meth:`result` takes the child's
+    ramp if it was solved on the grid finally kept, and otherwise (no last round, a
+    round that failed and kept the coarser grid, no fork, a child that failed) solves
+    it here from the same zone: either way the same floating-point operations, the
+    same bits. The ramp has a solver of its own; the pairs it closed join the +alpha
+    ramp's zone afterwards (:func:`_with_closed`), which the loops start from."""
 
     def __init__(self, solver, response, pre, fork):
         self.solver, self.response, self.pre, self.fork = solver, response, pre, fork
@@ -757,12 +758,14 @@ class _NegativeRamp:
 
     def start(self, grid):
         self.zone, self.grid = self.solver.zone, np.array(grid, dtype=float)
+        if not self.fork:
+            return
         why_not = (fork_refusal() or _one_core()
-                   or (None if forks_by_default() else "not on Linux")) if self.fork else None
+                   or (None if forks_by_default() else "not on Linux"))
         if why_not is not None:
             log.info("negative ramp solved after the positive one: %s", why_not)
-        elif self.fork:
-            self.child = ForkedCall(lambda: self._solved(self.grid))
+            return
+        self.child = ForkedCall(lambda: self._solved(self.grid))
 
     def result(self, grid):
         """The -alpha ramp on ``grid``."""
