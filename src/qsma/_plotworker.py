@@ -20,7 +20,8 @@ files are the same either way (tests/test_plot_worker.py), only the time differs
 The worker runs only where forking is possible and safe (:func:`why_not_fork`, the
 rules of every fork of qsma, :func:`qsma._forked.fork_refusal`): the ``fork`` start
 method exists (not on Windows), this is not a daemonic process, this is the main
-thread and no other thread runs; and unless :data:`ENV` is ``0``.
+thread and no other thread runs; and only when :data:`ENV` is ``1`` (off by default:
+measured slower on an idle 2-core machine, see :data:`ENV`).
 """
 from __future__ import annotations
 
@@ -37,8 +38,12 @@ from .errors import InputError
 
 log = logging.getLogger(__name__)
 
-#: Environment variable that switches the worker off (``0``) or on (``1``, the default
-#: where the ``fork`` start method exists).
+#: Environment variable that switches the worker on (``1``, where the ``fork`` start
+#: method exists) or off (``0`` or unset, the default). Off by default: on an idle
+#: 2-core machine ``make run`` took 1.08-1.11 times the wall time with the worker
+#: (``python benchmarks/bench_process.py --repeat 7``, docs/performance.md): the fork,
+#: the hand-over and the second drawing process cost more than the overlap gains while
+#: the -alpha ramp already takes the second core.
 ENV = "QSMA_PLOT_WORKER"
 
 
@@ -55,8 +60,8 @@ def why_not_fork():
         raise InputError(f"environment variable {ENV} must be 0 (figures drawn in the "
                          f"qsma process) or 1 (in a forked process), got {value!r}; "
                          f"unset it or set e.g. {ENV}=0")
-    if value == "0":
-        return f"{ENV}=0"
+    if value != "1":
+        return f"{ENV}={value or 'unset'} (the worker is off unless {ENV}=1)"
     from ._forked import fork_refusal       # the rules of the loop workers
     return fork_refusal()
 
