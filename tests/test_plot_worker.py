@@ -63,7 +63,7 @@ def test_the_worker_draws_the_figures_of_the_qsma_process(results, case, tmp_pat
                                                           monkeypatch):
     """The PNG files drawn in the worker (split over two processes, as on two cores)
     equal those of write_plots in this process, byte for byte and so pixel for pixel."""
-    monkeypatch.setattr(pw, "_usable_cores", lambda: 2)
+    monkeypatch.setattr(pw, "usable_cores", lambda: 2)
     res = results[case]
     here = plots.write_plots(res, tmp_path)
     there = _worker_pngs(res)
@@ -78,7 +78,7 @@ def test_the_worker_draws_the_figures_of_the_qsma_process(results, case, tmp_pat
 
 @needs_fork
 def test_a_worker_on_one_core_draws_every_figure_itself(results, monkeypatch):
-    monkeypatch.setattr(pw, "_usable_cores", lambda: 1)
+    monkeypatch.setattr(pw, "usable_cores", lambda: 1)
     monkeypatch.setattr(pw, "_draw_split", _raises)   # no second drawing process
     res = results["sandwich-2d"]
     assert _worker_pngs(res) == plots.figure_pngs(res)
@@ -164,7 +164,7 @@ def test_a_failing_second_drawing_process_leaves_its_figures_to_the_worker(
             os._exit(5)
         return draw(data, names)
 
-    monkeypatch.setattr(pw, "_usable_cores", lambda: 2)
+    monkeypatch.setattr(pw, "usable_cores", lambda: 2)
     monkeypatch.setattr(plots, "figure_pngs", dies_in_the_grandchild)
     assert _worker_pngs(res) == expected
 

@@ -21,19 +21,14 @@ import sys
 import threading
 import warnings
 
+from ._threads import usable_cores
+
 log = logging.getLogger("qsma")
 
 
 def parallel_available() -> bool:
     """Whether worker processes can inherit a job (the ``fork`` start method)."""
     return "fork" in multiprocessing.get_all_start_methods()
-
-
-def usable_cores() -> int:
-    """Cores this process may run on (its CPU affinity where the platform tells it)."""
-    if hasattr(os, "sched_getaffinity"):
-        return max(1, len(os.sched_getaffinity(0)))
-    return max(1, os.cpu_count() or 1)
 
 
 def fork_refusal() -> str | None:
@@ -52,13 +47,18 @@ def fork_refusal() -> str | None:
     return None
 
 
-def forks_by_default() -> bool:
-    """Whether qsma forks without being asked to (the -alpha ramp beside the +alpha
-    one, two loop workers): on Linux, where the fork of a process with BLAS threads is
-    what the loop workers have done from the start. macOS's Accelerate BLAS (numpy's
-    wheels there) is not known to be safe after a fork; there qsma forks only for an
-    explicit ``loop_workers``."""
-    return sys.platform.startswith("linux")
+def second_core_refusal() -> str | None:
+    """``None`` if qsma may fork without being asked to (the -alpha ramp beside the
+    +alpha one, two loop workers), else why not: only on Linux, where the fork of a
+    process with BLAS threads is what the loop workers have done from the start
+    (macOS's Accelerate BLAS, numpy's wheels there, is not known to be safe after a
+    fork; there qsma forks only for an explicit ``loop_workers``), and only where this
+    process may use a second core."""
+    if not sys.platform.startswith("linux"):
+        return "not on Linux"
+    if usable_cores() < 2:
+        return "this process may use a single core"
+    return None
 
 
 def recorded_warnings(seen) -> list:

@@ -29,11 +29,13 @@ import logging
 import multiprocessing
 import os
 import pickle
-import signal
 import threading
 import traceback
 import warnings
 
+from ._forked import (default_signals, fork_refusal, quiet_fork, raise_again,
+                      recorded_warnings)
+from ._threads import usable_cores
 from .errors import InputError
 
 log = logging.getLogger(__name__)
@@ -62,7 +64,6 @@ def why_not_fork():
                          f"unset it or set e.g. {ENV}=0")
     if value != "1":
         return f"{ENV}={value or 'unset'} (the worker is off unless {ENV}=1)"
-    from ._forked import fork_refusal       # the rules of the loop workers
     return fork_refusal()
 
 
@@ -103,7 +104,8 @@ class PlotWorker:
         ours, theirs = ctx.Pipe()
         process = ctx.Process(target=_serve, args=(theirs, ours), daemon=True,
                               name="qsma-plots")
-        process.start()
+        with quiet_fork():
+            process.start()
         theirs.close()              # the worker's end: EOF here once it is gone
         return cls(process, ours)
 
@@ -150,8 +152,7 @@ class PlotWorker:
             raise PlotWorkerFailed(f"the figure process's answer cannot be read "
                                    f"({type(exc).__name__}: {exc})") from None
         kind, value, raised = _checked(answer)
-        for message, category, filename, lineno in raised:
-            warnings.warn_explicit(message, category, filename, lineno)
+        raise_again(raised)
         if kind == "error":
             log.debug("the figure process raised:\n%s", value)
             last = value.strip().splitlines()[-1] if value.strip() else "an error"
@@ -188,8 +189,7 @@ def _checked(answer):
 def _serve(conn, parents_end):
     """The worker: import the plotting code, wait for one job, answer, leave."""
     parents_end.close()             # else our own copy would hide the parent's death
-    for s in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(s, signal.SIG_DFL)    # Ctrl-C or a kill ends the worker at once
+    default_signals()               # a kill ends the worker at once; Ctrl-C: the parent
     try:
         from . import plots  # noqa: F401  (matplotlib's import, beside the analysis)
         import matplotlib.backends.backend_agg  # noqa: F401
@@ -206,9 +206,8 @@ def _serve(conn, parents_end):
             answer = ("ok", _draw(pickle.loads(payload), conn))
         except Exception:
             answer = ("error", traceback.format_exc())
-    raised = [(w.message, w.category, w.filename, w.lineno) for w in seen]
     try:
-        conn.send(answer + (raised,))
+        conn.send(answer + (recorded_warnings(seen),))
     except (OSError, pickle.PicklingError, TypeError):
         conn.send(("error", "the figures' answer could not be sent", []))
 
@@ -218,16 +217,9 @@ def _draw(data, conn) -> dict:
     usable (the other half by a second fork, :func:`_draw_split`), else here."""
     from .plots import figure_files, figure_pngs
     names = list(figure_files(data.model.dim))
-    if _usable_cores() < 2 or len(names) < 2:
+    if usable_cores() < 2 or len(names) < 2:
         return figure_pngs(data, names)
     return _draw_split(data, names, conn)
-
-
-def _usable_cores() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        return os.cpu_count() or 1
 
 
 #: The figures the second drawing process takes (about half of the drawing time: the

@@ -97,7 +97,7 @@ SOLVE_THREADS_ENV = "QSMA_SOLVE_THREADS"
 DEFAULT_SOLVE_THREADS = 2
 
 
-def _usable_cores() -> int:
+def usable_cores() -> int:
     """Cores this process may run on (its CPU affinity where the OS tells it)."""
     try:
         return len(os.sched_getaffinity(0))
@@ -120,7 +120,7 @@ def solve_threads(value=None) -> int:
         value = os.environ.get(SOLVE_THREADS_ENV)
         source = f"environment variable {SOLVE_THREADS_ENV}"
         if value is None or value.strip() == "":
-            return max(1, min(DEFAULT_SOLVE_THREADS, _usable_cores()))
+            return max(1, min(DEFAULT_SOLVE_THREADS, usable_cores()))
         try:
             value = int(value.strip())
         except ValueError:

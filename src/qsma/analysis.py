@@ -18,7 +18,7 @@ import warnings
 
 import numpy as np
 
-from ._forked import ChildFailed, ForkedCall, fork_refusal, forks_by_default, usable_cores
+from ._forked import ChildFailed, ForkedCall, fork_refusal, second_core_refusal
 from ._threads import CONTACT_BLAS_THREADS, blas_threads as threads_limited, threads_for
 from .condense import reduce_two_bodies
 from .contact import DEFAULT_TOL, ContactProblem, ContactState, OPEN, SLIPPING, STUCK
@@ -754,14 +754,13 @@ class _NegativeRamp:
 
     def __init__(self, solver, response, pre, fork):
         self.solver, self.response, self.pre, self.fork = solver, response, pre, fork
-        self.zone, self.grid, self.child = solver.zone, None, None
+        self.zone = self.grid = self.child = None
 
     def start(self, grid):
         self.zone, self.grid = self.solver.zone, np.array(grid, dtype=float)
         if not self.fork:
             return
-        why_not = (fork_refusal() or _one_core()
-                   or (None if forks_by_default() else "not on Linux"))
+        why_not = fork_refusal() or second_core_refusal()
         if why_not is not None:
             log.info("negative ramp solved after the positive one: %s", why_not)
             return
@@ -791,12 +790,6 @@ class _NegativeRamp:
         solver = _Solver(s.problem, s.reduced, s.method, s.opts, self.zone)
         return _ramp(solver, -np.asarray(grid, dtype=float), self.pre, True, None,
                      "negative load level", response=self.response)
-
-
-def _one_core():
-    """Why a second process would not run beside this one (a single usable core), or
-    None."""
-    return "this process may use a single core" if usable_cores() < 2 else None
 
 
 def _refined_backbone(solver, alpha, pre, opts, progress, response, k_ref, last_round=None):

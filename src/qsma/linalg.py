@@ -728,9 +728,10 @@ def _schur_multifrontal(K, C, E) -> SchurParts:
     (one triangle) is the solver, called on all the columns at once with one BLAS
     thread: its loop over the fronts holds the GIL between the BLAS calls, so the
     column blocks of :func:`solved_by_columns` on two threads wait for each other
-    (sandwich-3d refine 1, one body, 12 columns: 45 ms serial against 108 ms on two
-    threads; refine 2: 0.55 against 0.88 s), and one BLAS thread keeps the bits of
-    a solve independent of the machine's thread count."""
+    (12 columns, quiet machine: 40 ms in one call against 98 ms on two threads for
+    the 3d-1 block, 352 against 784 ms for 3d-2;
+    ``python benchmarks/bench_schur.py --solve-split --cases 3d-1 3d-2``), and one
+    BLAS thread keeps the bits of a solve independent of the machine's thread count."""
     from . import multifrontal
     Kc, factor, ratio, timings = multifrontal.schur_parts(K, C, E)
     if factor is None or not ratio > PIVOT_RATIO_MIN:

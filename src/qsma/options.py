@@ -150,11 +150,11 @@ class RunOptions:
     def loop_worker_count(self) -> int:
         """``loop_workers``, or for ``None`` two processes on Linux where this one may
         use two cores or more (one elsewhere): the machines qsma is measured on have
-        two (:func:`qsma._forked.forks_by_default`)."""
+        two (:func:`qsma._forked.second_core_refusal`)."""
         if self.loop_workers is not None:
             return int(self.loop_workers)
-        from ._forked import forks_by_default, usable_cores
-        return min(2, usable_cores()) if forks_by_default() else 1
+        from ._forked import second_core_refusal
+        return 1 if second_core_refusal() else 2
 
     @property
     def solver_options(self) -> dict:

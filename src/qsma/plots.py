@@ -426,12 +426,12 @@ def plot_data(res) -> PlotData:
 
 def figure_files(dim) -> dict:
     """The figures of a run of a ``dim``-dimensional model: name -> (file name,
-    plotting function ``f(res, path)``), in the order they are drawn."""
-    interface = (("interface.png", plot_interface) if dim == 2
-                 else ("interface_map.png", plot_interface_map))
-    return {"backbone": ("backbone.png", plot_backbone),
-            "loops": ("loops.png", plot_loops),
-            "damping": ("damping_frequency.png", plot_damping_frequency),
+    drawing function ``f(res) -> Figure``), in the order they are drawn."""
+    interface = (("interface.png", draw_interface) if dim == 2
+                 else ("interface_map.png", draw_interface_map))
+    return {"backbone": ("backbone.png", draw_backbone),
+            "loops": ("loops.png", draw_loops),
+            "damping": ("damping_frequency.png", draw_damping_frequency),
             "interface": interface}
 
 
@@ -447,12 +447,8 @@ def write_plots(res, out) -> dict:
     """
     data = plot_data(res)
     out = Path(out)
-    return {name: plot(data, out / file)
-            for name, (file, plot) in figure_files(data.model.dim).items()}
-
-
-#: The drawing function of each figure name (:func:`figure_files`), by dimension.
-_DRAW = {"backbone": draw_backbone, "loops": draw_loops, "damping": draw_damping_frequency}
+    return {name: _save(draw(data), out / file)
+            for name, (file, draw) in figure_files(data.model.dim).items()}
 
 
 def figure_pngs(res, names=None) -> dict:
@@ -460,7 +456,6 @@ def figure_pngs(res, names=None) -> dict:
     ``res`` (a result or its :class:`PlotData`), nothing written: name -> bytes, the
     same bytes :func:`write_plots` writes."""
     data = plot_data(res)
-    dim = data.model.dim
-    draw = dict(_DRAW, interface=draw_interface if dim == 2 else draw_interface_map)
-    names = list(figure_files(dim)) if names is None else names
-    return {name: png_bytes(draw[name](data)) for name in names}
+    figures = figure_files(data.model.dim)
+    names = list(figures) if names is None else names
+    return {name: png_bytes(figures[name][1](data)) for name in names}
