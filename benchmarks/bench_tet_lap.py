@@ -5,7 +5,8 @@ stages of a whole run.
 
 Usage: python benchmarks/bench_tet_lap.py [--size 1.0] [--top-size 1.15]
            [--outer-size 2.5] [--dissipation masing] [--repeat 1]
-           [--levels tip:log:1e-6:1e-3:51] [--keep DIR] [--mortar-only]
+           [--levels tip:log:1e-6:1e-3:51] [--method auto] [--loop-workers N]
+           [--keep DIR] [--mortar-only]
            [--contact-only] [--save FILE.npz] [--profile FILE.prof]
 
 Needs the ``gmsh`` Python package (``pip install gmsh``; not a qsma dependency).
@@ -141,6 +142,10 @@ def main():
     ap.add_argument("--outer-size", type=float, default=2.5, help="outside [mm]")
     ap.add_argument("--dissipation", default="masing", choices=("masing", "auto", "loop"))
     ap.add_argument("--levels", default=None, help="as qsma run --levels")
+    ap.add_argument("--method", default=None,
+                    help="contact method, as qsma run --method (default: qsma's)")
+    ap.add_argument("--loop-workers", type=int, default=None,
+                    help="as qsma run --loop-workers (default: qsma's)")
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--keep", default=None, help="write the .msh files here")
     ap.add_argument("--mortar-only", action="store_true",
@@ -160,12 +165,15 @@ def main():
     if args.mortar_only:
         return time_mortar(model, args.repeat, meshing)
     levels = parse_levels_spec(args.levels) if args.levels else None
+    options = {k: v for k, v in (("levels", levels), ("dissipation", args.dissipation),
+                                 ("method", args.method),
+                                 ("loop_workers", args.loop_workers)) if v is not None}
     if args.contact_only:
-        return time_contact(model, levels, args, meshing)
+        return time_contact(model, options, args, meshing)
     runs = []
     for _ in range(args.repeat):
         w0, c0 = time.perf_counter(), time.process_time()
-        res = qsma.run(model, levels=levels, dissipation=args.dissipation)
+        res = qsma.run(model, **options)
         runs.append((time.perf_counter() - w0, time.process_time() - c0, res))
     res = runs[-1][2]
     info = res.model_info
@@ -173,7 +181,8 @@ def main():
           f"{info['n_pairs']} interface pairs ({info['coupling']}), "
           f"{info['n_closed_after_preload']} closed after the preload; "
           f"meshing and reading {meshing:.1f} s; "
-          f"dissipation {args.dissipation}")
+          f"dissipation {args.dissipation}, contact method {res.solver['method']}, "
+          f"{res.solver['loop_solves']} loop solves")
     print()
     print("| run | " + " | ".join(STAGES) + " | total wall | total CPU |")
     print("|---" * (len(STAGES) + 3) + "|")
@@ -206,20 +215,21 @@ def time_mortar(model, repeat, meshing):
           + f"; median {statistics.median(times):.3f}")
 
 
-def time_contact(model, levels, args, meshing):
-    """Print the contact-stage wall seconds and the CPU seconds of ``args.repeat`` runs
-    on one preparation (each with its own preload and contact problem) and their
-    medians; the last run's levels to ``args.save``, its profile to ``args.profile``.
+def time_contact(model, options, args, meshing):
+    """Print the contact-stage and hysteresis-stage wall seconds and the CPU seconds of
+    ``args.repeat`` runs (``options`` of :func:`qsma.run`) on one preparation (each
+    with its own preload and contact problem) and their medians; the last run's levels
+    to ``args.save``, its profile to ``args.profile``.
     The CPU seconds are this process's (a forked ramp's child is not counted)."""
     from dataclasses import replace
     from qsma.analysis import prepare, run_prepared
     t0 = time.perf_counter()
     prepared = prepare(model)
-    res = run_prepared(prepared, levels=levels, dissipation=args.dissipation)
+    res = run_prepared(prepared, **options)
     modes = {k: v for k, v in prepared.cache.items() if k[0] == "mode"}
     print(f"{model.name}: {res.model_info['n_pairs']} interface pairs; meshing "
           f"{meshing:.1f} s, preparation and a first run {time.perf_counter() - t0:.1f} s")
-    times, cpus = [], []
+    times, loops, cpus = [], [], []
     for k in range(args.repeat):
         fresh = replace(prepared, cache=dict(modes))     # the preload solved again
         profiler = None
@@ -228,14 +238,17 @@ def time_contact(model, levels, args, meshing):
             profiler = cProfile.Profile()
             profiler.enable()
         c0 = time.process_time()
-        res = run_prepared(fresh, levels=levels, dissipation=args.dissipation)
+        res = run_prepared(fresh, **options)
         cpus.append(time.process_time() - c0)
         if profiler is not None:
             profiler.disable()
             profiler.dump_stats(args.profile)
         times.append(res.timings_s["contact"])
-    print("contact stage wall [s]: " + ", ".join(f"{t:.2f}" for t in times)
-          + f"; median {statistics.median(times):.2f}")
+        loops.append(res.timings_s["hysteresis"])
+    print(f"contact method {res.solver['method']}, {res.solver['loop_solves']} loop solves")
+    for name, values in (("contact", times), ("hysteresis (loops)", loops)):
+        print(f"{name} stage wall [s]: " + ", ".join(f"{t:.2f}" for t in values)
+              + f"; median {statistics.median(values):.2f}")
     print("whole run_prepared CPU [s] (contact, hysteresis, postprocess): "
           + ", ".join(f"{t:.2f}" for t in cpus) + f"; median {statistics.median(cpus):.2f}")
     counts = (res.n_stuck[-1], res.n_slip[-1], res.n_open[-1])

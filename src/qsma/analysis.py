@@ -23,6 +23,7 @@ from ._threads import CONTACT_BLAS_THREADS, blas_threads as threads_limited, thr
 from .condense import reduce_two_bodies
 from .contact import DEFAULT_TOL, ContactProblem, ContactState, OPEN, SLIPPING, STUCK
 from .contact import solve as contact_solve
+from .contact.registry import chosen_method
 from .contact.zone import release_zones, solve_in_zone, solve_preload, zone_from_state
 from .errors import (AnalysisError, ContactConvergenceWarning, InputError,
                      InterfaceGapWarning, QSMAWarning)
@@ -325,7 +326,7 @@ def _warn_closed_gaps(model, pairing):
     warn_closed_gaps(model, pairing, GAP_REPORT_RTOL)
 
 
-def preload(model, assembled, pairing, *, method="basket", opts=None, schur_backend="auto",
+def preload(model, assembled, pairing, *, method="auto", opts=None, schur_backend="auto",
             clock=None, reduced=None, eliminate_open=True,
             contact_threads=CONTACT_BLAS_THREADS):
     """Condense the assembled bodies and solve the bolt preload with frictional contact.
@@ -570,7 +571,8 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
         backbone_index=user,
         preload=pre, modes=modes, reduced=reduced, pairing=pairing, model=model,
         options=opts,
-        solver=dict(method=opts.method, tol=opts.tol or DEFAULT_TOL, maxiter=opts.maxiter,
+        solver=dict(method=chosen_method(opts.method, problem),
+                    tol=opts.tol or DEFAULT_TOL, maxiter=opts.maxiter,
                     fallback_levels=[int(np.searchsorted(user, g)) for g in pos.fallback
                                      if g in set(user.tolist())],
                     open_pairs_eliminated=bool(opts.eliminate_open),
@@ -628,6 +630,7 @@ def _solve(problem, reduced, alpha, state, method, opts, where, zone=None, guess
     from (the slip is measured from ``state``; see :func:`qsma.contact.solve`)."""
     factors = _load_factors(reduced, alpha)
     lam_w = reduced.welded_contact_force(factors)
+    method = chosen_method(method, problem)
     basis = (reduced.W, factors)            # lam_w = W a: the zone eliminates W once
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ContactConvergenceWarning)

@@ -38,7 +38,10 @@ class RunOptions:
         Load levels; ``None`` takes the 51 levels of the sandwich benchmark
         (linear tied tip deflection 1 um to 1 mm, log spaced).
     method : str
-        Contact solver, a key of :data:`qsma.contact.METHODS`.
+        Contact solver, a key of :data:`qsma.contact.METHODS`, or ``"auto"`` (default):
+        ``active_set`` on 3D interfaces of at least
+        :data:`qsma.contact.registry.AUTO_ACTIVE_SET_PAIRS` pairs, ``basket`` on the
+        others (chosen by measurement, docs/contact.md "Default method").
     tol, maxiter : float or None, int or None
         Contact solver tolerance and iteration cap (``None``: the solver's defaults).
     dissipation : {"auto", "masing", "loop"}
@@ -91,7 +94,7 @@ class RunOptions:
 
     mode: int = 0
     levels: Levels | None = None
-    method: str = "basket"
+    method: str = "auto"
     tol: float | None = None
     maxiter: int | None = None
     dissipation: str = "auto"
@@ -109,12 +112,12 @@ class RunOptions:
     parallel_ramps: bool = True
 
     def __post_init__(self):
-        from .contact import METHODS
+        from .contact.registry import method_names
         _integer("mode", self.mode, minimum=0)
         if self.levels is not None and not isinstance(self.levels, Levels):
             raise InputError(f"levels must be a qsma.levels.Levels, got {type(self.levels).__name__}")
-        if self.method not in METHODS:
-            raise InputError(f"unknown contact method {self.method!r}; valid: {sorted(METHODS)}")
+        if self.method not in method_names():
+            raise InputError(f"unknown contact method {self.method!r}; valid: {method_names()}")
         if self.tol is not None:
             _positive("tol", self.tol)
             if self.tol >= 1e-2:

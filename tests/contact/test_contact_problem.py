@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 
-from qsma.contact import METHODS, ContactProblem, ContactState, solve
+from qsma.contact import DEFAULT_TOL, METHODS, ContactProblem, ContactState, residual, solve
+from qsma.contact.registry import AUTO_ACTIVE_SET_PAIRS, chosen_method
 from qsma.errors import InputError
 
 
@@ -111,9 +112,42 @@ def problem():
 
 
 def test_unknown_method_lists_valid_ones(problem):
-    expected = r"unknown contact method 'newton'; valid: \['active_set', 'basket', 'nodal_gs'\]"
+    expected = (r"unknown contact method 'newton'; "
+                r"valid: \['auto', 'active_set', 'basket', 'nodal_gs'\]")
     with pytest.raises(InputError, match=expected):
         solve(problem, np.ones((2, 2)), method="newton")
+
+
+@pytest.mark.parametrize("dim, n_pairs, chosen", [
+    (3, AUTO_ACTIVE_SET_PAIRS, "active_set"), (3, AUTO_ACTIVE_SET_PAIRS - 1, "basket"),
+    (2, 2 * AUTO_ACTIVE_SET_PAIRS, "basket")])
+def test_auto_method_follows_dimension_and_size(dim, n_pairs, chosen):
+    """``method="auto"``: active_set on 3D problems from AUTO_ACTIVE_SET_PAIRS pairs,
+    basket below and in 2D; the result names the method that ran, and its answer meets
+    the acceptance test like any other (a compressed, sheared interface)."""
+    problem = ContactProblem(spd(dim * n_pairs, seed=n_pairs), mu=0.3, dim=dim)
+    lam_w = np.tile([0.2] * (dim - 1) + [-1.0], (n_pairs, 1)) * dim * n_pairs
+    res = solve(problem, lam_w, method="auto")
+    assert chosen_method("auto", problem) == chosen
+    assert res.method == chosen and res.success
+    assert residual(problem, lam_w, res.d, res.lam) <= DEFAULT_TOL
+    for name in METHODS:                        # an explicit name is never replaced
+        assert chosen_method(name, problem) == name
+
+
+def test_auto_method_of_a_zone_is_that_of_the_whole_interface():
+    """A zone solve with ``method="auto"`` uses the method of the full problem, not of
+    the (smaller) zone: every zone of a run is solved by the same method."""
+    from qsma.contact.zone import ContactZone, solve_in_zone
+    n = AUTO_ACTIVE_SET_PAIRS + 20
+    problem = ContactProblem(spd(3 * n, seed=3), mu=0.3, dim=3)
+    keep = np.zeros(n, bool)
+    keep[:10] = True
+    lam_w = np.tile([0.1, 0.0, -1.0], (n, 1)) * 3 * n
+    lam_w[~keep, 2] = 0.5 * 3 * n                          # pulled apart: stay open
+    res, _ = solve_in_zone(ContactZone.build(problem, keep), lam_w,
+                           ContactState.reference(problem), method="auto")
+    assert res.method == "active_set" and res.success
 
 
 @pytest.mark.parametrize("method", sorted(METHODS))

@@ -23,7 +23,10 @@ def add_arguments(p):
     p.add_argument("--modes", metavar="LIST",
                    help="several modes, e.g. 0,1,2: one result folder per mode in "
                         "OUT/mode-K, OUT/modes.json and OUT/modes.vtu (docs/results.md)")
-    p.add_argument("--method", help="contact solver (default from the config or 'basket')")
+    p.add_argument("--method",
+                   help="contact solver: auto, basket, active_set or nodal_gs (default "
+                        "from the config or 'auto': active_set on 3D interfaces of 100 "
+                        "pairs or more, basket otherwise)")
     p.add_argument("--tol", type=float, help="contact solver tolerance")
     p.add_argument("--levels", metavar="SPEC",
                    help="load levels KIND:log|linear:START:STOP:N or KIND:list:V1,V2,...; "

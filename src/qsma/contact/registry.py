@@ -20,6 +20,15 @@ _OPTIONS = {}
 #: name -> the method that takes over when it fails (``solve(..., fallback=True)``).
 #: The one place that decides a hand-over; ``nodal_gs`` is the baseline and has none.
 FALLBACKS = {"basket": "active_set", "active_set": "basket"}
+#: ``method="auto"`` (the default of a QSMA run, :class:`qsma.RunOptions`) takes
+#: ``active_set`` on 3D problems of at least this many pairs and ``basket`` on every
+#: other (:func:`chosen_method`). Measured on the 3D joints (docs/contact.md, "Default
+#: method"): ``active_set`` took 0.72 of ``basket``'s time on lap-3d refine 1 (176
+#: pairs), 0.78-0.88 on sandwich-3d refine 1 (561), 0.59 on lap-3d refine 2 (651) and
+#: 0.44 (ramps) and 0.29 (loops) on the Gmsh tetrahedral lap joint (753), with the same
+#: results; in 2D and on small problems the two are equal within the noise and
+#: ``basket`` falls back less often (the adversarial sweep of at most 20 pairs).
+AUTO_ACTIVE_SET_PAIRS = 100
 #: Errors a method may raise on extreme but finite input; :func:`solve` turns them
 #: into a failed result (``Outcome.NUMERICAL_ERROR``) instead of letting them out.
 NUMERICAL_ERRORS = (np.linalg.LinAlgError, ArithmeticError, FloatingPointError, ValueError)
@@ -74,6 +83,22 @@ def register_method(name):
     return register
 
 
+def chosen_method(method, problem):
+    """The method that ``method`` names on ``problem``: ``method`` itself, or for
+    ``"auto"`` ``"active_set"`` on a 3D problem of at least
+    :data:`AUTO_ACTIVE_SET_PAIRS` pairs and ``"basket"`` otherwise."""
+    if method != "auto":
+        return method
+    large = problem.dim == 3 and problem.n_pairs >= AUTO_ACTIVE_SET_PAIRS
+    return "active_set" if large else "basket"
+
+
+def method_names():
+    """The names a ``method`` argument accepts: ``"auto"`` and the keys of
+    :data:`METHODS`."""
+    return ["auto", *sorted(METHODS)]
+
+
 def solve(problem, lam_w, state=None, *, method="basket", tol=DEFAULT_TOL, maxiter=None,
           fallback=True, guess=None, **options):
     """Solve one load level of the frictional contact problem.
@@ -92,7 +117,8 @@ def solve(problem, lam_w, state=None, *, method="basket", tol=DEFAULT_TOL, maxit
         the undeformed reference (``d = 0``), every pair guessed stuck.
     method : str
         A key of :data:`METHODS`: ``"basket"`` (default), ``"active_set"``,
-        ``"nodal_gs"``.
+        ``"nodal_gs"``; or ``"auto"``, chosen by the problem's size
+        (:func:`chosen_method`).
     tol : float
         Success means ``residual(...) <= tol`` (see :func:`residual`) and
         ``force_residual(...) <= FORCE_TOL``.
@@ -125,6 +151,7 @@ def solve(problem, lam_w, state=None, *, method="basket", tol=DEFAULT_TOL, maxit
         Unknown method or option, bad ``tol``/``maxiter``, ``lam_w`` of the
         wrong shape or not finite, a state of another problem.
     """
+    method = chosen_method(method, problem)
     fn = _lookup(method, options)
     lam_w = _check_load(problem, lam_w)
     previous = ContactState.reference(problem) if state is None else state.check_against(problem)
@@ -257,7 +284,7 @@ class _Scaled:
 
 def _lookup(method, options):
     if method not in METHODS:
-        raise InputError(f"unknown contact method {method!r}; valid: {sorted(METHODS)}")
+        raise InputError(f"unknown contact method {method!r}; valid: {method_names()}")
     unknown = sorted(set(options) - set(_OPTIONS[method]))
     if unknown:
         raise InputError(f"unknown option(s) {unknown} for contact method {method!r}; "

@@ -33,7 +33,7 @@ import scipy.linalg as sla
 
 from .problem import ContactProblem
 from .registry import (DEFAULT_TOL, Iterate, _result, accepted_guess, checked_guess,
-                       guess_measures, solve)
+                       chosen_method, guess_measures, solve)
 from .residual import FORCE_TOL, measures
 from .state import OPEN, STUCK, ContactState
 
@@ -454,9 +454,12 @@ def solve_in_zone(zone: ContactZone, lam_w, state: ContactState, *, method="bask
     evaluation of the measures (:func:`qsma.contact.residual.measures`). A zone answer
     that meets ``tol`` on the zone but not on the full problem (the round-off of the
     elimination, seen with ``active_set``, whose Newton iterate stops just below
-    ``tol``) is solved again on the zone to ``RETRY_TOL * tol``.
+    ``tol``) is solved again on the zone to ``RETRY_TOL * tol``. ``method="auto"`` is
+    chosen on the full problem (:func:`qsma.contact.registry.chosen_method`), not on
+    the zone, so that every zone of a run is solved by the same method.
     """
     full = zone.full
+    method = chosen_method(method, full)
     lam_w = np.asarray(lam_w, dtype=float)
     if guess is not None:
         guess = checked_guess(guess, zone.full)
