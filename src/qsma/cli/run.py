@@ -25,7 +25,7 @@ def add_arguments(p):
                         "OUT/mode-K, OUT/modes.json and OUT/modes.vtu (docs/results.md)")
     p.add_argument("--method",
                    help="contact solver: auto, basket, active_set or nodal_gs (default "
-                        "from the config or 'auto': active_set on 3D interfaces of 100 "
+                        "from the config or 'auto': active_set on 3D interfaces of 50 "
                         "pairs or more, basket otherwise)")
     p.add_argument("--tol", type=float, help="contact solver tolerance")
     p.add_argument("--levels", metavar="SPEC",

@@ -23,12 +23,12 @@ FALLBACKS = {"basket": "active_set", "active_set": "basket"}
 #: ``method="auto"`` (the default of a QSMA run, :class:`qsma.RunOptions`) takes
 #: ``active_set`` on 3D problems of at least this many pairs and ``basket`` on every
 #: other (:func:`chosen_method`). Measured on the 3D joints (docs/contact.md, "Default
-#: method"): ``active_set`` took 0.72 of ``basket``'s time on lap-3d refine 1 (176
-#: pairs), 0.78-0.88 on sandwich-3d refine 1 (561), 0.59 on lap-3d refine 2 (651) and
-#: 0.44 (ramps) and 0.29 (loops) on the Gmsh tetrahedral lap joint (753), with the same
-#: results; in 2D and on small problems the two are equal within the noise and
-#: ``basket`` falls back less often (the adversarial sweep of at most 20 pairs).
-AUTO_ACTIVE_SET_PAIRS = 100
+#: method"): with the same solves and results to ~1e-11, ``active_set`` took 0.4-0.6 of
+#: ``basket``'s time in the loops of lap-3d refine 1 and 2 (176 and 651 pairs), the
+#: Brake-Reuss beam refine 1 (85) and the Gmsh tetrahedral lap joint (753), and
+#: 0.9-1.03 in their ramps; in 2D the two are equal within the noise, and on the
+#: adversarial sweep of at most 20 pairs ``basket`` falls back four times less often.
+AUTO_ACTIVE_SET_PAIRS = 50
 #: Errors a method may raise on extreme but finite input; :func:`solve` turns them
 #: into a failed result (``Outcome.NUMERICAL_ERROR``) instead of letting them out.
 NUMERICAL_ERRORS = (np.linalg.LinAlgError, ArithmeticError, FloatingPointError, ValueError)
