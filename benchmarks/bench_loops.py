@@ -12,6 +12,11 @@ Three tables (docs/performance.md, "Loops on 3D lap joints"):
     the median of the hysteresis stage and the ratio, the median CPU seconds of the
     whole run (workers included: what the second process adds), and whether every
     per-level value and every loop point has the same bits.
+``methods``
+    ``--repeat`` runs of each case with every method of ``--methods`` (one loop worker,
+    alternating); the median of the hysteresis and the contact stages, the ratio to the
+    first method, the loop solves, and the largest relative difference of the loops'
+    zeta from the first method's.
 ``interpolation``
     From one run (the levels with computed loops): loops at every ``stride``-th level, the
     others interpolated by PCHIP of ``log D`` and ``log q_a`` in ``log A`` where the
@@ -22,6 +27,8 @@ Three tables (docs/performance.md, "Loops on 3D lap joints"):
 
     python benchmarks/bench_loops.py profile --cases lap-3d:1
     python benchmarks/bench_loops.py parallel --cases lap-2d:1 --repeat 3
+    python benchmarks/bench_loops.py methods --cases lap-3d:1 brb:1 --repeat 2 \
+        --levels tip:log:1e-4:1e-3:2 --dissipation loop
     python benchmarks/bench_loops.py interpolation --cases lap-2d:1 lap-3d:1 brb:1
 """
 from __future__ import annotations
@@ -108,6 +115,32 @@ def parallel(args):
         print(f"| {case} | {len(r.loops)} | {r.solver['loop_solves']} | {med[1]:.2f} | "
               f"{med[2]:.2f} | {med[1] / med[2]:.2f} | {cpu[1]:.1f} / {cpu[2]:.1f} | "
               f"{'yes' if same else 'NO'} |", flush=True)
+
+
+def methods(args):
+    _header("case", "method", "loops", "loop solves", "hysteresis [s]", "contact [s]",
+            "hysteresis / first method's", "max rel. diff of zeta (loops)")
+    for case in args.cases:
+        hyst = {m: [] for m in args.methods}
+        contact = {m: [] for m in args.methods}
+        runs = {}
+        for _ in range(args.repeat):
+            for m in args.methods:
+                runs[m] = _run(case, args.levels, dissipation=args.dissipation,
+                               loop_workers=1, method=m)
+                hyst[m].append(runs[m].timings_s["hysteresis"])
+                contact[m].append(runs[m].timings_s["contact"])
+        first = args.methods[0]
+        h0 = statistics.median(hyst[first])
+        for m in args.methods:
+            r, z0 = runs[m], runs[first].zeta_loop
+            ok = np.isfinite(z0) & (z0 != 0)
+            diff = float(np.max(np.abs(r.zeta_loop[ok] / z0[ok] - 1), initial=0.0))
+            h = statistics.median(hyst[m])
+            print(f"| {case} | {r.solver['method']} | {len(r.loops)} | "
+                  f"{r.solver['loop_solves']} | {h:.2f} | "
+                  f"{statistics.median(contact[m]):.2f} | {h / h0:.2f} | {diff:.1e} |",
+                  flush=True)
 
 
 def _cpu():
@@ -228,15 +261,18 @@ def interpolation(args):
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("table", choices=["profile", "parallel", "interpolation"])
+    p.add_argument("table", choices=["profile", "parallel", "methods", "interpolation"])
     p.add_argument("--cases", nargs="+", default=["lap-2d:1"], help="EXAMPLE:REFINE")
     p.add_argument("--levels", help="levels spec (default: the 51 default levels)")
     p.add_argument("--dissipation", default="auto", choices=["auto", "loop"])
     p.add_argument("--repeat", type=int, default=3)
+    p.add_argument("--methods", nargs="+", default=["basket", "active_set"],
+                   help="contact methods of the methods table")
     p.add_argument("--rtols", type=float, nargs="+", default=[5e-3, 2e-2, 5e-2])
     p.add_argument("--strides", type=int, nargs="+", default=[2, 4, 8])
     args = p.parse_args(argv)
-    {"profile": profile, "parallel": parallel, "interpolation": interpolation}[args.table](args)
+    {"profile": profile, "parallel": parallel, "methods": methods,
+     "interpolation": interpolation}[args.table](args)
 
 
 if __name__ == "__main__":

@@ -23,8 +23,8 @@ FALLBACKS = {"basket": "active_set", "active_set": "basket"}
 #: ``method="auto"`` (the default of a QSMA run, :class:`qsma.RunOptions`) takes
 #: ``active_set`` on 3D problems of at least this many pairs and ``basket`` on every
 #: other (:func:`chosen_method`). Measured on the 3D joints (docs/contact.md, "Default
-#: method"): with the same solves and results to ~1e-11, ``active_set`` took 0.4-0.6 of
-#: ``basket``'s time in the loops of lap-3d refine 1 and 2 (176 and 651 pairs), the
+#: method"): with the same solves and results to ~1e-11, ``active_set`` took 0.3-0.75
+#: of ``basket``'s time in the loops of lap-3d refine 1 and 2 (176 and 651 pairs), the
 #: Brake-Reuss beam refine 1 (85) and the Gmsh tetrahedral lap joint (753), and
 #: 0.9-1.03 in their ramps; in 2D the two are equal within the noise, and on the
 #: adversarial sweep of at most 20 pairs ``basket`` falls back four times less often.
