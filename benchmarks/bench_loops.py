@@ -118,7 +118,7 @@ def parallel(args):
 
 
 def methods(args):
-    _header("case", "method", "loops", "loop solves", "hysteresis [s]", "contact [s]",
+    _header("case", "method (ran)", "loops", "loop solves", "hysteresis [s]", "contact [s]",
             "hysteresis / first method's", "max rel. diff of zeta (loops)")
     for case in args.cases:
         hyst = {m: [] for m in args.methods}
@@ -137,7 +137,9 @@ def methods(args):
             ok = np.isfinite(z0) & (z0 != 0)
             diff = float(np.max(np.abs(r.zeta_loop[ok] / z0[ok] - 1), initial=0.0))
             h = statistics.median(hyst[m])
-            print(f"| {case} | {r.solver['method']} | {len(r.loops)} | "
+            ran = r.solver["method"]
+            name = m if ran == m else f"{m} ({ran})"
+            print(f"| {case} | {name} | {len(r.loops)} | "
                   f"{r.solver['loop_solves']} | {h:.2f} | "
                   f"{statistics.median(contact[m]):.2f} | {h / h0:.2f} | {diff:.1e} |",
                   flush=True)

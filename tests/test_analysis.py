@@ -235,3 +235,18 @@ def test_auto_blas_threads_keep_the_contact_stage_on_one_thread(monkeypatch):
             stage.clear()
         qsma.run(sandwich_2d(1), levels=levels, blas_threads=None)
         assert set(seen["contact"]) == set(seen["condensation"]) == {process}
+
+
+@pytest.mark.parametrize("example, chosen", [("sandwich-2d", "basket"), ("lap-3d", "active_set")])
+def test_auto_method_of_a_run_is_recorded_as_the_method_that_ran(example, chosen, tmp_path):
+    """The default ``method="auto"`` is kept in the options and resolved in ``solver``:
+    basket in 2D, active_set on lap-3d's 176 pairs in 3D; results.json says both."""
+    import json
+    from qsma.examples import EXAMPLES
+    from qsma.results import write_all
+    res = qsma.run(EXAMPLES[example](1), levels=Levels.log("tip", 1e-6, 1e-4, 2),
+                   dissipation="masing")
+    assert res.options.method == "auto" and res.solver["method"] == chosen
+    write_all(res, tmp_path / "out", plots=False, vtu=False)
+    written = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert written["options"]["method"] == "auto" and written["solver"]["method"] == chosen

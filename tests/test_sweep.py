@@ -382,3 +382,19 @@ def test_the_fingerprint_ignores_loop_workers_only():
     base = _fingerprint(model, RunOptions())
     assert _fingerprint(model, RunOptions(loop_workers=2)) == base
     assert _fingerprint(model, RunOptions(dissipation_rtol=1e-3)) != base
+
+
+def test_the_fingerprint_of_auto_is_the_method_it_runs_in_2d():
+    """``method="auto"`` (the default) runs ``basket`` in 2D, the default of earlier
+    versions, so their 2D studies still resume; in 3D the choice depends on the pair
+    count, so auto is fingerprinted as itself and differs from an explicit method."""
+    from qsma.examples import lap_3d, sandwich_2d
+    from qsma.options import RunOptions
+    from qsma.study.sweep import _fingerprint
+    flat = sandwich_2d()
+    assert _fingerprint(flat, RunOptions()) == _fingerprint(flat, RunOptions(method="basket"))
+    assert _fingerprint(flat, RunOptions()) != _fingerprint(flat,
+                                                            RunOptions(method="active_set"))
+    solid = lap_3d()
+    assert _fingerprint(solid, RunOptions()) != _fingerprint(solid,
+                                                             RunOptions(method="basket"))

@@ -23,7 +23,7 @@ from ._threads import CONTACT_BLAS_THREADS, blas_threads as threads_limited, thr
 from .condense import reduce_two_bodies
 from .contact import DEFAULT_TOL, ContactProblem, ContactState, OPEN, SLIPPING, STUCK
 from .contact import solve as contact_solve
-from .contact.registry import chosen_method
+from .contact.registry import chosen_method, method_for
 from .contact.zone import release_zones, solve_in_zone, solve_preload, zone_from_state
 from .errors import (AnalysisError, ContactConvergenceWarning, InputError,
                      InterfaceGapWarning, QSMAWarning)
@@ -225,10 +225,11 @@ class Prepared:
     def preloaded(self, opts, clock):
         """``(reduced, problem, preload result)`` for this model's mu and preload scale,
         cached (the preload does not depend on the load levels nor on the mode)."""
-        key = ("preload", float(self.model.mu), self.preload_scale, opts.method,
+        method = method_for(opts.method, self.model.dim, self.pairing.n_pairs)
+        key = ("preload", float(self.model.mu), self.preload_scale, method,
                tuple(sorted(opts.solver_options.items())))
         if key not in self.cache:
-            out = preload(self.model, self.assembled, self.pairing, method=opts.method,
+            out = preload(self.model, self.assembled, self.pairing, method=method,
                           opts=opts.solver_options, clock=clock, reduced=self.reduced,
                           contact_threads=_contact_threads(opts))
             self.cache[key] = out, out[1].__dict__.get("_zone_outer")

@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 
-from qsma.contact import DEFAULT_TOL, METHODS, ContactProblem, ContactState, residual, solve
+from qsma.contact import (DEFAULT_TOL, METHODS, OPEN, SLIPPING, ContactProblem, ContactState,
+                          residual, solve)
 from qsma.contact.registry import AUTO_ACTIVE_SET_PAIRS, chosen_method
 from qsma.errors import InputError
 
@@ -126,10 +127,12 @@ def test_auto_method_follows_dimension_and_size(dim, n_pairs, chosen):
     basket below and in 2D; the result names the method that ran, and its answer meets
     the acceptance test like any other (a compressed, sheared interface)."""
     problem = ContactProblem(spd(dim * n_pairs, seed=n_pairs), mu=0.3, dim=dim)
-    lam_w = np.tile([0.2] * (dim - 1) + [-1.0], (n_pairs, 1)) * dim * n_pairs
+    lam_w = np.tile([0.5] * (dim - 1) + [1.0], (n_pairs, 1)) * dim * n_pairs
     res = solve(problem, lam_w, method="auto")
     assert chosen_method("auto", problem) == chosen
     assert res.method == chosen and res.success
+    closed = res.status != OPEN
+    assert closed.all() and (res.status == SLIPPING).any()  # pressed, and some slide
     assert residual(problem, lam_w, res.d, res.lam) <= DEFAULT_TOL
     for name in METHODS:                        # an explicit name is never replaced
         assert chosen_method(name, problem) == name
@@ -143,11 +146,21 @@ def test_auto_method_of_a_zone_is_that_of_the_whole_interface():
     problem = ContactProblem(spd(3 * n, seed=3), mu=0.3, dim=3)
     keep = np.zeros(n, bool)
     keep[:10] = True
-    lam_w = np.tile([0.1, 0.0, -1.0], (n, 1)) * 3 * n
-    lam_w[~keep, 2] = 0.5 * 3 * n                          # pulled apart: stay open
-    res, _ = solve_in_zone(ContactZone.build(problem, keep), lam_w,
-                           ContactState.reference(problem), method="auto")
+    lam_w = np.tile([0.1, 0.0, 1.0], (n, 1)) * 3 * n       # pressed (lam_n > 0)
+    lam_w[~keep, 2] = -0.5 * 3 * n                         # pulled apart: stay open
+    res, zone = solve_in_zone(ContactZone.build(problem, keep), lam_w,
+                              ContactState.reference(problem), method="auto")
     assert res.method == "active_set" and res.success
+    assert zone.keep.sum() < AUTO_ACTIVE_SET_PAIRS      # a zone basket would be chosen for
+    assert np.all(res.status[~zone.keep] == OPEN)
+
+
+def test_auto_method_refuses_the_options_of_one_method():
+    """Method options belong to one method; with auto the method depends on the size,
+    so they are refused with the fix named, whatever the size."""
+    problem = ContactProblem(spd(6), mu=0.3, dim=3)
+    with pytest.raises(InputError, match=r"name the method \(method='basket'"):
+        solve(problem, np.ones((2, 3)), method="auto", coupling="gauss_seidel")
 
 
 @pytest.mark.parametrize("method", sorted(METHODS))

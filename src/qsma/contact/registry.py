@@ -87,10 +87,15 @@ def chosen_method(method, problem):
     """The method that ``method`` names on ``problem``: ``method`` itself, or for
     ``"auto"`` ``"active_set"`` on a 3D problem of at least
     :data:`AUTO_ACTIVE_SET_PAIRS` pairs and ``"basket"`` otherwise."""
+    return method_for(method, problem.dim, problem.n_pairs)
+
+
+def method_for(method, dim, n_pairs):
+    """:func:`chosen_method` for an interface of ``n_pairs`` pairs in ``dim``
+    dimensions (before its problem is built)."""
     if method != "auto":
         return method
-    large = problem.dim == 3 and problem.n_pairs >= AUTO_ACTIVE_SET_PAIRS
-    return "active_set" if large else "basket"
+    return "active_set" if dim == 3 and n_pairs >= AUTO_ACTIVE_SET_PAIRS else "basket"
 
 
 def method_names():
@@ -151,6 +156,10 @@ def solve(problem, lam_w, state=None, *, method="basket", tol=DEFAULT_TOL, maxit
         Unknown method or option, bad ``tol``/``maxiter``, ``lam_w`` of the
         wrong shape or not finite, a state of another problem.
     """
+    if method == "auto" and options:
+        raise InputError(f"method options {sorted(options)} belong to one method, and "
+                         f"method='auto' chooses by the problem's size: name the method "
+                         f"(method='basket' or method='active_set') to pass them")
     method = chosen_method(method, problem)
     fn = _lookup(method, options)
     lam_w = _check_load(problem, lam_w)

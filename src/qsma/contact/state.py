@@ -109,7 +109,8 @@ class ContactResult:
         :func:`qsma.contact.residual` of ``(d, lam)`` (the acceptance test).
     message : str
     method : str
-        The method asked for.
+        The method that ran (``"auto"`` resolved, see
+        :func:`qsma.contact.registry.chosen_method`; a fallback is in ``fallback``).
     state : ContactState
         ``(d, lam, status)``, to pass to the next load level.
     outcome : Outcome

@@ -526,10 +526,22 @@ def _fingerprint(model, options) -> str:
     h.update(repr((interfaces, model.tip, model.mu)).encode())
     if model.bolts:
         h.update(repr(model.bolts).encode())
-    h.update(repr(sorted((k, v) for k, v in options.as_dict().items()
+    h.update(repr(sorted((k, _fingerprinted(model, k, v))
+                         for k, v in options.as_dict().items()
                          if k not in NOT_FINGERPRINTED)).encode())
     h.update(repr(options.levels).encode())
     return h.hexdigest()
+
+
+def _fingerprinted(model, name, value):
+    """The value of option ``name`` as the fingerprint holds it: ``method="auto"`` of a
+    2D model as the method it always runs (``basket``, the default of earlier versions:
+    their studies still resume). In 3D the choice depends on the number of interface
+    pairs, known only after the pairing, so ``"auto"`` stays ``"auto"``: a 3D study of
+    an earlier version resumes with ``--method basket``."""
+    if name == "method" and value == "auto" and model.dim == 2:
+        return "basket"
+    return value
 
 
 # ------------------------------------------------- shipping a preparation to workers
