@@ -107,6 +107,51 @@ class _BorderedInverse:
 
 
 @dataclass(frozen=True, eq=False)
+class _ExtendedInverse:
+    r"""``K_{O'O'}^{-1} x`` for ``O'`` = the eliminated set ``O`` and the rows ``R``
+    taken out of the zone, from the inverse on ``O`` (``H = K_OO^{-1}``) and the zone
+    stiffness block ``S_RR = K_RR - K_RO H K_OR`` (the mirror of
+    :class:`_BorderedInverse`, which removes rows from ``O``). With
+    ``B_R = H K_OR``, the block inverse is
+
+    .. math::
+        K_{O'O'}^{-1} = \begin{bmatrix} H + B_R S_{RR}^{-1} B_R^T & -B_R S_{RR}^{-1} \\
+                      -S_{RR}^{-1} B_R^T & S_{RR}^{-1} \end{bmatrix},
+
+    so ``y_R = S_RR^-1 (x_R - B_R^T x_O)`` and ``y_O = H x_O - B_R y_R``.
+
+    Attributes
+    ----------
+    parent : the inverse on ``O``
+    at_O, at_R : positions of ``O`` and of ``R`` in ``O'``
+    BR : ``B_R`` (n_O x n_R)
+    L : lower Cholesky factor of ``S_RR``
+    """
+
+    parent: object
+    at_O: np.ndarray
+    at_R: np.ndarray
+    BR: np.ndarray
+    L: np.ndarray
+
+    @property
+    def depth(self):
+        return self.parent.depth + 1
+
+    def solve(self, x):
+        x = np.asarray(x, dtype=float)
+        x_O = x[self.at_O]
+        y_R = sla.cho_solve((self.L, True), x[self.at_R] - self.BR.T @ x_O,
+                            check_finite=False)
+        out = np.empty_like(x)
+        out[self.at_R] = y_R
+        y_O = self.parent.solve(x_O)
+        y_O -= self.BR @ y_R
+        out[self.at_O] = y_O
+        return out
+
+
+@dataclass(frozen=True, eq=False)
 class Elimination:
     """The open pairs of ``problem`` outside ``keep`` eliminated exactly.
 
@@ -210,6 +255,54 @@ class Elimination:
         inverse = (_BorderedInverse(self.inverse, rows, HG, C, len(self.iO))
                    if len(iO) else None)
         return Elimination(p, keep, sub, iA, iO, inverse, Bt)
+
+    def extended(self, keep) -> "Elimination":
+        r"""This elimination with the zone pairs outside ``keep`` eliminated too, from
+        what it holds (no elimination on the problem again).
+
+        With the zone ``A = K u R`` (``K`` kept, ``R`` the rows leaving), its stiffness
+        ``S`` and ``B = K_OO^{-1} K_OA`` (``Bt``), the elimination of ``O' = O u R``
+        is that of ``R`` from the zone problem (the quotient property of Schur
+        complements):
+
+        .. math::
+            S' = S_{KK} - S_{KR} S_{RR}^{-1} S_{RK}, \qquad
+            B'_R = S_{RR}^{-1} S_{RK}, \qquad B'_O = B_{OK} - B_{OR} B'_R ,
+
+        and ``K_{O'O'}^{-1}`` is :class:`_ExtendedInverse`. Cost: a Cholesky
+        factorisation of ``S_RR`` and ``O(n_R n_K^2 + n_O n_R n_K)`` products, instead
+        of ``O(n_{O'}^3)`` for a new elimination.
+        """
+        keep = np.asarray(keep, dtype=bool)
+        if np.any(keep & ~self.keep):
+            raise ValueError("extended: the new zone must lie inside this zone")
+        if not np.any(self.keep & ~keep):
+            return self
+        p = self.problem
+        if self.inverse is None:
+            return Elimination.build(p, keep)
+        kept = np.repeat(keep, p.dim)[self.iA]                  # zone rows that stay
+        k, r = np.flatnonzero(kept), np.flatnonzero(~kept)
+        S = self.sub.K
+        L = sla.cholesky(S[np.ix_(r, r)], lower=True, overwrite_a=True, check_finite=False)
+        W = sla.solve_triangular(L, S[np.ix_(r, k)], lower=True, overwrite_b=True,
+                                 check_finite=False)
+        S_new = S[np.ix_(k, k)]
+        S_new -= W.T @ W
+        B_R = sla.solve_triangular(L, W, lower=True, trans="T", overwrite_b=True,
+                                   check_finite=False)               # S_RR^-1 S_RK
+        BR_old = self.Bt[:, r]
+        B_O = self.Bt[:, k]
+        B_O -= BR_old @ B_R
+        iA, iR = self.iA[k], self.iA[r]
+        iO = np.union1d(self.iO, iR)
+        at_O, at_R = np.searchsorted(iO, self.iO), np.searchsorted(iO, iR)
+        Bt = np.empty((len(iO), len(iA)))
+        Bt[at_O] = B_O
+        Bt[at_R] = B_R
+        sub = ContactProblem.derived(S_new, p.mu[keep], p.gap0[keep], p.dim, overwrite=True)
+        return Elimination(p, keep.copy(), sub, iA, iO,
+                           _ExtendedInverse(self.inverse, at_O, at_R, BR_old, L), Bt)
 
     def load(self, lam_w, basis=None):
         """The zone's welded force ``lam_w_A - K_AO K_OO^-1 lam_w_O`` (flat) and the
@@ -318,8 +411,11 @@ class ContactZone:
         return int((~self.keep).sum())
 
     def narrowed(self, keep) -> "ContactZone":
-        """The zone of ``keep`` (a subset of this zone's pairs) carved out of this
-        zone's outermost elimination: an elimination on its zone problem only."""
+        """The zone of ``keep`` (a subset of the outermost elimination's zone) carved out
+        of this zone's outermost elimination. Inside this zone (with an inner
+        elimination of chain depth below :data:`MAX_BORDERS`): the inner elimination
+        extended by the pairs that leave (:meth:`Elimination.extended`); else a new
+        elimination on the outer zone problem."""
         keep = np.asarray(keep, dtype=bool)
         outer = self.steps[0]
         if np.any(keep & ~outer.keep):
@@ -327,6 +423,10 @@ class ContactZone:
         inner = keep[outer.keep]
         if inner.all():
             return ContactZone(self.full, outer.keep, (outer,))
+        if len(self.steps) == 2 and not np.any(keep & ~self.keep):
+            step = self.steps[1]
+            if step.inverse is not None and step.inverse.depth < MAX_BORDERS:
+                return ContactZone(self.full, keep.copy(), (outer, step.extended(inner)))
         return ContactZone(self.full, keep.copy(), (outer, Elimination.build(outer.sub, inner)))
 
     def grown(self, pairs) -> "ContactZone":
