@@ -110,7 +110,8 @@ def test_edge_cases_of_the_extension():
     single = Elimination.build(p, one)
     assert single.extended(one) is single
     three = single.bordered(np.isin(np.arange(12), [0, 11]))
-    _assert_same_step(three.extended(np.arange(12) == 11), Elimination.build(p, np.arange(12) == 11))
+    last = np.arange(12) == 11
+    _assert_same_step(three.extended(last), Elimination.build(p, last))
     # nothing eliminated yet: the extension is a new elimination
     whole = Elimination.build(p, np.ones(12, bool))
     assert whole.inverse is None

@@ -22,7 +22,10 @@ and the ramp's zone, the pairs closed after the preload, is carved out of it
 the preload or of a zone grown since, cached on it; any of them is exact). A pair
 closing outside the outer elimination borders it (:meth:`Elimination.bordered`):
 the new pairs join its zone through ``k`` solves with the factor already built,
-``O(k n_O^2)``, not a new factorisation.
+``O(k n_O^2)``, not a new factorisation. A zone narrowed inside the current one (the
+pairs ``R`` leave it) extends the inner elimination (:meth:`Elimination.extended`):
+``R`` is eliminated from the zone problem, ``O(n_R^3 + n_R n_K^2 + n_O n_R n_K)``,
+not a new elimination on the outer zone problem.
 """
 from __future__ import annotations
 
@@ -42,10 +45,15 @@ from .state import OPEN, STUCK, ContactState
 #: residual 9.9e-11 on the zone, 1.02e-10 on the full problem (level 17); a factor
 #: 100 leaves room above the round-off floor of the residual (~1e-15).
 RETRY_TOL = 1e-2
-#: Borderings of one elimination (:meth:`Elimination.bordered`) before the next growth
-#: builds a new one. Each adds a correction of rank ``3 k`` to every solve with the
-#: eliminated block, so a chain costs a little more per solve and carries the round-off
-#: of each step (agreement with a fresh elimination measured in tests/contact/test_zone.py).
+#: Steps of one chain of eliminations (borderings, :meth:`Elimination.bordered`, and
+#: extensions, :meth:`Elimination.extended`, in any order) before the next growth or
+#: narrowing builds a new one. Each adds a correction of rank ``3 k`` to every solve
+#: with the eliminated block, so a chain costs a little more per solve and carries the
+#: round-off of each step (agreement with a fresh elimination measured in
+#: tests/contact/test_zone.py and tests/contact/test_zone_narrow.py). A cap of 32
+#: instead on the loops of lap-3d refine 2 (``dissipation="loop"``, two levels): 17
+#: instead of 26 new eliminations but 14.0 s of borderings instead of 11.5 s (longer
+#: chains), no gain (docs/performance.md, "Zone narrowing by extension in the loops").
 MAX_BORDERS = 16
 #: A level's zone is narrowed to the pairs closed in its starting state
 #: (:func:`fitted_zone`) when at least this fraction of its pairs is open there: the zone
@@ -434,7 +442,8 @@ class ContactZone:
         elimination (on the outer zone problem) bordered by them, or the zone carved out
         of the outer one; else the outer elimination bordered by the pairs outside it
         (:meth:`Elimination.bordered`, cached on the problem like :meth:`build`), or, after
-        :data:`MAX_BORDERS` borderings in a row, a new elimination of the full problem."""
+        :data:`MAX_BORDERS` steps in a row, a new elimination of the full problem (the
+        inner elimination likewise: a new one on the outer zone problem)."""
         keep = self.keep | np.asarray(pairs, dtype=bool)
         outer = self.steps[0]
         outside = keep & ~outer.keep
@@ -509,9 +518,11 @@ def fitted_zone(zone: ContactZone, state: ContactState) -> ContactZone:
     outer elimination), else ``zone`` itself.
 
     Exact either way: a pair eliminated here that closes during the level joins the
-    zone again (:func:`solve_in_zone`). The narrowing is an elimination on the outer
-    zone problem, ``O(n_outer^3)``; it pays when the open pairs would otherwise be
-    unknowns of every block step of the level."""
+    zone again (:func:`solve_in_zone`). The narrowing extends the inner elimination
+    (:meth:`ContactZone.narrowed`, ``O(n_R^3 + n_R n_K^2 + n_O n_R n_K)`` for the ``n_R``
+    unknowns leaving), or at the chain's depth cap is an elimination on the outer zone
+    problem, ``O(n_outer^3)``; it pays when the open pairs would otherwise be unknowns
+    of every block step of the level."""
     closed = np.asarray(state.status) != OPEN
     surplus = int(np.count_nonzero(zone.keep & ~closed))
     if (not closed.any() or surplus < NARROW_FRACTION * zone.keep.sum()
