@@ -174,3 +174,31 @@ def test_fitted_zone_extends_and_a_growth_after_it_is_exact():
     d_A = np.random.default_rng(4).normal(size=(int(grown.keep.sum()), 3))
     np.testing.assert_allclose(grown.expand(d_A, lam_w), fresh.expand(d_A, lam_w),
                                atol=TOL * 10)
+
+
+def test_solve_of_columns_on_the_removed_rows_skips_the_parent():
+    """Unit columns of the rows that left the zone (what a bordering asks when those
+    pairs close again) are solved without the parent inverse, with the same numbers."""
+    p = _problem(20, 3, seed=9)
+    step = Elimination.build(p, np.arange(20) < 14).extended(np.arange(20) < 9)
+    inverse = step.inverse
+    x = np.zeros((len(step.iO), 4))
+    x[inverse.at_R[:4], np.arange(4)] = 1.0
+    calls = []
+
+    class Counted:
+        depth = 0
+
+        def solve(self, y):
+            calls.append(y)
+            return inverse.parent.solve(y)
+
+    counted = zone_module._ExtendedInverse(Counted(), inverse.at_O, inverse.at_R,
+                                           inverse.BR, inverse.L)
+    got = counted.solve(x)
+    assert not calls
+    want = Elimination.build(p, np.arange(20) < 9).inverse.solve(x)
+    np.testing.assert_allclose(got, want, rtol=0, atol=TOL * np.abs(want).max())
+    x[inverse.at_O[0], 0] = 1.0                                # a column reaching O
+    np.testing.assert_allclose(counted.solve(x), inverse.solve(x), rtol=0, atol=0)
+    assert len(calls) == 1

@@ -147,14 +147,21 @@ class _ExtendedInverse:
         return self.parent.depth + 1
 
     def solve(self, x):
+        """``K_{O'O'}^{-1} x``; a right-hand side that is zero on ``O`` (the unit
+        columns of pairs of ``R`` that a bordering takes back) needs no solve with
+        ``H``: ``y_O = -B_R y_R``, the same numbers."""
         x = np.asarray(x, dtype=float)
         x_O = x[self.at_O]
-        y_R = sla.cho_solve((self.L, True), x[self.at_R] - self.BR.T @ x_O,
-                            check_finite=False)
+        on_O = bool(x_O.any())
+        rhs = x[self.at_R] - self.BR.T @ x_O if on_O else x[self.at_R]
+        y_R = sla.cho_solve((self.L, True), rhs, check_finite=False)
         out = np.empty_like(x)
         out[self.at_R] = y_R
-        y_O = self.parent.solve(x_O)
-        y_O -= self.BR @ y_R
+        if on_O:
+            y_O = self.parent.solve(x_O)
+            y_O -= self.BR @ y_R
+        else:
+            y_O = -(self.BR @ y_R)
         out[self.at_O] = y_O
         return out
 
