@@ -22,10 +22,7 @@ and the ramp's zone, the pairs closed after the preload, is carved out of it
 the preload or of a zone grown since, cached on it; any of them is exact). A pair
 closing outside the outer elimination borders it (:meth:`Elimination.bordered`):
 the new pairs join its zone through ``k`` solves with the factor already built,
-``O(k n_O^2)``, not a new factorisation. A zone narrowed inside the current one (the
-pairs ``R`` leave it) extends the inner elimination (:meth:`Elimination.extended`):
-``R`` is eliminated from the zone problem, ``O(n_R^3 + n_R n_K^2 + n_O n_R n_K)``,
-not a new elimination on the outer zone problem.
+``O(k n_O^2)``, not a new factorisation.
 """
 from __future__ import annotations
 
@@ -45,15 +42,10 @@ from .state import OPEN, STUCK, ContactState
 #: residual 9.9e-11 on the zone, 1.02e-10 on the full problem (level 17); a factor
 #: 100 leaves room above the round-off floor of the residual (~1e-15).
 RETRY_TOL = 1e-2
-#: Steps of one chain of eliminations (borderings, :meth:`Elimination.bordered`, and
-#: extensions, :meth:`Elimination.extended`, in any order) before the next growth or
-#: narrowing builds a new one. Each adds a correction of rank ``3 k`` to every solve
-#: with the eliminated block, so a chain costs a little more per solve and carries the
-#: round-off of each step (agreement with a fresh elimination measured in
-#: tests/contact/test_zone.py and tests/contact/test_zone_narrow.py). A cap of 32
-#: instead on the loops of lap-3d refine 2 (``dissipation="loop"``, two levels): 17
-#: instead of 26 new eliminations but 14.0 s of borderings instead of 11.5 s (longer
-#: chains), no gain (docs/performance.md, "Zone narrowing by extension in the loops").
+#: Borderings of one elimination (:meth:`Elimination.bordered`) before the next growth
+#: builds a new one. Each adds a correction of rank ``3 k`` to every solve with the
+#: eliminated block, so a chain costs a little more per solve and carries the round-off
+#: of each step (agreement with a fresh elimination measured in tests/contact/test_zone.py).
 MAX_BORDERS = 16
 #: A level's zone is narrowed to the pairs closed in its starting state
 #: (:func:`fitted_zone`) when at least this fraction of its pairs is open there: the zone
@@ -112,58 +104,6 @@ class _BorderedInverse:
         padded = np.zeros((self.n_parent,) + x.shape[1:])
         padded[self.rows] = x
         return self.parent.solve(padded)[self.rows] - self.HG @ (self.C @ (self.HG.T @ x))
-
-
-@dataclass(frozen=True, eq=False)
-class _ExtendedInverse:
-    r"""``K_{O'O'}^{-1} x`` for ``O'`` = the eliminated set ``O`` and the rows ``R``
-    taken out of the zone, from the inverse on ``O`` (``H = K_OO^{-1}``) and the zone
-    stiffness block ``S_RR = K_RR - K_RO H K_OR`` (the mirror of
-    :class:`_BorderedInverse`, which removes rows from ``O``). With
-    ``B_R = H K_OR``, the block inverse is
-
-    .. math::
-        K_{O'O'}^{-1} = \begin{bmatrix} H + B_R S_{RR}^{-1} B_R^T & -B_R S_{RR}^{-1} \\
-                      -S_{RR}^{-1} B_R^T & S_{RR}^{-1} \end{bmatrix},
-
-    so ``y_R = S_RR^-1 (x_R - B_R^T x_O)`` and ``y_O = H x_O - B_R y_R``.
-
-    Attributes
-    ----------
-    parent : the inverse on ``O``
-    at_O, at_R : positions of ``O`` and of ``R`` in ``O'``
-    BR : ``B_R`` (n_O x n_R)
-    L : lower Cholesky factor of ``S_RR``
-    """
-
-    parent: object
-    at_O: np.ndarray
-    at_R: np.ndarray
-    BR: np.ndarray
-    L: np.ndarray
-
-    @property
-    def depth(self):
-        return self.parent.depth + 1
-
-    def solve(self, x):
-        """``K_{O'O'}^{-1} x``; a right-hand side that is zero on ``O`` (the unit
-        columns of pairs of ``R`` that a bordering takes back) needs no solve with
-        ``H``: ``y_O = -B_R y_R``, the same numbers."""
-        x = np.asarray(x, dtype=float)
-        x_O = x[self.at_O]
-        on_O = bool(x_O.any())
-        rhs = x[self.at_R] - self.BR.T @ x_O if on_O else x[self.at_R]
-        y_R = sla.cho_solve((self.L, True), rhs, check_finite=False)
-        out = np.empty_like(x)
-        out[self.at_R] = y_R
-        if on_O:
-            y_O = self.parent.solve(x_O)
-            y_O -= self.BR @ y_R
-        else:
-            y_O = -(self.BR @ y_R)
-        out[self.at_O] = y_O
-        return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -270,54 +210,6 @@ class Elimination:
         inverse = (_BorderedInverse(self.inverse, rows, HG, C, len(self.iO))
                    if len(iO) else None)
         return Elimination(p, keep, sub, iA, iO, inverse, Bt)
-
-    def extended(self, keep) -> "Elimination":
-        r"""This elimination with the zone pairs outside ``keep`` eliminated too, from
-        what it holds (no elimination on the problem again).
-
-        With the zone ``A = K u R`` (``K`` kept, ``R`` the rows leaving), its stiffness
-        ``S`` and ``B = K_OO^{-1} K_OA`` (``Bt``), the elimination of ``O' = O u R``
-        is that of ``R`` from the zone problem (the quotient property of Schur
-        complements):
-
-        .. math::
-            S' = S_{KK} - S_{KR} S_{RR}^{-1} S_{RK}, \qquad
-            B'_R = S_{RR}^{-1} S_{RK}, \qquad B'_O = B_{OK} - B_{OR} B'_R ,
-
-        and ``K_{O'O'}^{-1}`` is :class:`_ExtendedInverse`. Cost: a Cholesky
-        factorisation of ``S_RR`` and ``O(n_R n_K^2 + n_O n_R n_K)`` products, instead
-        of ``O(n_{O'}^3)`` for a new elimination.
-        """
-        keep = np.asarray(keep, dtype=bool)
-        if np.any(keep & ~self.keep):
-            raise ValueError("extended: the new zone must lie inside this zone")
-        if not np.any(self.keep & ~keep):
-            return self
-        p = self.problem
-        if self.inverse is None:
-            return Elimination.build(p, keep)
-        kept = np.repeat(keep, p.dim)[self.iA]                  # zone rows that stay
-        k, r = np.flatnonzero(kept), np.flatnonzero(~kept)
-        S = self.sub.K
-        L = sla.cholesky(S[np.ix_(r, r)], lower=True, overwrite_a=True, check_finite=False)
-        W = sla.solve_triangular(L, S[np.ix_(r, k)], lower=True, overwrite_b=True,
-                                 check_finite=False)
-        S_new = S[np.ix_(k, k)]
-        S_new -= W.T @ W
-        B_R = sla.solve_triangular(L, W, lower=True, trans="T", overwrite_b=True,
-                                   check_finite=False)               # S_RR^-1 S_RK
-        BR_old = self.Bt[:, r]
-        B_O = self.Bt[:, k]
-        B_O -= BR_old @ B_R
-        iA, iR = self.iA[k], self.iA[r]
-        iO = np.union1d(self.iO, iR)
-        at_O, at_R = np.searchsorted(iO, self.iO), np.searchsorted(iO, iR)
-        Bt = np.empty((len(iO), len(iA)))
-        Bt[at_O] = B_O
-        Bt[at_R] = B_R
-        sub = ContactProblem.derived(S_new, p.mu[keep], p.gap0[keep], p.dim, overwrite=True)
-        return Elimination(p, keep.copy(), sub, iA, iO,
-                           _ExtendedInverse(self.inverse, at_O, at_R, BR_old, L), Bt)
 
     def load(self, lam_w, basis=None):
         """The zone's welded force ``lam_w_A - K_AO K_OO^-1 lam_w_O`` (flat) and the
@@ -426,11 +318,8 @@ class ContactZone:
         return int((~self.keep).sum())
 
     def narrowed(self, keep) -> "ContactZone":
-        """The zone of ``keep`` (a subset of the outermost elimination's zone) carved out
-        of this zone's outermost elimination. Inside this zone (with an inner
-        elimination of chain depth below :data:`MAX_BORDERS`): the inner elimination
-        extended by the pairs that leave (:meth:`Elimination.extended`); else a new
-        elimination on the outer zone problem."""
+        """The zone of ``keep`` (a subset of this zone's pairs) carved out of this
+        zone's outermost elimination: an elimination on its zone problem only."""
         keep = np.asarray(keep, dtype=bool)
         outer = self.steps[0]
         if np.any(keep & ~outer.keep):
@@ -438,10 +327,6 @@ class ContactZone:
         inner = keep[outer.keep]
         if inner.all():
             return ContactZone(self.full, outer.keep, (outer,))
-        if len(self.steps) == 2 and not np.any(keep & ~self.keep):
-            step = self.steps[1]
-            if step.inverse is not None and step.inverse.depth < MAX_BORDERS:
-                return ContactZone(self.full, keep.copy(), (outer, step.extended(inner)))
         return ContactZone(self.full, keep.copy(), (outer, Elimination.build(outer.sub, inner)))
 
     def grown(self, pairs) -> "ContactZone":
@@ -449,8 +334,7 @@ class ContactZone:
         elimination (on the outer zone problem) bordered by them, or the zone carved out
         of the outer one; else the outer elimination bordered by the pairs outside it
         (:meth:`Elimination.bordered`, cached on the problem like :meth:`build`), or, after
-        :data:`MAX_BORDERS` steps in a row, a new elimination of the full problem (the
-        inner elimination likewise: a new one on the outer zone problem)."""
+        :data:`MAX_BORDERS` borderings in a row, a new elimination of the full problem."""
         keep = self.keep | np.asarray(pairs, dtype=bool)
         outer = self.steps[0]
         outside = keep & ~outer.keep
@@ -525,11 +409,9 @@ def fitted_zone(zone: ContactZone, state: ContactState) -> ContactZone:
     outer elimination), else ``zone`` itself.
 
     Exact either way: a pair eliminated here that closes during the level joins the
-    zone again (:func:`solve_in_zone`). The narrowing extends the inner elimination
-    (:meth:`ContactZone.narrowed`, ``O(n_R^3 + n_R n_K^2 + n_O n_R n_K)`` for the ``n_R``
-    unknowns leaving), or at the chain's depth cap is an elimination on the outer zone
-    problem, ``O(n_outer^3)``; it pays when the open pairs would otherwise be unknowns
-    of every block step of the level."""
+    zone again (:func:`solve_in_zone`). The narrowing is an elimination on the outer
+    zone problem, ``O(n_outer^3)``; it pays when the open pairs would otherwise be
+    unknowns of every block step of the level."""
     closed = np.asarray(state.status) != OPEN
     surplus = int(np.count_nonzero(zone.keep & ~closed))
     if (not closed.any() or surplus < NARROW_FRACTION * zone.keep.sum()
