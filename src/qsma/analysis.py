@@ -631,7 +631,6 @@ def _solve(problem, reduced, alpha, state, method, opts, where, zone=None, guess
     from (the slip is measured from ``state``; see :func:`qsma.contact.solve`)."""
     factors = _load_factors(reduced, alpha)
     lam_w = reduced.welded_contact_force(factors)
-    method = chosen_method(method, problem)
     basis = (reduced.W, factors)            # lam_w = W a: the zone eliminates W once
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ContactConvergenceWarning)
