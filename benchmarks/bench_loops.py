@@ -39,6 +39,7 @@ import statistics
 import numpy as np
 
 import qsma
+from qsma._resources import cpu_with_children_s
 from qsma.cli.run import parse_levels_spec
 from qsma.examples import EXAMPLES
 from qsma.result import LEVEL_FIELDS
@@ -103,10 +104,10 @@ def parallel(args):
         for _ in range(args.repeat):
             runs = {}
             for workers in (1, 2):
-                cpu = _cpu()
+                cpu = cpu_with_children_s()
                 runs[workers] = _run(case, args.levels, dissipation=args.dissipation,
                                      loop_workers=workers)
-                cpus[workers].append(_cpu() - cpu)
+                cpus[workers].append(cpu_with_children_s() - cpu)
                 times[workers].append(runs[workers].timings_s["hysteresis"])
             same &= _same_bits(runs[1], runs[2])
         med = {w: statistics.median(t) for w, t in times.items()}
@@ -143,13 +144,6 @@ def methods(args):
                   f"{r.solver['loop_solves']} | {h:.2f} | "
                   f"{statistics.median(contact[m]):.2f} | {h / h0:.2f} | {diff:.1e} |",
                   flush=True)
-
-
-def _cpu():
-    """CPU seconds of this process and of its finished children (the workers)."""
-    import os
-    t = os.times()
-    return t.user + t.system + t.children_user + t.children_system
 
 
 def _same_bits(a, b):

@@ -26,9 +26,7 @@ the results of the last level are those of 2e-7 (f0 is comparable, q and zeta no
 import argparse
 from contextlib import contextmanager
 import json
-import os
 import statistics
-import time
 
 import numpy as np
 
@@ -41,21 +39,6 @@ from qsma.examples import sandwich_3d
 MEASURED = [s for s in STAGES if s != "total"]
 
 
-def _cpu():
-    """CPU seconds of this process and of its children that have ended (the -alpha ramp
-    solved beside the +alpha one on a forked process, RunOptions.parallel_ramps; loop
-    workers): the children's CPU is theirs, not this process's, but the run's."""
-    t = os.times()
-    return time.process_time() + t.children_user + t.children_system
-
-
-def _child_peak_mb():
-    """Largest peak resident memory of a child process waited for so far (the forked
-    -alpha ramp; it counts the pages it shares with this process that it touched)."""
-    import resource
-    return resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
-
-
 def _instrumented_timer(record):
     """Wrap ``analysis._Timer.stage`` so each stage also records CPU and peak memory."""
     original = analysis._Timer.stage
@@ -63,10 +46,10 @@ def _instrumented_timer(record):
     @contextmanager
     def stage(self, name):
         _resources.reset_peak()
-        c0 = _cpu()
+        c0 = _resources.cpu_with_children_s()
         with original(self, name):
             yield
-        cpu = _cpu() - c0
+        cpu = _resources.cpu_with_children_s() - c0
         entry = record.setdefault(name, {"cpu": 0.0, "peak_mb": 0.0})
         entry["cpu"] += cpu
         entry["peak_mb"] = max(entry["peak_mb"], _resources.peak_memory_mb() or 0.0)
@@ -80,7 +63,7 @@ def measure(refine, options):
     """One run: wall/CPU/peak per stage, model size and the checked results."""
     record = {}
     original = _instrumented_timer(record)
-    c0 = _cpu()
+    c0 = _resources.cpu_with_children_s()
     try:
         res = qsma.run(sandwich_3d(refine), **options)
     finally:
@@ -91,14 +74,14 @@ def measure(refine, options):
         "success": bool(res.success),
         "wall": {k: res.timings_s[k] for k in STAGES},
         "cpu": {**{k: record.get(k, {}).get("cpu", 0.0) for k in MEASURED},
-                "total": _cpu() - c0},
+                "total": _resources.cpu_with_children_s() - c0},
         "peak_mb": {k: record.get(k, {}).get("peak_mb", 0.0) for k in MEASURED},
         "held_mb": {k: record.get(k, {}).get("held_mb", 0.0) for k in MEASURED},
         "interface_mb": _interface_mb(res.reduced),
         "factors": _factors(res.reduced),
         "process_peak_mb": max([_resources.peak_memory_mb() or 0.0]
                                + [v["peak_mb"] for v in record.values()]),
-        "child_peak_mb": _child_peak_mb(),
+        "child_peak_mb": _resources.children_peak_memory_mb() or 0.0,
         "f0_hz": res.f0_hz, "q_last": float(res.q[-1]), "zeta_last": float(res.zeta[-1]),
         "counts_last": [int(np.sum(res.states.status[-1] == s)) for s in (0, 1, 2)],
     }

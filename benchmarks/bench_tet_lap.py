@@ -45,6 +45,7 @@ from pathlib import Path
 import numpy as np
 
 import qsma
+from qsma._resources import cpu_with_children_s
 from qsma.examples.lap import LAP_3D
 from qsma.cli.run import parse_levels_spec
 from qsma.model import Body, Clamp, Interface, Material, Model, Pressure, Probe
@@ -172,9 +173,9 @@ def main():
         return time_contact(model, options, args, meshing)
     runs = []
     for _ in range(args.repeat):
-        w0, c0 = time.perf_counter(), _cpu()
+        w0, c0 = time.perf_counter(), cpu_with_children_s()
         res = qsma.run(model, **options)
-        runs.append((time.perf_counter() - w0, _cpu() - c0, res))
+        runs.append((time.perf_counter() - w0, cpu_with_children_s() - c0, res))
     res = runs[-1][2]
     info = res.model_info
     print(f"{model.name}: {info['n_nodes']} nodes, {info['n_dofs']} DOFs, "
@@ -196,14 +197,6 @@ def main():
     print(f"success {res.success}: f0 = {res.f0_hz:.10g} Hz, last level q = "
           f"{res.q[-1]:.10g}, zeta = {res.zeta[-1]:.10g}, stuck/slip/open = {counts}; "
           f"{res.message}")
-
-
-def _cpu():
-    """CPU seconds of this process and of its children that have ended (the forked
-    -alpha ramp, the loop workers)."""
-    import os
-    t = os.times()
-    return t.user + t.system + t.children_user + t.children_system
 
 
 def time_mortar(model, repeat, meshing):
@@ -245,9 +238,9 @@ def time_contact(model, options, args, meshing):
             import cProfile
             profiler = cProfile.Profile()
             profiler.enable()
-        c0 = _cpu()
+        c0 = cpu_with_children_s()
         res = run_prepared(fresh, **options)
-        cpus.append(_cpu() - c0)
+        cpus.append(cpu_with_children_s() - c0)
         if profiler is not None:
             profiler.disable()
             profiler.dump_stats(args.profile)

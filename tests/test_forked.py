@@ -41,7 +41,14 @@ def serial():
     return qsma.run(sandwich_2d(1), parallel_ramps=False)
 
 
-def test_forked_negative_ramp_gives_the_serial_bits(serial, monkeypatch):
+@pytest.fixture
+def forks_by_default(monkeypatch):
+    """The -alpha ramp forked as on Linux with two usable cores, whatever the machine
+    running the tests (macOS, one core): what is tested is the forked path."""
+    monkeypatch.setattr(analysis, "second_core_refusal", lambda: None)
+
+
+def test_forked_negative_ramp_gives_the_serial_bits(serial, monkeypatch, forks_by_default):
     """sandwich-2d refines its backbone three times; the -alpha ramp of the final grid
     is solved by a child while the third round runs, and every result is the serial
     one bit for bit (q_neg and the asymmetry come from the child)."""
@@ -80,7 +87,8 @@ class _Raising(_forked.ForkedCall):
 
 
 @pytest.mark.parametrize("child", [_Dying, _Raising])
-def test_a_failed_child_is_replaced_by_the_serial_ramp(serial, monkeypatch, caplog, child):
+def test_a_failed_child_is_replaced_by_the_serial_ramp(serial, monkeypatch, caplog, child,
+                                                       forks_by_default):
     monkeypatch.setattr(analysis, "ForkedCall", child)
     with caplog.at_level("WARNING", logger="qsma"):
         res = qsma.run(sandwich_2d(1))
@@ -137,6 +145,10 @@ def test_cancel_stops_a_running_child():
 
 def test_loops_use_two_workers_by_default_where_two_cores_are_usable(monkeypatch):
     assert RunOptions(loop_workers=3).loop_worker_count == 3
+    monkeypatch.setattr(_forked.sys, "platform", "darwin")
+    monkeypatch.setattr(_forked, "usable_cores", lambda: 8)
+    assert RunOptions().loop_worker_count == 1          # forks by default on Linux only
+    monkeypatch.setattr(_forked.sys, "platform", "linux")
     monkeypatch.setattr(_forked, "usable_cores", lambda: 1)
     assert RunOptions().loop_worker_count == 1
     monkeypatch.setattr(_forked, "usable_cores", lambda: 8)

@@ -74,6 +74,13 @@ def children_peak_memory_mb() -> float | None:
     return peak / _MB if sys.platform == "darwin" else peak / 1024.0
 
 
+def cpu_with_children_s() -> float:
+    """CPU seconds of this process (all threads) and of its child processes that have
+    ended (the forked -alpha ramp, loop workers): the CPU a run cost."""
+    times = os.times()
+    return time.process_time() + times.children_user + times.children_system
+
+
 def snapshot() -> dict:
     """``{"peak_memory_mb", "cpu_s", "children_peak_memory_mb", "children_cpu_s"}``:
     peak resident memory (MiB, rounded to 0.1, or ``None``) and the CPU time of the
@@ -89,4 +96,4 @@ def snapshot() -> dict:
 
 
 __all__ = ["peak_memory_mb", "current_memory_mb", "reset_peak", "snapshot",
-           "children_peak_memory_mb"]
+           "children_peak_memory_mb", "cpu_with_children_s"]

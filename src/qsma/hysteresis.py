@@ -30,9 +30,8 @@ import warnings
 
 import numpy as np
 
-from ._forked import (default_signals, fork_refusal,
-                      parallel_available,  # noqa: F401 (re-exported)
-                      quiet_fork, raise_again, recorded_warnings)
+from ._forked import (default_signals, fork_refusal, quiet_fork, raise_again,
+                      recorded_warnings)
 
 log = logging.getLogger("qsma")
 

@@ -90,11 +90,11 @@ class ContactProblem:
         symmetrised and nothing else is checked again (the Cholesky test alone costs
         ``n^3/3``).
 
-        ``overwrite=True``: ``K`` is the caller's own C-ordered float64 array, symmetrised
-        in place (:func:`_symmetrise`, the same bits as ``(K + K^T) / 2``), frozen and
-        held: no copy of the zone's size."""
-        K = _symmetrise(K) if overwrite else 0.5 * (K + K.T)
-        K = _frozen(K)
+        ``overwrite=True``: ``K`` is the caller's own float64 array, symmetrised in place
+        (:func:`qsma.linalg.symmetrised`, the same bits as ``(K + K^T) / 2``), frozen
+        and held: no copy of the zone's size."""
+        from ..linalg import symmetrised
+        K = _frozen(symmetrised(K) if overwrite else 0.5 * (K + K.T))
         new = object.__new__(cls)
         _set_fields(new, K=K, mu=_frozen(np.array(mu, dtype=float)),
                     gap0=_frozen(np.array(gap0, dtype=float)), dim=int(dim),
@@ -206,17 +206,6 @@ def _symmetric_product(A, x):
     copy), reading one triangle."""
     symv = sla_blas.ssymv if A.dtype == np.float32 else sla_blas.dsymv
     return symv(1.0, A.T, x)
-
-
-def _symmetrise(A):
-    r"""``A`` overwritten by ``(A + A^T) / 2`` and returned: :func:`qsma.linalg.symmetrised`
-    (block by block, the same bits as ``0.5 * (A + A.T)`` without its two temporaries
-    of the size of ``A``) on an array it may overwrite."""
-    if not (isinstance(A, np.ndarray) and A.dtype == np.float64 and A.flags.c_contiguous
-            and A.flags.writeable and A.ndim == 2 and A.shape[0] == A.shape[1]):
-        raise ValueError("_symmetrise: a writeable square C-ordered float64 array")
-    from ..linalg import symmetrised
-    return symmetrised(A)
 
 
 def _power_of_two(x):
