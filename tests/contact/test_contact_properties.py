@@ -2,7 +2,9 @@
 
 Properties: a returned success meets ``residual <= tol`` (recomputed here);
 a failure is flagged (success False, a message, a finite residual above tol)
-and warns; where every method succeeds they give the same d and lam.
+and warns; where every method succeeds they give the same d and lam, or another
+solution of the same level in other pair states (the frictional problem is not
+always unique).
 
 Problems: K = S Q diag(logspace(0, c)) Q^T S with a random rotation Q and
 a random diagonal scaling S (cond(K) up to ~1e4), mu = 0 or in [0.05, 0.6]
@@ -77,10 +79,24 @@ def check_chain(problem, loads, methods):
         # the residual's force unit: max(|lam_w|, |lam|, |K| |d|) (contact/residual.py)
         F = max(np.abs(lam_w).max(), np.abs(ref.lam).max(),
                 (np.abs(problem.K) @ np.abs(ref.d.ravel())).max())
+        other = False
         for method in methods:
             r = chains[method][level]
-            np.testing.assert_allclose(r.lam, ref.lam, atol=1e-7 * F, rtol=0)
-            np.testing.assert_allclose(r.d, ref.d, atol=1e-7 * F / problem.kappa, rtol=0)
+            if (np.allclose(r.lam, ref.lam, atol=1e-7 * F, rtol=0)
+                    and np.allclose(r.d, ref.d, atol=1e-7 * F / problem.kappa, rtol=0)):
+                continue
+            # The same level from the same history (equal to round-off so far), another
+            # answer: Coulomb friction with a strong normal-tangential coupling can
+            # have several solutions (3 pairs, mu = 0.5: one method pressed pair 0 and
+            # opened pair 1, another the reverse). It must be a solution (its residual
+            # from its own history, asserted above), in other pair states (with the
+            # states fixed the answer is unique).
+            previous = chains[method][level - 1].state if level else None
+            assert residual(problem, lam_w, r.d, r.lam, previous) <= TOL
+            assert np.any(np.asarray(r.status) != np.asarray(ref.status))
+            other = True
+        if other:
+            break                     # the histories differ from here
 
 
 @settings(max_examples=50, deadline=None, suppress_health_check=[HealthCheck.too_slow])
