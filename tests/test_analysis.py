@@ -250,3 +250,26 @@ def test_auto_method_of_a_run_is_recorded_as_the_method_that_ran(example, chosen
     write_all(res, tmp_path / "out", plots=False, vtu=False)
     written = json.loads((tmp_path / "out" / "results.json").read_text())
     assert written["options"]["method"] == "auto" and written["solver"]["method"] == chosen
+
+
+def test_ramp_expects_closing_pairs_only_from_two_converged_levels():
+    """The extrapolation of closing pairs needs the two converged levels before the one
+    solved and a next increment of 0 to EXPECT_MAX_RATIO times the last (none across a
+    grid that turns back or jumps)."""
+    from qsma.analysis import EXPECT_MAX_RATIO, _expected_closing
+    from qsma.contact import ContactProblem
+    p = ContactProblem(np.eye(6) * 2.0, 0.3, dim=3)
+    d0, d1 = np.zeros((2, 3)), np.zeros((2, 3))
+    d0[:, 2], d1[:, 2] = 1.0, 0.5                          # closing by 0.5 a step
+    rows = {"d": [d0, d1], "ok": [True, True]}
+    alpha = np.array([1.0, 2.0, 3.0])
+    assert not _expected_closing(p, alpha, 2, rows).any()  # 0.5 - 0.5 = 0: not yet
+    assert _expected_closing(p, np.array([1.0, 2.0, 3.2]), 2, rows).all()   # 0.5 - 0.6
+    assert _expected_closing(p, alpha, 1, rows) is None
+    assert _expected_closing(p, alpha, 2, {"d": [d0, d1], "ok": [True, False]}) is None
+    far = np.array([1.0, 2.0, 2.0 + 1.01 * EXPECT_MAX_RATIO])
+    assert _expected_closing(p, far, 2, rows) is None
+    back = np.array([1.0, 2.0, 1.5])                       # turns back
+    assert _expected_closing(p, back, 2, rows) is None
+    half = np.array([1.0, 2.0, 2.5])
+    assert not _expected_closing(p, half, 2, rows).any()   # 0.5 - 0.25 > 0: still open

@@ -336,11 +336,11 @@ def test_direct_loop_failure_is_not_an_answer(monkeypatch, tmp_path, capsys):
     import qsma.analysis as analysis
     real = analysis._Solver.__call__
 
-    def failing_in_loop(self, alpha, state, where):
+    def failing_in_loop(self, alpha, state, where, closing=None):
         if where.startswith("direct loop") and alpha < 0:     # starve the reloading half
             return analysis._solve(self.problem, self.reduced, alpha, state, "nodal_gs",
                                    {"maxiter": 1}, where, None)[0]
-        return real(self, alpha, state, where)
+        return real(self, alpha, state, where, closing)
     monkeypatch.setattr(analysis._Solver, "__call__", failing_in_loop)
     levels = Levels.log("tip", 1e-5, 1e-3, 6)
     with pytest.warns(ContactConvergenceWarning, match="direct loop"):

@@ -24,7 +24,8 @@ from .condense import reduce_two_bodies
 from .contact import DEFAULT_TOL, ContactProblem, ContactState, OPEN, SLIPPING, STUCK
 from .contact import solve as contact_solve
 from .contact.registry import chosen_method, method_for
-from .contact.zone import release_zones, solve_in_zone, solve_preload, zone_from_state
+from .contact.zone import (expected_closing, release_zones, solve_in_zone, solve_preload,
+                           zone_from_state)
 from .errors import (AnalysisError, ContactConvergenceWarning, InputError,
                      InterfaceGapWarning, QSMAWarning)
 from .fe import assemble_body
@@ -50,6 +51,11 @@ STAGES = ("model", "assembly", "modal", "condensation", "contact", "hysteresis",
           "postprocess", "total")
 #: Rounds of backbone level refinement (each inserts midpoints where needed).
 LEVEL_REFINE_ROUNDS = 3
+#: Largest ratio of a ramp's next load increment to its last one over which the pairs
+#: about to close are extrapolated (:func:`_expected_closing`): the refined grids step
+#: by 0.5 to 2 times the last increment; across a larger jump a straight line says
+#: little.
+EXPECT_MAX_RATIO = 4.0
 #: A damping ratio below this in magnitude is zero to the precision of the contact
 #: solves (tol 1e-10 on forces; the stuck sandwich-2d levels give |zeta| ~ 1e-12).
 ZETA_ZERO = 1e-8
@@ -622,13 +628,16 @@ class _Response:
         return float(self.ct @ (np.asarray(d).ravel() - self.d0) + self.at * alpha)
 
 
-def _solve(problem, reduced, alpha, state, method, opts, where, zone=None, guess=None):
+def _solve(problem, reduced, alpha, state, method, opts, where, zone=None, guess=None,
+           closing=None):
     """One contact solve at modal force ``alpha``; returns ``(result, zone)``.
 
     ``zone``: None (the whole interface), ``"preload"`` (from the reference state on the
     predicted zone, :func:`qsma.contact.zone.solve_preload`) or a
     :class:`qsma.contact.zone.ContactZone`. ``guess``: a state to start the iteration
-    from (the slip is measured from ``state``; see :func:`qsma.contact.solve`)."""
+    from (the slip is measured from ``state``; see :func:`qsma.contact.solve`).
+    ``closing``: pairs expected to close (a zone's ``closing``, see
+    :func:`qsma.contact.zone.solve_in_zone`)."""
     factors = _load_factors(reduced, alpha)
     lam_w = reduced.welded_contact_force(factors)
     basis = (reduced.W, factors)            # lam_w = W a: the zone eliminates W once
@@ -640,7 +649,7 @@ def _solve(problem, reduced, alpha, state, method, opts, where, zone=None, guess
             res, zone = solve_preload(problem, lam_w, method=method, basis=basis, **opts)
         else:
             res, zone = solve_in_zone(zone, lam_w, state, method=method, basis=basis,
-                                      guess=guess, **opts)
+                                      guess=guess, closing=closing, **opts)
     if not res.success:
         warnings.warn(f"contact solve at {where} did not converge: {res.message} "
                       f"(residual {res.residual:.2e})", ContactConvergenceWarning,
@@ -656,10 +665,10 @@ class _Solver:
         self.zone = zone
         self.guess = None       # a state to start the next solve from (set by _ramp)
 
-    def __call__(self, alpha, state, where):
+    def __call__(self, alpha, state, where, closing=None):
         guess, self.guess = self.guess, None
         res, self.zone = _solve(self.problem, self.reduced, alpha, state, self.method,
-                                self.opts, where, self.zone, guess)
+                                self.opts, where, self.zone, guess, closing)
         if res.success:
             res = held_by_joint(self.reduced, res, _load_factors(self.reduced, alpha), where)
         return res
@@ -711,7 +720,8 @@ def _ramp(solver, alpha, start, keep_going, progress, where="load level", respon
         a = alpha[k]
         if guesses is not None:
             solver.guess = guesses.get(float(a))      # read (and cleared) by the solve
-        res = solver(a, state, f"{where} {k} (alpha={a:.4g})")
+        res = solver(a, state, f"{where} {k} (alpha={a:.4g})",
+                     _expected_closing(solver.problem, alpha, k, rows))
         if not res.success:
             success = False
             failed = k if failed is None else failed
@@ -738,6 +748,20 @@ def _ramp(solver, alpha, start, keep_going, progress, where="load level", respon
                     arr["residual"].astype(float), arr["nit"].astype(int),
                     arr["ok"].astype(bool), arr["q"].astype(float),
                     arr["tip"].astype(float), fallback, success, message, failed)
+
+
+def _expected_closing(problem, alpha, k, rows):
+    """Pairs expected to close at level ``k`` of a ramp, extrapolated from the two
+    converged levels before it (:func:`qsma.contact.zone.expected_closing`), or None
+    (fewer than two, a failed one, or a next increment that is not 0 to
+    :data:`EXPECT_MAX_RATIO` times the last one: a grid that turns back or jumps)."""
+    if k < 2 or not (rows["ok"][k - 1] and rows["ok"][k - 2]):
+        return None
+    last = alpha[k - 1] - alpha[k - 2]
+    ratio = (alpha[k] - alpha[k - 1]) / last if last != 0 else 0.0
+    if not 0 < ratio <= EXPECT_MAX_RATIO:
+        return None
+    return expected_closing(problem, rows["d"][k - 2], rows["d"][k - 1], ratio)
 
 
 class _NegativeRamp:

@@ -9,8 +9,8 @@ from qsma.contact import (ContactProblem, ContactState, force_residual, legacy_r
                           solve)
 from qsma.contact import zone as zone_module
 from qsma.contact.residual import measures
-from qsma.contact.zone import (ContactZone, predicted_zone, solve_in_zone, solve_preload,
-                               zone_from_state)
+from qsma.contact.zone import (ContactZone, expected_closing, predicted_zone, solve_in_zone,
+                               solve_preload, zone_from_state)
 from qsma.errors import ContactConvergenceWarning
 
 
@@ -249,6 +249,81 @@ def test_ramp_whose_zone_grows_by_bordering_equals_the_full_solve():
         assert zres.residual <= 1e-10 and zres.residual_force <= 1e-6
         state_full, state_zone = full.state, zres.state
     assert bordered and zone.steps[0] is not first_outer
+
+
+def _closing_ramp():
+    """The 3D ramp above: lifted pairs close level by level (one or two per level)."""
+    rng = np.random.default_rng(11)
+    n = 30
+    A = rng.normal(size=(3 * n, 3 * n))
+    p = ContactProblem(A @ A.T / n + np.diag(np.full(3 * n, 3.0)), 0.3, dim=3)
+    base = np.zeros((n, 3))
+    base[:, 2] = np.where(np.arange(n) < 10, 1.0, -np.linspace(0.1, 2.0, n))
+    levels = np.linspace(0.2, 2.4, 23)
+    loads = []
+    for s in levels:
+        lw = base.copy()
+        lw[:, 0], lw[:, 1], lw[:, 2] = 0.3 * s, -0.1 * s, base[:, 2] + s
+        loads.append(lw)
+    return p, base, levels, loads
+
+
+def _zone_ramp(p, base, levels, loads, expect, monkeypatch):
+    """The ramp on a zone, with the pairs expected to close extrapolated from the two
+    levels before (``expect``) or not; every answer checked against the whole
+    interface. Returns the number of zone solves."""
+    calls = []
+    inner = zone_module.solve
+    monkeypatch.setattr(zone_module, "solve", lambda *a, **k: calls.append(1) or inner(*a, **k))
+    pre = solve(p, base)
+    zone = zone_from_state(p, pre.state)
+    state_full = state_zone = pre.state
+    done = []
+    for k, lw in enumerate(loads):
+        closing = None
+        if expect and k >= 2:
+            ratio = (levels[k] - levels[k - 1]) / (levels[k - 1] - levels[k - 2])
+            closing = expected_closing(p, done[k - 2].d, done[k - 1].d, ratio)
+        full = solve(p, lw, state_full)
+        zres, zone = solve_in_zone(zone, lw, state_zone, closing=closing)
+        _assert_same(zres, full)
+        if closing is not None:
+            assert zone.keep[closing].all()          # the expected pairs joined the zone
+        state_full, state_zone = full.state, zres.state
+        done.append(zres)
+    return len(calls)
+
+
+def test_pairs_expected_to_close_join_the_zone_before_the_solve(monkeypatch):
+    """Extrapolating which pairs close takes away zone solves that found them closing,
+    and every answer still equals the whole interface's."""
+    p, base, levels, loads = _closing_ramp()
+    plain = _zone_ramp(p, base, levels, loads, False, monkeypatch)
+    expected = _zone_ramp(p, base, levels, loads, True, monkeypatch)
+    assert plain > len(levels)                # levels solved again on a grown zone
+    assert expected < plain
+
+
+def test_a_wrong_expectation_changes_no_answer():
+    """Pairs expected to close that stay open are zone unknowns without force: the
+    answer is the whole interface's."""
+    p, base, levels, loads = _closing_ramp()
+    pre = solve(p, base)
+    zone = zone_from_state(p, pre.state)
+    every = np.ones(p.n_pairs, bool)
+    res, grown = solve_in_zone(zone, loads[0], pre.state, closing=every)
+    _assert_same(res, solve(p, loads[0], pre.state))
+    assert grown.keep.all() and (res.status == 2).any()
+
+
+def test_expected_closing_extrapolates_the_opening():
+    p = ContactProblem(np.eye(9) * 2.0, 0.3, dim=3, gap0=np.array([0.0, 0.0, 1.0]))
+    before, last = np.zeros((3, 3)), np.zeros((3, 3))
+    before[:, 2] = [1.0, 1.0, 0.0]        # openings w = d_n + g0: 1, 1, 1
+    last[:, 2] = [0.4, 0.6, -0.4]          # 0.4, 0.6, 0.6: closing by 0.6, 0.4, 0.4 a step
+    assert expected_closing(p, before, last, 1.0).tolist() == [True, False, False]
+    assert expected_closing(p, before, last, 2.0).tolist() == [True, True, True]
+    assert not expected_closing(p, last, before, 1.0).any()       # opening pairs
 
 
 def test_full_check_rejects_a_corrupted_zone_answer(monkeypatch):
