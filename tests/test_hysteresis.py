@@ -317,3 +317,63 @@ def test_a_failing_loop_stops_the_other_workers():
 def test_loop_workers_must_be_a_sane_process_count(bad):
     with pytest.raises(InputError, match="loop_workers"):
         RunOptions(loop_workers=bad)
+
+
+def test_each_solve_of_a_loop_is_told_the_pairs_closed_there_a_cycle_before():
+    """``expect_closing``: from the second cycle on, every solve gets the pairs closed at
+    the same point of the cycle before (a refined cycle's new point: those of the
+    coarser cycle's next point in the direction of travel); the loop is the same."""
+    from qsma.hysteresis import cycle_path
+    A = 1600.0
+    problem, lam_w = _problem()
+    inner = _stepper(problem, lam_w)
+    _, res = _ramp(problem, lam_w, [A])
+    start, u0 = res[-1].state, np.linspace(0, 1, 6)[1:]
+    calls = []
+
+    def step(alpha, state, closing=None):
+        out = inner(alpha, state)
+        calls.append((alpha, None if closing is None else closing.copy(), out.status != 2))
+        return out
+    told = compute_loop(step, _modal, A, start, u0, k_ref=kt, rtol=1e-12, refine_rounds=2,
+                        expect_closing=True)
+    plain = compute_loop(_stepper(problem, lam_w), _modal, A, start, u0, k_ref=kt,
+                         rtol=1e-12, refine_rounds=2)
+    assert told.success and told.dissipation == plain.dissipation
+    assert np.array_equal(told.q, plain.q)
+    first = 2 * len(u0)                                # the first cycle: nothing known
+    assert all(c is None for _, c, _ in calls[:first])
+    assert all(c is not None for _, c, _ in calls[first:])
+    # the stop (pair 1) closes and opens along the cycle: the masks are not all alike
+    assert len({c.tobytes() for _, c, _ in calls[first:]}) > 1
+    # the second cycle (the first refined one) was told the first cycle's states: at a
+    # shared point that point's, at a new one the next coarse point's (travelling
+    # down to -A, then up to +A)
+    n0 = len(u0)
+    first_loads = np.array([a for a, _, _ in calls[:first]])
+    first_closed = [s for _, _, s in calls[:first]]
+    n1 = 1 + next(j for j, (a, _, _) in enumerate(calls[first:]) if a == -A)
+    second = calls[first:first + 2 * n1]
+    assert n1 > n0                                     # it was refined
+    for j, (a, told_mask, _) in enumerate(second):
+        if j < n1:
+            i = next(i for i in range(n0) if first_loads[i] <= a)
+        else:
+            i = next(i for i in range(n0, 2 * n0) if first_loads[i] >= a)
+        assert np.array_equal(told_mask, first_closed[i])
+
+
+def test_closings_of_a_refined_cycle_come_from_the_next_coarse_point():
+    from qsma.hysteresis import _Closings, cycle_path
+    A = 2.0
+    coarse = cycle_path(A, [0.5, 1.0])            # A, 0, -A, 0, A
+    status = [np.array([0]), np.array([2]), np.array([0]), np.array([2]), np.array([0])]
+    memory = _Closings()
+    assert memory.expected(coarse, 1) is None
+    memory.record(coarse, [np.array([s[0], 2 - s[0]]) for s in status])
+    fine = cycle_path(A, [0.25, 0.5, 0.75, 1.0])  # A, 1, 0, -1, -A, -1, 0, 1, A
+    got = [memory.expected(fine, k).tolist() for k in range(1, len(fine))]
+    # unloading: 1 -> coarse 0 (open), 0 -> 0, -1 -> -A (closed), -A -> -A;
+    # reloading: -1 -> coarse 0 (open), 0 -> 0, 1 -> A (closed), A -> A
+    assert got == [[False, True], [False, True], [True, False], [True, False],
+                   [False, True], [False, True], [True, False], [True, False]]

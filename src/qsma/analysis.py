@@ -923,10 +923,12 @@ def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref):
         A = grid[g]
         u = _loop_fractions(grid, g, linear_end, opts.loop_steps)
         solver.zone = _loop_zone(zone, pos.status[:g + 1], neg_status[:g + 1])
-        step = lambda a, s: solver(a, s, f"loop at A={A:.4g} (alpha={a:.4g})")
+        step = lambda a, s, closing=None: solver(a, s, f"loop at A={A:.4g} (alpha={a:.4g})",
+                                                 closing)
         return compute_loop(step, response.q, A, pos.state(g), u, k_ref=k_ref,
                             max_cycles=opts.max_cycles, rtol=opts.dissipation_rtol,
-                            atol=ZETA_ZERO * 2 * np.pi * A * abs(pos.q[g]))
+                            atol=ZETA_ZERO * 2 * np.pi * A * abs(pos.q[g]),
+                            expect_closing=True)
 
     for i, lp in zip(todo, map_loops(level_loop, todo, opts.loop_worker_count)):
         out["loops"][i] = lp

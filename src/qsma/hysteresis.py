@@ -32,6 +32,7 @@ import numpy as np
 
 from ._forked import (default_signals, fork_refusal, quiet_fork, raise_again,
                       recorded_warnings)
+from .contact.state import OPEN
 
 log = logging.getLogger("qsma")
 
@@ -174,7 +175,8 @@ def cycle_area_error(alpha, q, k_ref) -> float:
 
 
 def compute_loop(step, modal, amplitude, start, fractions, *, k_ref, max_cycles=8,
-                 rtol=5e-3, atol=0.0, refine_rounds=REFINE_ROUNDS) -> Loop:
+                 rtol=5e-3, atol=0.0, refine_rounds=REFINE_ROUNDS,
+                 expect_closing=False) -> Loop:
     """The stabilised loop at ``amplitude``, with the increments refined to ``rtol``.
 
     Parameters
@@ -200,6 +202,11 @@ def compute_loop(step, modal, amplitude, start, fractions, *, k_ref, max_cycles=
     rtol, atol : float
         Refine until the error estimate is ``<= rtol |D| + atol`` (at most
         ``refine_rounds`` rounds, each halving the increments where pair states change).
+    expect_closing : bool
+        Call ``step(alpha, state, closing)`` from the second cycle on, ``closing`` the
+        pairs closed at the same point of the cycle before (:class:`_Closings`), the
+        pairs a solve on a contact zone lets in before it starts
+        (:func:`qsma.contact.zone.solve_in_zone`). A guess: the answers are the same.
 
     Notes
     -----
@@ -221,8 +228,9 @@ def compute_loop(step, modal, amplitude, start, fractions, *, k_ref, max_cycles=
     """
     u = np.unique(np.clip(np.asarray(fractions, dtype=float), 0.0, 1.0))
     u = np.union1d(u[u > 0], [1.0])
+    closings = _Closings() if expect_closing else None
     loop, changed, end = _cycles(step, modal, amplitude, start, u, k_ref, max_cycles,
-                                 rtol, atol)
+                                 rtol, atol, closings)
     if not loop.success or refine_rounds == 0:
         return loop
     stabilised = loop
@@ -233,7 +241,7 @@ def compute_loop(step, modal, amplitude, start, fractions, *, k_ref, max_cycles=
             break
         u, coarse = _refined(u, changed), u
         loop, changed, end = _refinement_cycle(step, modal, loop, end, u, coarse, k_ref,
-                                               rtol)
+                                               rtol, closings)
         if not loop.success:
             break
     if loop.success and loop.error > rtol * abs(loop.dissipation) + atol:
@@ -245,7 +253,7 @@ def compute_loop(step, modal, amplitude, start, fractions, *, k_ref, max_cycles=
                    coarse_dissipation=stabilised.dissipation)
 
 
-def _refinement_cycle(step, modal, previous, state0, u, coarse, k_ref, rtol):
+def _refinement_cycle(step, modal, previous, state0, u, coarse, k_ref, rtol, closings=None):
     """One cycle on the refined increments ``u`` from ``state0`` (where ``previous``,
     on the increments ``coarse``, a subset of ``u``, ended): ``(Loop, changed, end
     state)``; its error is the larger of the quadrature estimate and the change from
@@ -254,7 +262,7 @@ def _refinement_cycle(step, modal, previous, state0, u, coarse, k_ref, rtol):
     ``rtol``)."""
     A = previous.amplitude
     path = cycle_path(A, u)
-    out = _one_cycle(step, modal, A, state0, path)
+    out = _one_cycle(step, modal, A, state0, path, closings)
     n_solves = previous.n_solves + out.n_solves
     if out.failure is not None:
         return _failed(A, path[:len(out.q)], out.q, previous.first_dissipation,
@@ -305,11 +313,44 @@ class _Cycle:
     failure: str | None
 
 
-def _one_cycle(step, modal, A, state0, path):
-    """Solve the cycle ``path`` (``path[0] = A``, the state ``state0``)."""
+class _Closings:
+    """The pairs closed at each point of the last cycle solved, per branch: what is
+    expected to close at a point of the next cycle, a loop repeating itself. A point
+    of a refined cycle that the last one did not have takes the pairs of the last
+    one's next point in the direction of travel (the path of a refined cycle holds
+    the coarser one's loads exactly)."""
+
+    def __init__(self):
+        self.branches = None
+
+    def expected(self, path, k):
+        """Pairs expected closed at ``path[k]`` (``k >= 1``), or None (no cycle yet)."""
+        if self.branches is None:
+            return None
+        n = (len(path) - 1) // 2
+        loads, closed = self.branches[0 if k <= n else 1]
+        a = path[k]
+        # unloading (first branch): the first load at or below a; reloading: at or above
+        i = (np.searchsorted(-loads, -a, side="left") if k <= n
+             else np.searchsorted(loads, a, side="left"))
+        return closed[i] if i < len(closed) else None
+
+    def record(self, path, status):
+        """The closed pairs of a whole cycle on ``path`` (``status`` at every point,
+        the start included)."""
+        n = (len(path) - 1) // 2
+        loads, closed = np.asarray(path[1:], float), np.asarray(status[1:]) != OPEN
+        self.branches = ((loads[:n], closed[:n]), (loads[n:], closed[n:]))
+
+
+def _one_cycle(step, modal, A, state0, path, closings=None):
+    """Solve the cycle ``path`` (``path[0] = A``, the state ``state0``); with
+    ``closings`` (:class:`_Closings`), each solve is told the pairs closed at that
+    point of the cycle before, and this cycle is recorded for the next."""
     qs, status, state, span = [modal(state0.d, A)], [state0.status], state0, 0.0
     for k, a in enumerate(path[1:], start=1):
-        res = step(a, state)
+        expected = None if closings is None else closings.expected(path, k)
+        res = step(a, state) if expected is None else step(a, state, expected)
         if not res.success:
             return _Cycle(np.array(qs), status, state, span, k,
                           f"loop at A = {A:.6g}: contact solve failed at alpha = {a:.6g}: "
@@ -318,10 +359,12 @@ def _one_cycle(step, modal, A, state0, path):
         qs.append(modal(res.d, a))
         status.append(res.status)
         span = max(span, float(np.abs(res.d - state0.d).max()))
+    if closings is not None:
+        closings.record(path, status)
     return _Cycle(np.array(qs), status, state, span, len(path) - 1, None)
 
 
-def _cycles(step, modal, A, start, u, k_ref, max_cycles, rtol, atol):
+def _cycles(step, modal, A, start, u, k_ref, max_cycles, rtol, atol, closings=None):
     """Cycles from ``start`` until one ends in the state it started from (it repeats
     exactly), or two successive cycles agree: dissipation within ``rtol |D| + atol`` and
     the shape of ``q`` (about its mean) within ``rtol`` of its range. ``(Loop,
@@ -336,7 +379,7 @@ def _cycles(step, modal, A, start, u, k_ref, max_cycles, rtol, atol):
     cycle = 0
     while cycle < max_cycles or (cycle < 2 * max_cycles and _contracting(drifts)):
         cycle += 1
-        out = _one_cycle(step, modal, A, state0, path)
+        out = _one_cycle(step, modal, A, state0, path, closings)
         n_solves += out.n_solves
         if out.failure is not None:
             return _failed(A, path[:len(out.q)], out.q, first, cycle, n_solves,

@@ -427,10 +427,10 @@ def expected_closing(problem, d_before, d_last, ratio):
     for :func:`solve_in_zone` (``closing``): a pair that closes in fact but was not
     expected still joins the zone when the solve finds it closing.
 
-    On the Gmsh tetrahedral lap joint's ramps (753 pairs) this takes 203 of the 221
-    extra zone solves away (docs/performance.md); in the computed loops, whose
-    increments turn at every reversal, it was measured to add more pairs than close and
-    is not used there."""
+    On the Gmsh tetrahedral lap joint's ramps (753 pairs) this takes 208 of the 1310
+    zone solves away (docs/performance.md); in the computed loops, whose increments
+    turn back at every reversal, it let in far more pairs than closed, and the loops
+    take the pairs closed a cycle before instead (:mod:`qsma.hysteresis`)."""
     gap0 = problem.gap0
     w_before = np.asarray(d_before)[:, -1] + gap0
     w_last = np.asarray(d_last)[:, -1] + gap0
