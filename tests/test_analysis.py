@@ -273,3 +273,44 @@ def test_ramp_expects_closing_pairs_only_from_two_converged_levels():
     assert _expected_closing(p, back, 2, rows) is None
     half = np.array([1.0, 2.0, 2.5])
     assert not _expected_closing(p, half, 2, rows).any()   # 0.5 - 0.25 > 0: still open
+
+
+def test_run_without_the_open_pair_elimination_equals_the_zone_run():
+    """``eliminate_open=False`` solves every level on the whole interface: both ramps
+    and the Masing checks run (the -alpha ramp starts from the preload's state) and
+    give the zone run's answer to the contact tolerance."""
+    levels = Levels.log("tip", 1e-5, 1e-3, 4)
+    zoned = qsma.run(sandwich_2d(1), levels=levels)
+    whole = qsma.run(sandwich_2d(1), levels=levels, eliminate_open=False)
+    assert whole.success and zoned.success
+    assert not whole.solver["open_pairs_eliminated"]
+    np.testing.assert_allclose(whole.q, zoned.q, rtol=1e-9)
+    np.testing.assert_allclose(whole.q_neg, zoned.q_neg, rtol=1e-9)
+    np.testing.assert_allclose(whole.zeta, zoned.zeta, rtol=1e-7, atol=1e-12)   # stuck: ~1e-17
+    assert np.array_equal(whole.n_open, zoned.n_open)
+
+
+def test_loops_told_the_pairs_closed_a_cycle_before_give_the_same_loops(monkeypatch):
+    """The zone solves of a computed loop with and without the pairs closed a cycle
+    before (expect_closing) reach the same loop to the contact tolerance, with fewer
+    zone solves (lap-2d, loops at every level)."""
+    import qsma.analysis as analysis
+    import qsma.contact.zone as zone
+    from qsma.examples import lap_2d
+    calls = [0]
+    inner = zone.solve
+    monkeypatch.setattr(zone, "solve", lambda *a, **k: calls.__setitem__(0, calls[0] + 1)
+                        or inner(*a, **k))
+    prepared = analysis.prepare(lap_2d(1))
+    options = dict(levels=Levels.log("tip", 1e-5, 1e-3, 3), dissipation="loop",
+                   parallel_ramps=False, loop_workers=1)
+    told = analysis.run_prepared(prepared, **options)
+    n_told, calls[0] = calls[0], 0
+    loop = analysis.compute_loop
+    monkeypatch.setattr(analysis, "compute_loop",
+                        lambda *a, **k: loop(*a, **{**k, "expect_closing": False}))
+    plain = analysis.run_prepared(prepared, **options)
+    assert told.success and plain.success and told.solver["loop_solves"] > 0
+    np.testing.assert_allclose(told.zeta, plain.zeta, rtol=1e-9)
+    np.testing.assert_allclose(told.f_hz, plain.f_hz, rtol=1e-12)
+    assert n_told < calls[0]

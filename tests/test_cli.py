@@ -247,8 +247,9 @@ def test_a_level_whose_loop_failed_fails_the_run_even_with_continue(tmp_path, ca
     monkeypatch.setattr(hysteresis, "CONTRACTION", 0.0)
     monkeypatch.setattr(hysteresis, "_same", lambda *args: False)
     monkeypatch.setattr(hysteresis, "_cycles",
-                        lambda step, modal, A, start, u, k_ref, max_cycles, rtol, atol:
-                        cycles(step, modal, A, start, u, k_ref, 1, 0.0, 0.0))
+                        lambda step, modal, A, start, u, k_ref, max_cycles, rtol, atol,
+                        closings=None:
+                        cycles(step, modal, A, start, u, k_ref, 1, 0.0, 0.0, closings))
     argv = ["run", "--example", "sandwich-2d", "--out", str(tmp_path), "--no-plots",
             "--no-vtu", "--dissipation", "loop", "--levels", "tip:log:1e-4:1e-3:3"]
     code = main(argv + (["--continue"] if keep_going else []))

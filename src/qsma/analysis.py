@@ -815,7 +815,7 @@ class _NegativeRamp:
     def _solved(self, grid):
         s = self.solver
         solver = _Solver(s.problem, s.reduced, s.method, s.opts, self.zone)
-        return _ramp(solver, -np.asarray(grid, dtype=float), self.pre, True, None,
+        return _ramp(solver, -np.asarray(grid, dtype=float), self.pre.state, True, None,
                      "negative load level", response=self.response)
 
 

@@ -206,7 +206,8 @@ def compute_loop(step, modal, amplitude, start, fractions, *, k_ref, max_cycles=
         Call ``step(alpha, state, closing)`` from the second cycle on, ``closing`` the
         pairs closed at the same point of the cycle before (:class:`_Closings`), the
         pairs a solve on a contact zone lets in before it starts
-        (:func:`qsma.contact.zone.solve_in_zone`). A guess: the answers are the same.
+        (:func:`qsma.contact.zone.solve_in_zone`). A guess: the same solution to the
+        contact tolerance (the zones differ, so the bits do).
 
     Notes
     -----

@@ -85,15 +85,17 @@ def check_chain(problem, loads, methods):
             if (np.allclose(r.lam, ref.lam, atol=1e-7 * F, rtol=0)
                     and np.allclose(r.d, ref.d, atol=1e-7 * F / problem.kappa, rtol=0)):
                 continue
-            # The same level from the same history (equal to round-off so far), another
+            # The same level from the same history (equal to 1e-7 so far), another
             # answer: Coulomb friction with a strong normal-tangential coupling can
-            # have several solutions (3 pairs, mu = 0.5: one method pressed pair 0 and
-            # opened pair 1, another the reverse). It must be a solution (its residual
-            # from its own history, asserted above), in other pair states (with the
-            # states fixed the answer is unique).
+            # have several solutions (seen once: 3 pairs, mu = 0.5, one method pressed
+            # pair 0 and opened pair 1, another the reverse). Each answer meets the
+            # residual from its own history (asserted above); the reference's must
+            # meet it from this method's history too, to what the histories' 1e-7
+            # agreement allows, and the two must close different pairs (with the
+            # contact set fixed, the answer of a level is unique).
             previous = chains[method][level - 1].state if level else None
-            assert residual(problem, lam_w, r.d, r.lam, previous) <= TOL
-            assert np.any(np.asarray(r.status) != np.asarray(ref.status))
+            assert residual(problem, lam_w, ref.d, ref.lam, previous) <= 1e-5
+            assert np.any((np.asarray(r.status) == 2) != (np.asarray(ref.status) == 2))
             other = True
         if other:
             break                     # the histories differ from here

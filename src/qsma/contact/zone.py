@@ -466,8 +466,9 @@ def solve_in_zone(zone: ContactZone, lam_w, state: ContactState, *, method="bask
 
     ``closing``, optional: (n_pairs,) bool, pairs expected to close at this level
     (:func:`expected_closing`); those the zone eliminates join it before the first
-    solve, so that the level is not solved once more after finding them closed. Exact
-    either way: a pair of the zone that stays open is a zone unknown with no force.
+    solve, so that the level is not solved once more after finding them closed. The
+    elimination is exact either way (a pair of the zone that stays open is a zone
+    unknown with no force): the same solution to the tolerance, not the same bits.
 
     ``basis = (Wb, a)``, optional: ``lam_w = Wb a`` (see :meth:`Elimination.load`).
     ``guess``, optional: a state of all pairs to start the zone solve from (see
