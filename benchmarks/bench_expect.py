@@ -60,16 +60,11 @@ def main():
         solves[0] += 1
         return inner(*a, **k)
     zone.solve = counted
-    expected, loop = analysis._expected_closing, analysis.compute_loop
-    sides = {
-        "without": dict(_expected_closing=lambda *a: None,
-                        compute_loop=lambda *a, **k: loop(*a, **{**k,
-                                                                 "expect_closing": False})),
-        "with": dict(_expected_closing=expected, compute_loop=loop)}
-    if args.part == "ramps":       # only the part measured changes
-        sides["without"]["compute_loop"] = loop
-    else:
-        sides["without"]["_expected_closing"] = expected
+    loop = analysis.compute_loop
+    # the part measured is switched off on the "without" side, the other stays on
+    off = (dict(_expected_closing=lambda *a: None) if args.part == "ramps" else
+           dict(compute_loop=lambda *a, **k: loop(*a, **{**k, "expect_closing": False})))
+    sides = {"without": off, "with": {name: getattr(analysis, name) for name in off}}
     rows, last = {name: [] for name in sides}, {}
     for _ in range(args.repeat):
         for name, patch in sides.items():
@@ -84,8 +79,8 @@ def main():
             print(f"{name}: wall {rows[name][-1][0]:.2f} s, contact "
                   f"{rows[name][-1][1]:.2f} s, hysteresis {rows[name][-1][2]:.2f} s, "
                   f"zone solves {solves[0]}, success {res.success}", flush=True)
-    for attr in ("_expected_closing", "compute_loop"):
-        setattr(analysis, attr, sides["with"][attr])
+    for attr, value in sides["with"].items():
+        setattr(analysis, attr, value)
     print()
     print(f"{model.name}, part {args.part}: medians of {args.repeat}")
     print("| side | wall [s] | contact [s] | hysteresis [s] | zone solves |")

@@ -26,7 +26,7 @@ import warnings
 import numpy as np
 import pytest
 
-from qsma.contact import ContactProblem, solve
+from qsma.contact import OPEN, ContactProblem, solve
 from qsma.errors import InputError
 from qsma._forked import parallel_available
 from qsma.hysteresis import compute_loop, cycle_area, map_loops, masing_checks, masing_estimate
@@ -322,8 +322,9 @@ def test_loop_workers_must_be_a_sane_process_count(bad):
 def test_each_solve_of_a_loop_is_told_the_pairs_closed_there_a_cycle_before():
     """``expect_closing``: from the second cycle on, every solve gets the pairs closed at
     the same point of the cycle before (a refined cycle's new point: those of the
-    coarser cycle's next point in the direction of travel); the loop is the same."""
-    from qsma.hysteresis import cycle_path
+    coarser cycle's next point in the direction of travel). That the answers do not
+    change is tested through the zone solves (tests/test_analysis.py): this stepper
+    ignores ``closing``."""
     A = 1600.0
     problem, lam_w = _problem()
     inner = _stepper(problem, lam_w)
@@ -333,14 +334,12 @@ def test_each_solve_of_a_loop_is_told_the_pairs_closed_there_a_cycle_before():
 
     def step(alpha, state, closing=None):
         out = inner(alpha, state)
-        calls.append((alpha, None if closing is None else closing.copy(), out.status != 2))
+        calls.append((alpha, None if closing is None else closing.copy(),
+                      out.status != OPEN))
         return out
     told = compute_loop(step, _modal, A, start, u0, k_ref=kt, rtol=1e-12, refine_rounds=2,
                         expect_closing=True)
-    plain = compute_loop(_stepper(problem, lam_w), _modal, A, start, u0, k_ref=kt,
-                         rtol=1e-12, refine_rounds=2)
-    assert told.success and told.dissipation == plain.dissipation
-    assert np.array_equal(told.q, plain.q)
+    assert told.success
     first = 2 * len(u0)                                # the first cycle: nothing known
     assert all(c is None for _, c, _ in calls[:first])
     assert all(c is not None for _, c, _ in calls[first:])

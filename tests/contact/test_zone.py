@@ -225,23 +225,34 @@ def test_repeated_bordering_equals_a_fresh_elimination(dim):
     assert max(depths) == zone_module.MAX_BORDERS and 0 in depths     # then rebuilt
 
 
-def test_ramp_whose_zone_grows_by_bordering_equals_the_full_solve():
-    """A 3D ramp that closes lifted pairs level by level: every zone answer (zone grown
-    by bordering) passes the full residual and equals the whole-interface solve."""
+def _closing_ramp(n_levels):
+    """A 3D ramp that closes lifted pairs level by level (one or two per level): the
+    problem, the preload's load and the levels' factors and loads."""
     rng = np.random.default_rng(11)
     n = 30
     A = rng.normal(size=(3 * n, 3 * n))
     p = ContactProblem(A @ A.T / n + np.diag(np.full(3 * n, 3.0)), 0.3, dim=3)
     base = np.zeros((n, 3))
     base[:, 2] = np.where(np.arange(n) < 10, 1.0, -np.linspace(0.1, 2.0, n))
+    levels = np.linspace(0.2, 2.4, n_levels)
+    loads = []
+    for s in levels:
+        lw = base.copy()
+        lw[:, 0], lw[:, 1], lw[:, 2] = 0.3 * s, -0.1 * s, base[:, 2] + s
+        loads.append(lw)
+    return p, base, levels, loads
+
+
+def test_ramp_whose_zone_grows_by_bordering_equals_the_full_solve():
+    """A 3D ramp that closes lifted pairs level by level: every zone answer (zone grown
+    by bordering) passes the full residual and equals the whole-interface solve."""
+    p, base, _, loads = _closing_ramp(10)
     pre = solve(p, base)
     zone = zone_from_state(p, pre.state)
     first_outer = zone.steps[0]
     state_full = state_zone = pre.state
     bordered = 0
-    for s in np.linspace(0.2, 2.4, 10):
-        lw = base.copy()
-        lw[:, 0], lw[:, 1], lw[:, 2] = 0.3 * s, -0.1 * s, base[:, 2] + s
+    for lw in loads:
         full = solve(p, lw, state_full)
         zres, zone = solve_in_zone(zone, lw, state_zone)
         bordered += isinstance(zone.steps[0].inverse, zone_module._BorderedInverse)
@@ -251,30 +262,12 @@ def test_ramp_whose_zone_grows_by_bordering_equals_the_full_solve():
     assert bordered and zone.steps[0] is not first_outer
 
 
-def _closing_ramp():
-    """The 3D ramp above: lifted pairs close level by level (one or two per level)."""
-    rng = np.random.default_rng(11)
-    n = 30
-    A = rng.normal(size=(3 * n, 3 * n))
-    p = ContactProblem(A @ A.T / n + np.diag(np.full(3 * n, 3.0)), 0.3, dim=3)
-    base = np.zeros((n, 3))
-    base[:, 2] = np.where(np.arange(n) < 10, 1.0, -np.linspace(0.1, 2.0, n))
-    levels = np.linspace(0.2, 2.4, 23)
-    loads = []
-    for s in levels:
-        lw = base.copy()
-        lw[:, 0], lw[:, 1], lw[:, 2] = 0.3 * s, -0.1 * s, base[:, 2] + s
-        loads.append(lw)
-    return p, base, levels, loads
-
-
-def _zone_ramp(p, base, levels, loads, expect, monkeypatch):
+def _zone_ramp(p, base, levels, loads, expect, calls):
     """The ramp on a zone, with the pairs expected to close extrapolated from the two
     levels before (``expect``) or not; every answer checked against the whole
-    interface. Returns the number of zone solves."""
-    calls = []
-    inner = zone_module.solve
-    monkeypatch.setattr(zone_module, "solve", lambda *a, **k: calls.append(1) or inner(*a, **k))
+    interface. Returns the number of zone solves (``calls``: the list the patched zone
+    solve appends to)."""
+    calls.clear()
     pre = solve(p, base)
     zone = zone_from_state(p, pre.state)
     state_full = state_zone = pre.state
@@ -297,9 +290,11 @@ def _zone_ramp(p, base, levels, loads, expect, monkeypatch):
 def test_pairs_expected_to_close_join_the_zone_before_the_solve(monkeypatch):
     """Extrapolating which pairs close takes away zone solves that found them closing,
     and every answer still equals the whole interface's."""
-    p, base, levels, loads = _closing_ramp()
-    plain = _zone_ramp(p, base, levels, loads, False, monkeypatch)
-    expected = _zone_ramp(p, base, levels, loads, True, monkeypatch)
+    p, base, levels, loads = _closing_ramp(23)
+    calls, inner = [], zone_module.solve
+    monkeypatch.setattr(zone_module, "solve", lambda *a, **k: calls.append(1) or inner(*a, **k))
+    plain = _zone_ramp(p, base, levels, loads, False, calls)
+    expected = _zone_ramp(p, base, levels, loads, True, calls)
     assert plain > len(levels)                # levels solved again on a grown zone
     assert expected < plain
 
@@ -307,7 +302,7 @@ def test_pairs_expected_to_close_join_the_zone_before_the_solve(monkeypatch):
 def test_a_wrong_expectation_changes_no_answer():
     """Pairs expected to close that stay open are zone unknowns without force: the
     answer is the whole interface's."""
-    p, base, levels, loads = _closing_ramp()
+    p, base, _, loads = _closing_ramp(23)
     pre = solve(p, base)
     zone = zone_from_state(p, pre.state)
     every = np.ones(p.n_pairs, bool)
