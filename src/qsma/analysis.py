@@ -373,7 +373,24 @@ def preload(model, assembled, pairing, *, method="auto", opts=None, schur_backen
                             "separate, and tied modes of a disconnected assembly would be "
                             "meaningless. Check the sign and location of the bolt pressure.",
                             partial=pre)
+    _check_every_interface_closed(pairing, pre)
     return reduced, problem, pre
+
+
+def _check_every_interface_closed(pairing, pre):
+    """Several interfaces: refuse a preload that leaves one of them without a pair in
+    contact. Its bodies then vibrate apart, so the tied modes and every level would
+    describe a structure the joint does not hold together (as for two bodies)."""
+    if not isinstance(pairing, MultiPairing):
+        return
+    rows = pairing.rows
+    for k, itf in enumerate(pairing.interfaces):
+        if np.all(pre.status[rows[k]:rows[k + 1]] == OPEN):
+            raise AnalysisError(
+                f"the preload leaves no pair of interface {itf.label} in contact: its "
+                f"bodies separate there, and tied modes of that assembly would describe "
+                f"bodies the joint does not hold together. Check the sign and location "
+                f"of the bolt pressures", partial=pre)
 
 
 def _contact_problem(model, pairing, K):
