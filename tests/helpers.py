@@ -4,7 +4,8 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 from qsma.fe import assemble_body, stress_at_nodes
-from qsma.model import Body, Material, Mesh, boundary_facets
+from qsma.examples import stack_2d
+from qsma.model import Body, Material, Mesh, boundary_facets, write_mesh
 from qsma.model.generate import structured_mesh
 
 STEEL = Material(200e9, 0.285, 7800.0)
@@ -117,3 +118,55 @@ def assert_same_solve_bits(a, b, rtol=1e-14):
         assert np.array_equal(a, b)
     else:
         assert np.abs(np.asarray(a) - np.asarray(b)).max() <= rtol * np.abs(a).max()
+
+
+# ---- models in one mesh file with a TOML configuration (tests/test_assembly_file.py)
+
+def one_file(bodies, path):
+    """Write the meshes of ``bodies`` as one mesh (nodes of each body kept apart), each
+    body a cell set of its name, each set ``<body>_<set>``."""
+    pts, cells, node_sets, facet_sets, cell_sets = [], [], {}, {}, {}
+    n = c = 0
+    for b in bodies:
+        m = b.mesh
+        pts.append(m.points)
+        cells.append(m.cells + n)
+        cell_sets[b.name] = np.arange(c, c + len(m.cells))
+        node_sets.update({f"{b.name}_{k}": v + n for k, v in m.node_sets.items()})
+        facet_sets.update({f"{b.name}_{k}": v + n for k, v in m.facet_sets.items()})
+        n += m.n_nodes
+        c += len(m.cells)
+    write_mesh(path, Mesh(np.vstack(pts), np.vstack(cells), bodies[0].mesh.cell_type,
+                          node_sets, facet_sets, cell_sets))
+    return path
+
+
+def body_toml(name, mesh, pressures=True):
+    """The ``[[bodies]]`` table of body ``name``: cell set ``name`` of ``mesh``, steel,
+    clamped on ``<name>_clamp``, the bolt pressure on ``<name>_bolt``."""
+    text = (f'[[bodies]]\nname = "{name}"\nmesh = "{mesh}"\ncells = "{name}"\n'
+            f'E = 200e9\nnu = 0.285\nrho = 6600.0\nclamps = [{{ set = "{name}_clamp" }}]\n')
+    if pressures:
+        text += f'pressures = [{{ set = "{name}_bolt", p = 17.554e6 }}]\n'
+    return text
+
+
+def stack_toml(tmp_path, interfaces):
+    """stack-2d as one Gmsh file and a configuration with ``interfaces`` (TOML text);
+    returns the configuration's path and the model it was written from."""
+    model = stack_2d(1)
+    one_file(model.bodies, tmp_path / "stack.msh")
+    text = "".join(body_toml(b.name, "stack.msh", b.name != "middle")
+                   for b in model.bodies)
+    text += interfaces
+    text += ('[tip]\nsets = [["bottom", "bottom_tip"], ["middle", "middle_tip"], '
+             '["top", "top_tip"]]\ndirection = [0.0, 1.0]\n')
+    (tmp_path / "stack.toml").write_text(text)
+    return tmp_path / "stack.toml", model
+
+
+STACK_INTERFACES = (
+    '[[interfaces]]\nbody1 = "bottom"\nset1 = "bottom_upper"\nbody2 = "middle"\n'
+    'set2 = "middle_lower"\nmu = 0.6\n'
+    '[[interfaces]]\nbody1 = "middle"\nset1 = "middle_upper"\nbody2 = "top"\n'
+    'set2 = "top_lower"\nmu = 0.3\n')

@@ -15,6 +15,8 @@ from qsma.errors import AnalysisError
 from qsma.examples import stack_2d
 from qsma.model import Pressure
 
+from helpers import STACK_INTERFACES, stack_toml
+
 STACK_LEVELS = qsma.Levels.log("tip", 1e-6, 1e-4, 3)
 
 
@@ -30,3 +32,43 @@ def test_a_stack_whose_second_interface_opens_is_refused():
     model = replace(model, bodies=model.bodies[:2] + (pulled,))
     with pytest.raises(AnalysisError, match="no pair of interface middle.upper / top.lower"):
         qsma.run(model, levels=STACK_LEVELS)
+
+
+@pytest.fixture
+def stack_config(tmp_path):
+    """stack-2d as a configuration whose two [[interfaces]] set their own mu (0.6, 0.3)."""
+    path, _ = stack_toml(tmp_path, STACK_INTERFACES)
+    return path
+
+
+def _no_case_computed(monkeypatch):
+    """Make any computation of the model fail the test: refusals must come first."""
+    import qsma.analysis as analysis
+
+    def computed(*a, **k):
+        raise AssertionError("computed before refusing")
+    monkeypatch.setattr(analysis, "prepare", computed)
+    monkeypatch.setattr(analysis, "run", computed)
+
+
+@pytest.mark.parametrize("argv", [
+    ["run", "--mu", "0.1"],
+    ["sweep", "--vary", "mu=0.2,0.4", "--workers", "0"],
+    ["fit", "--params", "mu", "--measured", "MEASURED"],
+], ids=["run --mu", "sweep --vary mu", "fit --params mu"])
+def test_a_model_wide_mu_is_refused_where_the_interfaces_set_their_own(
+        stack_config, tmp_path, capsys, monkeypatch, argv):
+    """--mu (and a study of mu) on a model whose interfaces set their own mu: the
+    model's mu would reach no interface, so the numbers would be those without it.
+    Refused with the fix before anything is computed."""
+    measured = tmp_path / "m.csv"
+    measured.write_text("tip_m,f_hz\n1e-6,200\n1e-5,199\n")
+    argv = [str(measured) if a == "MEASURED" else a for a in argv]
+    _no_case_computed(monkeypatch)
+    code = main([argv[0], str(stack_config), *argv[1:], "--out", str(tmp_path / "out"),
+                 "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert "bottom.bottom_upper / middle.middle_lower sets its own mu = 0.6" in err
+    assert "Fix:" in err
+    assert not (tmp_path / "out").exists()

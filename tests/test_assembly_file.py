@@ -10,37 +10,13 @@ from qsma.errors import InputError, MeshFileError
 from qsma.examples import STACK_2D, sandwich_2d, stack_2d
 from qsma.fe import assemble_body
 from qsma.modal import linear_modes
-from qsma.model import Mesh, make_pairing, write_mesh
+from qsma.model import make_pairing
 from qsma.model.io import read_assembly
 
+from helpers import (STACK_INTERFACES, body_toml as _body_toml, one_file as _one_file,
+                     stack_toml as _stack_toml)
+
 LEVELS = qsma.Levels.log("tip", 1e-6, 1e-4, 4)
-
-
-def _one_file(bodies, path):
-    """Write the meshes of ``bodies`` as one mesh (nodes of each body kept apart), each
-    body a cell set of its name, each set ``<body>_<set>``."""
-    pts, cells, node_sets, facet_sets, cell_sets = [], [], {}, {}, {}
-    n = c = 0
-    for b in bodies:
-        m = b.mesh
-        pts.append(m.points)
-        cells.append(m.cells + n)
-        cell_sets[b.name] = np.arange(c, c + len(m.cells))
-        node_sets.update({f"{b.name}_{k}": v + n for k, v in m.node_sets.items()})
-        facet_sets.update({f"{b.name}_{k}": v + n for k, v in m.facet_sets.items()})
-        n += m.n_nodes
-        c += len(m.cells)
-    write_mesh(path, Mesh(np.vstack(pts), np.vstack(cells), bodies[0].mesh.cell_type,
-                          node_sets, facet_sets, cell_sets))
-    return path
-
-
-def _body_toml(name, mesh, pressures=True):
-    text = (f'[[bodies]]\nname = "{name}"\nmesh = "{mesh}"\ncells = "{name}"\n'
-            f'E = 200e9\nnu = 0.285\nrho = 6600.0\nclamps = [{{ set = "{name}_clamp" }}]\n')
-    if pressures:
-        text += f'pressures = [{{ set = "{name}_bolt", p = 17.554e6 }}]\n'
-    return text
 
 
 @pytest.mark.parametrize("ext", ["msh", "inp"])
@@ -133,25 +109,6 @@ def test_unknown_cell_set_names_the_cell_sets(tmp_path):
     asm = read_assembly(_conforming_inp(tmp_path / "blocks.inp"))
     with pytest.raises(InputError, match=r"no cell set named 'MIDDLE'.*'LOWER', 'UPPER'"):
         asm.body_mesh("MIDDLE")
-
-
-def _stack_toml(tmp_path, interfaces):
-    model = stack_2d(1)
-    _one_file(model.bodies, tmp_path / "stack.msh")
-    text = "".join(_body_toml(b.name, "stack.msh", b.name != "middle")
-                   for b in model.bodies)
-    text += interfaces
-    text += ('[tip]\nsets = [["bottom", "bottom_tip"], ["middle", "middle_tip"], '
-             '["top", "top_tip"]]\ndirection = [0.0, 1.0]\n')
-    (tmp_path / "stack.toml").write_text(text)
-    return tmp_path / "stack.toml", model
-
-
-STACK_INTERFACES = (
-    '[[interfaces]]\nbody1 = "bottom"\nset1 = "bottom_upper"\nbody2 = "middle"\n'
-    'set2 = "middle_lower"\nmu = 0.6\n'
-    '[[interfaces]]\nbody1 = "middle"\nset1 = "middle_upper"\nbody2 = "top"\n'
-    'set2 = "top_lower"\nmu = 0.3\n')
 
 
 def test_stack_in_one_file_with_a_list_of_interfaces(tmp_path):

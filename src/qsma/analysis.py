@@ -161,6 +161,14 @@ def _start(model, opts):
     return clock, pairing, limit
 
 
+#: What to change when a study varies or fits the model-wide friction coefficient of
+#: a model whose interfaces set their own (:meth:`qsma.model.Model.check_mu_reaches`).
+STUDY_MU_FIX = ("a study varies the model's mu only where no interface sets its own "
+                "(Interface(mu=None) in Python, one [interface] table in a configuration); "
+                "for the interfaces of a [[interfaces]] list, run one configuration per "
+                "value of their mu")
+
+
 @dataclass(frozen=True, eq=False)
 class Prepared:
     r"""The part of a run that a parameter study shares between its cases.
@@ -202,13 +210,7 @@ class Prepared:
         """The same preparation for friction coefficient ``mu`` (nothing recomputed).
         Refused when an interface sets a friction coefficient of its own (other than
         ``mu``): the model's ``mu`` would not reach it."""
-        own = [i for i in self.model.interface_list if i.mu is not None and i.mu != mu]
-        if own:
-            raise InputError(f"friction coefficient mu = {mu!r} for the whole model, but "
-                             f"interface {own[0].label} sets its own mu = {own[0].mu}; "
-                             f"leave the interfaces' mu unset (the model's mu then applies "
-                             f"to every interface) to vary it in a study")
-        return replace(self, model=replace(self.model, mu=mu))
+        return replace(self, model=self.model.with_mu(mu, STUDY_MU_FIX))
 
     def with_preload_scale(self, scale) -> "Prepared":
         """The same preparation with every pressure of the 'preload' pattern multiplied

@@ -32,6 +32,6 @@ def load_model(args):
     cfg = load_config(args.config)
     model = cfg.model
     if args.mu is not None:
-        from dataclasses import replace
-        model = replace(model, mu=args.mu)
+        model = model.with_mu(args.mu, what=f"--mu {args.mu:g}", fix=(
+            "drop --mu and set mu in each [[interfaces]] table of the configuration"))
     return model, cfg.options

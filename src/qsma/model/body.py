@@ -1,7 +1,7 @@
 """Materials, boundary conditions, loads, bodies and the assembled model."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import math
 import warnings
 
@@ -214,6 +214,27 @@ class Model:
     def interface_list(self) -> tuple:
         """Every interface of the model (one for ``interface``)."""
         return (self.interface,) if self.interface is not None else self.interfaces
+
+    def check_mu_reaches(self, mu, fix: str, what: str | None = None):
+        """Refuse a model-wide friction coefficient that some interface would not see:
+        one that sets a ``mu`` of its own (other than ``mu``; ``mu=None``: any value, as
+        a fit tries) keeps it. ``what`` names where the value came from (e.g.
+        ``--mu 0.1``), ``fix`` says what to change."""
+        own = [i for i in self.interface_list
+               if i.mu is not None and (mu is None or i.mu != mu)]
+        if own:
+            more = f" (and {len(own) - 1} more)" if len(own) > 1 else ""
+            what = what or f"friction coefficient mu = {mu!r}"
+            raise InputError(f"{what} sets the friction coefficient of the whole model, "
+                             f"but interface {own[0].label} sets its own mu = "
+                             f"{own[0].mu}{more}, which the model's mu does not replace. "
+                             f"Fix: {fix}")
+
+    def with_mu(self, mu, fix: str, what: str | None = None) -> "Model":
+        """The model with friction coefficient ``mu`` on every interface
+        (:meth:`check_mu_reaches` first)."""
+        self.check_mu_reaches(mu, fix, what)
+        return replace(self, mu=mu)
 
     def _check_interface(self, itf, names):
         for b in (itf.body1, itf.body2):

@@ -232,11 +232,16 @@ def _material_key(case, n_bodies, names):
 
 
 def _check_bodies(cases, model):
+    """Refuse before any case a body the model lacks and a friction coefficient the
+    model's interfaces would not see (their own mu)."""
+    from ..analysis import STUDY_MU_FIX
     names = [b.name for b in model.bodies]
     for name, _ in cases[0].params:
         base, _, body = name.partition(":")
         if base in MATERIAL_PARAMETERS and body and body not in names:
             raise InputError(f"sweep parameter {name!r}: no body {body!r}; bodies: {names}")
+    for mu in sorted({dict(c.params)["mu"] for c in cases if "mu" in dict(c.params)}):
+        model.check_mu_reaches(mu, STUDY_MU_FIX, what=f"mu = {mu:g} of the study")
 
 
 def _model_with_materials(model, key):
