@@ -5,6 +5,7 @@ Each test is one way a wrong answer could be reported as success, a folder left
 inconsistent, an internal error, or a bad input refused only after computing.
 """
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,6 +18,7 @@ from qsma.model import Pressure
 
 from helpers import STACK_INTERFACES, stack_toml
 
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 STACK_LEVELS = qsma.Levels.log("tip", 1e-6, 1e-4, 3)
 
 
@@ -72,3 +74,42 @@ def test_a_model_wide_mu_is_refused_where_the_interfaces_set_their_own(
     assert "bottom.bottom_upper / middle.middle_lower sets its own mu = 0.6" in err
     assert "Fix:" in err
     assert not (tmp_path / "out").exists()
+
+
+def _example_config(folder):
+    """examples/sandwich-2d.toml and its meshes copied to ``folder`` (levels and the
+    direct loop trimmed for speed); returns the configuration's path."""
+    import shutil
+    for name in ("sandwich-2d.toml", "sandwich-2d-bottom.inp", "sandwich-2d-top.msh"):
+        shutil.copy(EXAMPLES / name, folder / name)
+    path = folder / "sandwich-2d.toml"
+    text = path.read_text().replace("direct_loop = true", "direct_loop = false")
+    path.write_text(text.replace("n = 51", "n = 3").replace("stop = 1e-3", "stop = 1e-5"))
+    return path
+
+
+@pytest.mark.parametrize("edit", [
+    ("*NSET, NSET=clamp\n1, 126, 251, 376, 501, 626, 751, 876, 1001\n",
+     "*NSET, NSET=clamp\n1, 126, 251, 376, 501, 626, 751, 876\n"),
+    ("*ELSET, ELSET=_bolt_S1, INTERNAL\n", None),
+], ids=["clamp nodes", "bolt surface halved"])
+def test_a_study_of_an_edited_model_is_not_resumed(tmp_path, capsys, edit):
+    """A sweep resumed after editing the contents of a set (names unchanged) must not
+    take the old cases as done: the fingerprint covers what the model is."""
+    config = _example_config(tmp_path)
+    argv = ["sweep", str(config), "--vary", "mu=0.5", "--workers", "0", "--no-plots",
+            "--out", str(tmp_path / "study"), "--quiet"]
+    assert main(argv) == 0
+    inp = tmp_path / "sandwich-2d-bottom.inp"
+    text = inp.read_text()
+    old, new = edit
+    if new is None:                      # keep the first half of the bolt's facet rows
+        start = text.index(old) + len(old)
+        rows = text[start:text.index("*", start)].split("\n")[:-1]
+        ids = ", ".join(rows).split(", ")
+        new = old + ", ".join(ids[:len(ids) // 2]) + "\n"
+        old = old + "\n".join(rows) + "\n"
+    assert old in text
+    inp.write_text(text.replace(old, new))
+    assert main(argv) == 2
+    assert "another model" in capsys.readouterr().err
