@@ -113,3 +113,35 @@ def test_a_study_of_an_edited_model_is_not_resumed(tmp_path, capsys, edit):
     inp.write_text(text.replace(old, new))
     assert main(argv) == 2
     assert "another model" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("cut_after", [
+    "*NSET, NSET=clamp\n1, 126, 251, 37",            # mid-row in the clamp's node set
+    "*ELSET, ELSET=_outer_S1, INTERNAL\n1, 2, 3, 4, 5, 6, 7",     # mid-row in an *ELSET
+], ids=["mid-nset", "mid-elset"])
+def test_a_truncated_abaqus_file_is_refused(tmp_path, cut_after):
+    """An .inp file cut off inside a data row (an interrupted copy): the clamp silently
+    lost nodes (f0 = 216.55 Hz instead of 212.54). The unterminated last row says so."""
+    from qsma.errors import MeshFileError
+    from qsma.model import read_mesh
+    text = (EXAMPLES / "sandwich-2d-bottom.inp").read_text()
+    assert cut_after in text
+    path = tmp_path / "cut.inp"
+    path.write_text(text[:text.index(cut_after) + len(cut_after)])
+    with pytest.raises(MeshFileError, match=r"cut\.inp, line \d+: the file ends inside the "
+                                            r"data line .*cut off"):
+        read_mesh(path)
+
+
+def test_a_node_row_short_of_the_cells_dimension_is_refused(tmp_path):
+    """A node row with one coordinate in a 2D mesh (a row cut short) would put the node
+    at y = 0 silently."""
+    from qsma.errors import MeshFileError
+    from qsma.model import read_mesh
+    text = (EXAMPLES / "sandwich-2d-bottom.inp").read_text()
+    row = next(line for line in text.splitlines() if line.startswith("130,"))
+    path = tmp_path / "short.inp"
+    path.write_text(text.replace(row + "\n", row[:row.rindex(",")] + "\n", 1))
+    with pytest.raises(MeshFileError, match=r"short\.inp, line 135: node row '130, .*' gives "
+                                            r"1 coordinate\(s\), but the cells are 2D"):
+        read_mesh(path)

@@ -309,7 +309,7 @@ def test_inp_face_numbering(tmp_path, etype, nodes, faces):
     lines += [f"*ELEMENT, TYPE={etype}", "7, " + ", ".join(str(i) for i in range(1, len(nodes) + 1))]
     for k in range(1, len(faces) + 1):
         lines += [f"*SURFACE, NAME=f{k}", f"7, S{k}"]
-    m = read_mesh(write_text(tmp_path, "one.inp", "\n".join(lines)))
+    m = read_mesh(write_text(tmp_path, "one.inp", "\n".join(lines) + "\n"))
     for k, face in enumerate(faces, 1):
         assert facet_keys(m.facet_sets[f"f{k}"]) == {tuple(sorted(i - 1 for i in face))}
 
@@ -346,7 +346,8 @@ def test_inp_continuation_lines_free_faces_and_node_surface(tmp_path):
 
 def test_inp_include_and_facet_elements(tmp_path):
     write_text(tmp_path, "nodes.inc", "\n".join(
-        f"{i + 1}, {x}, {y}" for i, (x, y) in enumerate([(0, 0), (1, 0), (1, 1), (0, 1)])))
+        f"{i + 1}, {x}, {y}" for i, (x, y) in enumerate([(0, 0), (1, 0), (1, 1), (0, 1)]))
+        + "\n")
     path = write_text(tmp_path, "main.inp", """\
 *NODE
 *INCLUDE, INPUT=nodes.inc

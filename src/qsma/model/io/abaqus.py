@@ -155,6 +155,7 @@ def _inp_lines(path: Path, stack=(), where=None):
     """(file, line number, text) of the lines that are not blank or comments, with
     ``*INCLUDE`` expanded."""
     text = _read_inp_text(path, where)
+    _check_terminated(path, text)
     here = path.resolve()
     for number, raw in enumerate(text.splitlines(), start=1):
         line = raw.strip()
@@ -173,6 +174,22 @@ def _inp_lines(path: Path, stack=(), where=None):
             yield from _inp_lines(included, stack + (here,), (str(path), number))
             continue
         yield str(path), number, line
+
+
+def _check_terminated(path: Path, text: str):
+    """Refuse a file whose last line is a data line without a line end: a copy or
+    download cut off there (a set row ``1, 126, 251, 37`` would silently lose nodes).
+    A keyword or comment line without one is accepted (nothing of it can be lost)."""
+    if not text or text.endswith(("\n", "\r")):
+        return
+    lines = text.splitlines()
+    last = lines[-1].strip()
+    if last and not last.startswith("*"):
+        raise MeshFileError(f"{path}, line {len(lines)}: the file ends inside the data "
+                            f"line {last[:40]!r} (no line end after it): it looks cut off "
+                            f"(an interrupted copy or download); copy or export it again "
+                            f"(if the file is complete, end its last line with a line "
+                            f"break)")
 
 
 def _inp_cards(path: Path) -> list:
@@ -253,6 +270,7 @@ class _InpReader:
     def __init__(self, path: Path):
         self.source = str(path)
         self.node_ids, self.node_xyz, self.node_where = [], [], []
+        self.fewest_coordinates = None      # (count, where, text) of the shortest node row
         self.blocks = []
         self.sets = {"NSET": {}, "ELSET": {}}
         self.surfaces = {}          # key -> (name, [(reference, face or None, where)])
@@ -291,6 +309,7 @@ class _InpReader:
         blocks = [(b.cell_type, _TOPO_DIM[b.cell_type], self._connectivity(b, nodes),
                    _is_continuum(b.abaqus_type)) for b in self.blocks]
         vtypes = _cell_type_of(self.source, blocks, cell_type)
+        self._check_node_rows(CELL_TYPES[vtypes[0]][0])
         elements = self._element_lookup()
         index = _Elements(blocks)
         elsets = {k: self._element_indices(s, elements) for k, s in self.sets["ELSET"].items()}
@@ -316,6 +335,19 @@ class _InpReader:
                             for slave, master, inter, kind, where in self.pairs]
         fm.boundaries = self._boundary_sets(fm, nodes, elsets, index)
         return fm, vtypes
+
+    def _check_node_rows(self, dim: int):
+        """Every node row gives at least ``dim`` coordinates (the cells' dimension). Abaqus
+        reads an omitted coordinate as 0, but a row short of the cells' dimension is a
+        row cut off (a truncated file) far more often than a node meant to lie on an
+        axis, and would move that node silently."""
+        if self.fewest_coordinates is None or self.fewest_coordinates[0] >= dim:
+            return
+        count, where, text = self.fewest_coordinates
+        raise _inp_error(where, f"node row {text!r} gives {count} coordinate(s), but the "
+                         f"cells are {dim}D", f"give 'node id, x, y{', z' if dim == 3 else ''}'"
+                         f" on every node line (0 written out where it is 0); a row cut "
+                         f"short means a damaged or truncated file")
 
     def _surface_name(self, name: str) -> str:
         """The defined spelling of a surface name (Abaqus names ignore case)."""
@@ -490,6 +522,10 @@ def _inp_node(r: _InpReader, card: _Card):
     if bad.size:
         raise _inp_error(rows[bad[0]][0], f"node {ids[bad[0]]} has a non-finite coordinate",
                          "give finite coordinates")
+    if rows:
+        short = min(rows, key=lambda row: len(row[1]))
+        if r.fewest_coordinates is None or len(short[1]) - 1 < r.fewest_coordinates[0]:
+            r.fewest_coordinates = (len(short[1]) - 1, short[0], short[2])
     r.node_ids.append(ids)
     r.node_xyz.append(xyz)
     r.node_where += [where for where, _, _ in rows]
