@@ -145,3 +145,48 @@ def test_a_node_row_short_of_the_cells_dimension_is_refused(tmp_path):
     with pytest.raises(MeshFileError, match=r"short\.inp, line 135: node row '130, .*' gives "
                                             r"1 coordinate\(s\), but the cells are 2D"):
         read_mesh(path)
+
+
+@pytest.mark.parametrize("mu", [0.0, 1e6], ids=["mu=0", "mu=1e6"])
+def test_a_cycle_in_which_no_pair_rubs_dissipates_exactly_nothing(mu):
+    """mu = 0 (every pair slips, without friction) and mu = 1e6 (every pair sticks): no
+    pair dissipates, so D and zeta are exactly 0, not round-off of either sign
+    (-3.2e-13 was reported as a successful damping ratio)."""
+    from qsma.examples import sandwich_2d
+    res = qsma.run(sandwich_2d(1, mu=mu), levels=qsma.Levels.log("tip", 1e-6, 1e-3, 7))
+    assert res.success, res.message
+    assert np.all(res.dissipation == 0.0) and np.all(res.zeta == 0.0)
+    assert np.all(res.dissipation_masing == 0.0)
+
+
+def _level_columns(D, err, use_loop=False, n=1):
+    """The per-level columns :func:`qsma.analysis._flags` reads, for one dissipation."""
+    col = lambda v: np.full(n, v, float)
+    return dict(use_loop=np.full(n, use_loop), f_hz_loop=col(np.nan), f_hz_masing=col(0.9),
+                zeta_loop=col(np.nan), zeta_masing=col(D / (2 * np.pi)),
+                loop_error=col(np.nan), masing_error=col(err),
+                dissipation_loop=col(np.nan), dissipation_masing=col(D), loops={},
+                shakedown=np.zeros(n, bool), no_slip=np.zeros(n, bool))
+
+
+def test_negative_dissipation_beyond_round_off_fails_whatever_its_error_estimate():
+    """A negative D beyond the round-off bound (zeta < -1e-8) is a failure even when the
+    error estimate exceeds |D| (a middle body with E = 1e300 gave D = -9790 J with only
+    information flags); one within it is reported as exactly 0."""
+    from types import SimpleNamespace
+    from qsma.analysis import _flags, _settle_dissipation
+    from qsma.contact import SLIPPING
+    from qsma.options import RunOptions
+    pre = SimpleNamespace(status=np.array([SLIPPING]))
+    status = np.array([[SLIPPING]])
+    args = (np.ones(1), np.ones(1), np.ones(1))          # alpha, q, tip: energy scale 1
+    real = _level_columns(D=-1e-4, err=1e-3)
+    flags = _flags(*args, real, status, pre, 2 * np.pi, RunOptions())
+    assert "negative_dissipation" in flags[0]
+    _settle_dissipation(real, flags, np.ones(1), np.ones(1))
+    assert real["dissipation_masing"][0] == -1e-4          # kept beside its flag
+    noise = _level_columns(D=-3e-13, err=1e-14)
+    flags = _flags(*args, noise, status, pre, 2 * np.pi, RunOptions())
+    assert "negative_dissipation" not in flags[0]
+    _settle_dissipation(noise, flags, np.ones(1), np.ones(1))
+    assert noise["dissipation_masing"][0] == 0.0 and noise["zeta_masing"][0] == 0.0

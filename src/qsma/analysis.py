@@ -557,6 +557,7 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
         omega = np.where(hyst["use_loop"], 2 * np.pi * hyst["f_hz_loop"],
                          2 * np.pi * hyst["f_hz_masing"])
         flags = _flags(al, q, tip, hyst, status, pre, omega0, opts)
+        _settle_dissipation(hyst, flags, al, q)
         success, message = _outcome(pos, flags, opts)
 
     loop = None
@@ -932,7 +933,8 @@ def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref):
                f_hz_loop=nan.copy(), zeta_loop=nan.copy(), dissipation_loop=nan.copy(),
                loop_error=nan.copy(), first=nan.copy(), cycles=np.zeros(n_ok, int),
                shakedown=np.zeros(n_ok, bool), use_loop=use_loop[user],
-               reason=reason[user], loops={}, n_solves=0)
+               reason=reason[user], loops={}, n_solves=0,
+               no_slip=_no_rubbing(solver.problem.mu, pos.status, neg_status, nn)[user])
     linear_end = _linear_end(pos, pre)
     zone = solver.zone          # every loop starts from the ramps' zone: its bits do
     todo = np.flatnonzero(out["use_loop"])   # not depend on the loops solved before it
@@ -964,6 +966,34 @@ def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref):
             out["shakedown"][i] = lp.shakedown
     solver.zone = zone
     return out
+
+
+def _no_rubbing(mu, pos_status, neg_status, n_neg) -> np.ndarray:
+    """Per ramp point: no pair with friction (mu > 0) slips on either ramp up to it. A
+    cycle within that range is elastic (opening and closing store energy, only
+    friction dissipates), so its dissipation is exactly zero. Points beyond the
+    ``n_neg`` solved points of the -alpha ramp are not known to be so."""
+    rubbing = np.broadcast_to(np.asarray(mu, float) > 0, pos_status.shape[1:])
+    slips = np.any((pos_status == SLIPPING) & rubbing, axis=1) | \
+        np.any((neg_status == SLIPPING) & rubbing, axis=1)
+    slips[n_neg:] = True
+    return ~np.logical_or.accumulate(slips)
+
+
+def _settle_dissipation(hyst, flags, alpha, q):
+    """The dissipation as reported, where it is zero to the precision it was computed
+    with: exactly 0 where no pair with friction slipped (``hyst["no_slip"]``), and 0 for
+    a negative value within the round-off bound ``ZETA_ZERO 2 pi alpha |q|`` of the
+    contact solves it comes from (a cycle cannot create energy). A negative value
+    beyond that bound is flagged ``negative_dissipation`` (:func:`_flags`) and kept, as
+    is every value of a level with a failure flag."""
+    bound = ZETA_ZERO * 2 * np.pi * np.asarray(alpha) * np.abs(q)
+    sound = np.array([not set(f) & set(FAILURE_FLAGS) for f in flags], bool)
+    for method in ("masing", "loop"):
+        D, zeta = hyst[f"dissipation_{method}"], hyst[f"zeta_{method}"]
+        zero = sound & np.isfinite(D) & (hyst["no_slip"] | ((D < 0) & (-D <= bound)))
+        D[zero] = 0.0
+        zeta[zero] = 0.0
 
 
 def _with_closed(zone, status):
@@ -1046,8 +1076,8 @@ def _flags(alpha, q, tip, hyst, status, pre, omega0, opts):
             fl.append("not_finite" if lp is None else
                       "loop_not_stabilised" if lp.outcome == "not_stabilised" else
                       "loop_failed")
-        elif D[k] < -(abs(err[k]) + ZETA_ZERO * 2 * np.pi * alpha[k] * abs(q[k])):
-            fl.append("negative_dissipation")
+        elif D[k] < -ZETA_ZERO * 2 * np.pi * alpha[k] * abs(q[k]):
+            fl.append("negative_dissipation")       # whatever its error estimate says
         if hyst["zeta_masing"][k] < -ZETA_ZERO and use_loop[k]:
             fl.append("masing_negative")
         hard = f[k] > f0 * (1 + STUCK_FREQUENCY_RTOL) or (
