@@ -190,3 +190,39 @@ def test_negative_dissipation_beyond_round_off_fails_whatever_its_error_estimate
     assert "negative_dissipation" not in flags[0]
     _settle_dissipation(noise, flags, np.ones(1), np.ones(1))
     assert noise["dissipation_masing"][0] == 0.0 and noise["zeta_masing"][0] == 0.0
+
+
+def test_masing_needs_backbones_that_mirror_not_only_equal_dissipations():
+    """Two straight backbones of different slopes (pairs left at the friction limit by a
+    tangential preload slip one way only) both give a Masing dissipation of 0; they are
+    no mirror images, so Masing's rules are not verified there."""
+    from qsma.hysteresis import masing_checks
+    alpha = np.linspace(1.0, 5.0, 5)
+    q_pos, q_neg = 2.37 * alpha, -0.48 * 2.37 * alpha         # both straight lines
+    P = np.ones((5, 3))
+    shut = np.zeros((5, 3), bool)
+    checks = masing_checks(alpha, q_pos, q_neg, P, P, P[0], shut, shut, shut[0], k_ref=1.0,
+                           rtol=5e-3, atol=1e-12)
+    assert not checks.valid.any()
+    assert "peak modal amplitudes differ" in checks.reason[0]
+
+
+def test_a_preload_that_leaves_every_pair_slipping_is_flagged_at_the_first_level(capsys):
+    """A pressure on the bottom plate's end face shears the interface until every closed
+    pair slips in the preload. The first loading then slides (tip 2.37 times the linear
+    one) while the settled cycle is elastic (f = f0, zeta = 0): flagged as a shakedown,
+    with a note from the command line, instead of three numbers that disagree."""
+    from qsma.cli.run import _warn_flags
+    from qsma.contact import SLIPPING
+    from qsma.examples import sandwich_2d
+    model = sandwich_2d(1)
+    bottom = model.bodies[0]
+    sheared = replace(bottom, pressures=bottom.pressures + (Pressure("end", 1e8),))
+    model = replace(model, bodies=(sheared, model.bodies[1]))
+    res = qsma.run(model, levels=qsma.Levels.log("tip", 1e-6, 1e-5, 3))
+    closed = res.preload.status != 2
+    assert np.all(res.preload.status[closed] == SLIPPING)
+    assert res.tip[0] / res.tip_lin[0] > 2                # the first loading slides
+    assert "shakedown" in res.flags[0]
+    _warn_flags(res)
+    assert "shakedown) at level(s) [0" in capsys.readouterr().err

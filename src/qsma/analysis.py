@@ -963,7 +963,8 @@ def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref):
             out["dissipation_loop"][i] = lp.dissipation
             out["loop_error"][i] = lp.error
             out["first"][i] = lp.first_dissipation
-            out["shakedown"][i] = lp.shakedown
+            out["shakedown"][i] = lp.shakedown or _first_loading_differs(
+                lp, pos.q[user[i]], q_neg[user[i]], opts.dissipation_rtol)
     solver.zone = zone
     return out
 
@@ -994,6 +995,18 @@ def _settle_dissipation(hyst, flags, alpha, q):
         zero = sound & np.isfinite(D) & (hyst["no_slip"] | ((D < 0) & (-D <= bound)))
         D[zero] = 0.0
         zeta[zero] = 0.0
+
+
+def _first_loading_differs(lp, q_top, q_bottom, rtol) -> bool:
+    """Whether the stabilised loop turns elsewhere than the first loadings to ``+A`` and
+    ``-A`` (the backbones' ``q_top``, ``q_bottom``) by more than ``rtol`` of its
+    half-range: the ramps slipped where the cycle does not (pairs left at the friction
+    limit by the preload slide once, then the cycle is elastic). The level's ``q`` and
+    ``tip`` are then those of the first loading and its ``f`` and ``zeta`` those of the
+    settled cycle: a shakedown, flagged as one."""
+    off = max(abs(lp.q_top - q_top), abs(lp.q_bottom - q_bottom) if np.isfinite(q_bottom)
+              else 0.0)
+    return bool(off > rtol * abs(lp.q_amplitude))
 
 
 def _with_closed(zone, status):

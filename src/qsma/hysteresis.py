@@ -590,9 +590,10 @@ def masing_checks(alpha, q_pos, q_neg, P_pos, P_neg, P_pre, open_pos, open_neg, 
        preload on either ramp (a closing pair stiffens the joint: hardening).
     2. The pressures do not change (relative change <= :data:`PRESSURE_RTOL`): no
        normal-tangential coupling, so the friction limits are fixed.
-    3. The backbone for ``-alpha`` mirrors the one for ``+alpha``: their Masing
-       dissipations agree within ``rtol |D| + atol`` (a pre-shear left by the preload,
-       or pairs at the friction limit, make them differ).
+    3. The backbone for ``-alpha`` mirrors the one for ``+alpha``: their peak modal
+       amplitudes agree within ``rtol`` and their Masing dissipations within
+       ``rtol |D| + atol`` (a pre-shear left by the preload, or pairs at the friction
+       limit, make them differ).
     4. The secant stiffness does not rise.
 
     A level is valid only if every level up to it is (the loop of an amplitude sweeps
@@ -608,7 +609,12 @@ def masing_checks(alpha, q_pos, q_neg, P_pos, P_neg, P_pre, open_pos, open_neg, 
     d_pos = masing_estimate(alpha, q_pos, k_ref).dissipation
     d_neg = masing_estimate(alpha, -np.asarray(q_neg, float), k_ref).dissipation
     mismatch = np.abs(d_pos - d_neg) / np.maximum(np.abs(d_pos), np.finfo(float).tiny)
-    mirror_bad = np.abs(d_pos - d_neg) > rtol * np.abs(d_pos) + atol
+    # the backbones themselves, not only their dissipations: two straight backbones of
+    # different slopes (pairs at the friction limit after the preload slip one way
+    # only) both give D = 0, yet they are no mirror images
+    q_apart = np.abs(np.asarray(q_pos, float) + np.asarray(q_neg, float)) / \
+        np.maximum(np.abs(np.asarray(q_pos, float)), np.finfo(float).tiny)
+    mirror_bad = (np.abs(d_pos - d_neg) > rtol * np.abs(d_pos) + atol) | (q_apart > rtol)
     secant = alpha / np.asarray(q_pos, float)
     rising = np.concatenate([[False], secant[1:] > secant[:-1] * (1 + SECANT_RTOL)])
     linear = np.zeros(n, bool) if linear is None else np.asarray(linear, bool)
@@ -627,7 +633,9 @@ def masing_checks(alpha, q_pos, q_neg, P_pos, P_neg, P_pre, open_pos, open_neg, 
                 why = f"pressures changed by {dP[k]:.2e} of the peak {at}"
             elif mirror_bad[k]:
                 why = (f"backbones for +alpha and -alpha differ {at} "
-                       f"(Masing dissipations differ by {mismatch[k]:.2e})")
+                       + (f"(Masing dissipations differ by {mismatch[k]:.2e})"
+                          if q_apart[k] <= rtol else
+                          f"(peak modal amplitudes differ by {q_apart[k]:.2e})"))
             elif rising[k]:
                 why = f"secant stiffness rises {at}"
         valid[k] = not why

@@ -164,6 +164,12 @@ def _warn_flags(res):
         if f in FAILURE_FLAGS:
             print(f"qsma: warning: {f} at level(s) {ks[:12]}{' ...' if len(ks) > 12 else ''}",
                   file=sys.stderr)
+    if "shakedown" in by_flag:
+        ks = by_flag["shakedown"]
+        print(f"qsma: note: the first loading (or first cycle) slipped where the settled "
+              f"cycle does not (shakedown) at level(s) {ks[:12]}"
+              f"{' ...' if len(ks) > 12 else ''}: q and tip are those of the first "
+              f"loading, f and zeta those of the settled cycle", file=sys.stderr)
     if "hardening" in by_flag:
         ks = by_flag["hardening"]
         print(f"qsma: note: the joint stiffens (contact closing) at level(s) {ks[:12]}"
