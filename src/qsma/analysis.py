@@ -556,7 +556,7 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
                              pos.residual[user], pos.nit[user])
         omega = np.where(hyst["use_loop"], 2 * np.pi * hyst["f_hz_loop"],
                          2 * np.pi * hyst["f_hz_masing"])
-        flags = _flags(al, q, tip, hyst, status, pre, omega0, opts)
+        flags = _flags(al, q, tip, hyst, omega0, opts)
         _settle_dissipation(hyst, flags, al, q)
         success, message = _outcome(pos, flags, opts)
 
@@ -934,7 +934,8 @@ def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref):
                loop_error=nan.copy(), first=nan.copy(), cycles=np.zeros(n_ok, int),
                shakedown=np.zeros(n_ok, bool), use_loop=use_loop[user],
                reason=reason[user], loops={}, n_solves=0,
-               no_slip=_no_rubbing(solver.problem.mu, pos.status, neg_status, nn)[user])
+               no_slip=_no_rubbing(solver.problem.mu, pos.status, neg_status, nn)[user],
+               linear=linear[user])
     linear_end = _linear_end(pos, pre)
     zone = solver.zone          # every loop starts from the ramps' zone: its bits do
     todo = np.flatnonzero(out["use_loop"])   # not depend on the loops solved before it
@@ -1070,7 +1071,7 @@ def _loop_fractions(grid, g, linear_end, steps):
     return u
 
 
-def _flags(alpha, q, tip, hyst, status, pre, omega0, opts):
+def _flags(alpha, q, tip, hyst, omega0, opts):
     """Per level, what the physics forbids (failures) and what it allows but a reader
     should know (information); see :data:`FAILURE_FLAGS`."""
     n = len(alpha)
@@ -1080,7 +1081,10 @@ def _flags(alpha, q, tip, hyst, status, pre, omega0, opts):
     err = np.where(use_loop, hyst["loop_error"], hyst["masing_error"])
     D = np.where(use_loop, hyst["dissipation_loop"], hyst["dissipation_masing"])
     f0 = omega0 / (2 * np.pi)
-    untouched = _untouched(status, pre)
+    # no pair has left its preload state on either ramp up to the level (every point
+    # of both refined ramps): the +alpha states of the output levels alone would call
+    # a level whose -alpha ramp slips untouched, and its damping a misfire
+    untouched = hyst["linear"]
     out = []
     for k in range(n):
         fl = []
