@@ -50,6 +50,17 @@ def check_patch(mesh, A):
 HEX_TO_TETS = [(0, 1, 2, 6), (0, 2, 3, 6), (0, 3, 7, 6), (0, 7, 4, 6), (0, 4, 5, 6), (0, 5, 1, 6)]
 
 
+def tetrahedra_of(mesh):
+    """The hexahedra of ``mesh`` split into six tetrahedra each (:data:`HEX_TO_TETS`,
+    conforming between neighbours), every tetrahedron positively oriented; no sets."""
+    tets = np.concatenate([mesh.cells[:, list(t)] for t in HEX_TO_TETS])
+    q = mesh.points[tets]
+    vol = np.einsum("ij,ij->i", np.cross(q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]),
+                    q[:, 3] - q[:, 0])
+    tets[vol < 0] = tets[vol < 0][:, [0, 2, 1, 3]]
+    return Mesh(mesh.points, tets, "tetra")
+
+
 def distorted_3d(cell_type):
     """A 3 x 3 x 3 unit-cube patch of hexahedra (or tetrahedra) with its interior nodes
     moved at random (seeded)."""
@@ -60,11 +71,7 @@ def distorted_3d(cell_type):
     p[inner] += np.random.default_rng(0).uniform(-0.08, 0.08, size=(inner.sum(), 3))
     if cell_type == "hexahedron":
         return Mesh(p, m.cells, "hexahedron")
-    tets = np.concatenate([m.cells[:, list(t)] for t in HEX_TO_TETS])
-    q = p[tets]
-    vol = np.einsum("ij,ij->i", np.cross(q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]), q[:, 3] - q[:, 0])
-    tets[vol < 0] = tets[vol < 0][:, [0, 2, 1, 3]]
-    return Mesh(p, tets, "tetra")
+    return tetrahedra_of(Mesh(p, m.cells, "hexahedron"))
 
 
 #: Two CPE4 elements with the four surface spellings of Abaqus (S1-S4)

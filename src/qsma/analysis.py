@@ -42,8 +42,8 @@ from .options import RunOptions
 from .model.bolt import bolt_functionals, with_bolt_loads
 from .pretension import lock
 from .rigid import ANCHOR_ROUNDS, anchored, elastic_probe, held_by_joint, support_share
-from .result import (FAILURE_FLAGS, LEVEL_FIELDS, DirectLoop, LevelStates,  # noqa: F401
-                     QSMAResult, load_factors as _load_factors)
+from .result import (FAILURE_FIXES, FAILURE_FLAGS, LEVEL_FIELDS,  # noqa: F401
+                     DirectLoop, LevelStates, QSMAResult, load_factors as _load_factors)
 
 log = logging.getLogger("qsma")
 
@@ -558,7 +558,7 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
                          2 * np.pi * hyst["f_hz_masing"])
         flags = _flags(al, q, tip, hyst, omega0, opts)
         _settle_dissipation(hyst, flags, al, q)
-        success, message = _outcome(pos, flags, opts)
+        success, message = _outcome(pos, flags, hyst["loops"])
 
     loop = None
     if opts.direct_loop and n_ok:
@@ -1118,23 +1118,22 @@ def _flags(alpha, q, tip, hyst, omega0, opts):
     return tuple(out)
 
 
-def _outcome(pos, flags, opts):
-    """``(success, message)`` of the run from the ramp and the level flags."""
-    bad = [k for k, f in enumerate(flags) if set(f) & set(FAILURE_FLAGS)]
-    parts = []
-    if not pos.success:
-        parts.append(pos.message)
-    if bad:
-        names = sorted({x for k in bad for x in flags[k] if x in FAILURE_FLAGS})
-        parts.append(f"{len(bad)} level(s) hold values the physics forbids "
-                     f"({', '.join(names)}): levels {bad[:12]}"
-                     f"{' ...' if len(bad) > 12 else ''}; see 'flags' in the results"
-                     + ("; dissipation='loop' computes the true loops"
-                        if opts.dissipation == "masing" else "")
-                     + ("; stuck_not_linear: the modal response of these levels is below "
-                        "the numerical resolution of the preload state (about 1e-9 of the "
-                        "preload displacements): raise the smallest load level, or check "
-                        "the units of the bolt load" if "stuck_not_linear" in names else ""))
+def _outcome(pos, flags, loops=None):
+    """``(success, message)`` of the run from the ramp and the level flags: per failure
+    flag its levels and what to change (:data:`qsma.result.FAILURE_FIXES`), with the
+    message of the first loop that failed or did not stabilise (``loops``: level ->
+    :class:`qsma.hysteresis.Loop`)."""
+    parts = [] if pos.success else [pos.message]
+    for name in FAILURE_FLAGS:
+        ks = [k for k, f in enumerate(flags) if name in f]
+        if not ks:
+            continue
+        text = (f"{name} at level(s) {ks[:12]}{' ...' if len(ks) > 12 else ''}: "
+                f"{FAILURE_FIXES[name]}")
+        lp = (loops or {}).get(ks[0])
+        if name in ("loop_failed", "loop_not_stabilised") and lp is not None:
+            text += f" (level {ks[0]}: {lp.message})"
+        parts.append(text)
     if not parts:
         return True, "all levels converged"
     return False, "; ".join(parts)

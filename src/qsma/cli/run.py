@@ -154,16 +154,12 @@ def parse_levels_spec(spec: str):
 
 
 def _warn_flags(res):
-    """Name the levels whose values the physics forbids, and the hardening ones."""
-    from ..result import FAILURE_FLAGS
+    """Notes on the levels whose information flags a reader should know (the failure
+    flags, with what to change, are in the run's message)."""
     by_flag = {}
     for k, flags in enumerate(res.flags):
         for f in flags:
             by_flag.setdefault(f, []).append(k)
-    for f, ks in sorted(by_flag.items()):
-        if f in FAILURE_FLAGS:
-            print(f"qsma: warning: {f} at level(s) {ks[:12]}{' ...' if len(ks) > 12 else ''}",
-                  file=sys.stderr)
     if "shakedown" in by_flag:
         ks = by_flag["shakedown"]
         print(f"qsma: note: the first loading (or first cycle) slipped where the settled "
