@@ -57,12 +57,19 @@ def test_two_plates_from_one_file_give_the_sandwich_answers(ext, tmp_path):
     (tmp_path / "c.toml").write_text(toml)
     model = load_config(tmp_path / "c.toml").model
     for b, r in zip(model.bodies, ref.bodies):
-        assert np.array_equal(b.mesh.points, r.mesh.points)
+        # .inp coordinates fit CalculiX's 20-character fields: 0.0025399999999999997 is
+        # written as 0.00254, one unit in the last place away (docs/mesh-io.md)
+        np.testing.assert_allclose(b.mesh.points, r.mesh.points, rtol=5e-14, atol=0)
+        assert ext == "inp" or np.array_equal(b.mesh.points, r.mesh.points)
         assert np.array_equal(b.mesh.cells, r.mesh.cells)
         assert set(b.mesh.cell_sets) == {b.name}       # the other body's set is left out
     a, b = qsma.run(model, levels=LEVELS), qsma.run(ref, levels=LEVELS)
-    assert a.success and a.f0_hz == pytest.approx(b.f0_hz, rel=1e-12)
-    assert np.allclose(a.q, b.q, rtol=1e-10) and np.allclose(a.zeta, b.zeta, atol=1e-12)
+    # the same arithmetic from a .msh; from an .inp, coordinates moved by up to 5e-14
+    # and the eigensolver converged from another start (relative 1e-10 seen on f0)
+    rtol = 1e-12 if ext == "msh" else 1e-8
+    assert a.success and a.f0_hz == pytest.approx(b.f0_hz, rel=rtol)
+    assert np.allclose(a.q, b.q, rtol=max(rtol, 1e-10))
+    assert np.allclose(a.zeta, b.zeta, rtol=rtol, atol=1e-12)
 
 
 def _conforming_inp(path, nx=8, ny=2, L=0.1, h=0.01):

@@ -19,7 +19,7 @@ from ..mesh import CELL_FACETS, CELL_TYPES, Mesh, facet_index
 from ..validate import HIGHER_NODES
 from .common import (_MAX_ID, _N_NODES, _TOPO_DIM, _boundary_of_sets,
                      _cell_type_of, _check_names, _ContactPair, _Elements, _FileMesh,
-                     _IdLookup, _line_of, _number, _read_bytes, _to_mesh)
+                     _IdLookup, _line_of, _read_bytes, _to_mesh)
 
 #: Abaqus face numbering: face ``S<k>`` of an element is ``ABAQUS_FACES[type][k - 1]``
 #: (0-based local nodes), from the Abaqus element library ("face 1: 1-2-3-4,
@@ -74,6 +74,14 @@ def _abaqus_faces(cell_type: str) -> list:
     nc = CELL_TYPES[linear][1]
     return [tuple(face) + tuple(nc + i for i, g in enumerate(groups) if set(g) <= set(face))
             for face in ABAQUS_FACES[linear]]
+
+#: Characters of a coordinate field that CalculiX reads: its *NODE reader takes the first
+#: 20 characters of a field (Fortran ``f20.0``), so a longer field is cut short without a
+#: message and a field of 22 characters or more stops it ("*ERROR reading *NODE").
+CALCULIX_FIELD = 20
+#: Entries per data line that CalculiX reads (its line splitter stops at 16): an element
+#: row of more nodes continues on the next line after a trailing comma.
+CALCULIX_ENTRIES = 16
 
 #: most ids one GENERATE row may produce
 _MAX_GENERATED = 10**8
@@ -771,6 +779,29 @@ def _abaqus_write_type(mesh: Mesh) -> str:
     return name
 
 
+def _inp_number(x: float) -> str:
+    """``x`` in at most :data:`CALCULIX_FIELD` characters: the shortest text that reads
+    back as the same double where it fits, else the most significant digits that fit
+    (13 or more: a relative change below 5e-14)."""
+    text, digits = repr(float(x)), 17
+    while len(text) > CALCULIX_FIELD:
+        digits -= 1
+        text = f"{float(x):.{digits}g}"
+    return text
+
+
+def _element_lines(ids: np.ndarray, cells: np.ndarray) -> list:
+    """``id, node, node, ...`` rows, 1-based; a row of more than
+    :data:`CALCULIX_ENTRIES` entries goes on over several lines, each but the last
+    ending with a comma."""
+    rows = np.column_stack([ids, cells + 1]).tolist()
+    if len(rows[0]) <= CALCULIX_ENTRIES:
+        return [", ".join(map(str, r)) for r in rows]
+    return [", ".join(map(str, r[k:k + CALCULIX_ENTRIES]))
+            + ("," if k + CALCULIX_ENTRIES < len(r) else "")
+            for r in rows for k in range(0, len(r), CALCULIX_ENTRIES)]
+
+
 def _format_abaqus(mesh: Mesh, _version=None) -> str:
     """Abaqus/CalculiX input: *NODE, *ELEMENT, *NSET, *ELSET and one *SURFACE per facet
     set, whose faces are listed through internal element sets ``_<set>_S<k>``."""
@@ -790,11 +821,10 @@ def _format_abaqus(mesh: Mesh, _version=None) -> str:
     out = ["*HEADING", f"qsma mesh: {mesh.n_nodes} nodes, {len(mesh.cells)} {etype} elements",
            "** written by qsma.model.io.write_mesh; facet sets are *SURFACE definitions over",
            "** the internal element sets _<set>_S<face> (Abaqus face numbering)", "*NODE"]
-    out += [", ".join([str(i)] + [_number(v) for v in p])
+    out += [", ".join([str(i)] + [_inp_number(v) for v in p])
             for i, p in enumerate(mesh.points.tolist(), 1)]
     out.append(f"*ELEMENT, TYPE={etype}")
-    out += [", ".join(map(str, r)) for r in
-            np.column_stack([np.arange(1, len(mesh.cells) + 1), mesh.cells + 1]).tolist()]
+    out += _element_lines(np.arange(1, len(mesh.cells) + 1), mesh.cells)
     for name, idx in mesh.node_sets.items():
         out += [f"*NSET, NSET={_inp_name(name)}", *_id_lines(idx)]
     for name, idx in mesh.cell_sets.items():
