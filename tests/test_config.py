@@ -48,7 +48,13 @@ def test_config_run_equals_example_run():
 
 @pytest.mark.parametrize("mutate, match", [
     (lambda c: c["interface"].pop("mu"), "missing required key 'mu'"),
-    (lambda c: c["interface"].update(muu=0.6), "unknown key 'muu'.*allowed keys"),
+    (lambda c: c["interface"].update(muu=0.6),
+     r"unknown key 'muu' \(did you mean 'mu'\?\); allowed keys"),
+    (lambda c: c.update(method="basket"), r"unknown key 'method' \(it belongs in \[analysis\]\)"),
+    (lambda c: c["tip"].update(mu=0.3), r"'mu' \(it belongs in \[interface\] or \[\[interfaces\]\]\)"),
+    (lambda c: c.update(bolts=[{"name": "b"}]), r"unknown key 'bolts' \(bolts are not read"),
+    (lambda c: c["bodies"][0]["pressures"][0].update(set="tip"),
+     r"pressure on 'tip', which is a node set.*\*CLOAD.*\*SURFACE, TYPE=ELEMENT.*facet sets: \["),
     (lambda c: c["bodies"][0].update(E="steel"), "key 'E' must be a number"),
     (lambda c: c["analysis"].update(mode=1.5), "mode must be an integer"),
     (lambda c: c["levels"].update(spacing="cubic"), "spacing must be"),

@@ -11,7 +11,7 @@ try:
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
-from .errors import InputError
+from .errors import InputError, MeshFileError
 from .levels import Levels, spec_levels
 from .options import RunOptions
 from .model import Body, Clamp, Interface, Material, Model, Pressure, Probe, Spring
@@ -41,6 +41,32 @@ SCHEMA = {
 }
 
 
+#: How each table is written in a file, for the messages.
+_TABLE_NAMES = {"": "the top level", "bodies": "[[bodies]]", "clamps": "a body's clamps",
+                "springs": "a body's springs", "pressures": "a body's pressures",
+                "interface": "[interface]", "interfaces": "[[interfaces]]", "tip": "[tip]",
+                "levels": "[levels]", "analysis": "[analysis]"}
+#: Keys that qsma does not read from a file, with what to do instead.
+_KEY_HINTS = {
+    ("", "bolts"): "bolts are not read from a configuration file yet: build the model in "
+                   "Python with qsma.model.Bolt (docs/theory.md section 11), or load the "
+                   "bolt as a pressure on its washer facet sets",
+}
+
+
+def _key_hint(key, section) -> str:
+    """`` (...)``: where an unknown key belongs, or the nearest allowed key."""
+    import difflib
+    if (section, key) in _KEY_HINTS:
+        return f" ({_KEY_HINTS[section, key]})"
+    tables = dict(SCHEMA, analysis=RunOptions.table_keys())
+    owners = [_TABLE_NAMES[t] for t, keys in tables.items() if key in keys and t != section]
+    if owners:
+        return f" (it belongs in {' or '.join(owners)})"
+    close = difflib.get_close_matches(key, SCHEMA[section], n=1)
+    return f" (did you mean {close[0]!r}?)" if close else ""
+
+
 @dataclass(frozen=True)
 class RunConfig:
     """A model and the options of :func:`qsma.run` (the ``[analysis]`` table is
@@ -56,7 +82,8 @@ def _check(table, section, where):
     schema = SCHEMA[section]
     for key in table:
         if key not in schema:
-            raise InputError(f"{where}: unknown key {key!r}; allowed keys: {sorted(schema)}")
+            raise InputError(f"{where}: unknown key {key!r}{_key_hint(key, section)}; "
+                             f"allowed keys: {sorted(schema)}")
     for key, (types, required) in schema.items():
         if key not in table:
             if required:
@@ -116,13 +143,54 @@ def _interface(t, with_mu=True) -> Interface:
 def _body_mesh(path, cells, files):
     """The mesh of a body: the whole file, or its cell set ``cells`` (one file read once
     for all the bodies taken from it)."""
-    from .model.io import read_mesh, read_assembly
+    from .model.io import read_mesh
     if cells is None:
-        return read_mesh(path)
+        try:
+            return read_mesh(path)
+        except MeshFileError as exc:
+            sets = _cell_sets(path, files)
+            if len(sets) < 2:
+                raise
+            raise MeshFileError(f"{path} holds {len(sets)} cell sets {sets} and was read as "
+                                f"one body without 'cells': if it holds several bodies, "
+                                f"name this body's cell set in its [[bodies]] table, e.g. "
+                                f"cells = {sets[0]!r}. Reading it whole gave: {exc}") from exc
+    return _assembly(path, files).body_mesh(cells)
+
+
+def _assembly(path, files):
+    """The :class:`qsma.model.io.Assembly` of ``path``, read once per configuration."""
+    from .model.io import read_assembly
     key = str(path)
     if key not in files:
         files[key] = read_assembly(path)
-    return files[key].body_mesh(cells)
+    return files[key]
+
+
+def _cell_sets(path, files) -> list:
+    """The cell sets of a mesh file (empty if it cannot be read as an assembly)."""
+    try:
+        return _assembly(path, files).cell_sets
+    except InputError:
+        return []
+
+
+def _check_whole_files(tables, base, files, where):
+    """Two bodies reading one file whole (no ``cells``) would be the same mesh twice:
+    point to ``cells``."""
+    whole = {}
+    for k, b in enumerate(tables):
+        if "cells" not in b:
+            whole.setdefault(str(base / b["mesh"]), []).append(b["name"])
+    for path, names in whole.items():
+        if len(names) > 1:
+            sets = _cell_sets(Path(path), files)
+            example = f"e.g. cells = {sets[0]!r}; cell sets of the file: {sets}" if sets \
+                else "the file names no cell set: give each body its own mesh file"
+            raise InputError(f"{where}: bodies {names} all read {path} whole (no 'cells'), "
+                             f"so each would be the whole mesh; take each body out of the "
+                             f"file by its cell set with 'cells' in its [[bodies]] table "
+                             f"({example})")
 
 
 def parse_config(data, base=Path("."), where="config") -> RunConfig:
@@ -162,8 +230,13 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
     bodies = []
     files = {}
     for k, b in enumerate(data["bodies"]):
+        _check(b, "bodies", f"{where}: bodies[{k}]")
+        if "\x00" in b["mesh"] or not b["mesh"].strip():
+            raise InputError(f"{where}: bodies[{k}]: mesh path {b['mesh']!r} is empty or "
+                             f"contains a NUL character; give the mesh file name")
+    _check_whole_files(data["bodies"], base, files, where)
+    for k, b in enumerate(data["bodies"]):
         w = f"{where}: bodies[{k}]"
-        _check(b, "bodies", w)
         clamps = tuple(Clamp(c["set"], tuple(c["components"]) if "components" in c else None)
                        for c in (_check(c, "clamps", f"{w}.clamps") for c in
                                  b.get("clamps", [])))
@@ -171,9 +244,6 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
                           for p in (_check(p, "pressures", f"{w}.pressures") for p in
                                     b.get("pressures", [])))
         spring_tables = [_check(t, "springs", f"{w}.springs") for t in b.get("springs", [])]
-        if "\x00" in b["mesh"] or not b["mesh"].strip():
-            raise InputError(f"{w}: mesh path {b['mesh']!r} is empty or contains a NUL "
-                             f"character; give the mesh file name")
         try:
             mat = Material(b["E"], b["nu"], b["rho"])
             springs = tuple(Spring(t["set"], tuple(t["stiffness"])) for t in spring_tables)

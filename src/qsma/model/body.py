@@ -8,7 +8,7 @@ import warnings
 import numpy as np
 
 from ..errors import InputError, NearlyIncompressibleWarning
-from .mesh import Mesh
+from .mesh import CELL_FACETS, Mesh
 
 #: Poisson's ratio above which the displacement elements of qsma lock. Measured with
 #: linear_modes on sandwich-2d, f0 at refine 1 against refine 4: the discretisation
@@ -116,9 +116,8 @@ class Body:
                                  f"{c.components!r}")
         for p in self.pressures:
             if p.set not in self.mesh.facet_sets:
-                raise InputError(f"body {self.name!r}: pressure on unknown facet set "
-                                 f"{p.set!r}; available facet sets: "
-                                 f"{sorted(self.mesh.facet_sets)}")
+                raise InputError(f"body {self.name!r}: pressure on {p.set!r}, "
+                                 f"{_not_a_facet_set(self.mesh, p.set)}")
 
     @property
     def dim(self):
@@ -139,6 +138,21 @@ class Body:
 
     def load_names(self):
         return sorted({p.load for p in self.pressures})
+
+
+def _not_a_facet_set(mesh, name) -> str:
+    """Why ``name`` cannot carry a pressure and what to name instead."""
+    facets = f"available facet sets: {sorted(mesh.facet_sets)}"
+    faces = ("a facet set: in an .inp file a *SURFACE, TYPE=ELEMENT of the loaded faces "
+             f"(rows 'element set, S1'..'S{len(CELL_FACETS[mesh.cell_type])}'), in a Gmsh "
+             f"file a physical group of dimension {mesh.dim - 1}")
+    if name in mesh.cell_sets:
+        return (f"which is a cell set (elements, e.g. the set of an Abaqus *DLOAD), not a "
+                f"facet set: a pressure acts on element faces. Name {faces}; {facets}")
+    if name in mesh.node_sets:
+        return (f"which is a node set, not a facet set: a pressure acts on element faces "
+                f"and qsma has no loads on nodes (an Abaqus *CLOAD). Name {faces}; {facets}")
+    return f"an unknown facet set; {facets}"
 
 
 @dataclass(frozen=True)
