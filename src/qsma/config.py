@@ -14,20 +14,26 @@ except ModuleNotFoundError:  # Python 3.10
 from .errors import InputError, MeshFileError
 from .levels import Levels, spec_levels
 from .options import RunOptions
-from .model import Body, Clamp, Interface, Material, Model, Pressure, Probe, Spring
+from .model import (Body, Bolt, Clamp, Interface, Material, Model, PointMass, Pressure,
+                    Probe, Spring)
 
 _NUM = (int, float)
 # section -> {key: (types, required)}
 SCHEMA = {
     "": {"name": (str, False), "bodies": (list, True), "interface": (dict, False),
-         "interfaces": (list, False),
+         "interfaces": (list, False), "bolts": (list, False),
          "tip": (dict, True), "analysis": (dict, False), "levels": (dict, False)},
     "bodies": {"name": (str, True), "mesh": (str, True), "cells": (str, False),
                "E": (_NUM, True),
                "nu": (_NUM, True), "rho": (_NUM, True), "clamps": (list, False),
-               "pressures": (list, False), "springs": (list, False)},
-    "clamps": {"set": (str, True), "components": (list, False)},
+               "pressures": (list, False), "springs": (list, False),
+               "masses": (list, False)},
+    "clamps": {"set": (str, True), "components": (list, False), "dofs": (list, False)},
     "springs": {"set": (str, True), "stiffness": (list, True)},
+    "masses": {"set": (str, True), "mass": (_NUM, True)},
+    "bolts": {"name": (str, True), "body_a": (str, True), "set_a": (str, True),
+              "body_b": (str, True), "set_b": (str, True), "pretension": (_NUM, True),
+              "stiffness": (_NUM, True)},
     "pressures": {"set": (str, True), "p": (_NUM, True), "load": (str, False)},
     "interface": {"body1": (str, True), "set1": (str, True), "body2": (str, True),
                   "set2": (str, True), "mu": (_NUM, True), "tol": (_NUM, False),
@@ -44,22 +50,15 @@ SCHEMA = {
 #: How each table is written in a file, for the messages.
 _TABLE_NAMES = {"": "the top level", "bodies": "[[bodies]]", "clamps": "a body's clamps",
                 "springs": "a body's springs", "pressures": "a body's pressures",
+                "masses": "a body's masses", "bolts": "[[bolts]]",
                 "interface": "[interface]", "interfaces": "[[interfaces]]", "tip": "[tip]",
                 "levels": "[levels]", "analysis": "[analysis]"}
-#: Keys that qsma does not read from a file, with what to do instead.
-_KEY_HINTS = {
-    ("", "bolts"): "bolts are not read from a configuration file yet: build the model in "
-                   "Python with qsma.model.Bolt (docs/theory.md section 11), or load the "
-                   "bolt as a pressure on its washer facet sets",
-}
 
 
 def _key_hint(key, section) -> str:
     """`` (...)``: where an unknown key belongs, or the nearest allowed key."""
     import difflib
-    if (section, key) in _KEY_HINTS:
-        return f" ({_KEY_HINTS[section, key]})"
-    tables = dict(SCHEMA, analysis=RunOptions.table_keys())
+    tables = dict(SCHEMA, analysis=dict(RunOptions.table_keys(), modes=list))
     owners = [_TABLE_NAMES[t] for t, keys in tables.items() if key in keys and t != section]
     if owners:
         return f" (it belongs in {' or '.join(owners)})"
@@ -70,10 +69,13 @@ def _key_hint(key, section) -> str:
 @dataclass(frozen=True)
 class RunConfig:
     """A model and the options of :func:`qsma.run` (the ``[analysis]`` table is
-    :class:`qsma.options.RunOptions`, its keys are that class's fields)."""
+    :class:`qsma.options.RunOptions`, its keys are that class's fields, and ``modes``:
+    several modes, one backbone each, as ``qsma run --modes``; ``None``: one run of
+    ``options.mode``)."""
 
     model: Model
     options: RunOptions
+    modes: tuple | None = None
 
 
 def _check(table, section, where):
@@ -237,9 +239,11 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
     _check_whole_files(data["bodies"], base, files, where)
     for k, b in enumerate(data["bodies"]):
         w = f"{where}: bodies[{k}]"
-        clamps = tuple(Clamp(c["set"], tuple(c["components"]) if "components" in c else None)
-                       for c in (_check(c, "clamps", f"{w}.clamps") for c in
-                                 b.get("clamps", [])))
+        clamps = tuple(_clamp(_check(c, "clamps", f"{w}.clamps"), f"{w}.clamps")
+                       for c in b.get("clamps", []))
+        masses = tuple(PointMass(t["set"], t["mass"])
+                       for t in (_check(t, "masses", f"{w}.masses") for t in
+                                 b.get("masses", [])))
         pressures = tuple(Pressure(p["set"], p["p"], p.get("load", "preload"))
                           for p in (_check(p, "pressures", f"{w}.pressures") for p in
                                     b.get("pressures", [])))
@@ -248,7 +252,7 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
             mat = Material(b["E"], b["nu"], b["rho"])
             springs = tuple(Spring(t["set"], tuple(t["stiffness"])) for t in spring_tables)
             mesh = _body_mesh(base / b["mesh"], b.get("cells"), files)
-            bodies.append(Body(b["name"], mesh, mat, clamps, pressures, springs))
+            bodies.append(Body(b["name"], mesh, mat, clamps, pressures, springs, masses))
         except InputError as exc:
             raise InputError(f"{w} ({b['name']!r}): {exc}") from exc
     tip = _check(data["tip"], "tip", f"{where}: tip")
@@ -262,10 +266,12 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
         raise InputError(f"{where}: give the contact interface as one [interface] table "
                          f"(two bodies) or as a list of [[interfaces]] tables (any number "
                          f"of bodies), exactly one of the two")
+    bolts = tuple(Bolt(**_check(t, "bolts", f"{where}: bolts[{k}]"))
+                  for k, t in enumerate(data.get("bolts", [])))
     if "interface" in data:
         itf = _check(data["interface"], "interface", f"{where}: interface")
         model = Model(bodies=tuple(bodies), interface=_interface(itf, with_mu=False),
-                      tip=probe, mu=itf["mu"], name=name)
+                      tip=probe, mu=itf["mu"], name=name, bolts=bolts)
     else:
         if not data["interfaces"]:
             raise InputError(f"{where}: interfaces is empty; list the touching facet sets "
@@ -273,10 +279,60 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
         itfs = tuple(_interface(_check(t, "interfaces", f"{where}: interfaces[{k}]"))
                      for k, t in enumerate(data["interfaces"]))
         model = Model(bodies=tuple(bodies), interfaces=itfs, tip=probe, mu=itfs[0].mu,
-                      name=name)
-    options = RunOptions.from_table(data.get("analysis", {}), f"{where}: analysis",
+                      name=name, bolts=bolts)
+    analysis = dict(data.get("analysis", {})) if isinstance(data.get("analysis"), dict) \
+        else data.get("analysis", {})
+    modes = _modes(analysis, f"{where}: analysis")
+    options = RunOptions.from_table(analysis, f"{where}: analysis",
                                     levels=parse_levels(data.get("levels"), f"{where}: levels"))
-    return RunConfig(model, options)
+    return RunConfig(model, options, modes)
+
+
+def config_modes(path) -> tuple | None:
+    """The ``modes`` of a configuration file's ``[analysis]`` table (None if it gives
+    none), read without its meshes: the command line chooses one run or several before
+    it loads the model."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(decode_toml(path.read_bytes(), str(path)))
+    except (OSError, tomllib.TOMLDecodeError):
+        return None                    # load_config names the problem
+    analysis = data.get("analysis")
+    return _modes(dict(analysis), f"{path}: analysis") if isinstance(analysis, dict) else None
+
+
+def _clamp(table, where) -> Clamp:
+    """A clamp from its table: ``components`` counts from 0 (0 = x), ``dofs`` from 1 as
+    Abaqus and CalculiX do (1 = x); neither: every direction."""
+    if "components" in table and "dofs" in table:
+        raise InputError(f"{where}: give either components (0 = x, 1 = y, 2 = z) or dofs "
+                         f"(1 = x, 2 = y, 3 = z, as in Abaqus), not both")
+    if "dofs" in table:
+        dofs = table["dofs"]
+        if not dofs or not all(isinstance(d, int) and not isinstance(d, bool) and 1 <= d <= 3
+                               for d in dofs):
+            raise InputError(f"{where}: dofs must be a list of degrees of freedom 1, 2 or 3 "
+                             f"(1 = x, 2 = y, 3 = z, counted from 1 as in Abaqus and "
+                             f"CalculiX), got {dofs!r}")
+        return Clamp(table["set"], tuple(d - 1 for d in dofs))
+    return Clamp(table["set"], tuple(table["components"]) if "components" in table else None)
+
+
+def _modes(analysis, where):
+    """``modes`` of the ``[analysis]`` table, taken out of it (distinct integers >= 0),
+    or None."""
+    if not isinstance(analysis, dict) or "modes" not in analysis:
+        return None
+    modes = analysis.pop("modes")
+    if not (isinstance(modes, list) and modes and len(set(modes)) == len(modes)
+            and all(isinstance(k, int) and not isinstance(k, bool) and k >= 0
+                    for k in modes)):
+        raise InputError(f"{where}: modes must be a list of distinct mode indices >= 0 "
+                         f"(0 = lowest), e.g. modes = [0, 1, 2]; got {modes!r}")
+    if "mode" in analysis:
+        raise InputError(f"{where}: give either mode = K (one mode) or modes = [K1, K2, ...] "
+                         f"(one backbone each), not both")
+    return tuple(modes)
 
 
 def parse_levels(table, where="levels") -> Levels:

@@ -53,6 +53,11 @@ def add_arguments(p):
 
 def execute(args) -> int:
     from ..rundir import RunFolder
+    if args.modes is None and args.mode is None and args.config is not None:
+        from ..config import config_modes
+        modes = config_modes(args.config)          # [analysis] modes = [...]
+        if modes is not None:
+            args.modes = ",".join(map(str, modes))
     if args.modes is not None:
         from .modes import execute_modes
         return execute_modes(args)

@@ -124,6 +124,9 @@ def assemble_body(body: Body) -> AssembledBody:
         from ..model.spring import spring_matrix
         K = (K + spring_matrix(body)).tocsr()
     M = mass_matrix(body)
+    if body.masses:                         # point masses (qsma.model.mass)
+        from ..model.mass import point_mass_matrix
+        M = (M + point_mass_matrix(body)).tocsr()
     loads = {name: body_load(body, name) for name in body.load_names()}
     fixed = body.clamped_dofs()
     free = np.setdiff1d(np.arange(body.n_dofs), fixed)

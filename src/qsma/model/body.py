@@ -87,8 +87,9 @@ class Pressure:
 
 @dataclass(frozen=True, eq=False)
 class Body:
-    """One elastic body: mesh, material, clamps, pressure loads and grounded springs
-    (:class:`qsma.model.spring.Spring`)."""
+    """One elastic body: mesh, material, clamps, pressure loads, grounded springs
+    (:class:`qsma.model.spring.Spring`) and point masses
+    (:class:`qsma.model.mass.PointMass`)."""
 
     name: str
     mesh: Mesh
@@ -96,13 +97,15 @@ class Body:
     clamps: tuple = ()
     pressures: tuple = ()
     springs: tuple = ()
+    masses: tuple = ()
 
     def __post_init__(self):
-        object.__setattr__(self, "clamps", tuple(self.clamps))
-        object.__setattr__(self, "pressures", tuple(self.pressures))
-        object.__setattr__(self, "springs", tuple(self.springs))
+        for name in ("clamps", "pressures", "springs", "masses"):
+            object.__setattr__(self, name, tuple(getattr(self, name)))
         from .spring import check_springs
+        from .mass import check_masses
         check_springs(self)
+        check_masses(self)
         names = self.mesh.set_names()
         for c in self.clamps:
             if c.set not in names:

@@ -518,6 +518,8 @@ def _fingerprint(model, options) -> str:
                        b.pressures)).encode())
         if b.springs:                           # (absent: the bytes of earlier versions)
             h.update(repr(b.springs).encode())
+        if b.masses:
+            h.update(repr(b.masses).encode())
         for c in b.mesh.extra_blocks:           # mixed meshes: the other cell blocks
             h.update(np.ascontiguousarray(c.cells).tobytes())
             h.update(repr((c.cell_type, c.element)).encode())
