@@ -6,6 +6,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 try:
     import tomllib
 except ModuleNotFoundError:  # Python 3.10
@@ -14,8 +16,8 @@ except ModuleNotFoundError:  # Python 3.10
 from .errors import InputError, MeshFileError
 from .levels import Levels, spec_levels
 from .options import RunOptions
-from .model import (Body, Bolt, Clamp, Interface, Material, Model, PointMass, Pressure,
-                    Probe, Spring)
+from .model import (Body, Bolt, Clamp, Interface, Material, Model, NodalForce, PointMass,
+                    Pressure, Probe, Spring)
 
 _NUM = (int, float)
 # section -> {key: (types, required)}
@@ -24,24 +26,26 @@ SCHEMA = {
          "interfaces": (list, False), "bolts": (list, False),
          "tip": (dict, True), "analysis": (dict, False), "levels": (dict, False)},
     "bodies": {"name": (str, True), "mesh": (str, True), "cells": (str, False),
-               "E": (_NUM, True),
+               "part": (int, False), "E": (_NUM, True),
                "nu": (_NUM, True), "rho": (_NUM, True), "clamps": (list, False),
                "pressures": (list, False), "springs": (list, False),
-               "masses": (list, False)},
+               "masses": (list, False), "forces": (list, False)},
     "clamps": {"set": (str, True), "components": (list, False), "dofs": (list, False)},
     "springs": {"set": (str, True), "stiffness": (list, True)},
     "masses": {"set": (str, True), "mass": (_NUM, True)},
     "bolts": {"name": (str, True), "body_a": (str, True), "set_a": (str, True),
               "body_b": (str, True), "set_b": (str, True), "pretension": (_NUM, True),
               "stiffness": (_NUM, True)},
-    "pressures": {"set": (str, True), "p": (_NUM, True), "load": (str, False)},
+    "pressures": {"set": (str, True), "p": (_NUM, True), "load": (str, False),
+                  "face": (int, False)},
+    "forces": {"set": (str, True), "force": (list, True), "load": (str, False)},
     "interface": {"body1": (str, True), "set1": (str, True), "body2": (str, True),
                   "set2": (str, True), "mu": (_NUM, True), "tol": (_NUM, False),
                   "coupling": (str, False), "slave": (str, False)},
     "interfaces": {"body1": (str, True), "set1": (str, True), "body2": (str, True),
                    "set2": (str, True), "mu": (_NUM, True), "tol": (_NUM, False),
                    "coupling": (str, False), "slave": (str, False)},
-    "tip": {"sets": (list, True), "direction": (list, True)},
+    "tip": {"sets": (list, False), "points": (list, False), "direction": (list, True)},
     "levels": {"kind": (str, True), "spacing": (str, True), "start": (_NUM, False),
                "stop": (_NUM, False), "n": (int, False), "values": (list, False)},
 }
@@ -51,6 +55,7 @@ SCHEMA = {
 _TABLE_NAMES = {"": "the top level", "bodies": "[[bodies]]", "clamps": "a body's clamps",
                 "springs": "a body's springs", "pressures": "a body's pressures",
                 "masses": "a body's masses", "bolts": "[[bolts]]",
+                "forces": "a body's forces",
                 "interface": "[interface]", "interfaces": "[[interfaces]]", "tip": "[tip]",
                 "levels": "[levels]", "analysis": "[analysis]"}
 
@@ -142,10 +147,20 @@ def _interface(t, with_mu=True) -> Interface:
                      mu=t["mu"] if with_mu else None)
 
 
-def _body_mesh(path, cells, files):
-    """The mesh of a body: the whole file, or its cell set ``cells`` (one file read once
-    for all the bodies taken from it)."""
+def _body_mesh(path, cells, files, part=None):
+    """The mesh of a body: the whole file, its cell set ``cells`` or its connected part
+    number ``part`` (from 1; one file read once for all the bodies taken from it)."""
     from .model.io import read_mesh
+    if part is not None:
+        if cells is not None:
+            raise InputError("give either cells (a cell set) or part (a connected part "
+                             "of the mesh), not both")
+        meshes = files.setdefault(("parts", str(path)),
+                                  _assembly(path, files).component_meshes())
+        if not 1 <= part <= len(meshes):
+            raise InputError(f"part = {part}: {path} has {len(meshes)} connected part(s) "
+                             f"(cells joined through shared nodes), numbered from 1")
+        return meshes[part - 1]
     if cells is None:
         try:
             return read_mesh(path)
@@ -182,7 +197,7 @@ def _check_whole_files(tables, base, files, where):
     point to ``cells``."""
     whole = {}
     for k, b in enumerate(tables):
-        if "cells" not in b:
+        if "cells" not in b and "part" not in b:
             whole.setdefault(str(base / b["mesh"]), []).append(b["name"])
     for path, names in whole.items():
         if len(names) > 1:
@@ -239,28 +254,23 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
     _check_whole_files(data["bodies"], base, files, where)
     for k, b in enumerate(data["bodies"]):
         w = f"{where}: bodies[{k}]"
-        clamps = tuple(_clamp(_check(c, "clamps", f"{w}.clamps"), f"{w}.clamps")
-                       for c in b.get("clamps", []))
-        masses = tuple(PointMass(t["set"], t["mass"])
-                       for t in (_check(t, "masses", f"{w}.masses") for t in
-                                 b.get("masses", [])))
-        pressures = tuple(Pressure(p["set"], p["p"], p.get("load", "preload"))
-                          for p in (_check(p, "pressures", f"{w}.pressures") for p in
-                                    b.get("pressures", [])))
-        spring_tables = [_check(t, "springs", f"{w}.springs") for t in b.get("springs", [])]
+        tables = {key: [_check(t, key, f"{w}.{key}") for t in b.get(key, [])]
+                  for key in ("clamps", "masses", "pressures", "springs", "forces")}
+        clamps = tuple(_clamp(c, f"{w}.clamps") for c in tables["clamps"])
         try:
             mat = Material(b["E"], b["nu"], b["rho"])
-            springs = tuple(Spring(t["set"], tuple(t["stiffness"])) for t in spring_tables)
-            mesh = _body_mesh(base / b["mesh"], b.get("cells"), files)
-            bodies.append(Body(b["name"], mesh, mat, clamps, pressures, springs, masses))
+            masses = tuple(PointMass(t["set"], t["mass"]) for t in tables["masses"])
+            springs = tuple(Spring(t["set"], tuple(t["stiffness"])) for t in tables["springs"])
+            forces = tuple(NodalForce(t["set"], tuple(t["force"]), t.get("load", "preload"))
+                           for t in tables["forces"])
+            mesh = _body_mesh(base / b["mesh"], b.get("cells"), files, b.get("part"))
+            mesh, pressures = _pressures(mesh, tables["pressures"])
+            bodies.append(Body(b["name"], mesh, mat, clamps, pressures, springs, masses,
+                               forces))
         except InputError as exc:
             raise InputError(f"{w} ({b['name']!r}): {exc}") from exc
     tip = _check(data["tip"], "tip", f"{where}: tip")
-    sets = tip["sets"]
-    if not all(isinstance(s, list) and len(s) == 2 and all(isinstance(x, str) for x in s)
-               for s in sets):
-        raise InputError(f"{where}: tip.sets must be a list of [body, set] pairs, got {sets!r}")
-    probe = Probe(tuple(tuple(s) for s in sets), tuple(tip["direction"]))
+    bodies, probe = _probe(tip, bodies, f"{where}: tip")
     name = data.get("name", "model")
     if ("interface" in data) == ("interfaces" in data):
         raise InputError(f"{where}: give the contact interface as one [interface] table "
@@ -299,6 +309,70 @@ def config_modes(path) -> tuple | None:
         return None                    # load_config names the problem
     analysis = data.get("analysis")
     return _modes(dict(analysis), f"{path}: analysis") if isinstance(analysis, dict) else None
+
+
+def _pressures(mesh, tables):
+    """``(mesh, pressures)``: a table with ``face = k`` loads face S<k> of the cells of
+    cell set ``set`` (an Abaqus ``*DLOAD, set, P<k>``), a facet set ``<set>:S<k>`` added
+    to the mesh for it."""
+    from .model.io.abaqus import element_face_facets
+    extra, pressures = {}, []
+    for t in tables:
+        name = t["set"]
+        if "face" in t:
+            name = f"{t['set']}:S{t['face']}"
+            extra[name] = element_face_facets(mesh, t["set"], t["face"])
+        pressures.append(Pressure(name, t["p"], t.get("load", "preload")))
+    return (mesh.with_sets(facet_sets=extra) if extra else mesh), tuple(pressures)
+
+
+def _probe(tip, bodies, where):
+    """``(bodies, Probe)`` from the ``[tip]`` table: ``sets`` of ``[body, set]`` pairs, or
+    ``points`` of ``[body, [x, y(, z)]]``, each the body's node nearest to the point (a
+    node set ``_tip`` is added to those bodies)."""
+    from dataclasses import replace
+    if ("sets" in tip) == ("points" in tip):
+        raise InputError(f"{where}: give either sets = [[body, set], ...] or points = "
+                         f"[[body, [x, y, z]], ...], exactly one of the two")
+    if "sets" in tip:
+        sets = tip["sets"]
+        if not all(isinstance(s, list) and len(s) == 2 and all(isinstance(x, str) for x in s)
+                   for s in sets):
+            raise InputError(f"{where}: tip.sets must be a list of [body, set] pairs, got "
+                             f"{sets!r}")
+        return bodies, Probe(tuple(tuple(s) for s in sets), tuple(tip["direction"]))
+    by_name = {b.name: b for b in bodies}
+    nodes = {}
+    for item in tip["points"]:
+        if not (isinstance(item, list) and len(item) == 2 and item[0] in by_name
+                and isinstance(item[1], list)
+                and len(item[1]) == by_name[item[0]].dim
+                and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                        for v in item[1])):
+            raise InputError(f"{where}: tip.points must be [body, [x, y(, z)]] pairs naming "
+                             f"bodies {sorted(by_name)}, got {item!r}")
+        nodes.setdefault(item[0], []).append(_nearest_node(by_name[item[0]], item[1], where))
+    bodies = [replace(b, mesh=b.mesh.with_sets(node_sets={"_tip": np.unique(nodes[b.name])}))
+              if b.name in nodes else b for b in bodies]
+    return bodies, Probe(tuple((name, "_tip") for name in nodes), tuple(tip["direction"]))
+
+
+#: A probe point farther than this fraction of its body's size from every node is a
+#: mistake (a typo, another unit), not a choice of node.
+POINT_TOLERANCE = 0.01
+
+
+def _nearest_node(body, point, where) -> int:
+    x = body.mesh.points
+    d = np.linalg.norm(x - np.asarray(point, float), axis=1)
+    k = int(np.argmin(d))
+    size = float(np.linalg.norm(x.max(axis=0) - x.min(axis=0)))
+    if d[k] > POINT_TOLERANCE * size:
+        raise InputError(f"{where}: point {point} is {d[k]:.4g} from the nearest node of body "
+                         f"{body.name!r} (at {x[k].tolist()}), more than "
+                         f"{POINT_TOLERANCE:g} of the body's size {size:.4g}: give a point "
+                         f"on the body")
+    return k
 
 
 def _clamp(table, where) -> Clamp:

@@ -223,11 +223,15 @@ def _facet_order(cell_type):
 
 
 def body_load(body: Body, name: str) -> np.ndarray:
-    """Sum of the pressure loads of pattern ``name``."""
+    """Sum of the pressure loads and nodal forces of pattern ``name``."""
     f = np.zeros(body.n_dofs)
     for pr in body.pressures:
         if pr.load == name:
             f += pressure_load(body, pr.set, pr.p)
+    for nf in body.forces:
+        if nf.load == name:
+            nodes = np.unique(body.mesh.nodes(nf.set))
+            f.reshape(-1, body.dim)[nodes] += np.asarray(nf.force)
     return f
 
 

@@ -1,9 +1,10 @@
 """Finite element models: meshes with named sets, bodies, materials, interfaces."""
 from .mesh import Mesh, boundary_facets, CELL_TYPES
-from .body import Material, Clamp, Pressure, Body, Probe, Model
+from .body import Material, Clamp, Pressure, NodalForce, Body, Probe, Model
 from .interface import Interface, Pairing, make_pairing, pair_nodes, local_frames
 
 __all__ = ["Mesh", "boundary_facets", "CELL_TYPES", "Material", "Clamp", "Pressure",
+           "NodalForce",
            "Body", "Probe", "Model", "Interface", "Pairing", "make_pairing", "pair_nodes",
            "local_frames"]
 

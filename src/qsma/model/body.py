@@ -85,11 +85,30 @@ class Pressure:
         object.__setattr__(self, "p", _finite(f"pressure on {self.set!r}", self.p))
 
 
+@dataclass(frozen=True)
+class NodalForce:
+    """Force ``force`` (N; N per metre of depth in 2D, one component per direction) on
+    every node of a node or facet set, as an Abaqus / CalculiX ``*CLOAD`` applies it;
+    part of the load pattern named ``load``."""
+
+    set: str
+    force: tuple
+    load: str = "preload"
+
+    def __post_init__(self):
+        f = self.force
+        if isinstance(f, (str, bytes)) or not hasattr(f, "__len__"):
+            raise InputError(f"force on {self.set!r}: force must be a list of one value "
+                             f"per direction (N), got {f!r}")
+        object.__setattr__(self, "force", tuple(_finite(f"force on {self.set!r}", v)
+                                                for v in f))
+
+
 @dataclass(frozen=True, eq=False)
 class Body:
     """One elastic body: mesh, material, clamps, pressure loads, grounded springs
-    (:class:`qsma.model.spring.Spring`) and point masses
-    (:class:`qsma.model.mass.PointMass`)."""
+    (:class:`qsma.model.spring.Spring`), point masses
+    (:class:`qsma.model.mass.PointMass`) and nodal forces (:class:`NodalForce`)."""
 
     name: str
     mesh: Mesh
@@ -98,9 +117,10 @@ class Body:
     pressures: tuple = ()
     springs: tuple = ()
     masses: tuple = ()
+    forces: tuple = ()
 
     def __post_init__(self):
-        for name in ("clamps", "pressures", "springs", "masses"):
+        for name in ("clamps", "pressures", "springs", "masses", "forces"):
             object.__setattr__(self, name, tuple(getattr(self, name)))
         from .spring import check_springs
         from .mass import check_masses
@@ -121,6 +141,13 @@ class Body:
             if p.set not in self.mesh.facet_sets:
                 raise InputError(f"body {self.name!r}: pressure on {p.set!r}, "
                                  f"{_not_a_facet_set(self.mesh, p.set)}")
+        for f in self.forces:
+            if f.set not in names:
+                raise InputError(f"body {self.name!r}: force on unknown set {f.set!r}; "
+                                 f"available sets: {names}")
+            if len(f.force) != self.mesh.dim:
+                raise InputError(f"body {self.name!r}: force on {f.set!r} needs "
+                                 f"{self.mesh.dim} components, got {list(f.force)!r}")
 
     @property
     def dim(self):
@@ -140,7 +167,7 @@ class Body:
             else np.zeros(0, dtype=np.int64)
 
     def load_names(self):
-        return sorted({p.load for p in self.pressures})
+        return sorted({p.load for p in self.pressures} | {f.load for f in self.forces})
 
 
 def _not_a_facet_set(mesh, name) -> str:
@@ -154,7 +181,8 @@ def _not_a_facet_set(mesh, name) -> str:
                 f"facet set: a pressure acts on element faces. Name {faces}; {facets}")
     if name in mesh.node_sets:
         return (f"which is a node set, not a facet set: a pressure acts on element faces "
-                f"and qsma has no loads on nodes (an Abaqus *CLOAD). Name {faces}; {facets}")
+                f"(loads on nodes, as an Abaqus *CLOAD, are forces: forces = [{{ set = "
+                f"{name!r}, force = [...] }}]). Name {faces}; {facets}")
     return f"an unknown facet set; {facets}"
 
 

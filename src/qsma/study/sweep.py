@@ -520,6 +520,8 @@ def _fingerprint(model, options) -> str:
             h.update(repr(b.springs).encode())
         if b.masses:
             h.update(repr(b.masses).encode())
+        if b.forces:
+            h.update(repr(b.forces).encode())
         for c in b.mesh.extra_blocks:           # mixed meshes: the other cell blocks
             h.update(np.ascontiguousarray(c.cells).tobytes())
             h.update(repr((c.cell_type, c.element)).encode())

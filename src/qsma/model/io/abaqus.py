@@ -83,6 +83,30 @@ CALCULIX_FIELD = 20
 #: row of more nodes continues on the next line after a trailing comma.
 CALCULIX_ENTRIES = 16
 
+def element_face_facets(mesh: Mesh, cell_set: str, face: int) -> np.ndarray:
+    """The facets (outward node rows) that are face ``S<face>`` (Abaqus numbering,
+    :data:`ABAQUS_FACES`) of the cells of ``cell_set``: what an Abaqus ``*DLOAD`` row
+    ``cell_set, P<face>, p`` loads. Every such face must be on the boundary."""
+    if mesh.is_mixed:
+        raise InputError(f"faces of cell set {cell_set!r}: a mesh of several cell types; "
+                         f"name the loaded faces as a *SURFACE instead")
+    faces = _abaqus_faces(mesh.cell_type)
+    if cell_set not in mesh.cell_sets:
+        raise InputError(f"no cell set named {cell_set!r} (an *ELSET of the cells); cell "
+                         f"sets: {sorted(mesh.cell_sets)}")
+    if not (isinstance(face, int) and 1 <= face <= len(faces)):
+        raise InputError(f"face {face!r} of cell set {cell_set!r}: {mesh.cell_type} cells "
+                         f"have faces 1..{len(faces)} (Abaqus S1..S{len(faces)})")
+    rows = mesh.cells[mesh.cell_sets[cell_set]][:, list(faces[face - 1])]
+    index = facet_index(mesh)
+    found = index.find(rows)
+    if (found < 0).any():
+        raise InputError(f"face S{face} of {int((found < 0).sum())} cell(s) of {cell_set!r} "
+                         f"is not on the boundary of the body (a pressure acts on its "
+                         f"surface): check the face number")
+    return index.rows[np.unique(found)]
+
+
 #: most ids one GENERATE row may produce
 _MAX_GENERATED = 10**8
 _BINARY_BYTES = re.compile(rb"[\x00-\x08\x0b\x0e-\x1f\x7f]")
@@ -271,6 +295,7 @@ class _InpReader:
         self.friction = {}          # interaction name (upper) -> mu
         self.interaction = None     # the *SURFACE INTERACTION being defined
         self.boundaries = []        # (node set or node id, first dof, last dof, where)
+        self.load_ids = {"NSET": set(), "ELSET": set()}   # ids a *CLOAD / *DLOAD names
 
     def skips(self, card: _Card) -> bool:
         """Definitions at assembly level (reference points, connectors) are not the mesh."""
@@ -323,6 +348,7 @@ class _InpReader:
                                          self.friction.get((inter or "").upper()), kind, where)
                             for slave, master, inter, kind, where in self.pairs]
         fm.boundaries = self._boundary_sets(fm, nodes, elsets, index)
+        self._load_id_sets(fm, nodes, elements)
         return fm, vtypes
 
     def _surface_name(self, name: str) -> str:
@@ -355,6 +381,19 @@ class _InpReader:
                     fm.node_sets[name] = [self._node_indices(s, nodes, elsets, index)]
             out.append((name, first, last))
         return out
+
+    def _load_id_sets(self, fm, nodes: _IdLookup, elements: _IdLookup):
+        """A node (element) that a *CLOAD (*DLOAD) row names by its id gets a node set
+        ``_N<id>`` (a cell set ``_E<id>``) of its own, so that a configuration can name
+        it (qsma.model.io.deck)."""
+        is_cell = np.concatenate([np.full(len(conn), bool(cell))
+                                  for _, _, conn, cell in fm.blocks])
+        for kind, lookup, sets, prefix in (("NSET", nodes, fm.node_sets, "_N"),
+                                           ("ELSET", elements, fm.element_sets, "_E")):
+            for ident in sorted(self.load_ids[kind]):
+                idx = lookup(np.array([ident]))
+                if idx[0] >= 0 and (kind == "NSET" or is_cell[idx[0]]):
+                    sets.setdefault(f"{prefix}{ident}", []).append(idx)
 
     def _element(self, vtype: str) -> str:
         """The one Abaqus element type (upper case) of the cells."""
@@ -720,6 +759,16 @@ def _inp_boundary(r: _InpReader, card: _Card):
             r.boundaries.append((tokens[0], first, last, where))
 
 
+def _inp_load_ids(kind: str):
+    """``*CLOAD`` (node) and ``*DLOAD`` (element) rows that name an id: remembered, the
+    rest of the load is read by :mod:`.deck`."""
+    def handler(r: _InpReader, card: _Card):
+        for _, tokens, _ in _rows(card):
+            if tokens and re.fullmatch(r"[+-]?\d{1,18}", tokens[0]):
+                r.load_ids[kind].add(int(tokens[0]))
+    return handler
+
+
 #: keyword -> handler; other keywords (materials, steps, loads, ...) are skipped
 _INP_KEYWORDS = {
     "NODE": _inp_node, "ELEMENT": _inp_element, "NSET": _inp_set("NSET"),
@@ -729,6 +778,7 @@ _INP_KEYWORDS = {
     "INSTANCE": _inp_scope("instance"), "END INSTANCE": _inp_scope("assembly"),
     "CONTACT PAIR": _inp_contact_pair, "SURFACE INTERACTION": _inp_interaction,
     "FRICTION": _inp_friction, "BOUNDARY": _inp_boundary,
+    "CLOAD": _inp_load_ids("NSET"), "DLOAD": _inp_load_ids("ELSET"),
 }
 
 
