@@ -4,11 +4,14 @@
 
 FOLDER holds ``.inp`` decks (the ``test/`` folder of the CalculiX source distribution;
 nothing is fetched here). Each deck with a ``*CONTACT PAIR`` is run as it is,
-``qsma run DECK --out TMP -q --no-plots --no-vtu``, in a process of its own, with what
-a deck run takes by default (the probe at the node of largest modal displacement, its
-deflection from 1e-6 to 1e-2 of the model's size). One line per deck: its outcome (ran,
-refused by the deck reader with its first reasons, an input error, a failed analysis,
-timeout) and the first line of the message; then the counts per outcome.
+``qsma run DECK --out TMP --density RHO -q --no-plots --no-vtu``, in a process of its
+own, with what a deck run takes by default (the probe at the node of largest modal
+displacement, its deflection from 1e-6 to 1e-2 of the model's size). Most test decks
+are static and give no ``*DENSITY``: ``--density`` gives steel's to the materials
+without one, 7.85e-9 (t/mm^3) where the first ``*ELASTIC`` modulus is below 1e7 (a
+deck in N and mm), else 7850 (kg/m^3). One line per deck: its outcome (ran, refused by
+the deck reader with its first reasons, an input error, a failed analysis, timeout)
+and the first line of the message; then the counts per outcome.
 """
 from __future__ import annotations
 
@@ -26,7 +29,7 @@ def outcome(deck: Path, timeout: float):
     """``(outcome, detail)`` of ``qsma run deck``."""
     with tempfile.TemporaryDirectory() as tmp:
         cmd = [sys.executable, "-m", "qsma", "run", str(deck), "--out", f"{tmp}/out", "-q",
-               "--no-plots", "--no-vtu"]
+               "--no-plots", "--no-vtu", "--density", str(steel_density(deck))]
         try:
             proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
         except subprocess.TimeoutExpired:
@@ -45,8 +48,15 @@ def outcome(deck: Path, timeout: float):
     return "failed", _short(first_error or proc.stderr.strip().splitlines()[-1])
 
 
+def steel_density(deck: Path) -> float:
+    """Steel's density in the deck's units, judged by its first *ELASTIC modulus."""
+    m = re.search(rb"^\*elastic[^\n]*\n\s*([-+.\deE]+)", deck.read_bytes(), re.I | re.M)
+    E = float(m.group(1)) if m else 2.1e5
+    return 7.85e-9 if E < 1e7 else 7850.0
+
+
 def _short(text: str) -> str:
-    text = re.sub(r"\S*/", "", text)                 # folders out of paths
+    text = re.sub(r"(?<!\S)/\S*/", "", text)      # folders out of absolute paths
     return re.sub(r"^\S+\.inp, line \d+: ", "", text)[:160]
 
 

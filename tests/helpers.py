@@ -117,3 +117,21 @@ def assert_same_solve_bits(a, b, rtol=1e-14):
         assert np.array_equal(a, b)
     else:
         assert np.abs(np.asarray(a) - np.asarray(b)).max() <= rtol * np.abs(a).max()
+
+
+def bodies_in_one_mesh(bodies) -> Mesh:
+    """The meshes of ``bodies`` as one mesh (nodes of each body kept apart), each body a
+    cell set of its name, each set ``<body>_<set>``."""
+    pts, cells, node_sets, facet_sets, cell_sets = [], [], {}, {}, {}
+    n = c = 0
+    for b in bodies:
+        m = b.mesh
+        pts.append(m.points)
+        cells.append(m.cells + n)
+        cell_sets[b.name] = np.arange(c, c + len(m.cells))
+        node_sets.update({f"{b.name}_{k}": v + n for k, v in m.node_sets.items()})
+        facet_sets.update({f"{b.name}_{k}": v + n for k, v in m.facet_sets.items()})
+        n += m.n_nodes
+        c += len(m.cells)
+    return Mesh(np.vstack(pts), np.vstack(cells), bodies[0].mesh.cell_type, node_sets,
+                facet_sets, cell_sets)

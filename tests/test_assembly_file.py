@@ -12,26 +12,14 @@ from qsma.fe import assemble_body
 from qsma.modal import linear_modes
 from qsma.model import Mesh, make_pairing, write_mesh
 from qsma.model.io import read_assembly
+from helpers import bodies_in_one_mesh
 
 LEVELS = qsma.Levels.log("tip", 1e-6, 1e-4, 4)
 
 
 def _one_file(bodies, path):
-    """Write the meshes of ``bodies`` as one mesh (nodes of each body kept apart), each
-    body a cell set of its name, each set ``<body>_<set>``."""
-    pts, cells, node_sets, facet_sets, cell_sets = [], [], {}, {}, {}
-    n = c = 0
-    for b in bodies:
-        m = b.mesh
-        pts.append(m.points)
-        cells.append(m.cells + n)
-        cell_sets[b.name] = np.arange(c, c + len(m.cells))
-        node_sets.update({f"{b.name}_{k}": v + n for k, v in m.node_sets.items()})
-        facet_sets.update({f"{b.name}_{k}": v + n for k, v in m.facet_sets.items()})
-        n += m.n_nodes
-        c += len(m.cells)
-    write_mesh(path, Mesh(np.vstack(pts), np.vstack(cells), bodies[0].mesh.cell_type,
-                          node_sets, facet_sets, cell_sets))
+    """Write the meshes of ``bodies`` as one mesh file (helpers.bodies_in_one_mesh)."""
+    write_mesh(path, bodies_in_one_mesh(bodies))
     return path
 
 

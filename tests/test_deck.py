@@ -14,8 +14,9 @@ from qsma.config import load_config, parse_config, tomllib
 from qsma.examples import sandwich_2d
 from qsma.fe import assemble_body
 from qsma.levels import Levels
-from qsma.model import Body, Mesh, write_mesh
-from qsma.model.io.deck import deck_toml, read_deck
+from qsma.model import write_mesh
+from qsma.model.io.deck import read_deck
+from helpers import bodies_in_one_mesh
 
 #: the sandwich-2d bolt pressure (Pa) and the lap deck's friction
 P_BOLT, MU = 17.554e6, 0.6
@@ -58,19 +59,7 @@ def lap_deck(path, sections=SECTIONS, loads=DSLOAD, extra=""):
     """sandwich-2d as a CalculiX deck: both beams in one file (nodes apart), steel, the
     joint's *CONTACT PAIR with *FRICTION, clamps by *BOUNDARY, the bolt pressure by
     *DSLOAD in a *STATIC step, then a *FREQUENCY step."""
-    pts, cells, node_sets, facet_sets, cell_sets = [], [], {}, {}, {}
-    n = c = 0
-    for b in sandwich_2d(1).bodies:
-        m = b.mesh
-        pts.append(m.points)
-        cells.append(m.cells + n)
-        cell_sets[b.name] = np.arange(c, c + len(m.cells))
-        node_sets.update({f"{b.name}_{k}": v + n for k, v in m.node_sets.items()})
-        facet_sets.update({f"{b.name}_{k}": v + n for k, v in m.facet_sets.items()})
-        n += m.n_nodes
-        c += len(m.cells)
-    write_mesh(path, Mesh(np.vstack(pts), np.vstack(cells), "quad", node_sets, facet_sets,
-                          cell_sets))
+    write_mesh(path, bodies_in_one_mesh(sandwich_2d(1).bodies))
     path.write_text(path.read_text() + extra + STEPS.format(sections=sections, loads=loads))
     return path
 
@@ -315,3 +304,27 @@ def test_part_is_checked(tmp_path):
     with pytest.raises(E, match=r"force on 'bottom_tip' must be finite"):
         parse_config(body(forces=[{"set": "bottom_tip", "force": [0.0, float("nan")]}]),
                      base=tmp_path)
+
+
+def test_amplitude_at_the_end_of_the_step_and_density_given(tmp_path):
+    """A load with AMPLITUDE= counts with the tabular amplitude at the end of the preload
+    step (step time 2 here: 0.5); --density gives mass to a material without *DENSITY
+    (named as used), which is refused without it."""
+    text = lap_deck(tmp_path / "base.inp").read_text()
+    text = text.replace("*STATIC\n", "*STATIC\n0.1, 2.\n").replace(
+        "*DSLOAD\n", "*DSLOAD, AMPLITUDE=RAMP\n").replace(
+        "*MATERIAL", "*AMPLITUDE, NAME=RAMP\n0., 0., 4., 1.\n*MATERIAL", 1).replace(
+        "*DENSITY\n6600.\n", "")
+    path = tmp_path / "amp.inp"
+    path.write_text(text)
+    assert "has no *DENSITY" in read_deck(path).refusals[0].what
+    deck = read_deck(path, density=6600.0)
+    assert not deck.refusals
+    assert deck.config["bodies"][0]["pressures"] == [{"set": "bottom_bolt", "p": 0.5 * P_BOLT}]
+    assert deck.config["bodies"][0]["rho"] == 6600.0
+    text = "\n".join(map(str, deck.notes))
+    assert "AMPLITUDE=RAMP: the magnitudes times 0.5" in text and "--density" in text
+    smooth = tmp_path / "smooth.inp"
+    smooth.write_text(path.read_text().replace("NAME=RAMP", "NAME=RAMP, DEFINITION=SMOOTH STEP"))
+    (note,) = read_deck(smooth, density=6600.0).refusals
+    assert note.what == "*DSLOAD, AMPLITUDE=RAMP" and "tabular" in note.fix

@@ -22,6 +22,9 @@ def add_deck_arguments(p):
     p.add_argument("--tip-direction", metavar="X,Y[,Z]",
                    help="deck only: direction of the probe (default: the axis of the probe "
                         "node's largest modal displacement)")
+    p.add_argument("--density", type=float, metavar="RHO",
+                   help="deck only: density of the materials that give no *DENSITY, in the "
+                        "deck's units (e.g. 7.85e-9 t/mm^3 or 7850 kg/m^3 for steel)")
 
 
 def is_deck(path) -> bool:
@@ -39,7 +42,8 @@ def read_deck_args(args, levels=None):
             raise InputError(f"--tip-direction {args.tip_direction!r}: give numbers "
                              f"separated by commas, e.g. 0,0,1") from None
     return read_deck(args.config, mode=getattr(args, "mode", None) or 0,
-                     tip_node=args.tip_node, tip_direction=direction, levels=levels)
+                     tip_node=args.tip_node, tip_direction=direction, levels=levels,
+                     density=args.density)
 
 
 def deck_refusal(deck) -> InputError:
@@ -84,10 +88,11 @@ def load_model(args):
     if is_deck(args.config):
         cfg = _load_deck(args)
     else:
-        if getattr(args, "tip_node", None) is not None or \
-                getattr(args, "tip_direction", None) is not None:
-            raise InputError("--tip-node and --tip-direction apply to .inp decks; a "
-                             "configuration file gives the probe in its [tip] table")
+        if any(getattr(args, k, None) is not None for k in ("tip_node", "tip_direction",
+                                                              "density")):
+            raise InputError("--tip-node, --tip-direction and --density apply to .inp "
+                             "decks; a configuration file gives the probe in its [tip] "
+                             "table and the density per body")
         from ..config import load_config
         cfg = load_config(args.config)
     model = cfg.model

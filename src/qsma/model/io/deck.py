@@ -205,7 +205,6 @@ class _Step:
     index: int
     where: str
     procedure: str | None = None
-    procedure_where: str = ""
     data: list = field(default_factory=list)    # first data tokens of the procedure
     cards: list = field(default_factory=list)
     nlgeom: bool = False
@@ -231,7 +230,7 @@ def _number(token, where, what) -> float:
 
 
 def read_deck(path, *, mode: int = 0, tip_node: int | None = None,
-              tip_direction=None, levels=None) -> Deck:
+              tip_direction=None, levels=None, density: float | None = None) -> Deck:
     """Read an Abaqus / CalculiX deck as a QSMA run (module docstring).
 
     Parameters
@@ -243,6 +242,8 @@ def read_deck(path, *, mode: int = 0, tip_node: int | None = None,
     tip_direction : the probe's direction (one number per coordinate); None: the axis of
         the probe node's largest displacement in that mode
     levels : :class:`qsma.levels.Levels` or None (:data:`DEFAULT_LEVELS`)
+    density : the density of the materials that give no ``*DENSITY`` (in the deck's
+        units); None: such a material is refused (a frequency needs mass)
 
     Returns
     -------
@@ -252,18 +253,18 @@ def read_deck(path, *, mode: int = 0, tip_node: int | None = None,
     from .assembly import read_assembly
     path = Path(path)
     cards = _inp_cards(path)
-    reader = _DeckReader(path, cards, read_assembly(path))
+    reader = _DeckReader(path, cards, read_assembly(path), density)
     return reader.deck(mode, tip_node, tip_direction, levels)
 
 
 class _DeckReader:
     """What :func:`read_deck` builds, step by step."""
 
-    def __init__(self, path, cards, assembly):
-        self.path, self.cards, self.asm = path, cards, assembly
+    def __init__(self, path, cards, assembly, density=None):
+        self.path, self.cards, self.asm, self.density = path, cards, assembly, density
         self.notes, self.comments = [], {}
         self.materials, self.sections = {}, []      # (elset, material, thickness, where)
-        self.interactions, self.pairs = {}, []
+        self.interactions = {}
         self.steps, self.model_cards = [], []
         self._split()
 
@@ -277,13 +278,8 @@ class _DeckReader:
         """Model data and steps; materials, sections and interactions by their owner."""
         material = interaction = None
         step = None
-        part_depth = False
         for card in self.cards:
             kw = card.keyword
-            if kw == "PART":
-                part_depth = True
-            elif kw == "END PART":
-                part_depth = False
             if kw == "STEP":
                 step = _Step(len(self.steps), _where(card),
                              nlgeom=str(card.params.get("NLGEOM", "")).upper() not in ("", "NO"))
@@ -312,12 +308,12 @@ class _DeckReader:
                 continue
             material = interaction = None
             if kw == "SOLID SECTION":
-                self._section(card, part_depth)
+                self._section(card)
                 continue
             if step is None:
                 self.model_cards.append(card)
             elif step.procedure is None and kw in _PROCEDURES:
-                step.procedure, step.procedure_where = kw, _where(card)
+                step.procedure = kw
                 step.data = [t for _, t, _ in _rows_of(card)][:1]
             else:
                 step.cards.append(card)
@@ -373,14 +369,15 @@ class _DeckReader:
                             for w, t in rows for x in t if x)
             interaction["pressure_overclosure"] = law
             interaction["behavior"] = numbers
-            self.note(_where(card), f"*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE={law} of "
-                      f"interaction {name!r} is not used yet", "qsma's contact is hard "
-                      "(no penetration, no tension)", law == "TIED")
+            if law != "HARD" or numbers:                 # HARD is qsma's own contact
+                self.note(_where(card), f"*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE={law} "
+                          f"of interaction {name!r} is not used yet", "qsma's contact is "
+                          "hard (no penetration, no tension)", law == "TIED")
         else:
             self.note(_where(card), f"*{card.keyword} of interaction {name!r} is not used",
                       _HARMLESS[card.keyword], False)
 
-    def _section(self, card, in_part):
+    def _section(self, card):
         elset = card.params.get("ELSET")
         material = card.params.get("MATERIAL")
         if not isinstance(elset, str) or not isinstance(material, str):
@@ -394,7 +391,7 @@ class _DeckReader:
         thickness = 1.0
         if rows and rows[0] and rows[0][0]:
             thickness = _number(rows[0][0], card.where, "the section thickness")
-        self.sections.append((elset, material, thickness, _where(card), in_part))
+        self.sections.append((elset, material, thickness, _where(card)))
 
     # --- the run ----------------------------------------------------------------------
     def deck(self, mode, tip_node, tip_direction, levels) -> Deck:
@@ -406,15 +403,14 @@ class _DeckReader:
         loads = self._loads(bodies, preload)
         interfaces = self._interfaces(bodies)
         config = {"name": self.path.stem, "bodies": []}
+        per_body = {"clamps": clamps, **loads}         # key -> per body [(entry, comment)]
         for k, b in enumerate(bodies):
             table = dict(b["table"])
-            for key in ("clamps", "forces", "pressures"):
-                entries = [e for e, _ in (clamps if key == "clamps" else loads[key])[k]]
-                if entries:
-                    table[key] = entries
-                    for j, (_, c) in enumerate((clamps if key == "clamps"
-                                                else loads[key])[k]):
-                        self.comments[("bodies", k, key, j)] = c
+            for key, rows in per_body.items():
+                if rows[k]:
+                    table[key] = [entry for entry, _ in rows[k]]
+                    for j, (_, comment) in enumerate(rows[k]):
+                        self.comments[("bodies", k, key, j)] = comment
             config["bodies"].append(table)
         if len(interfaces) == 1 and len(bodies) == 2:
             config["interface"] = interfaces[0][0]
@@ -476,7 +472,12 @@ class _DeckReader:
             kw = card.keyword
             if kw in _SILENT or kw in _USED:
                 continue
-            if kw in _REFUSED:
+            if kw == "INITIAL CONDITIONS" and \
+                    str(card.params.get("TYPE", "")).upper() == "TEMPERATURE":
+                self.note(_where(card), "*INITIAL CONDITIONS, TYPE=TEMPERATURE is not used",
+                          "qsma applies no temperature (a *TEMPERATURE in the preload step "
+                          "is refused)", False)
+            elif kw in _REFUSED:
                 self.note(_where(card), f"*{kw}", _REFUSED[kw], True)
             elif kw in _HARMLESS:
                 self.note(_where(card), f"*{kw} is not used", _HARMLESS[kw], False)
@@ -484,14 +485,6 @@ class _DeckReader:
                 self.note(_where(card), f"*{kw} is not a keyword qsma reads",
                           "remove it if it does not change the structure, its supports or "
                           "the preload, or model it otherwise", True)
-        if preload is not None:
-            for card in preload.cards:
-                if card.keyword in ("CLOAD", "DLOAD", "DSLOAD", "BOUNDARY") and \
-                        "AMPLITUDE" in card.params:
-                    self.note(_where(card), f"*{card.keyword}, AMPLITUDE="
-                              f"{card.params['AMPLITUDE']}", "qsma takes the given magnitude "
-                              "as the end of the step's: remove AMPLITUDE= if the amplitude "
-                              "is 1 there, else scale the magnitude", True)
 
     # --- bodies -------------------------------------------------------------------------
     def _bodies(self) -> list:
@@ -599,16 +592,21 @@ class _DeckReader:
             E, nu, ewhere = 1.0, 0.0, material.where
         else:
             E, nu, ewhere = material.elastic
-        if material.rho is None:
+        rho = material.rho
+        if rho is None and self.density is None:
             self.note(material.where, f"material {material.name!r} has no *DENSITY",
                       "a frequency needs mass: add *DENSITY (e.g. 7.85e-9 t/mm^3 or 7850 "
-                      "kg/m^3 for steel)", True)
+                      "kg/m^3 for steel), or give --density", True)
             rho = 1.0
-        else:
-            rho = material.rho
+        elif rho is None:
+            rho = self.density
+            self.note(material.where, f"material {material.name!r} has no *DENSITY",
+                      f"the density {rho:g} given (--density) is used", False)
         table.update(E=E, nu=nu, rho=rho)
         self.comments[("bodies", k, "E")] = f"*ELASTIC of material {material.name!r}, {ewhere}"
-        self.comments[("bodies", k, "rho")] = f"*DENSITY of material {material.name!r}"
+        self.comments[("bodies", k, "rho")] = (
+            f"*DENSITY of material {material.name!r}" if material.rho is not None
+            else "--density (the material gives no *DENSITY)")
         if section[2] != 1.0:
             self.comments[("bodies", k, "name")] = (
                 f"section thickness {section[2]:g} ({section[3]}): qsma's 2D bodies have "
@@ -626,6 +624,13 @@ class _DeckReader:
             if match:
                 return match[0]
         return None
+
+    def _owners(self, bodies, ref, prefix, kinds=("node", "facet")):
+        """``(body index, set name)`` of each body holding the set a row names: by name,
+        or by id (``ref`` an integer: the set ``<prefix><id>`` the mesh reader made)."""
+        name = f"{prefix}{int(ref)}" if re.fullmatch(r"[+-]?\d+", ref) else ref
+        return [(k, found) for k, b in enumerate(bodies)
+                for found in [self._find(b["mesh"], name, kinds)] if found is not None]
 
     def _clamps(self, bodies, preload):
         out = [[] for _ in bodies]
@@ -663,18 +668,12 @@ class _DeckReader:
                           f"used", "qsma's nodes have displacement DOFs 1-3 only", False)
                 return
             last = min(last, 3)
-        name = f"_BC{int(ref)}" if re.fullmatch(r"[+-]?\d+", ref) else ref
-        dofs = list(range(first, last + 1))
-        hit = False
-        for k, b in enumerate(bodies):
-            found = self._find(b["mesh"], name)
-            if found is None:
-                continue
-            hit = True
-            dofs_b = [d for d in dofs if d <= b["mesh"].dim]
-            if dofs_b:
-                out[k].append(({"set": found, "dofs": dofs_b}, f"*BOUNDARY, {w}"))
-        if not hit:
+        owners = self._owners(bodies, ref, "_BC")
+        for k, found in owners:
+            dofs = [d for d in range(first, last + 1) if d <= bodies[k]["mesh"].dim]
+            if dofs:
+                out[k].append(({"set": found, "dofs": dofs}, f"*BOUNDARY, {w}"))
+        if not owners:
             self.note(w, f"*BOUNDARY on {ref!r}, which holds no node of a body",
                       "check the set", True)
 
@@ -687,27 +686,54 @@ class _DeckReader:
                        "DSLOAD": self._dsload}.get(card.keyword)
             if handler is None:
                 continue
+            scale = self._amplitude(card, preload)
+            if scale is None:
+                continue
             for where, tokens, text in _rows_of(card):
-                handler(bodies, out, where, tokens, text)
+                handler(bodies, out, where, tokens, text, scale)
         return out
 
-    def _cload(self, bodies, out, where, tokens, text):
+    def _amplitude(self, card, step):
+        """The factor of a load's ``AMPLITUDE=`` at the end of the preload step (1
+        without one; None, with a refusal, where it cannot be evaluated)."""
+        name = card.params.get("AMPLITUDE")
+        if name is None:
+            return 1.0
+        where = _where(card)
+        amp = next((c for c in self.model_cards if c.keyword == "AMPLITUDE"
+                    and str(c.params.get("NAME", "")).upper() == str(name).upper()), None)
+        definition = str(amp.params.get("DEFINITION", "TABULAR")).upper() if amp else ""
+        time = str(amp.params.get("TIME", "STEP TIME")).upper() if amp else ""
+        if amp is None or definition != "TABULAR" or \
+                (time == "TOTAL TIME" and step.index > 0):
+            self.note(where, f"*{card.keyword}, AMPLITUDE={name}", "qsma evaluates tabular "
+                      "amplitudes in step time at the end of the preload step; give the "
+                      "end-of-step magnitude without AMPLITUDE=", True)
+            return None
+        values = [_number(t, w, "an amplitude value") for w, row, _ in _rows_of(amp)
+                  for t in row if t]
+        period = 1.0
+        if step.data and len(step.data[0]) > 1 and step.data[0][1]:
+            period = _number(step.data[0][1], amp.where, "the step's time period")
+        factor = float(np.interp(period, values[0::2], values[1::2]))
+        self.note(where, f"*{card.keyword}, AMPLITUDE={name}: the magnitudes times "
+                  f"{factor:g}, the amplitude at the end of the step (time {period:g})",
+                  "qsma's preload is the end of the step", False)
+        return factor
+
+    def _cload(self, bodies, out, where, tokens, text, scale):
         w = _row_where(where)
         try:
             dof = int(tokens[1])
-            value = _number(tokens[2], where, "the force")
+            value = scale * _number(tokens[2], where, "the force")
         except (ValueError, IndexError):
             self.note(w, f"*CLOAD row {text!r} is not read", "give 'node or node set, dof, "
                       "magnitude'", True)
             return
         ref = tokens[0]
-        name = f"_N{int(ref)}" if re.fullmatch(r"[+-]?\d+", ref) else ref
-        hit = False
-        for k, b in enumerate(bodies):
-            found = self._find(b["mesh"], name)
-            if found is None:
-                continue
-            hit = True
+        owners = self._owners(bodies, ref, "_N")
+        for k, found in owners:
+            b = bodies[k]
             dim = b["mesh"].dim
             if not 1 <= dof <= dim:
                 self.note(w, f"*CLOAD on DOF {dof}", f"qsma's {dim}D nodes have forces on "
@@ -718,28 +744,25 @@ class _DeckReader:
             note = f"*CLOAD, {w}" + (f", divided by the thickness {b['thickness']:g}"
                                      if b["thickness"] != 1.0 else "")
             out["forces"][k].append(({"set": found, "force": force}, note))
-        if not hit:
+        if not owners:
             self.note(w, f"*CLOAD on {ref!r}, which holds no node of a body", "check the "
                       "set", True)
 
-    def _dsload(self, bodies, out, where, tokens, text):
+    def _dsload(self, bodies, out, where, tokens, text, scale):
         w = _row_where(where)
         if len(tokens) < 3 or tokens[1].upper() != "P":
             self.note(w, f"*DSLOAD row {text!r}", "qsma reads pressures (label P) on "
                       "element-face surfaces", True)
             return
-        value = _number(tokens[2], where, "the pressure")
-        hit = False
-        for k, b in enumerate(bodies):
-            found = self._find(b["mesh"], tokens[0], kinds=("facet",))
-            if found is not None:
-                hit = True
-                out["pressures"][k].append(({"set": found, "p": value}, f"*DSLOAD, {w}"))
-        if not hit:
+        value = scale * _number(tokens[2], where, "the pressure")
+        owners = self._owners(bodies, tokens[0], "", kinds=("facet",))
+        for k, found in owners:
+            out["pressures"][k].append(({"set": found, "p": value}, f"*DSLOAD, {w}"))
+        if not owners:
             self.note(w, f"*DSLOAD on {tokens[0]!r}, which is no element-face surface of a "
                       f"body", "define it with *SURFACE, TYPE=ELEMENT", True)
 
-    def _dload(self, bodies, out, where, tokens, text):
+    def _dload(self, bodies, out, where, tokens, text, scale):
         w = _row_where(where)
         label = tokens[1].upper() if len(tokens) > 1 else ""
         m = re.fullmatch(r"P(\d)", label)
@@ -748,17 +771,13 @@ class _DeckReader:
                       "pressures on element faces (labels P1..P6); it has no body forces "
                       "(GRAV, CENTRIF) and no shell pressures", True)
             return
-        value = _number(tokens[2], where, "the pressure")
+        value = scale * _number(tokens[2], where, "the pressure")
         ref = tokens[0]
-        name = f"_E{int(ref)}" if re.fullmatch(r"[+-]?\d+", ref) else ref
-        hit = False
-        for k, b in enumerate(bodies):
-            found = self._find(b["mesh"], name, kinds=("cell",))
-            if found is not None:
-                hit = True
-                out["pressures"][k].append(({"set": found, "face": int(m.group(1)),
-                                             "p": value}, f"*DLOAD, {w}"))
-        if not hit:
+        owners = self._owners(bodies, ref, "_E", kinds=("cell",))
+        for k, found in owners:
+            out["pressures"][k].append(({"set": found, "face": int(m.group(1)), "p": value},
+                                        f"*DLOAD, {w}"))
+        if not owners:
             self.note(w, f"*DLOAD on {ref!r}, which holds no element of a body",
                       "check the element set", True)
 
@@ -788,10 +807,11 @@ class _DeckReader:
                 if len(owners[0]) != 1 or len(owners[1]) != 1:
                     which = slave if len(owners[0]) != 1 else master
                     n = len(owners[0] if which == slave else owners[1])
-                    self.note(w, f"contact surface {which!r} lies on {n} bodies",
-                              "a contact surface is made of element faces of one body"
-                              if n else "give the surface element faces (a node surface "
-                              "must span faces of one body)", True)
+                    self.note(w, f"contact surface {which!r} lies on {n} bodies"
+                              if n else f"contact surface {which!r} holds no element face "
+                              f"(a node surface whose nodes span no face, e.g. one node)",
+                              "a contact surface is made of element faces of one body: "
+                              "give it as a *SURFACE, TYPE=ELEMENT of faces", True)
                     continue
                 s, m = owners[0][0], owners[1][0]
                 if s == m:
