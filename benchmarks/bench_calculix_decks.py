@@ -45,6 +45,8 @@ def outcome(deck: Path, timeout: float):
             (f" (+{len(reasons) - 3})" if len(reasons) > 3 else "")
     if proc.returncode == 2:
         return "input error", _short(first_error.removeprefix("qsma: error: "))
+    if "gross slip" in first_error:              # the levels before it are written
+        return "gross slip", _short(first_error.removeprefix("qsma: analysis failed: "))
     return "failed", _short(first_error or proc.stderr.strip().splitlines()[-1])
 
 

@@ -41,7 +41,7 @@ def execute(args) -> int:
     except OSError as exc:
         raise InputError(f"cannot write {out}: {exc.strerror}; choose another --out") from None
     for n in deck.notes:
-        tag = "not modelled (the file runs without it)" if n.refuses else "not used"
+        tag = "not modelled (the file runs without it)" if n.refuses else "note"
         print(f"qsma: {tag}: {n}", file=sys.stderr)
     print(f"wrote {out}")
     return 0

@@ -638,11 +638,20 @@ class _DeckReader:
         if preload is not None:
             cards += [c for c in preload.cards if c.keyword == "BOUNDARY"]
         for card in cards:
-            for where, tokens, text in _rows_of(card):
-                self._clamp_row(bodies, out, where, tokens, text)
+            moved = [(where, text) for where, tokens, text in _rows_of(card)
+                     if self._clamp_row(bodies, out, where, tokens, text) == "prescribed"]
+            if moved:
+                (where, text), n = moved[0], len(moved)
+                self.note(_row_where(where), f"*BOUNDARY row {text!r} prescribes a "
+                          f"displacement" + (f" (and {n - 1} more rows of this *BOUNDARY)"
+                                             if n > 1 else ""),
+                          "qsma holds clamped DOFs at zero; apply the load as a force or "
+                          "pressure instead", True)
         return out
 
     def _clamp_row(self, bodies, out, where, tokens, text):
+        """Clamps of one *BOUNDARY row into ``out``; ``"prescribed"`` for a row with a
+        non-zero value (named per card by the caller)."""
         w = _row_where(where)
         ref = tokens[0]
         kind = tokens[1].upper() if len(tokens) > 1 else ""
@@ -659,10 +668,7 @@ class _DeckReader:
                           "set, first dof[, last dof[, 0]]'", True)
                 return
             if value != 0.0:
-                self.note(w, f"*BOUNDARY row {text!r} prescribes a displacement",
-                          "qsma holds clamped DOFs at zero; apply the load as a force or "
-                          "pressure instead", True)
-                return
+                return "prescribed"
             if first > 3:
                 self.note(w, f"*BOUNDARY on DOFs {first}-{last} (not displacements) is not "
                           f"used", "qsma's nodes have displacement DOFs 1-3 only", False)
