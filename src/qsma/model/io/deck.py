@@ -429,6 +429,9 @@ class _DeckReader:
         else:       # a model that cannot be run: the probe from the caller or a placeholder
             config["tip"], config["levels"] = self._given_tip(
                 config, tip_node, tip_direction, levels)
+            if tip_node is None:
+                self.comments[("tip",)] = ("a placeholder (the deck cannot be run as it is, "
+                                           "so no mode was computed): choose the probe")
         return Deck(self.path, config, dict(self.comments), tuple(self.notes),
                     tuple(self._deck_interfaces), self._frequency)
 
