@@ -262,12 +262,14 @@ class Prepared:
 
 
 def _scaled_preload(model, factor):
-    """``model`` with every pressure of the 'preload' pattern and every bolt's
-    pretension multiplied by ``factor``."""
+    """``model`` with every pressure and nodal force of the 'preload' pattern and every
+    bolt's pretension multiplied by ``factor``."""
     from .model import Pressure
     bodies = tuple(replace(b, pressures=tuple(
         Pressure(p.set, p.p * factor, p.load) if p.load == "preload" else p
-        for p in b.pressures)) for b in model.bodies)
+        for p in b.pressures), forces=tuple(
+        replace(f, force=tuple(v * factor for v in f.force)) if f.load == "preload" else f
+        for f in b.forces)) for b in model.bodies)
     bolts = tuple(replace(b, pretension=b.pretension * factor)
                   for b in getattr(model, "bolts", ()))      # part of 'preload' too
     return replace(model, bodies=bodies, bolts=bolts)

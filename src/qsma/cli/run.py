@@ -6,7 +6,7 @@ import sys
 import numpy as np
 
 from ..errors import InputError
-from .common import add_model_arguments, load_model
+from .common import add_model_arguments, is_deck, load_model
 
 HELP = "quasi-static modal analysis: backbone, frequency and damping versus amplitude"
 #: RunOptions fields that have a command-line flag of the same name.
@@ -53,6 +53,12 @@ def add_arguments(p):
 
 def execute(args) -> int:
     from ..rundir import RunFolder
+    if args.modes is None and args.mode is None and args.config is not None \
+            and not is_deck(args.config):
+        from ..config import config_modes
+        modes = config_modes(args.config)          # [analysis] modes = [...]
+        if modes is not None:
+            args.modes = ",".join(map(str, modes))
     if args.modes is not None:
         from .modes import execute_modes
         return execute_modes(args)
