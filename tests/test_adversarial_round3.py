@@ -409,3 +409,60 @@ def test_an_output_that_cannot_be_a_folder_is_refused_before_computing(
                  "mu"])
         assert main(argv + ["--quiet", "--out", str(out)]) == 2
         assert match in capsys.readouterr().err
+
+
+# ---- Abaqus parts and instances --------------------------------------------------------
+
+PART_DECK = """\
+*Part, name=Beam
+*Node
+1, 0., 0.
+2, 1., 0.
+3, 1., 1.
+4, 0., 1.
+*Element, type=CPS4
+1, 1, 2, 3, 4
+*End Part
+*Assembly, name=Assembly
+*Instance, name=Lower, part=Beam
+*End Instance
+*Instance, name=Upper, part=Beam
+{placement}*End Instance
+*End Assembly
+"""
+
+
+@pytest.mark.parametrize("placement, match", [
+    ("a, b, c\n", r"line 14: cannot read the translation line 'a, b, c' of \*INSTANCE; "
+                  r"expected numbers"),
+    ("0., 1., 0., 7., 7.\n", r"line 14: the translation line .* has 5 values, it holds "
+                             r"at most 3"),
+    ("0., 0., 0.\n1., 1., 0., 1., 1., 0., 90.\n",
+     r"line 15: the rotation of \*INSTANCE by 90 degrees is about an axis from a point to "
+     r"itself"),
+    ("0., 1., 0.\n0., 0., 0., 0., 0., 1., 90.\n1.\n", r"line 16: a third data line"),
+], ids=["not numbers", "five values", "zero-length axis", "third line"])
+def test_an_instance_placement_that_cannot_be_meant_is_refused(tmp_path, placement, match):
+    """Each was an internal error ('a, b, c') or silently taken (the first three of five
+    values; a rotation about no axis ignored)."""
+    from qsma.errors import MeshFileError
+    from qsma.model.io import read_assembly
+    path = tmp_path / "deck.inp"
+    path.write_text(PART_DECK.format(placement=placement))
+    with pytest.raises(MeshFileError, match=match):
+        read_assembly(path)
+
+
+def test_an_instance_without_its_end_is_refused(tmp_path):
+    """Without *END INSTANCE, every card up to the end of the assembly was taken as the
+    instance's and dropped with it."""
+    from qsma.errors import MeshFileError
+    from qsma.model.io import read_assembly
+    text = PART_DECK.format(placement="0., 1., 0.\n").replace(
+        "*Instance, name=Lower, part=Beam\n*End Instance\n", "*Instance, name=Lower, "
+        "part=Beam\n")
+    path = tmp_path / "deck.inp"
+    path.write_text(text)
+    with pytest.raises(MeshFileError, match=r"line 11: \*INSTANCE 'Lower' has no \*END "
+                                            r"INSTANCE before \*INSTANCE \(line 12\)"):
+        read_assembly(path)
