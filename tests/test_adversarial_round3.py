@@ -466,3 +466,15 @@ def test_an_instance_without_its_end_is_refused(tmp_path):
     with pytest.raises(MeshFileError, match=r"line 11: \*INSTANCE 'Lower' has no \*END "
                                             r"INSTANCE before \*INSTANCE \(line 12\)"):
         read_assembly(path)
+
+
+# ---- inputs that were internal errors -----------------------------------------------
+
+def test_a_clamp_of_no_component_is_refused(tmp_path, capsys):
+    """components = [] in a clamp table was an internal error (an empty index array)."""
+    config = _example_config(tmp_path)
+    config.write_text(config.read_text().replace(
+        'clamps = [{ set = "clamp" }]  ', 'clamps = [{ set = "clamp", components = [] }]', 1))
+    assert "components = []" in config.read_text()
+    assert main(["run", str(config), "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    assert "the clamp on 'clamp' holds no component" in capsys.readouterr().err
