@@ -16,6 +16,7 @@ from qsma.config import load_config
 from qsma.errors import AnalysisError
 from qsma.examples import stack_2d
 from qsma.model import Pressure
+from qsma.rundir import verify_run_folder
 
 from helpers import STACK_INTERFACES, stack_toml
 
@@ -289,3 +290,191 @@ def test_a_loop_stopped_by_max_cycles_says_which_max_cycles_would_do():
     again = qsma.run(_tetrahedral_lap_3d(), levels=qsma.Levels("tip", FIRST_TIPS),
                      max_cycles=int(m.group(1)))
     assert again.success, again.message
+
+
+# ---- folders: one protocol for every command ------------------------------------------
+
+QUICK = ["--example", "sandwich-2d", "--levels", "tip:log:1e-6:1e-4:3", "--no-plots"]
+
+
+@pytest.fixture
+def finished_run(tmp_path):
+    """A result folder of one complete `qsma run`."""
+    out = tmp_path / "run"
+    assert main(["run", *QUICK, "--no-vtu", "--quiet", "--out", str(out)]) == 0
+    return out, verify_run_folder(out)["run_id"]
+
+
+@pytest.mark.parametrize("argv", [
+    ["run", *QUICK, "--out", "{run}/sub"],
+    ["run", *QUICK, "--out", "{run}/a/b"],
+    ["run", *QUICK, "--modes", "0,1", "--out", "{run}"],
+    ["run", *QUICK, "--modes", "0", "--out", "{run}/modes"],
+    ["modes", "--example", "sandwich-2d", "--out", "{run}"],
+    ["sweep", "--example", "sandwich-2d", "--vary", "mu=0.5", "--workers", "0",
+     "--no-plots", "--out", "{run}"],
+    ["sweep", "--example", "sandwich-2d", "--vary", "mu=0.5", "--workers", "0",
+     "--no-plots", "--out", "{run}/study"],
+    ["fit", "--example", "sandwich-2d", "--measured", "{csv}", "--params", "mu",
+     "--out", "{run}"],
+], ids=["run inside", "run two below", "run --modes over", "run --modes inside",
+        "modes over", "sweep over", "sweep inside", "fit over"])
+def test_no_command_writes_into_or_over_a_finished_run(finished_run, tmp_path, capsys,
+                                                       monkeypatch, argv):
+    """Every command refuses, before computing, a folder that is or lies inside the
+    result folder of another command: the run folder keeps its manifest and files."""
+    out, run_id = finished_run
+    csv = tmp_path / "m.csv"
+    csv.write_text("tip_m,f_hz\n1e-5,212\n2e-5,211\n")
+    _no_case_computed(monkeypatch)
+    argv = [a.format(run=out, csv=csv) for a in argv]
+    assert main(argv + ["--quiet"] * (argv[0] != "modes")) == 2
+    err = capsys.readouterr().err
+    assert "lies inside" in err or "holds the result of qsma run" in err, err
+    assert verify_run_folder(out)["run_id"] == run_id
+    assert sorted(p.name for p in out.iterdir()) == ["manifest.json", "results.csv",
+                                                     "results.json"]
+
+
+def test_every_command_leaves_a_locked_checked_manifest(tmp_path, capsys):
+    """run --modes, modes and sweep write complete result folders of their kind; a
+    later run of another kind into them is refused."""
+    argv = {"run-modes": ["run", *QUICK, "--no-vtu", "--modes", "0,1"],
+            "modes": ["modes", "--example", "sandwich-2d", "-n", "2"],
+            "study": ["sweep", "--example", "sandwich-2d", "--vary", "mu=0.5,0.6",
+                      "--levels", "tip:log:1e-6:1e-4:3", "--workers", "0", "--no-plots"]}
+    for kind, args in argv.items():
+        out = tmp_path / kind
+        assert main(args + ["--out", str(out)]) == 0
+        manifest = verify_run_folder(out)
+        assert manifest["kind"] == kind
+        assert main(["run", *QUICK, "--quiet", "--out", str(out)]) == 2
+        assert f"not of qsma run" in capsys.readouterr().err
+    assert verify_run_folder(tmp_path / "run-modes" / "mode-0")["kind"] == "run"
+
+
+def test_fewer_modes_into_the_same_folder_leave_no_stale_mode_folder(tmp_path):
+    """--modes 0,1 then --modes 1: the folder is replaced as a whole, mode-0 goes."""
+    out = tmp_path / "m"
+    assert main(["run", *QUICK, "--no-vtu", "--quiet", "--modes", "0,1", "--out",
+                 str(out)]) == 0
+    assert main(["run", *QUICK, "--no-vtu", "--quiet", "--modes", "1", "--out",
+                 str(out)]) == 0
+    assert not (out / "mode-0").exists() and (out / "mode-1").is_dir()
+    assert verify_run_folder(out)["kind"] == "run-modes"
+
+
+def test_a_second_study_on_a_folder_in_use_is_refused_before_computing(tmp_path, capsys,
+                                                                       monkeypatch):
+    """Two identical sweeps into one folder: the second is refused while the first
+    holds the study's lock (every case ran twice, and the loser's table once marked a
+    sound case failed)."""
+    from qsma.rundir import StudyFolder
+    from qsma.study.sweep import _in_study
+    _no_case_computed(monkeypatch)
+    with StudyFolder(tmp_path / "study", allowed=_in_study):
+        code = main(["sweep", "--example", "sandwich-2d", "--vary", "mu=0.5", "--workers",
+                     "0", "--quiet", "--out", str(tmp_path / "study")])
+    assert code == 2
+    assert "in use by another qsma run" in capsys.readouterr().err
+
+
+def test_a_sweep_into_a_folder_of_foreign_files_is_refused(tmp_path, capsys, monkeypatch):
+    (tmp_path / "study").mkdir()
+    (tmp_path / "study" / "notes.txt").write_text("mine")
+    _no_case_computed(monkeypatch)
+    assert main(["sweep", "--example", "sandwich-2d", "--vary", "mu=0.5", "--workers", "0",
+                 "--quiet", "--out", str(tmp_path / "study")]) == 2
+    assert "'notes.txt'" in capsys.readouterr().err
+    assert (tmp_path / "study" / "notes.txt").read_text() == "mine"
+
+
+@pytest.mark.parametrize("command", ["run", "fit"])
+def test_an_output_that_cannot_be_a_folder_is_refused_before_computing(
+        tmp_path, capsys, monkeypatch, command):
+    """--out on a loop of symbolic links (the run computed, then exited 1), or on an
+    existing file for qsma fit (refused only after every evaluation)."""
+    import os
+    loop = tmp_path / "loop"
+    os.symlink(tmp_path / "other", loop)
+    os.symlink(loop, tmp_path / "other")
+    a_file = tmp_path / "a-file"
+    a_file.write_text("x")
+    csv = tmp_path / "m.csv"
+    csv.write_text("tip_m,f_hz\n1e-5,212\n2e-5,211\n")
+    _no_case_computed(monkeypatch)
+    for out, match in ((loop, "leads nowhere"), (a_file, "is not a folder")):
+        argv = (["run", *QUICK] if command == "run" else
+                ["fit", "--example", "sandwich-2d", "--measured", str(csv), "--params",
+                 "mu"])
+        assert main(argv + ["--quiet", "--out", str(out)]) == 2
+        assert match in capsys.readouterr().err
+
+
+# ---- Abaqus parts and instances --------------------------------------------------------
+
+PART_DECK = """\
+*Part, name=Beam
+*Node
+1, 0., 0.
+2, 1., 0.
+3, 1., 1.
+4, 0., 1.
+*Element, type=CPS4
+1, 1, 2, 3, 4
+*End Part
+*Assembly, name=Assembly
+*Instance, name=Lower, part=Beam
+*End Instance
+*Instance, name=Upper, part=Beam
+{placement}*End Instance
+*End Assembly
+"""
+
+
+@pytest.mark.parametrize("placement, match", [
+    ("a, b, c\n", r"line 14: cannot read the translation line 'a, b, c' of \*INSTANCE; "
+                  r"expected numbers"),
+    ("0., 1., 0., 7., 7.\n", r"line 14: the translation line .* has 5 values, it holds "
+                             r"at most 3"),
+    ("0., 0., 0.\n1., 1., 0., 1., 1., 0., 90.\n",
+     r"line 15: the rotation of \*INSTANCE by 90 degrees is about an axis from a point to "
+     r"itself"),
+    ("0., 1., 0.\n0., 0., 0., 0., 0., 1., 90.\n1.\n", r"line 16: a third data line"),
+], ids=["not numbers", "five values", "zero-length axis", "third line"])
+def test_an_instance_placement_that_cannot_be_meant_is_refused(tmp_path, placement, match):
+    """Each was an internal error ('a, b, c') or silently taken (the first three of five
+    values; a rotation about no axis ignored)."""
+    from qsma.errors import MeshFileError
+    from qsma.model.io import read_assembly
+    path = tmp_path / "deck.inp"
+    path.write_text(PART_DECK.format(placement=placement))
+    with pytest.raises(MeshFileError, match=match):
+        read_assembly(path)
+
+
+def test_an_instance_without_its_end_is_refused(tmp_path):
+    """Without *END INSTANCE, every card up to the end of the assembly was taken as the
+    instance's and dropped with it."""
+    from qsma.errors import MeshFileError
+    from qsma.model.io import read_assembly
+    text = PART_DECK.format(placement="0., 1., 0.\n").replace(
+        "*Instance, name=Lower, part=Beam\n*End Instance\n", "*Instance, name=Lower, "
+        "part=Beam\n")
+    path = tmp_path / "deck.inp"
+    path.write_text(text)
+    with pytest.raises(MeshFileError, match=r"line 11: \*INSTANCE 'Lower' has no \*END "
+                                            r"INSTANCE before \*INSTANCE \(line 12\)"):
+        read_assembly(path)
+
+
+# ---- inputs that were internal errors -----------------------------------------------
+
+def test_a_clamp_of_no_component_is_refused(tmp_path, capsys):
+    """components = [] in a clamp table was an internal error (an empty index array)."""
+    config = _example_config(tmp_path)
+    config.write_text(config.read_text().replace(
+        'clamps = [{ set = "clamp" }]  ', 'clamps = [{ set = "clamp", components = [] }]', 1))
+    assert "components = []" in config.read_text()
+    assert main(["run", str(config), "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    assert "the clamp on 'clamp' holds no component" in capsys.readouterr().err

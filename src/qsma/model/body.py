@@ -132,6 +132,11 @@ class Body:
                 raise InputError(f"body {self.name!r}: clamp on unknown set {c.set!r}; "
                                  f"available sets: {names}")
             comps = range(self.mesh.dim) if c.components is None else c.components
+            if len(comps) == 0:
+                raise InputError(f"body {self.name!r}: the clamp on {c.set!r} holds no "
+                                 f"component (components = []); list the components to "
+                                 f"hold (0 = x, 1 = y, 2 = z), leave components out to "
+                                 f"hold all, or remove the clamp")
             if not all(isinstance(k, (int, np.integer)) and not isinstance(k, bool)
                        and 0 <= k < self.mesh.dim for k in comps):
                 raise InputError(f"body {self.name!r}: clamp components must be integers "

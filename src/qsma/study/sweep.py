@@ -31,8 +31,8 @@ import io
 import itertools
 import json
 import logging
-import os
 from pathlib import Path
+import re
 import threading
 import time
 
@@ -41,6 +41,7 @@ import numpy as np
 from ..errors import InputError, QSMAError
 from ..levels import Levels
 from ..options import RunOptions
+from ..rundir import MANIFEST, StudyFolder
 
 log = logging.getLogger("qsma")
 
@@ -408,7 +409,6 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
     SweepResult
     """
     from ..config import RunConfig
-    from ..results import atomic_write
     t0 = time.perf_counter()
     if isinstance(model_or_config, RunConfig):
         model = model_or_config.model
@@ -424,11 +424,22 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
         raise InputError(f"workers must be an integer >= 0, got {workers!r}")
     cases = grid(vary)
     _check_bodies(cases, model)
-    out = _study_dir(out)
+    with StudyFolder(out, allowed=_in_study) as folder:   # locked before computing
+        return _study(folder, model, vary, options, cases, scheduler, workers, files,
+                      plots, progress, t0)
+
+
+def _study(folder, model, vary, options, cases, scheduler, workers, files, plots, progress,
+           t0) -> SweepResult:
+    """:func:`sweep` in its entered :class:`qsma.rundir.StudyFolder` (manifest written
+    when every case is done)."""
+    from ..results import atomic_write
+    out = folder.path
     study = dict(model=model.name, fingerprint=_fingerprint(model, options),
                  parameters=list(vary), n_cases=len(cases),
                  cases=[c.json_params() for c in cases])
     _check_study(out / STUDY_NAME, study)
+    folder.changing()
     atomic_write(out / STUDY_NAME, json.dumps(study, indent=1) + "\n")
 
     outcomes, todo = {}, []
@@ -465,6 +476,8 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
     paths["report"] = write_study_report(list(vary), ordered, table,
                                          {k[len("plot_"):]: v for k, v in figures.items()},
                                          out / REPORT_NAME)
+    paths["manifest"] = out / MANIFEST
+    folder.commit()
     failed = [o for o in ordered if o.status == "failed"]
     bad = [o for o in ordered if o.status != "ok"]
     message = "all cases succeeded" if not bad else (
@@ -476,20 +489,14 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
                        dict(prepare=t_prep, total=time.perf_counter() - t0))
 
 
-def _study_dir(out) -> Path:
-    """Create the study folder if needed and check that it can be written, before any
-    computation (the case folders inside it are result folders of their own)."""
-    import tempfile
-    out = Path(out)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=".qsma-study-write-check-", dir=out)
-        os.close(fd)
-        os.unlink(tmp)
-    except OSError as exc:
-        raise InputError(f"study folder {str(out)!r} cannot be written ({exc.strerror}); "
-                         f"choose another --out folder or fix its permissions") from exc
-    return out
+#: Names a study folder holds besides its manifest (``case-0003``, its done-marker and
+#: rom.json, the table, figures and report); anything else is refused as foreign.
+_STUDY_ENTRY = re.compile(r"case-\d{4,}(\.done\.json|\.rom\.json)?|study\.(json|csv|parquet)"
+                          r"|report\.html|sweep_.+\.png")
+
+
+def _in_study(name: str) -> bool:
+    return _STUDY_ENTRY.fullmatch(name) is not None
 
 
 def _check_study(path, study):

@@ -735,16 +735,12 @@ def _inp_scope(scope: str):
                                  "qsma reads one instance per body: read the file as an "
                                  "assembly (cells = \"<instance name>\" in the body's "
                                  "table) or write each instance to its own file")
-            for where, tokens, text in _rows(card):
-                try:
-                    moved = any(_abaqus_float(t) != 0.0 for t in tokens)
-                except ValueError:
-                    moved = True
-                if moved:
-                    raise _inp_error(where, "the instance is translated or rotated",
-                                     "read the file as an assembly (cells = \"<instance "
-                                     "name>\" in the body's table), which places instances, "
-                                     "or export the mesh in its final position")
+            from .instances import placement
+            if placement(card) is not None:
+                raise _inp_error(card.data[0][:2], "the instance is translated or rotated",
+                                 "read the file as an assembly (cells = \"<instance "
+                                 "name>\" in the body's table), which places instances, "
+                                 "or export the mesh in its final position")
         r.scope = scope
     return handler
 
@@ -825,9 +821,10 @@ def _read_abaqus(path: Path, cell_type: str | None) -> Mesh:
 def _abaqus_file_mesh(path: Path, cell_type: str | None, assembly: bool = False):
     """``(what the file holds, its cell type)``, before it becomes a Mesh; ``assembly``:
     several parts and placed instances are made flat (:mod:`.instances`)."""
-    from .instances import flatten_instances, needs_flattening
+    from .instances import check_instances_closed, flatten_instances, needs_flattening
     reader = _InpReader(path)
     cards = _inp_cards(path)
+    check_instances_closed(cards)
     if assembly and needs_flattening(cards):
         cards = flatten_instances(cards, _Card)
     for card in cards:
