@@ -42,6 +42,7 @@ from .options import RunOptions
 from .model.bolt import bolt_functionals, with_bolt_loads
 from .pretension import lock
 from .rigid import ANCHOR_ROUNDS, anchored, elastic_probe, held_by_joint, support_share
+from .units import check_model_units
 from .result import (FAILURE_FLAGS, LEVEL_FIELDS, DirectLoop, LevelStates,  # noqa: F401
                      QSMAResult, load_factors as _load_factors)
 
@@ -156,6 +157,7 @@ def _start(model, opts):
         pairing = make_pairing(model) if model.interface is not None \
             else multi_pairing(model)
     _warn_closed_gaps(model, pairing)
+    check_model_units(model)
     limit = threads_for(pairing.n_pairs * model.dim) if opts.blas_threads == "auto" \
         else opts.blas_threads
     return clock, pairing, limit
@@ -492,7 +494,7 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
             "tip": tuple(part(ltip, i) for i in order),
         })
     response = _Response(reduced, pre)
-    levels = spec_levels() if opts.levels is None else opts.levels
+    levels = spec_levels(model.units) if opts.levels is None else opts.levels
     alpha = levels.alpha(omega0, phi_tip)
     k_ref = omega0 ** 2
 
@@ -944,7 +946,38 @@ def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref):
             out["first"][i] = lp.first_dissipation
             out["shakedown"][i] = lp.shakedown
     solver.zone = zone
+    tol = opts.tol or DEFAULT_TOL
+    lin = linear[user]
+    for kind in ("masing", "loop"):
+        _exact_zeros(out, kind, lin, tol, grid[user], pos.q[user])
     return out
+
+
+#: Bound of the Masing integral over a backbone whose deviation from the tied line
+#: ``g = alpha - omega0^2 q`` is at most ``tol alpha`` at each point:
+#: ``|8 int_0^q g dq - 4 g q| <= 12 tol alpha q`` (``|g| <= tol alpha_k`` along the
+#: ramp, 8 from the integral, 4 from the last point).
+ZERO_BOUND_FACTOR = 12.0
+
+
+def _exact_zeros(out, kind, linear, tol, alpha, q):
+    r"""Exact zeros where the joint has not moved: at a level where no pair has left its
+    preload state on either ramp up to it (``linear``), the interface responds
+    linearly over the whole amplitude, every cycle is a line and the dissipation is
+    zero. The computed value holds only the error of the contact solves: there the
+    response leaves the tied line by at most the relative tolerance ``tol`` of the
+    solves, ``|g| <= tol alpha``, which bounds the dissipation by
+    :data:`ZERO_BOUND_FACTOR` ``tol alpha q`` (``|zeta| <= 6 tol / pi``). A dissipation
+    within that bound is set to exactly 0 (the damping ratio with it) and its error
+    estimate raised to cover what was removed; one beyond it is kept as computed (and
+    flagged ``stuck_not_linear`` if it is not zero to :data:`ZETA_ZERO`)."""
+    D, zeta, err = (out[f"dissipation_{kind}"], out[f"zeta_{kind}"],
+                    out["masing_error" if kind == "masing" else "loop_error"])
+    bound = ZERO_BOUND_FACTOR * tol * alpha * np.abs(q)
+    clip = linear & np.isfinite(D) & (np.abs(D) <= bound)
+    err[clip] = np.maximum(np.nan_to_num(err[clip]), np.abs(D[clip]))
+    D[clip] = 0.0
+    zeta[clip] = 0.0
 
 
 def _with_closed(zone, status):

@@ -14,12 +14,14 @@ except ModuleNotFoundError:  # Python 3.10
 from .errors import InputError
 from .levels import Levels, spec_levels
 from .options import RunOptions
+from .units import unit_system
 from .model import Body, Clamp, Interface, Material, Model, Pressure, Probe, Spring
 
 _NUM = (int, float)
 # section -> {key: (types, required)}
 SCHEMA = {
-    "": {"name": (str, False), "bodies": (list, True), "interface": (dict, False),
+    "": {"name": (str, False), "units": (str, False), "bodies": (list, True),
+         "interface": (dict, False),
          "interfaces": (list, False),
          "tip": (dict, True), "analysis": (dict, False), "levels": (dict, False)},
     "bodies": {"name": (str, True), "mesh": (str, True), "cells": (str, False),
@@ -131,7 +133,9 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
     Parameters
     ----------
     data : dict
-        The parsed file: ``[[bodies]]`` (mesh file, material, clamps, pressures,
+        The parsed file: ``units`` (the unit system every number is in,
+        :data:`qsma.units.UNIT_SYSTEMS`, default ``"SI"``), ``[[bodies]]`` (mesh file,
+        material, clamps, pressures,
         grounded springs ``springs = [{set = ..., stiffness = [kx, ky(, kz)]}]``, or
         ``cells`` to take a body out of a file holding several), one ``[interface]`` or
         a list ``[[interfaces]]`` (each with its own ``mu`` if wanted), ``[tip]``,
@@ -159,6 +163,11 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
     ...                    base=Path("examples"))                     # doctest: +SKIP
     """
     _check(data, "", where)
+    units = data.get("units", "SI")
+    try:
+        unit_system(units)
+    except InputError as exc:
+        raise InputError(f"{where}: units: {exc}") from None
     bodies = []
     files = {}
     for k, b in enumerate(data["bodies"]):
@@ -195,7 +204,7 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
     if "interface" in data:
         itf = _check(data["interface"], "interface", f"{where}: interface")
         model = Model(bodies=tuple(bodies), interface=_interface(itf, with_mu=False),
-                      tip=probe, mu=itf["mu"], name=name)
+                      tip=probe, mu=itf["mu"], name=name, units=units)
     else:
         if not data["interfaces"]:
             raise InputError(f"{where}: interfaces is empty; list the touching facet sets "
@@ -203,9 +212,11 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
         itfs = tuple(_interface(_check(t, "interfaces", f"{where}: interfaces[{k}]"))
                      for k, t in enumerate(data["interfaces"]))
         model = Model(bodies=tuple(bodies), interfaces=itfs, tip=probe, mu=itfs[0].mu,
-                      name=name)
+                      name=name, units=units)
+    levels = (spec_levels(model.units) if data.get("levels") is None
+              else parse_levels(data["levels"], f"{where}: levels"))
     options = RunOptions.from_table(data.get("analysis", {}), f"{where}: analysis",
-                                    levels=parse_levels(data.get("levels"), f"{where}: levels"))
+                                    levels=levels)
     return RunConfig(model, options)
 
 

@@ -9,6 +9,7 @@ import numpy as np
 
 from .masing import masing_loop
 from .rundir import atomic_write
+from .units import SI, display_stress, quantity_unit
 
 
 #: Figure margins in inches (left, right, bottom, top): room for the tick labels, the
@@ -47,6 +48,17 @@ def png_bytes(fig) -> bytes:
     buf = io.BytesIO()
     fig.savefig(buf, dpi=DPI, format="png", pil_kwargs={"compress_level": PNG_COMPRESSION})
     return buf.getvalue()
+
+
+def _unit(res, quantity) -> str:
+    """The unit of ``quantity`` in the result's unit system, for an axis label."""
+    return quantity_unit(quantity, getattr(res, "units", None) or SI, res.model.dim,
+                         pretty=True)
+
+
+def _stress(res) -> tuple:
+    """``(label, factor)`` of the contact pressures drawn (MPa whatever the system)."""
+    return display_stress(getattr(res, "units", None) or SI)
 
 
 def _save(fig, path):
@@ -118,8 +130,8 @@ def draw_backbone(res):
     fig, ax = _figure(figsize=(6, 4.5))
     ax.loglog(res.q, res.alpha, "o-", ms=3, label="QSMA backbone")
     ax.loglog(res.q, res.q * res.omega0 ** 2, "--", lw=1, label="linear (tied)")
-    ax.set_xlabel("modal amplitude q [\u221akg m]")
-    ax.set_ylabel("modal force \u03b1 [N/\u221akg]")
+    ax.set_xlabel(f"modal amplitude q [{_unit(res, 'modal_amplitude')}]")
+    ax.set_ylabel(f"modal force \u03b1 [{_unit(res, 'modal_force')}]")
     _set_ticks(ax)
     ax.set_title(f"Backbone, mode {res.mode_index} (f0 = {res.f0_hz:.2f} Hz)")
     ax.grid(True, which="both", alpha=0.3)
@@ -148,8 +160,8 @@ def draw_loops(res):
                  f"{dl.dissipation_masing:.3g})" if dl.success
                  else "direct loop (not closed: a contact solve failed)")
         ax.plot(dl.q, dl.alpha - k0 * dl.q, "k.", ms=3, label=label)
-    ax.set_xlabel("modal amplitude q [\u221akg m]")
-    ax.set_ylabel("\u03b1 \u2212 \u03c9\u2080\u00b2 q [N/\u221akg]")
+    ax.set_xlabel(f"modal amplitude q [{_unit(res, 'modal_amplitude')}]")
+    ax.set_ylabel(f"\u03b1 \u2212 \u03c9\u2080\u00b2 q [{_unit(res, 'modal_force')}]")
     ax.ticklabel_format(style="sci", scilimits=(-3, 3))
     _set_ticks(ax)
     ax.set_title("Hysteresis loops")
@@ -203,7 +215,7 @@ def draw_damping_frequency(res):
     a2.set_ylim(bottom=min(-ZETA_LINEAR, 3 * lowest))
     a2.set_ylabel("damping ratio \u03b6 [-]")
     _set_ticks(a1, a2)
-    a2.set_xlabel("peak tip velocity [m/s]")
+    a2.set_xlabel(f"peak tip velocity [{_unit(res, 'velocity')}]")
     for a in (a1, a2):
         a.grid(True, which="both", alpha=0.3)
         a.legend(fontsize=7)
@@ -230,19 +242,21 @@ def draw_interface(res, levels=None):
     x = p.x[:, 0]
     fig, axes = _figure(3, 1, figsize=(7, 8), hspace=0.1, sharex=True)
     pre = res.preload.lam
-    axes[0].plot(x, pre[:, -1] / p.area / 1e6, "k--", lw=1, label="preload")
+    stress, factor = _stress(res)
+    length = _unit(res, "length")
+    axes[0].plot(x, pre[:, -1] / p.area * factor, "k--", lw=1, label="preload")
     for k in levels:
         lam = res.states.lam[k]
-        lbl = f"level {k} (tip {res.tip[k]:.2e} m)"
-        axes[0].plot(x, lam[:, -1] / p.area / 1e6, lw=1.2, label=lbl)
+        lbl = f"level {k} (tip {res.tip[k]:.2e} {length})"
+        axes[0].plot(x, lam[:, -1] / p.area * factor, lw=1.2, label=lbl)
         axes[1].plot(x, np.linalg.norm(lam[:, :-1], axis=1) * np.sign(lam[:, 0]) / p.area
-                     / 1e6, lw=1.2, label=lbl)
+                     * factor, lw=1.2, label=lbl)
         axes[2].plot(x, res.states.status[k] + 0.05 * levels.index(k), ".", ms=5, label=lbl)
-    axes[0].set_ylabel("contact pressure [MPa]")
-    axes[1].set_ylabel("shear [MPa]")
+    axes[0].set_ylabel(f"contact pressure [{stress}]")
+    axes[1].set_ylabel(f"shear [{stress}]")
     axes[2].set_yticks([0, 1, 2], ["stuck", "slip", "open"])
     axes[2].set_ylabel("contact state [-]")
-    axes[2].set_xlabel("x along the interface [m]")
+    axes[2].set_xlabel(f"x along the interface [{length}]")
     _set_ticks(*axes)
     for a in axes:
         a.grid(True, alpha=0.3)
@@ -263,14 +277,16 @@ def draw_interface_map(res, levels=None):
     fig, axes = _figure(3, len(levels), figsize=(4.2 * len(levels), 6.5), hspace=0.3,
                         wspace=0.45, squeeze=False, sharex=True, sharey=True)
     states = ListedColormap(["tab:blue", "tab:orange", "lightgray"])
-    pmax = max(res.states.lam[k][:, -1].max() for k in levels) / p.area.max() / 1e6
+    stress, factor = _stress(res)
+    length = _unit(res, "length")
+    pmax = max(res.states.lam[k][:, -1].max() for k in levels) / p.area.max() * factor
     for j, k in enumerate(levels):
         lam = res.states.lam[k]
         for i, (val, cmap, label, kw) in enumerate((
-                (lam[:, -1] / p.area / 1e6, "viridis", "pressure [MPa]",
+                (lam[:, -1] / p.area * factor, "viridis", f"pressure [{stress}]",
                  dict(vmin=0, vmax=pmax)),
-                (np.linalg.norm(lam[:, :-1], axis=1) / p.area / 1e6, "magma",
-                 "shear [MPa]", {}),
+                (np.linalg.norm(lam[:, :-1], axis=1) / p.area * factor, "magma",
+                 f"shear [{stress}]", {}),
                 (res.states.status[k], states, "0 stuck, 1 slip, 2 open",
                  dict(vmin=-0.5, vmax=2.5)))):
             ax = axes[i, j]
@@ -278,9 +294,9 @@ def draw_interface_map(res, levels=None):
             ax.set_aspect("equal")
             fig.colorbar(sc, ax=ax, shrink=0.8, label=label)
             if i == 0:
-                ax.set_title(f"level {k}, tip {res.tip[k]:.2e} m", fontsize=9)
-            ax.set_xlabel("t1 coordinate [m]")
-            ax.set_ylabel("t2 coordinate [m]")
+                ax.set_title(f"level {k}, tip {res.tip[k]:.2e} {length}", fontsize=9)
+            ax.set_xlabel(f"t1 coordinate [{length}]")
+            ax.set_ylabel(f"t2 coordinate [{length}]")
             ax.label_outer()            # coordinates once per row and column
     return fig
 
@@ -387,6 +403,7 @@ class PlotData:
     preload: ContactView
     states: ContactView
     model: ModelView
+    units: object = None        # qsma.units.UnitSystem of the model
 
     @property
     def n_levels(self) -> int:
@@ -419,7 +436,7 @@ def plot_data(res) -> PlotData:
         pairing=PairsView(p.x, p.area, p.frames),
         preload=ContactView(res.preload.lam, res.preload.status),
         states=ContactView(res.states.lam, res.states.status),
-        model=ModelView(res.model.dim))
+        model=ModelView(res.model.dim), units=res.units)
 
 
 # -- Every figure of a run -----------------------------------------------------------------

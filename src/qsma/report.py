@@ -20,11 +20,14 @@ import tempfile
 import numpy as np
 
 from .result import FAILURE_FLAGS
+from .units import column_label, level_units
 
 REPORT_NAME = "report.html"
-#: Columns of the per-level table of a run's report: (field, heading, format).
-LEVEL_TABLE = (("tip_lin", "linear tip [m]", "{:.3e}"), ("tip", "peak tip [m]", "{:.3e}"),
-               ("f_hz", "f [Hz]", "{:.4f}"), ("zeta", "zeta", "{:.3e}"),
+#: Columns of the per-level table of a run's report: (field, heading, format); the
+#: heading gets the field's unit in the model's system (:func:`qsma.units.level_units`).
+LEVEL_TABLE = (("tip_lin", "linear tip", "{:.3e}"), ("tip", "peak tip", "{:.3e}"),
+               ("f_hz", "f", "{:.4f}"), ("zeta", "zeta", "{:.3e}"),
+               ("dissipation", "dissipation", "{:.3e}"),
                ("dissipation_method", "dissipation by", "{}"),
                ("n_stuck", "stuck", "{}"), ("n_slip", "slip", "{}"),
                ("n_open", "open", "{}"), ("iterations", "iterations", "{}"),
@@ -405,7 +408,8 @@ def run_report_html(res, figures=None) -> str:
         "".join(f'<p class="warn">{escape(w)}</p>' for w in warns) if warns
         else "<p>none</p>"))
     parts.append("<h2>Model</h2>" + _pairs({
-        "name": info["name"], "dimension": info["dim"], "nodes": info["n_nodes"],
+        "name": info["name"], "unit system": _unit_text(res.units),
+        "dimension": info["dim"], "nodes": info["n_nodes"],
         "degrees of freedom": info["n_dofs"], "interface pairs": info["n_pairs"],
         "coupling": info["coupling"], "friction coefficient": info["mu"],
         "pairs closed after the preload": info["n_closed_after_preload"],
@@ -418,9 +422,10 @@ def run_report_html(res, figures=None) -> str:
         _figure_html(image, cap, mime) for cap, image, mime in _run_figures(res, figures)))
     rows = [[k] + [_level_cell(getattr(res, name)[k], fmt) for name, _, fmt in LEVEL_TABLE]
             + [", ".join(res.flags[k])] for k in range(res.n_levels)]
+    unit = level_units(res.units, res.model.dim)
     parts.append("<h2>Levels</h2>" + _table(
-        ["level"] + [h for _, h, _ in LEVEL_TABLE] + ["flags"], rows,
-        text_columns=(5, len(LEVEL_TABLE) + 1)))
+        ["level"] + [column_label(h, unit[name]) for name, h, _ in LEVEL_TABLE]
+        + ["flags"], rows, text_columns=(6, len(LEVEL_TABLE) + 1)))
     pre = res.preload
     stats = {"gross slip from level": res.gross_slip_level,
              "preload: stuck / slip / open": f"{pre.n_stuck} / {pre.n_slipping} / "
@@ -479,6 +484,12 @@ def study_report_html(parameters, cases, table, figures) -> str:
         _figure_html(Path(p).read_bytes(), f"Study over {name}")
         for name, p in figures.items()))
     return _page(f"QSMA study over {', '.join(parameters)}", "\n".join(parts))
+
+
+def _unit_text(u) -> str:
+    """The unit system as a reader wants it: its name and base units."""
+    return (f"{u.name} (length {u.length}, force {u.force}, time {u.time}, mass {u.mass}, "
+            f"stress {u.stress})")
 
 
 def _level_cell(v, fmt):

@@ -30,8 +30,9 @@ def add_arguments(p):
     p.add_argument("--tol", type=float, help="contact solver tolerance")
     p.add_argument("--levels", metavar="SPEC",
                    help="load levels KIND:log|linear:START:STOP:N or KIND:list:V1,V2,...; "
-                        "KIND is tip (linear tied tip deflection [m]) or alpha (modal "
-                        "force), e.g. tip:log:1e-6:1e-3:51 (the default)")
+                        "KIND is tip (linear tied tip deflection, in the model's length "
+                        "unit) or alpha (modal force), e.g. tip:log:1e-6:1e-3:51 (the "
+                        "default in SI: 1 um to 1 mm; 1e-3 to 1 in a mm-N-s-tonne model)")
     p.add_argument("--maxiter", type=int, help="contact solver iteration cap")
     p.add_argument("--dissipation", choices=["auto", "masing", "loop"],
                    help="dissipation per cycle: Masing's rules where verified and the "
@@ -180,8 +181,9 @@ def _bar(k, n, width=40, label="load levels"):
 
 def _summary(res, paths, verbose):
     info = res.model_info
+    u = res.units
     print(f"{info['name']}: {info['n_nodes']} nodes, {info['n_pairs']} interface pairs "
-          f"({info['coupling']} coupling), mu = {info['mu']}")
+          f"({info['coupling']} coupling), mu = {info['mu']}, units {u.name}")
     for body, element in info["elements"].items():
         print(f"  {body}: {element}")
     print(f"mode {res.mode_index}: f0 = {res.f0_hz:.3f} Hz; {res.n_levels} load levels, "
@@ -190,7 +192,8 @@ def _summary(res, paths, verbose):
     print(f"dissipation: {res.n_levels - n_loop} level(s) by Masing's rules, {n_loop} by "
           f"computed loops ({res.options.dissipation})")
     if verbose:
-        print(f"{'k':>3} {'alpha':>11} {'tip [m]':>10} {'f [Hz]':>9} {'zeta':>10} "
+        tip = f"tip [{u.length}]"
+        print(f"{'k':>3} {'alpha':>11} {tip:>10} {'f [Hz]':>9} {'zeta':>10} "
               f"{'stuck':>5} {'slip':>5} {'open':>5} {'it':>4}")
         for k in range(res.n_levels):
             print(f"{k:3d} {res.alpha[k]:11.4e} {res.tip[k]:10.3e} {res.f_hz[k]:9.3f} "
@@ -198,7 +201,7 @@ def _summary(res, paths, verbose):
                   f"{res.n_open[k]:5d} {res.iterations[k]:4d}")
     if res.n_levels:
         print(f"last level: f = {res.f_hz[-1]:.3f} Hz, zeta = {res.zeta[-1]:.4e}, "
-              f"tip = {res.tip[-1]:.3e} m")
+              f"tip = {res.tip[-1]:.3e} {u.length}")
     dl = res.direct_loop
     if dl is not None and dl.success:
         print(f"direct loop dissipation {dl.dissipation:.4e} vs Masing "

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from ..plots import _figure, _save
+from ..units import quantity_unit
 
 
 def _cases(table):
@@ -18,9 +19,10 @@ def _cases(table):
     return out
 
 
-def plot_parameter(table, parameter, others, path):
+def plot_parameter(table, parameter, others, path, units="SI", dim=3):
     """Secant frequency and damping ratio versus peak tip deflection, a curve per case,
-    coloured by the value of ``parameter`` (the other parameters in the label)."""
+    coloured by the value of ``parameter`` (the other parameters in the label), in
+    the model's ``units``."""
     from matplotlib import colormaps
     fig, (a1, a2) = _figure(2, 1, figsize=(6.5, 7), sharex=True)
     rows = _cases(table)
@@ -41,7 +43,7 @@ def plot_parameter(table, parameter, others, path):
     a1.set_ylabel("secant frequency [Hz]")
     a2.set_ylabel(r"damping ratio $\zeta$")
     a2.set_yscale("symlog", linthresh=1e-6)   # zero and round-off stay visible (plots.py)
-    a2.set_xlabel("peak tip deflection [m]")
+    a2.set_xlabel(f"peak tip deflection [{quantity_unit('length', units, dim)}]")
     a1.set_title(f"Study over {parameter}")
     for a in (a1, a2):
         a.grid(True, alpha=0.3)
@@ -50,7 +52,7 @@ def plot_parameter(table, parameter, others, path):
     return _save(fig, path)
 
 
-def plot_study(table, parameters, out) -> dict:
+def plot_study(table, parameters, out, units="SI", dim=3) -> dict:
     """One figure per varied parameter: ``sweep_<parameter>.png`` in ``out``."""
     paths = {}
     if not _cases(table):
@@ -58,7 +60,8 @@ def plot_study(table, parameters, out) -> dict:
     for p in parameters:
         others = [o for o in parameters if o != p]
         safe = p.replace(":", "_")
-        paths[f"plot_{p}"] = plot_parameter(table, p, others, Path(out) / f"sweep_{safe}.png")
+        paths[f"plot_{p}"] = plot_parameter(table, p, others, Path(out) / f"sweep_{safe}.png",
+                                            units, dim)
     return paths
 
 
@@ -80,8 +83,10 @@ def plot_fit(fr, path, start_prediction=None):
     a2.loglog(m.amplitude, m.zeta, "ko", ms=4, mfc="none")
     a1.set_ylabel("secant frequency [Hz]")
     a2.set_ylabel(r"damping ratio $\zeta$")
-    a2.set_xlabel("peak tip deflection [m]" if m.kind == "tip"
-                  else "peak modal amplitude q [kg$^{1/2}$ m]")
+    unit = quantity_unit("length" if m.kind == "tip" else "modal_amplitude", res.units,
+                         res.model.dim, pretty=True)
+    a2.set_xlabel(f"peak tip deflection [{unit}]" if m.kind == "tip"
+                  else f"peak modal amplitude q [{unit}]")
     lo, hi = m.amplitude.min(), m.amplitude.max()
     a2.set_xlim(lo / 2, hi * 2)
     z = m.zeta[np.isfinite(m.zeta)]

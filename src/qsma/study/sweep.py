@@ -450,11 +450,11 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
             progress(len(outcomes), n_total)
     ordered = tuple(outcomes[c.index] for c in cases)
     table = study_table(cases, ordered, out)
-    paths = write_table(table, out)
+    paths = write_table(table, out, units=model.units, dim=model.dim)
     figures = {}
     if plots:
         from .plots import plot_study
-        figures = plot_study(table, list(vary), out)
+        figures = plot_study(table, list(vary), out, units=model.units, dim=model.dim)
         paths.update(figures)
     from ..report import REPORT_NAME, write_study_report
     paths["report"] = write_study_report(list(vary), ordered, table,
@@ -736,13 +736,17 @@ def study_table(cases, outcomes, out) -> dict:
     return cols
 
 
-def write_table(table, out) -> dict:
-    """Write the study table as CSV (always) and Parquet (when pyarrow is installed)."""
+def write_table(table, out, units="SI", dim=3) -> dict:
+    """Write the study table as CSV (always) and Parquet (when pyarrow is installed);
+    the CSV header names the units of the level columns in the model's system
+    (``tip [m]``, as results.csv)."""
     from ..results import atomic_path, atomic_write, _csv_cell
+    from ..units import column_label, level_units
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     names = list(table)
-    w.writerow(names)
+    unit = level_units(units, dim)
+    w.writerow([column_label(c, unit.get(c)) for c in names])
     n = len(table[names[0]]) if names else 0
     for i in range(n):
         w.writerow([_csv_cell(table[c][i]) for c in names])
@@ -762,10 +766,12 @@ def write_table(table, out) -> dict:
 
 
 def read_table(path) -> dict:
-    """The study CSV as column name -> list of strings (empty cells as '')."""
+    """The study CSV as column name (its unit left out: ``tip [m]`` -> ``tip``) -> list
+    of strings (empty cells as '')."""
+    from ..results import column_name
     with open(path, newline="") as f:
         rows = list(csv.reader(f))
-    return {name: [r[i] for r in rows[1:]] for i, name in enumerate(rows[0])}
+    return {column_name(name): [r[i] for r in rows[1:]] for i, name in enumerate(rows[0])}
 
 
 __all__ = ["sweep", "grid", "parse_values", "Case", "CaseOutcome", "SweepResult",
