@@ -7,6 +7,7 @@ import numpy as np
 
 from ..errors import InputError
 from .common import add_model_arguments, load_model
+from .progress import LOG_NAME
 
 HELP = "quasi-static modal analysis: backbone, frequency and damping versus amplitude"
 #: RunOptions fields that have a command-line flag of the same name.
@@ -93,10 +94,14 @@ def _run_into(args, folder, worker=None):
     options = options.replace(**{key: getattr(args, key) for key in CLI_OPTIONS},
                               levels=None if args.levels is None
                               else parse_levels_spec(args.levels))
-    progress = None if args.quiet or not sys.stderr.isatty() else _bar
-    res = run(model, options, progress=progress)
-    if progress:
-        print(file=sys.stderr)
+    log = getattr(args, "log", None)
+    if log is not None:
+        log.to_file(folder.staging / LOG_NAME)
+    try:
+        res = _with_progress(args, log, lambda bars: run(model, options, progress=bars))
+    finally:
+        if log is not None:
+            log.close_file()            # complete before the manifest lists it
     paths = write_all(res, folder.path, plots=not args.no_plots, vtu=not args.no_vtu,
                       folder=folder, plot_worker=worker)
     return res, paths, options
@@ -172,11 +177,21 @@ def _warn_flags(res):
               file=sys.stderr)
 
 
-def _bar(k, n, width=40, label="load levels"):
-    """A progress bar on stderr (the line is rewritten in place)."""
-    done = int(width * k / n) if n else width
-    print(f"\r  {label} [{'#' * done}{'.' * (width - done)}] {k}/{n}", end="",
-          file=sys.stderr, flush=True)
+def _with_progress(args, log, call):
+    """``call(bars)`` with the run's progress bars on stderr (:class:`RunBars`; ``None``
+    with ``--quiet`` or when stderr is not a terminal), the log messages printed above
+    them while they are shown."""
+    if args.quiet or not sys.stderr.isatty():
+        return call(None)
+    from .progress import RunBars
+    with RunBars() as bars:
+        if log is not None:
+            log.console_handler.console = bars.console
+        try:
+            return call(bars)
+        finally:
+            if log is not None:
+                log.console_handler.console = None
 
 
 def _summary(res, paths, verbose):

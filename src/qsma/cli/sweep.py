@@ -69,11 +69,15 @@ def execute(args) -> int:
                               else parse_levels_spec(args.levels))
     workers = 2 if args.workers is None else args.workers
     scheduler = args.scheduler or ("serial" if workers == 0 else None)
-    progress = None if args.quiet or not sys.stderr.isatty() else _bar
-    res = sweep(model, vary, options, out=args.out, scheduler=scheduler, workers=workers,
-                files=files, plots=not args.no_plots, progress=progress)
-    if progress:
-        print(file=sys.stderr)
+    call = lambda progress: sweep(model, vary, options, out=args.out, scheduler=scheduler,
+                                  workers=workers, files=files, plots=not args.no_plots,
+                                  progress=progress)
+    if args.quiet or not sys.stderr.isatty():
+        res = call(None)
+    else:
+        from .progress import CountBar
+        with CountBar("qsma: cases") as bar:
+            res = call(bar)
     if not args.quiet:
         print(f"{len(res.cases)} cases over {', '.join(res.parameters)} "
               f"({res.n_skipped} already done); {res.timings_s['total']:.1f} s")
@@ -83,7 +87,3 @@ def execute(args) -> int:
         return 1
     return 0
 
-
-def _bar(k, n):
-    from .run import _bar as bar
-    bar(k, n, label="cases")
