@@ -414,7 +414,7 @@ def _interface_point_data(res, k, offsets, n):
 
 
 def write_all(res, out, plots=True, vtu=True, folder=None, report=None,
-              plot_worker=None):
+              plot_worker=None, amplitude=None):
     """Write every result file of a run as one run into folder ``out``.
 
     The files are written into a private staging folder, listed with their SHA-256 in
@@ -433,6 +433,8 @@ def write_all(res, out, plots=True, vtu=True, folder=None, report=None,
         figures while the other files are written (``None``: drawn here). Its PNG
         bytes are written here; if it fails, the figures are drawn here instead (the
         same files). The caller closes it.
+    amplitude : the amplitude measure the figures are drawn against (a key of
+        :data:`qsma.plots.AMPLITUDES`; default the peak tip deflection)
 
     Returns
     -------
@@ -448,12 +450,12 @@ def write_all(res, out, plots=True, vtu=True, folder=None, report=None,
     """
     if folder is None:
         with RunFolder(out) as folder:
-            return write_all(res, out, plots, vtu, folder, report, plot_worker)
+            return write_all(res, out, plots, vtu, folder, report, plot_worker, amplitude)
     stage = folder.staging
     paths = {"json": stage / "results.json", "csv": stage / "results.csv"}
     draw = plots and res.n_levels > 0
     if draw and plot_worker is not None:
-        plot_worker.submit(res)                 # drawn while the files below are written
+        plot_worker.submit(res, amplitude)      # drawn while the files below are written
     try:
         write_csv(res, paths["csv"])
         if vtu and res.n_levels:
@@ -461,11 +463,11 @@ def write_all(res, out, plots=True, vtu=True, folder=None, report=None,
         write_json(res, paths["json"])
         figures = None
         if draw:
-            figures = _write_figures(res, stage, plot_worker)
+            figures = _write_figures(res, stage, plot_worker, amplitude)
             paths.update(figures)
         if plots if report is None else report:
             from .report import REPORT_NAME, write_report
-            paths["report"] = write_report(res, stage / REPORT_NAME, figures)
+            paths["report"] = write_report(res, stage / REPORT_NAME, figures, amplitude)
     except OSError as exc:
         raise write_error(exc, folder.path) from exc
     folder.commit()
@@ -473,7 +475,7 @@ def write_all(res, out, plots=True, vtu=True, folder=None, report=None,
     return {k: folder.path / Path(p).name for k, p in paths.items()}
 
 
-def _write_figures(res, stage, plot_worker=None) -> dict:
+def _write_figures(res, stage, plot_worker=None, amplitude=None) -> dict:
     """The figures of ``res`` written into ``stage``: the PNG bytes of ``plot_worker``
     (:mod:`qsma._plotworker`) if it delivers every figure, else drawn here
     (:func:`qsma.plots.write_plots`, the same files); name -> path."""
@@ -493,4 +495,4 @@ def _write_figures(res, stage, plot_worker=None) -> dict:
             for name, path in paths.items():
                 atomic_write(path, pngs[name], "wb")
             return paths
-    return write_plots(res, stage)
+    return write_plots(res, stage, amplitude)

@@ -13,6 +13,14 @@ def add_model_arguments(p):
     p.add_argument("--mu", type=float, help="friction coefficient (overrides the model)")
 
 
+def add_amplitude_argument(p):
+    """``--amplitude``: the measure the figures draw frequency and damping against,
+    the same for a run and a study (:data:`qsma.plots.AMPLITUDES`)."""
+    p.add_argument("--amplitude", choices=("tip", "velocity", "q"), default="tip",
+                   help="amplitude measure of the figures: peak tip deflection (tip, "
+                        "the default), peak tip velocity or peak modal amplitude q")
+
+
 def load_model(args):
     """``(model, RunOptions)`` from ``--example`` or a configuration file."""
     from ..examples import EXAMPLES

@@ -6,7 +6,7 @@ import sys
 import numpy as np
 
 from ..errors import InputError
-from .common import add_model_arguments, load_model
+from .common import add_amplitude_argument, add_model_arguments, load_model
 from .progress import LOG_NAME
 
 HELP = "quasi-static modal analysis: backbone, frequency and damping versus amplitude"
@@ -47,6 +47,7 @@ def add_arguments(p):
     p.add_argument("--continue", dest="continue_on_failure", action="store_true",
                    default=None, help="keep going after a level that does not converge")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    add_amplitude_argument(p)
     p.add_argument("--no-vtu", action="store_true", help="skip the VTU fields")
     g = p.add_mutually_exclusive_group()
     g.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
@@ -103,7 +104,7 @@ def _run_into(args, folder, worker=None):
         if log is not None:
             log.close_file()            # complete before the manifest lists it
     paths = write_all(res, folder.path, plots=not args.no_plots, vtu=not args.no_vtu,
-                      folder=folder, plot_worker=worker)
+                      folder=folder, plot_worker=worker, amplitude=args.amplitude)
     return res, paths, options
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 import sys
 
 from ..errors import InputError
-from .common import add_model_arguments, load_model
+from .common import add_amplitude_argument, add_model_arguments, load_model
 
 HELP = ("parameter study: QSMA over a grid of friction, preload scale, materials, mode "
         "or levels, sharing assembly and condensation; cases run on Dask")
@@ -33,6 +33,7 @@ def add_arguments(p):
                    help="per-case files besides results.json/csv: plots, vtu, rom "
                         "(rom.json: a fitted modal Iwan model), report (report.html)")
     p.add_argument("--no-plots", action="store_true", help="skip the study figures")
+    add_amplitude_argument(p)
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
 
 
@@ -71,7 +72,7 @@ def execute(args) -> int:
     scheduler = args.scheduler or ("serial" if workers == 0 else None)
     call = lambda progress: sweep(model, vary, options, out=args.out, scheduler=scheduler,
                                   workers=workers, files=files, plots=not args.no_plots,
-                                  progress=progress)
+                                  progress=progress, amplitude=args.amplitude)
     if args.quiet or not sys.stderr.isatty():
         res = call(None)
     else:

@@ -367,7 +367,7 @@ def _roundtrip(x):
 
 def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out,
           scheduler=None, workers: int = DEFAULT_WORKERS, files=(), plots=True,
-          progress=None) -> SweepResult:
+          progress=None, amplitude=None) -> SweepResult:
     """Run a parameter study: every case of the grid ``vary``, sharing the work the
     cases have in common (module docstring), on Dask or serially.
 
@@ -397,6 +397,9 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
         study's report.html is written in any case.
     progress : callable, optional
         ``progress(done, total)`` after each case (skipped ones included).
+    amplitude : str, optional
+        The amplitude measure of the study figures (:data:`qsma.plots.AMPLITUDES`,
+        default the peak tip deflection, as a run's figures).
 
     Returns
     -------
@@ -415,6 +418,9 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
     for f in files:
         if f not in CASE_FILES:
             raise InputError(f"unknown per-case file kind {f!r}; valid: {CASE_FILES}")
+    if amplitude is not None:
+        from ..plots import check_amplitude
+        check_amplitude(amplitude)
     if not (isinstance(workers, int) and workers >= 0):
         raise InputError(f"workers must be an integer >= 0, got {workers!r}")
     cases = grid(vary)
@@ -454,7 +460,8 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
     figures = {}
     if plots:
         from .plots import plot_study
-        figures = plot_study(table, list(vary), out, units=model.units, dim=model.dim)
+        figures = plot_study(table, list(vary), out, units=model.units, dim=model.dim,
+                             amplitude=amplitude)
         paths.update(figures)
     from ..report import REPORT_NAME, write_study_report
     paths["report"] = write_study_report(list(vary), ordered, table,
