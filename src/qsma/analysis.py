@@ -39,9 +39,11 @@ from .multibody import (MultiPairing, body_order, multi_pairing, pair_gaps, pair
                         reduce_model, warn_closed_gaps)
 from . import _resources
 from .options import RunOptions
+from .progress import Progress, reporter
 from .model.bolt import bolt_functionals, with_bolt_loads
 from .pretension import lock
 from .rigid import ANCHOR_ROUNDS, anchored, elastic_probe, held_by_joint, support_share
+from .units import check_model_units
 from .result import (FAILURE_FIXES, FAILURE_FLAGS, LEVEL_FIELDS,  # noqa: F401
                      DirectLoop, LevelStates, QSMAResult, load_factors as _load_factors)
 
@@ -69,14 +71,17 @@ def _counts(status):
 
 
 class _Timer:
-    """Seconds per stage of :data:`STAGES`; a stage may be entered several times."""
+    """Seconds per stage of :data:`STAGES`; a stage may be entered several times. Each
+    entry is told to ``report`` (:class:`qsma.progress.Progress`)."""
 
     def __init__(self):
         self.t = dict.fromkeys(STAGES, 0.0)
         self.t0 = time.perf_counter()
+        self.report = Progress()
 
     @contextmanager
     def stage(self, name):
+        self.report.stage(name)
         start = time.perf_counter()
         try:
             yield
@@ -98,8 +103,10 @@ def run(model, options: RunOptions | None = None, *, progress=None, **overrides)
         problem over all of them, :mod:`qsma.multibody`)
     options : :class:`qsma.options.RunOptions`, optional
         Every option of the run (defaults: :class:`RunOptions` ``()``).
-    progress : callable, optional
-        ``progress(k, n)`` after each level of the user's grid.
+    progress : :class:`qsma.progress.Progress` or callable, optional
+        Told of each stage and of the load levels, refinement rounds and loops as they
+        are solved; a callable ``progress(k, n)`` is called after each level of the
+        user's grid (:func:`qsma.progress.reporter`).
     **overrides
         Fields of :class:`RunOptions` to change, e.g. ``mode=1, dissipation="loop"``.
 
@@ -156,6 +163,7 @@ def _start(model, opts):
         pairing = make_pairing(model) if model.interface is not None \
             else multi_pairing(model)
     _warn_closed_gaps(model, pairing)
+    check_model_units(model)
     limit = threads_for(pairing.n_pairs * model.dim) if opts.blas_threads == "auto" \
         else opts.blas_threads
     return clock, pairing, limit
@@ -488,6 +496,7 @@ def _contact_threads(opts):
 
 
 def _run(model, pairing, opts, progress, clock, prepared=None):
+    report = clock.report = reporter(progress)
     order = body_order(model, pairing)
     sopts = opts.solver_options
     if prepared is None:
@@ -513,7 +522,7 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
             "tip": tuple(part(ltip, i) for i in order),
         })
     response = _Response(reduced, pre)
-    levels = spec_levels() if opts.levels is None else opts.levels
+    levels = spec_levels(model.units) if opts.levels is None else opts.levels
     alpha = levels.alpha(omega0, phi_tip)
     k_ref = omega0 ** 2
 
@@ -525,7 +534,7 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
                              else None)
             negative = _NegativeRamp(solver, response, pre, opts.parallel_ramps)
             try:
-                grid, user, pos = _refined_backbone(solver, alpha, pre, opts, progress,
+                grid, user, pos = _refined_backbone(solver, alpha, pre, opts, report,
                                                     response, k_ref, negative.start)
                 n_ok = len(user)
                 neg = negative.result(grid[:pos.n])
@@ -535,7 +544,7 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
 
         with clock.stage("hysteresis"), threads_limited(contact_limit):
             hyst = _hysteresis(solver, response, grid[:pos.n], user, pos, neg, pre, opts,
-                               k_ref)
+                               k_ref, report)
     finally:
         if prepared is None:        # the problem dies with this run: free its zones now,
             release_zones(problem)  # not at the next collection of the cycle collector
@@ -841,7 +850,7 @@ class _NegativeRamp:
                      "negative load level", response=self.response)
 
 
-def _refined_backbone(solver, alpha, pre, opts, progress, response, k_ref, last_round=None):
+def _refined_backbone(solver, alpha, pre, opts, report, response, k_ref, last_round=None):
     """The +alpha ramp on the user's levels, then on a grid refined where the Masing
     integral needs it (pair states change in an interval, or the error estimate exceeds
     ``dissipation_rtol``). Returns ``(grid, user_index, ramp)``: ``grid[user_index]``
@@ -849,7 +858,8 @@ def _refined_backbone(solver, alpha, pre, opts, progress, response, k_ref, last_
     with the grid of the last refinement round before that round is solved (the
     grid kept unless the round fails)."""
     grid = np.asarray(alpha, float)
-    tick = (lambda k, n: progress(min(k, len(alpha)), len(alpha))) if progress else None
+    report.task("levels", len(alpha))
+    tick = lambda k, n: report.advance("levels", min(k, len(alpha)), len(alpha))
     out = _ramp(solver, grid, pre.state, opts.continue_on_failure, tick, response=response)
     rounds = LEVEL_REFINE_ROUNDS if opts.refine_levels and out.success else 0
     for r in range(rounds):
@@ -860,7 +870,9 @@ def _refined_backbone(solver, alpha, pre, opts, progress, response, k_ref, last_
             new[:len(grid)], grid) else len(grid)
         if last_round is not None and r == rounds - 1:
             last_round(new)
-        trial = _ramp(solver, new, pre.state, False, None, response=response,
+        report.task("refinement", len(new))
+        trial = _ramp(solver, new, pre.state, False,
+                      lambda k, n: report.advance("refinement", k, n), response=response,
                       prefix=(out, first),
                       guesses={float(grid[j]): out.state(j) for j in range(first, out.n)
                                if out.ok[j]})
@@ -895,7 +907,7 @@ def _insert_levels(grid, out, k_ref, rtol, pre_status):
     return np.union1d(grid, 0.5 * (lo + grid[:n])[pick])
 
 
-def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref):
+def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref, report=None):
     """Masing estimates, checks and loops at the user's levels (see module docstring)."""
     n_ok, n = len(user), pos.n
     est = masing_estimate(grid, pos.q, k_ref)
@@ -954,7 +966,10 @@ def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref):
                             atol=ZETA_ZERO * 2 * np.pi * A * abs(pos.q[g]),
                             expect_closing=True)
 
-    for i, lp in zip(todo, map_loops(level_loop, todo, opts.loop_worker_count)):
+    report = report or Progress()
+    report.task("loops", len(todo))
+    done = lambda j: report.advance("loops", j, len(todo))
+    for i, lp in zip(todo, map_loops(level_loop, todo, opts.loop_worker_count, done)):
         out["loops"][i] = lp
         out["n_solves"] += lp.n_solves
         log.info("level %d: loop at A=%.4g, %s, %d solves, D=%.4g +- %.1g", i,

@@ -16,14 +16,15 @@ except ModuleNotFoundError:  # Python 3.10
 from .errors import InputError, MeshFileError
 from .levels import Levels, spec_levels
 from .options import RunOptions
+from .units import unit_system
 from .model import (Body, Bolt, Clamp, Interface, Material, Model, NodalForce, PointMass,
                     Pressure, Probe, Spring)
 
 _NUM = (int, float)
 # section -> {key: (types, required)}
 SCHEMA = {
-    "": {"name": (str, False), "bodies": (list, True), "interface": (dict, False),
-         "interfaces": (list, False), "bolts": (list, False),
+    "": {"name": (str, False), "units": (str, False), "bodies": (list, True),
+         "interface": (dict, False), "interfaces": (list, False), "bolts": (list, False),
          "tip": (dict, True), "analysis": (dict, False), "levels": (dict, False)},
     "bodies": {"name": (str, True), "mesh": (str, True), "cells": (str, False),
                "part": (int, False), "E": (_NUM, True),
@@ -216,7 +217,9 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
     Parameters
     ----------
     data : dict
-        The parsed file: ``[[bodies]]`` (mesh file, material, clamps, pressures,
+        The parsed file: ``units`` (the unit system every number is in,
+        :data:`qsma.units.UNIT_SYSTEMS`, default ``"SI"``), ``[[bodies]]`` (mesh file,
+        material, clamps, pressures,
         grounded springs ``springs = [{set = ..., stiffness = [kx, ky(, kz)]}]``, or
         ``cells`` to take a body out of a file holding several), one ``[interface]`` or
         a list ``[[interfaces]]`` (each with its own ``mu`` if wanted), ``[tip]``,
@@ -244,6 +247,11 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
     ...                    base=Path("examples"))                     # doctest: +SKIP
     """
     _check(data, "", where)
+    units = data.get("units", "SI")
+    try:
+        unit_system(units)
+    except InputError as exc:
+        raise InputError(f"{where}: units: {exc}") from None
     bodies = []
     files = {}
     for k, b in enumerate(data["bodies"]):
@@ -281,7 +289,7 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
     if "interface" in data:
         itf = _check(data["interface"], "interface", f"{where}: interface")
         model = Model(bodies=tuple(bodies), interface=_interface(itf, with_mu=False),
-                      tip=probe, mu=itf["mu"], name=name, bolts=bolts)
+                      tip=probe, mu=itf["mu"], name=name, bolts=bolts, units=units)
     else:
         if not data["interfaces"]:
             raise InputError(f"{where}: interfaces is empty; list the touching facet sets "
@@ -289,12 +297,13 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
         itfs = tuple(_interface(_check(t, "interfaces", f"{where}: interfaces[{k}]"))
                      for k, t in enumerate(data["interfaces"]))
         model = Model(bodies=tuple(bodies), interfaces=itfs, tip=probe, mu=itfs[0].mu,
-                      name=name, bolts=bolts)
+                      name=name, bolts=bolts, units=units)
     analysis = dict(data.get("analysis", {})) if isinstance(data.get("analysis"), dict) \
         else data.get("analysis", {})
     modes = _modes(analysis, f"{where}: analysis")
-    options = RunOptions.from_table(analysis, f"{where}: analysis",
-                                    levels=parse_levels(data.get("levels"), f"{where}: levels"))
+    levels = (spec_levels(model.units) if data.get("levels") is None
+              else parse_levels(data["levels"], f"{where}: levels"))
+    options = RunOptions.from_table(analysis, f"{where}: analysis", levels=levels)
     return RunConfig(model, options, modes)
 
 

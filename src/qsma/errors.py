@@ -59,3 +59,8 @@ class QuadraticFacetWarning(QSMAWarning):
 
 class NearlyIncompressibleWarning(QSMAWarning):
     """Poisson's ratio close to 0.5: displacement elements lock (too stiff)."""
+
+
+class UnitSystemWarning(QSMAWarning):
+    """A model's numbers look like another unit system than the one it declares
+    (:func:`qsma.units.check_model_units`)."""

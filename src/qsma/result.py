@@ -148,6 +148,12 @@ class QSMAResult:
     version: str = __version__
 
     @property
+    def units(self):
+        """The model's :class:`qsma.units.UnitSystem` (every result is in it)."""
+        from .units import unit_system
+        return unit_system(getattr(self.model, "units", "SI"))
+
+    @property
     def f0_hz(self):
         return self.omega0 / (2 * np.pi)
 

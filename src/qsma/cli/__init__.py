@@ -19,6 +19,7 @@ import warnings
 from ..errors import (AnalysisError, ContactConvergenceWarning, InputError, QSMAError,
                       QSMAWarning)
 from . import fit as _fit, init as _init, modes as _modes, run as _run, sweep as _sweep
+from .progress import LOG_LEVELS, LogSetup
 
 EXIT_OK, EXIT_FAILED, EXIT_INPUT = 0, 1, 2
 #: 128 + SIGINT, the shell convention for a command stopped by Ctrl-C; also used for
@@ -40,6 +41,11 @@ def build_parser():
         module.add_arguments(p)
         p.add_argument("--debug", action="store_true",
                        help="show Python tracebacks of errors")
+        p.add_argument("--log-level", choices=LOG_LEVELS, default="warning",
+                       help="qsma's log messages shown on stderr from this level on "
+                            "(default warning; info: refinements, fallbacks, the "
+                            "processes used); a run also writes them to qsma.log in "
+                            "its result folder (info and above)")
     return parser
 
 
@@ -138,6 +144,7 @@ def _main(argv):
     except SystemExit as exc:           # argparse: usage error (2) or --help/--version (0)
         return int(exc.code or 0)
     _Process.command = args.command
+    args.log = LogSetup(args.log_level)
     try:
         with warnings.catch_warnings(record=True) as seen:
             warnings.simplefilter("ignore", ContactConvergenceWarning)  # reported by the CLI
@@ -153,6 +160,8 @@ def _main(argv):
         if _Interrupt.signum is not None:   # the signal surfaced as another exception
             return _interrupted()
         return _exit_code(args, exc)
+    finally:
+        args.log.close()
 
 
 def _print_warnings(seen):

@@ -70,6 +70,14 @@ def _load_deck(args):
     return cfg
 
 
+def add_amplitude_argument(p):
+    """``--amplitude``: the measure the figures draw frequency and damping against,
+    the same for a run and a study (:data:`qsma.plots.AMPLITUDES`)."""
+    p.add_argument("--amplitude", choices=("tip", "velocity", "q"), default="tip",
+                   help="amplitude measure of the figures: peak tip deflection (tip, "
+                        "the default), peak tip velocity or peak modal amplitude q")
+
+
 def load_model(args):
     """``(model, RunOptions)`` from ``--example`` or a configuration file."""
     from ..examples import EXAMPLES

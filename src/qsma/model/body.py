@@ -27,7 +27,8 @@ def _finite(name, value):
 
 @dataclass(frozen=True)
 class Material:
-    """Isotropic linear elastic material (SI units).
+    """Isotropic linear elastic material, in the model's unit system (``Model.units``:
+    E in Pa and rho in kg/m^3 in SI, MPa and t/mm^3 in mm-N-s-tonne).
 
     Plane strain is used in 2D (unit out-of-plane depth).
     """
@@ -74,8 +75,9 @@ class Clamp:
 
 @dataclass(frozen=True)
 class Pressure:
-    """Pressure ``p`` (Pa, positive pushes into the body) on a facet set, part of the
-    load pattern named ``load`` (the bolt preload is ``"preload"``)."""
+    """Pressure ``p`` (the model's stress unit, positive pushes into the body) on a
+    facet set, part of the load pattern named ``load`` (the bolt preload is
+    ``"preload"``)."""
 
     set: str
     p: float
@@ -208,7 +210,10 @@ class Model:
     ``interfaces`` (``interface`` then stays ``None``); :attr:`interface_list` is the
     tuple of interfaces either way. ``mu`` is the friction coefficient of every
     interface that sets none of its own (``Interface.mu``). ``tip`` is the probe
-    reported as tip deflection and used to scale load levels.
+    reported as tip deflection and used to scale load levels. ``units`` names the
+    unit system every number of the model is written in (:data:`qsma.units.UNIT_SYSTEMS`:
+    ``"SI"``, the default, or ``"mm-N-s-tonne"``); nothing is converted, the name
+    labels the results.
     """
 
     bodies: tuple
@@ -219,6 +224,7 @@ class Model:
     extra: dict = field(default_factory=dict)
     interfaces: tuple = ()
     bolts: tuple = ()                 # qsma.model.bolt.Bolt, pretensioned then locked
+    units: str = "SI"
 
     def __post_init__(self):
         object.__setattr__(self, "bodies", tuple(self.bodies))
@@ -233,6 +239,8 @@ class Model:
         if mu < 0:
             raise InputError(f"friction coefficient mu must be >= 0, got {mu}")
         object.__setattr__(self, "mu", mu)
+        from ..units import unit_system
+        object.__setattr__(self, "units", unit_system(self.units).name)
         if self.interface is not None and self.interfaces:
             raise InputError("give either interface (two bodies) or interfaces (a list), "
                              "not both")
