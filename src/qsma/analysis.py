@@ -23,6 +23,7 @@ from ._threads import CONTACT_BLAS_THREADS, blas_threads as threads_limited, thr
 from .condense import reduce_two_bodies
 from .contact import DEFAULT_TOL, ContactProblem, ContactState, OPEN, SLIPPING, STUCK
 from .contact import solve as contact_solve
+from .contact.laws import InterfaceLaw
 from .contact.layer import Layer, interface_springs, solve_layered
 from .contact.registry import chosen_method, method_for
 from .contact.zone import (expected_closing, release_zones, solve_in_zone, solve_preload,
@@ -598,6 +599,9 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
                         n_closed_after_preload=int(closed.sum()),
                         elements={a.body.name: a.formulation for a in assembled},
                         coupling=pairing.coupling,
+                        interface_laws=_law_info(model),
+                        linear_damping=None if model.damping is None
+                        else model.damping.as_dict(),
                         **_rigid_info(reduced, modes, pos, grid, user)),
         mode_index=opts.mode, omega0=omega0, phi_tip=phi_tip,
         alpha=al, tip_lin=al * phi_tip / omega0 ** 2, q=q, tip=tip,
@@ -631,6 +635,17 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
                     negative_ramp_levels=int(neg.n)),
         timings_s=timings, resources=_resources.snapshot(), direct_loop=loop,
         gross_slip_level=gross[0] if gross else None)
+
+
+def _law_info(model):
+    """Each interface's law (its table, :meth:`InterfaceLaw.as_dict`) and whether a gap
+    field shapes it; None where every interface is rigid and flat."""
+    itfs = model.interface_list
+    if all(i.law is None and i.gap is None for i in itfs):
+        return None
+    return [dict((i.law or InterfaceLaw()).as_dict(), interface=i.label,
+                 gap_field=None if i.gap is None else getattr(i.gap, "source", "function"))
+            for i in itfs]
 
 
 def _mu_info(model):

@@ -130,9 +130,9 @@ class PairLaws:
         r"""``C`` of the layer linearised at pair forces ``P`` (N), (n_pairs, dim):
         ``1/(A k_t(p))`` tangential, ``1/(A k_n(p))`` normal with ``p = P/A``, zero where
         the law is rigid. A nonlinear normal law at a pair without pressure is
-        linearised at no less than :data:`LOW_PRESSURE` times ``p_ref`` (the mean
-        pressure of the loaded pairs, else the law's own scale): its tangent at zero
-        pressure may vanish."""
+        linearised at ``p_ref`` (the mean pressure of the loaded pairs, else the law's
+        own scale), a loaded one at no less than :data:`LOW_PRESSURE` times it: the
+        tangent of a law at zero pressure may vanish."""
         P = np.maximum(np.asarray(P, dtype=float), 0.0)
         p = P / self.area
         loaded = p > 0
@@ -146,7 +146,8 @@ class PairLaws:
             pj = p[rows]
             if not law.normal.hard:
                 ref = p_ref if p_ref is not None else law.normal.scale_pressure()
-                at = pj if law.normal.linear else np.maximum(pj, LOW_PRESSURE * ref)
+                at = pj if law.normal.linear else \
+                    np.where(pj > 0, np.maximum(pj, LOW_PRESSURE * ref), ref)
                 out[rows, -1] = 1.0 / (self.area[rows] * law.normal.tangent_at_pressure(at))
             if not law.tangential.rigid:
                 out[rows, :-1] = (1.0 / (self.area[rows]
@@ -225,7 +226,7 @@ class Layer:
             return
         P_ref = np.zeros(n) if P_ref is None else np.asarray(P_ref, dtype=float)
         self.c = laws.compliance(P_ref, p_ref)
-        check_units(laws, physical.K, self.c)
+        check_units(laws, physical.K, laws.compliance(np.zeros(n)))   # at the laws' scale
         K = series_stiffness(physical.K, self.c.ravel())
         self.problem = ContactProblem.derived(K, physical.mu, physical.gap0 + laws.onset(),
                                               dim)

@@ -8,6 +8,7 @@ import warnings
 import numpy as np
 
 from ..errors import InputError, NearlyIncompressibleWarning
+from .damping import LinearDamping
 from .mesh import Mesh
 
 #: Poisson's ratio above which the displacement elements of qsma lock. Measured with
@@ -158,7 +159,9 @@ class Model:
     ``interfaces`` (``interface`` then stays ``None``); :attr:`interface_list` is the
     tuple of interfaces either way. ``mu`` is the friction coefficient of every
     interface that sets none of its own (``Interface.mu``). ``tip`` is the probe
-    reported as tip deflection and used to scale load levels.
+    reported as tip deflection and used to scale load levels. ``damping``: the linear
+    damping of the structure besides the joint (:class:`qsma.model.LinearDamping`),
+    reported beside the joint's and added to it.
     """
 
     bodies: tuple
@@ -169,6 +172,7 @@ class Model:
     extra: dict = field(default_factory=dict)
     interfaces: tuple = ()
     bolts: tuple = ()                 # qsma.model.bolt.Bolt, pretensioned then locked
+    damping: "LinearDamping | None" = None   # of the structure besides the joint
 
     def __post_init__(self):
         object.__setattr__(self, "bodies", tuple(self.bodies))
@@ -196,6 +200,9 @@ class Model:
         if self.tip is not None:
             self._check_probe(self.tip)
         self._check_bolts(names)
+        if self.damping is not None and not isinstance(self.damping, LinearDamping):
+            raise InputError(f"damping must be a qsma.model.LinearDamping, got "
+                             f"{type(self.damping).__name__}")
 
     def _check_bolts(self, names):
         """Bolt ends on bodies of the model, unique bolt names."""

@@ -97,17 +97,20 @@ class GapField:
         return v.max() - v if self.kind == "height" else v
 
 
-def read_gap_field(path, scale=1.0) -> GapField:
+def read_gap_field(path, scale=1.0, coordinate_scale=1.0) -> GapField:
     """A :class:`GapField` from a CSV file with a header row naming the coordinate
     columns (``x``, ``y`` or ``z``, one in 2D, two in 3D) and one value column named
-    ``gap`` or ``height`` (``kind`` follows the name). ``scale`` multiplies every
-    number (e.g. 1e-6 for samples in micrometres)."""
+    ``gap`` or ``height`` (``kind`` follows the name). ``scale`` multiplies the values
+    (e.g. 1e-6 for heights in micrometres), ``coordinate_scale`` the coordinates (1e-3
+    for millimetres), so that both are in the model's units."""
     path = os.fspath(path)
     if not os.path.isfile(path):
         raise InputError(f"gap field {path!r}: not a regular file")
-    if not (isinstance(scale, (int, float)) and np.isfinite(scale) and scale > 0):
-        raise InputError(f"gap field {path!r}: scale must be a positive number, got "
-                         f"{scale!r}")
+    for name, v in (("scale", scale), ("coordinate_scale", coordinate_scale)):
+        if isinstance(v, bool) or not (isinstance(v, (int, float)) and np.isfinite(v)
+                                       and v > 0):
+            raise InputError(f"gap field {path!r}: {name} must be a positive number, got "
+                             f"{v!r}")
     try:
         with open(path, newline="", encoding="utf-8") as f:
             rows = [r for r in csv.reader(f) if r and not r[0].lstrip().startswith("#")]
@@ -130,5 +133,6 @@ def read_gap_field(path, scale=1.0) -> GapField:
         raise InputError(f"gap field {path!r}: rows of {data.shape[1]} values for a "
                          f"header of {len(header)}")
     cols = [header.index(a) for a in axes]
-    return GapField(axes, data[:, cols] * scale, data[:, header.index(value[0])] * scale,
+    return GapField(axes, data[:, cols] * coordinate_scale,
+                    data[:, header.index(value[0])] * scale,
                     kind=value[0], source=f"gap field {path!r}")
