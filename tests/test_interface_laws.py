@@ -343,3 +343,67 @@ def test_unmeasured_gap_field_is_refused():
     with pytest.raises(InputError, match="scale = 1e-6"):
         _run(dataclasses.replace(_sandwich(None), interface=dataclasses.replace(
             _sandwich(None).interface, gap=lambda x: np.full(len(x), 5.0))))
+
+
+# --- rough surfaces ---------------------------------------------------------------------
+
+def _rough(**kw):
+    from qsma.contact.laws import RoughSurface
+    args = dict(sigma=3e-6, radius=1.4e-3, density=1.4e6, E=192e9, nu=0.3,
+                yield_strength=330e6, hardening=620e6, n_sigma=4.4)
+    args.update(kw)
+    return RoughSurface(**args)
+
+
+@pytest.mark.parametrize("plastic", [False, True])
+def test_rough_contact_against_its_integral(plastic):
+    """The tabulated rough law against the asperity integral by adaptive quadrature
+    (scipy.integrate.quad over the gaps of the pairs in contact): pressure within 2e-4
+    over the closures that carry 0.1 to 100 MPa."""
+    from scipy.integrate import quad
+    from qsma.contact.laws.rough import _pair_law
+    law = _rough() if plastic else _rough(yield_strength=None, hardening=0.0)
+    E_star, G_star = law._moduli()
+    for h in (0.4, 0.5, 0.6, 0.7) * np.array(law.z_max):
+        def f(z):
+            F, _, _ = _pair_law(np.array([h - z]), law.radius, E_star, G_star, law.E,
+                                law.nu, law.yield_strength, law.hardening)
+            return law._density(z) * F[0]
+        p, _ = quad(f, 0.0, min(h, law.z_max), limit=200, epsabs=0, epsrel=1e-10)
+        assert law.pressure(h) == pytest.approx(law.density * p, rel=2e-4)
+
+
+def test_rough_pair_law_is_hertz_below_yield_and_stiffer_unloading():
+    """Below 1.9 delta_y a pair is Hertzian; beyond, its force stays below Hertz's (the
+    asperity yields) and its elastic unloading is stiffer than the loading tangent."""
+    from qsma.contact.laws.rough import _pair_law
+    law = _rough()
+    E_star, G_star = law._moduli()
+    C = 1.295 * np.exp(0.736 * 0.3)
+    dy = 2 * (np.pi * C * 330e6 / (4 * E_star)) ** 2 * (2 * law.radius)
+    d = np.array([0.5, 1.8, 5.0, 50.0]) * dy
+    F, a, k = _pair_law(d, law.radius, E_star, G_star, law.E, law.nu, 330e6, 620e6)
+    hertz = 4 / 3 * E_star * np.sqrt(law.radius) * d ** 1.5
+    assert np.allclose(F[:2], hertz[:2], rtol=1e-14)
+    assert np.all(F[2:] < hertz[2:])
+    dd = 1e-6 * d
+    F2, _, _ = _pair_law(d + dd, law.radius, E_star, G_star, law.E, law.nu, 330e6, 620e6)
+    tangent = (F2 - F) / dd
+    assert np.all(k[2:] > tangent[2:])
+    p = law.pressure(0.6 * law.z_max)
+    assert law.unloading_stiffness(p) > law.tangent_at_pressure(p)
+
+
+def test_rough_law_in_a_run_freezes_on_its_unloading():
+    """A plastic rough law: the preload follows the loading curve (every pair's
+    pressure is the law's at its closure), then the ramp's layer is the elastic
+    unloading through that state: the first level is the tied mode with those
+    springs."""
+    law = InterfaceLaw(_rough())
+    res = _run(_sandwich(law))
+    assert res.success
+    pre, p = res.preload, res.pairing
+    h = -(pre.d[:, -1])
+    assert np.allclose(pre.P, p.area * law.normal.pressure(h), rtol=1e-8,
+                       atol=1e-9 * pre.P.max())
+    assert res.n_slip[0] == 0 and res.f_hz[0] == pytest.approx(res.f0_hz, rel=1e-9)

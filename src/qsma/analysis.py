@@ -24,7 +24,8 @@ from .condense import reduce_two_bodies
 from .contact import DEFAULT_TOL, ContactProblem, ContactState, OPEN, SLIPPING, STUCK
 from .contact import solve as contact_solve
 from .contact.laws import InterfaceLaw
-from .contact.layer import Layer, interface_springs, solve_layered
+from .contact.layer import (LOW_PRESSURE, LOW_SECANT, MAX_LAW_ITERATIONS, Anderson, Layer,
+                            interface_springs, solve_layered)
 from .contact.registry import chosen_method, method_for
 from .contact.zone import (expected_closing, release_zones, solve_in_zone, solve_preload,
                            zone_from_state)
@@ -374,13 +375,14 @@ def preload(model, assembled, pairing, *, method="auto", opts=None, schur_backen
         raise AnalysisError(f"the preload contact solve failed: {pre.message} "
                             f"(residual {pre.residual:.2e})", partial=pre)
     bolts = getattr(model, "bolts", ())
-    if bolts or layer.nonlinear:
+    if bolts or layer.nonlinear or (laws is not None and laws.plastic().any()):
         with clock.stage("condensation"):
             if bolts:                                      # bolts locked from here on
                 reduced = lock(reduced, model.bolts, pre.d)
                 problem = _contact_problem(model, pairing, reduced.K)   # same mu, gaps
-            # the layer of the ramps: linearised at the preload's pressures
-            layer = Layer(problem, laws, P_ref=pre.P)
+            # the layer of the ramps: linearised at the preload's pressures, a plastic
+            # one frozen on its elastic unloading from there
+            layer = Layer(problem, laws, P_ref=pre.P, frozen=True)
     if np.all(pre.status == OPEN):
         raise AnalysisError("the preload leaves no interface pair in contact: the bodies "
                             "separate, and tied modes of a disconnected assembly would be "
@@ -389,9 +391,14 @@ def preload(model, assembled, pairing, *, method="auto", opts=None, schur_backen
     return reduced, layer, pre
 
 
-#: Linearisations of a nonlinear interface law tried by one solve: when its chord
-#: iteration does not converge, the layer is linearised again at the pressures reached.
-RELINEARISATIONS = 3
+#: Secant iterations of the preload of a nonlinear interface law (:func:`_preload_solve`).
+PRELOAD_SECANTS = 100
+
+
+def _rigid_pressures(layer, reduced, method, opts, zone):
+    """Pair forces of the rigid interface's preload (where the secants start)."""
+    rigid, _ = _solve(layer.physical, reduced, 0.0, None, method, opts, "preload", zone)
+    return np.maximum(rigid.P, 0.0)
 
 
 def _first_layer(problem, laws, reduced, method, opts, zone):
@@ -405,15 +412,39 @@ def _first_layer(problem, laws, reduced, method, opts, zone):
 
 
 def _preload_solve(layer, reduced, method, opts, zone):
-    """The preload solve, with the layer of a nonlinear law linearised again at the
-    pressures reached when its chord iteration stalls (:data:`RELINEARISATIONS`).
-    Returns ``(result, layer)``."""
-    for _ in range(RELINEARISATIONS + 1):
-        pre, _ = _solve(layer, reduced, 0.0, None, method, opts, "preload", zone)
-        if pre.success or not pre.law_residual:
-            break
-        layer = Layer(layer.physical, layer.laws, P_ref=pre.P)
-    return pre, layer
+    """The preload solve. For a nonlinear interface law whose chord iteration does not
+    converge from the rigid preload's linearisation, secant iterations: the layer
+    linearised by its secants at the pressures ``P`` (exact there), one solve, ``P``
+    the new pressures (Anderson-accelerated, :class:`qsma.contact.layer.Anderson`;
+    :data:`PRELOAD_SECANTS` at most). Pairs below a floor pressure are linearised at
+    the floor, lowered tenfold each time the law's residual stalls, from
+    :data:`qsma.contact.layer.LOW_PRESSURE` to :data:`qsma.contact.layer.LOW_SECANT`
+    of the mean pressure. (A tangent linearisation started from the undeformed state
+    shifts the unloaded pairs apart and can end in another contact set; the secant is
+    exact where it is taken.) Returns ``(result, layer)``."""
+    with warnings.catch_warnings():       # a failure here is an AnalysisError of preload()
+        warnings.simplefilter("ignore", ContactConvergenceWarning)
+        return _preload_attempts(layer, reduced, method, opts, zone)
+
+
+def _preload_attempts(layer, reduced, method, opts, zone):
+    pre, _ = _solve(layer, reduced, 0.0, None, method, opts, "preload", zone)
+    if pre.success or not pre.law_residual:
+        return pre, layer
+    P = _rigid_pressures(layer, reduced, method, opts, zone)
+    accelerate, low, best = Anderson(), LOW_PRESSURE, np.inf
+    for _ in range(PRELOAD_SECANTS):
+        secant = Layer(layer.physical, layer.laws, P_ref=P, secant=True, low=low)
+        res, _ = _solve(secant, reduced, 0.0, None, method, opts, "preload", zone,
+                        law_iterations=1)
+        if res.success or not res.law_residual:   # converged, or the contact solve failed
+            return res, secant
+        if res.law_residual > 0.9 * best and low > LOW_SECANT:
+            low, best = max(0.1 * low, LOW_SECANT), np.inf    # stalled on the floor
+        best = min(best, res.law_residual)
+        P = np.maximum(accelerate(P, np.maximum(res.P, 0.0), ((res.P > 0).tobytes(), low)),
+                       0.0)
+    return res, layer
 
 
 def _contact_problem(model, pairing, K):
@@ -687,7 +718,7 @@ class _Response:
 
 
 def _solve(layer, reduced, alpha, state, method, opts, where, zone=None, guess=None,
-           closing=None):
+           closing=None, law_iterations=MAX_LAW_ITERATIONS):
     """One contact solve at modal force ``alpha``; returns ``(result, zone)``.
 
     ``layer``: the interface's :class:`qsma.contact.layer.Layer` (a plain
@@ -720,7 +751,8 @@ def _solve(layer, reduced, alpha, state, method, opts, where, zone=None, guess=N
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ContactConvergenceWarning)
-        res = solve_layered(layer, once, lam_w, state, guess, opts.get("tol") or DEFAULT_TOL)
+        res = solve_layered(layer, once, lam_w, state, guess,
+                            opts.get("tol") or DEFAULT_TOL, law_iterations)
     if not res.success:
         warnings.warn(f"contact solve at {where} did not converge: {res.message} "
                       f"(residual {res.residual:.2e})", ContactConvergenceWarning,
@@ -749,7 +781,7 @@ class _Solver:
         if not res.success and res.law_residual:
             # a nonlinear law whose chord iteration stalled: linearise at this level's
             # pressures (kept for the levels after it) and solve the level again
-            layer = Layer(self.layer.physical, self.layer.laws, P_ref=res.P)
+            layer = self.layer.relinearised(res.P)
             zone = None if self.zone is None else zone_from_state(layer.problem, res.state)
             again, zone = _solve(layer, self.reduced, alpha, state, self.method, self.opts,
                                  where, zone, guess, closing)

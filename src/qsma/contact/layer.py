@@ -48,6 +48,9 @@ UNIT_RATIO_MAX = 1e8
 #: pressure: its tangent vanishes at the onset (the exponential law), and a layer that
 #: soft would make ``K'`` ill-conditioned; the chord iteration takes the rest.
 LOW_PRESSURE = 1e-2
+#: The lowest floor of a secant linearisation (exact at the pressure it is taken at, so
+#: the floor must lie below the pressures whose law matters: 1e-8 of the mean).
+LOW_SECANT = 1e-8
 
 
 @dataclass(frozen=True, eq=False)
@@ -117,6 +120,40 @@ class PairLaws:
         return self._per_law(lambda law, rows: 0.0 if law.normal.hard else
                              self.area[rows] * law.normal.pressure(h[rows]))
 
+    def scale_compliance(self):
+        """``C`` with every pair at its law's own scale pressure (what the unit check
+        compares with the structure: independent of any state)."""
+        P = self._per_law(lambda law, rows: law.normal.scale_pressure() * self.area[rows])
+        out = self.compliance(np.zeros(self.n_pairs))
+        for j, law in enumerate(self.laws):
+            rows = self.index == j
+            if rows.any() and not law.normal.hard and not law.normal.linear:
+                out[rows, -1] = 1.0 / (self.area[rows] * law.normal.tangent_at_pressure(
+                    P[rows] / self.area[rows]))
+        return out
+
+    def linear_pairs(self):
+        """Pairs whose normal law is linear (hard or a constant stiffness)."""
+        return self._per_law(lambda law, rows: law.normal.linear).astype(bool)
+
+    def plastic(self):
+        """Pairs whose law deforms plastically when first loaded (its unloading is
+        stiffer: :meth:`unloading_compliance`)."""
+        return self._per_law(lambda law, rows: getattr(law.normal, "plastic",
+                                                       False)).astype(bool)
+
+    def unloading_compliance(self, P):
+        """``1/(A k_u)`` with ``k_u`` the law's unloading stiffness from pair force ``P``
+        (the loading tangent for laws without ``unloading_stiffness``)."""
+        P = np.maximum(np.asarray(P, dtype=float), 0.0)
+
+        def one(law, rows):
+            p = P[rows] / self.area[rows]
+            k = getattr(law.normal, "unloading_stiffness", law.normal.tangent_at_pressure)(p)
+            return 1.0 / (self.area[rows] * k)
+        with np.errstate(divide="ignore"):
+            return self._per_law(one)
+
     def normal_slope(self, P):
         """``d(layer deformation)/dP`` per pair (m/N) at pair forces ``P``: the tangent
         compliance ``1/(A k_n)`` (zero for hard laws)."""
@@ -126,13 +163,16 @@ class PairLaws:
                                  1.0 / (self.area[rows] * law.normal.tangent_at_pressure(
                                      P[rows] / self.area[rows])))
 
-    def compliance(self, P, p_ref=None):
+    def compliance(self, P, p_ref=None, secant=False, low=None):
         r"""``C`` of the layer linearised at pair forces ``P`` (N), (n_pairs, dim):
         ``1/(A k_t(p))`` tangential, ``1/(A k_n(p))`` normal with ``p = P/A``, zero where
         the law is rigid. A nonlinear normal law at a pair without pressure is
-        linearised at ``p_ref`` (the mean pressure of the loaded pairs, else the law's
-        own scale), a loaded one at no less than :data:`LOW_PRESSURE` times it: the
-        tangent of a law at zero pressure may vanish."""
+        linearised at no less than :data:`LOW_PRESSURE` times ``p_ref`` (the mean
+        pressure of the loaded pairs, else the law's own scale): the tangent of a law at
+        zero pressure may vanish, and a soft chord keeps the iteration contracting.
+        ``secant``: the normal compliance is the secant from the onset,
+        ``(h(p) - h_0) / (A p)``, instead of the tangent. ``low``: another floor than
+        :data:`LOW_PRESSURE`."""
         P = np.maximum(np.asarray(P, dtype=float), 0.0)
         p = P / self.area
         loaded = p > 0
@@ -146,12 +186,21 @@ class PairLaws:
             pj = p[rows]
             if not law.normal.hard:
                 ref = p_ref if p_ref is not None else law.normal.scale_pressure()
-                at = pj if law.normal.linear else \
-                    np.where(pj > 0, np.maximum(pj, LOW_PRESSURE * ref), ref)
-                out[rows, -1] = 1.0 / (self.area[rows] * law.normal.tangent_at_pressure(at))
+                floor = LOW_PRESSURE if low is None else low
+                at = pj if law.normal.linear else np.maximum(pj, floor * ref)
+                if secant and not law.normal.linear:
+                    out[rows, -1] = ((law.normal.overclosure(at) - law.normal.onset)
+                                     / (self.area[rows] * at))
+                else:
+                    out[rows, -1] = 1.0 / (self.area[rows]
+                                           * law.normal.tangent_at_pressure(at))
             if not law.tangential.rigid:
+                # a stick stiffness that grows with the pressure (rough surfaces) is taken
+                # at the same floor: an unloaded pair carries no shear either way
+                ref = p_ref if p_ref is not None else law.normal.scale_pressure()
+                at = np.maximum(pj, LOW_PRESSURE * ref) if ref else pj
                 out[rows, :-1] = (1.0 / (self.area[rows]
-                                         * law.tangential.stiffness(pj)))[:, None]
+                                         * law.tangential.stiffness(at)))[:, None]
         if not np.all(np.isfinite(out)):
             raise InputError("interface law: the layer has an infinite compliance (a "
                              "normal law whose stiffness vanishes at every pressure); give "
@@ -216,17 +265,28 @@ class Layer:
     physical : the :class:`ContactProblem` of the bodies (``K``, gaps ``g_0``)
     """
 
-    def __init__(self, physical, laws=None, P_ref=None, p_ref=None):
+    def __init__(self, physical, laws=None, P_ref=None, p_ref=None, frozen=False,
+                 secant=False, low=None):
         self.physical, self.laws = physical, laws
         n, dim = physical.n_pairs, physical.dim
+        self.s_fixed = np.zeros(n)
         if laws is None or laws.rigid:
             self.c = np.zeros((n, dim))
             self.problem = physical
             self.laws = None
+            self.frozen = self.curved = np.zeros(n, bool)
             return
-        P_ref = np.zeros(n) if P_ref is None else np.asarray(P_ref, dtype=float)
-        self.c = laws.compliance(P_ref, p_ref)
-        check_units(laws, physical.K, laws.compliance(np.zeros(n)))   # at the laws' scale
+        P_ref = np.zeros(n) if P_ref is None else np.maximum(np.asarray(P_ref, float), 0.0)
+        self.c = laws.compliance(P_ref, p_ref, secant=secant, low=low)
+        check_units(laws, physical.K, laws.scale_compliance())
+        self.frozen = laws.plastic() & (P_ref > 0) if frozen else np.zeros(n, bool)
+        if self.frozen.any():
+            # elastic unloading about the state reached: the tangent of the unloading
+            # curve, through the layer's deformation at that state
+            f = self.frozen
+            self.c[f, -1] = laws.unloading_compliance(P_ref)[f]
+            self.s_fixed[f] = laws.layer_deformation(P_ref)[f] - self.c[f, -1] * P_ref[f]
+        self.curved = ~laws.linear_pairs() & ~self.frozen
         K = series_stiffness(physical.K, self.c.ravel())
         self.problem = ContactProblem.derived(K, physical.mu, physical.gap0 + laws.onset(),
                                               dim)
@@ -236,13 +296,28 @@ class Layer:
     def identity(cls, problem):
         return cls(problem)
 
+    def relinearised(self, P):
+        """This layer linearised again at pair forces ``P``, its frozen pairs kept as
+        they are."""
+        new = Layer(self.physical, self.laws, P_ref=P)
+        if self.frozen.any():
+            f = self.frozen
+            new.c[f] = self.c[f]
+            new.s_fixed[f] = self.s_fixed[f]
+            new.frozen, new.curved = f.copy(), new.curved & ~f
+            K = series_stiffness(self.physical.K, new.c.ravel())
+            new.problem = ContactProblem.derived(K, self.physical.mu, self.problem.gap0,
+                                                 self.problem.dim)
+        return new
+
     @property
     def rigid(self) -> bool:
         return self.laws is None
 
     @property
     def nonlinear(self) -> bool:
-        return self.laws is not None and not self.laws.linear
+        """Some pair follows a nonlinear law that is not frozen: the chord iterates."""
+        return self.laws is not None and bool(self.curved.any())
 
     def welded_basis(self, W):
         """``W' = (I - K' C) W``, the welded force basis of the slider (cached by ``W``)."""
@@ -256,10 +331,15 @@ class Layer:
         return hit[1]
 
     def shift(self, P):
-        """``s(P)``, the normal deformation of the layer its linearisation misses."""
-        if not self.nonlinear:
-            return np.zeros(len(P))
-        return self.laws.layer_deformation(P) - self.c[:, -1] * np.maximum(P, 0.0)
+        """``s(P)``, the normal deformation of the layer its linearisation misses: the
+        fixed deformation of a frozen pair, the nonlinear remainder of a curved one,
+        zero elsewhere."""
+        s = self.s_fixed.copy()
+        if self.nonlinear:
+            c = self.curved
+            Pc = np.maximum(np.asarray(P, dtype=float)[c], 0.0)
+            s[c] = self.laws.layer_deformation(np.asarray(P, float))[c] - self.c[c, -1] * Pc
+        return s
 
     def to_slider(self, state, s=None):
         """A physical state as the slider's (``d' = d + C lam``, plus the shift ``s`` on
@@ -290,7 +370,7 @@ class Layer:
             return 0.0
         P = res.lam[:, -1]
         h = -(res.d[:, -1] + self.physical.gap0)
-        miss = np.abs(P - self.laws.pair_pressure(h))
+        miss = np.where(self.curved, np.abs(P - self.laws.pair_pressure(h)), 0.0)
         # round-off of h: the sum of the terms it is computed from, eps each
         terms = (np.abs(res.d[:, -1]) + np.abs(self.physical.gap0)
                  + np.abs(self.c[:, -1] * P) + np.abs(self.laws.layer_deformation(P)))
@@ -336,14 +416,43 @@ class Layer:
         zero at pairs without pressure."""
         P = lam[:, -1]
         closed = P > 0
-        out = np.zeros_like(s)
-        if not closed.any():
+        out = np.where(self.curved, 0.0, self.s_fixed)
+        moving = (closed & self.curved)[closed]          # the curved ones of the closed
+        if not moving.any():
             return out
-        slope = (self.laws.normal_slope(P) - self.c[:, -1])[closed]     # d s(P) / dP
-        J = slope[:, None] * self._closed_stiffness(closed)
+        slope = (self.laws.normal_slope(P) - self.c[:, -1])[closed][moving]  # d s / dP
+        J = slope[:, None] * self._closed_stiffness(closed)[np.ix_(moving, moving)]
         J[np.diag_indices_from(J)] += 1.0
-        out[closed] = s[closed] + np.linalg.solve(J, (self.shift(P) - s)[closed])
+        at = np.flatnonzero(closed)[moving]
+        out[at] = s[at] + np.linalg.solve(J, (self.shift(P) - s)[at])
         return out
+
+
+class Anderson:
+    """Anderson acceleration of a fixed-point iteration ``x <- g(x)`` (depth ``m``): the
+    next iterate combines the last ``m`` steps so that the combined residual
+    ``g(x) - x`` is smallest in least squares (type II). Restarted when ``key``
+    changes (for a contact problem: the pairs in contact, whose change makes another
+    map)."""
+
+    def __init__(self, m=5):
+        self.m, self.X, self.F, self.key = m, [], [], None
+
+    def __call__(self, x, g, key=None):
+        f = g - x
+        if key != self.key:
+            self.X, self.F, self.key = [], [], key
+        self.X.append(x)
+        self.F.append(f)
+        if len(self.X) > self.m + 1:
+            self.X.pop(0)
+            self.F.pop(0)
+        if len(self.X) < 2:
+            return g
+        dX = np.diff(np.array(self.X), axis=0).T
+        dF = np.diff(np.array(self.F), axis=0).T
+        gamma = np.linalg.lstsq(dF, f, rcond=None)[0]
+        return g - (dX + dF) @ gamma
 
 
 def interface_springs(layer, closed):
@@ -358,7 +467,8 @@ def interface_springs(layer, closed):
     return np.where(closed, k, 0.0)
 
 
-def solve_layered(layer, solve_once, lam_w, state, guess=None, tol=1e-10):
+def solve_layered(layer, solve_once, lam_w, state, guess=None, tol=1e-10,
+                  max_iterations=MAX_LAW_ITERATIONS):
     r"""Solve one level of a layered interface; returns the physical result.
 
     ``solve_once(lam_w, state, guess)`` solves the slider problem (``layer.problem``)
@@ -371,16 +481,16 @@ def solve_layered(layer, solve_once, lam_w, state, guess=None, tol=1e-10):
     law's residual meets ``tol``; a shift enters the solve as a displacement of the
     normal components, ``d'' = d' + s``, whose welded force is ``lam_w - K' s``.
     """
-    if not layer.nonlinear:
+    if not layer.nonlinear and not layer.frozen.any():
         res = solve_once(lam_w, layer.to_slider(state), layer.to_slider(guess))
         return layer.to_physical(res)
     K = layer.problem.K
     nidx = layer.problem.normal_index
     start = guess if guess is not None else state
-    s = np.zeros(layer.problem.n_pairs) if start is None else layer.shift(start.lam[:, -1])
+    s = layer.shift(np.zeros(layer.problem.n_pairs) if start is None else start.lam[:, -1])
     ref = state if state is not None else ContactState.reference(layer.physical)
     nit, res, law = 0, None, np.inf
-    for it in range(MAX_LAW_ITERATIONS):
+    for it in range(max_iterations):
         on = np.flatnonzero(s)
         shifted = lam_w - (K[:, nidx[on]] @ s[on]).reshape(lam_w.shape) if len(on) \
             else lam_w
@@ -391,14 +501,14 @@ def solve_layered(layer, solve_once, lam_w, state, guess=None, tol=1e-10):
         if not res.success:
             return _with(out, nit=nit)
         law = layer.law_residual(out)
-        if law <= tol:
+        if law <= tol or not layer.nonlinear:
             return _with(out, nit=nit, residual=max(res.residual, law), law_residual=law)
         guess = out.state
         s = layer.shift_step(res.lam, s)
     return _with(out, nit=nit, success=False, outcome=Outcome.NOT_CONVERGED,
                  residual=max(res.residual, law), law_residual=law,
                  message=f"the interface law's pressure-overclosure iteration did not "
-                         f"converge in {MAX_LAW_ITERATIONS} solves (law residual "
+                         f"converge in {max_iterations} solves (law residual "
                          f"{law:.2e} > {tol:.1e})")
 
 

@@ -18,10 +18,12 @@ from .base import InterfaceLaw, NormalLaw, TangentialLaw
 from .exponential import ExponentialPressure
 from .hard import Hard
 from .linear import LinearPressure
+from .rough import RoughStick, RoughSurface
 from .tabular import TabularPressure
 from .tangential import ElasticStick, RigidStick
 from .table import NORMAL_KEYS, TANGENTIAL_KEYS, law_from_table
 
 __all__ = ["InterfaceLaw", "NormalLaw", "TangentialLaw", "Hard", "LinearPressure",
-           "ExponentialPressure", "TabularPressure", "RigidStick", "ElasticStick",
+           "ExponentialPressure", "TabularPressure", "RoughSurface", "RoughStick",
+           "RigidStick", "ElasticStick",
            "law_from_table", "NORMAL_KEYS", "TANGENTIAL_KEYS"]

@@ -6,6 +6,7 @@ from .base import InterfaceLaw
 from .exponential import ExponentialPressure
 from .hard import Hard
 from .linear import LinearPressure
+from .rough import RoughSurface
 from .tabular import TabularPressure
 from .tangential import ElasticStick, RigidStick
 
@@ -15,7 +16,12 @@ NORMAL_KEYS = {
     "linear": (LinearPressure, {"normal_stiffness": "k"}),
     "exponential": (ExponentialPressure, {"clearance": "c0", "pressure_at_zero": "p0"}),
     "tabular": (TabularPressure, {"table": "table"}),
+    "rough": (RoughSurface, {"sigma": "sigma", "radius": "radius", "density": "density",
+                             "E": "E", "nu": "nu", "yield_strength": "yield_strength",
+                             "hardening": "hardening", "n_sigma": "n_sigma"}),
 }
+#: Keys a table may leave out (the law's default applies).
+OPTIONAL_KEYS = {"yield_strength", "hardening", "n_sigma"}
 #: tangential law name -> (class, {table key: constructor argument})
 TANGENTIAL_KEYS = {
     "rigid": (RigidStick, {}),
@@ -59,7 +65,8 @@ def law_from_table(table, where="interface law") -> InterfaceLaw:
 
 
 def _arguments(table, keys, where, what):
-    missing = [k for k in keys if k not in table]
+    missing = [k for k in keys if k not in table and k not in OPTIONAL_KEYS]
     if missing:
         raise InputError(f"{where}: {what} needs {missing}")
-    return {arg: table[key] for key, arg in keys.items()}
+    return {arg: table[key] for key, arg in keys.items()
+            if key in table and table[key] is not None}
