@@ -57,6 +57,9 @@ TENSION = 1.0
 #: residual ratio and the solution-correction ratio, far tighter than its defaults
 #: (0.005, 0.01), so that its answer is as converged as qsma's.
 FIELD_CONTROLS = "1e-6, 1e-5, , , 1e-6, 1e-5"
+#: Load cycles CalculiX runs after the ramp (the last one is compared with qsma's
+#: stabilised loop).
+CYCLES = 4
 
 
 def _bolt_bench():
@@ -180,7 +183,7 @@ def qsma_side(model, alphas_tip, steps):
 
 
 def compare(refine=1, law="linear", kn=2e13, kt=1e13, mu=0.6, n_levels=6, steps=40,
-            folder=None):
+            folder=None, cycles=CYCLES):
     """One comparison (module docstring); returns a dict of the measures."""
     model = model_of(refine, law_of(law, kn, kt), mu)
     tips = np.logspace(-6, -4.5, n_levels)
@@ -191,7 +194,7 @@ def compare(refine=1, law="linear", kn=2e13, kt=1e13, mu=0.6, n_levels=6, steps=
     A = alpha[-1]
     branch = np.linspace(A, -A, steps + 1)[1:]
     back = np.linspace(-A, A, steps + 1)[1:]
-    amp = np.concatenate([[0.0], alpha, branch, back, branch, back]) / 1.0
+    amp = np.concatenate([[0.0], alpha] + [branch, back] * cycles)
     times = 1.0 + np.arange(len(amp))
     deck = calculix_deck(model, kn, kt, mphi, times, amp)
     first_node, _ = bolt.numbering(model)
@@ -217,14 +220,15 @@ def compare(refine=1, law="linear", kn=2e13, kt=1e13, mu=0.6, n_levels=6, steps=
                         in zip(phi, asm, per_body(u), u_pre)) for _, u in blocks[1:]])
     n = len(alpha)
     backbone = q_c[:n]
-    second = slice(n + 2 * steps - 1, n + 4 * steps)
-    cyc_a, cyc_q = amp[1:][second], q_c[second]
-    D_c = abs(np.trapezoid(cyc_a, cyc_q))
+    a_all = amp[1:]
+    cycle = lambda k: slice(n - 1 + 2 * k * steps, n + 2 * (k + 1) * steps)
+    D_c = [abs(np.trapezoid(a_all[cycle(k)], q_c[cycle(k)])) for k in range(cycles)]
     return dict(model=model, res=res, alpha=alpha, q_qsma=np.asarray(res.q), q_ccx=backbone,
                 preload_max_diff=float(np.abs(f_q - f_c).max() / np.abs(f_q).max()),
                 preload_total=(float(f_q.sum()), float(f_c.sum())),
                 D_qsma=float(res.dissipation[-1]), D_qsma_error=float(
-                    res.dissipation_error[-1]), D_ccx=float(D_c),
+                    res.dissipation_error[-1]), D_ccx=float(D_c[-1]), D_ccx_cycles=D_c,
+                cycles_qsma=int(res.loop_cycles[-1]), flags=tuple(res.flags[-1]),
                 t_qsma=t_qsma, t_ccx=t_ccx)
 
 
@@ -237,11 +241,13 @@ def main(argv=None):
     ap.add_argument("--mu", type=float, default=0.6)
     ap.add_argument("--levels", type=int, default=6)
     ap.add_argument("--steps", type=int, default=40)
+    ap.add_argument("--cycles", type=int, default=CYCLES)
     args = ap.parse_args(argv)
     if shutil.which("ccx") is None:
         print("ccx not found (apt-get install calculix-ccx)")
         return 1
-    row = compare(args.refine, args.law, args.kn, args.kt, args.mu, args.levels, args.steps)
+    row = compare(args.refine, args.law, args.kn, args.kt, args.mu, args.levels, args.steps,
+                  cycles=args.cycles)
     print(f"lap-3d refine {args.refine}, {args.law} law kn = {args.kn:.3g} Pa/m, "
           f"kt = {args.kt:.3g} Pa/m, mu = {args.mu}")
     print(f"preload: total contact force qsma {row['preload_total'][0]:.6f} N, CalculiX "
@@ -250,9 +256,11 @@ def main(argv=None):
     print(f"{'alpha':>12} {'q qsma':>14} {'q ccx':>14} {'rel diff':>9}")
     for a, q1, q2 in zip(row["alpha"], row["q_qsma"], row["q_ccx"]):
         print(f"{a:12.5e} {q1:14.7e} {q2:14.7e} {abs(q1 - q2) / abs(q1):9.2e}")
-    print(f"dissipation at A = {row['alpha'][-1]:.5e}: qsma {row['D_qsma']:.6e} J "
-          f"(estimate {row['D_qsma_error']:.1e}), CalculiX {row['D_ccx']:.6e} J, "
-          f"ratio {row['D_ccx'] / row['D_qsma']:.5f}")
+    print("CalculiX cycles (oint alpha dq): "
+          + ", ".join(f"{d:.6e}" for d in row["D_ccx_cycles"]) + " J")
+    print(f"stabilised: qsma {row['D_qsma']:.6e} J (estimate {row['D_qsma_error']:.1e}, "
+          f"{row['cycles_qsma']} cycles, flags {', '.join(row['flags'])}), CalculiX last "
+          f"cycle {row['D_ccx']:.6e} J, ratio {row['D_ccx'] / row['D_qsma']:.5f}")
     print(f"time: qsma {row['t_qsma']:.1f} s, CalculiX {row['t_ccx']:.1f} s")
     return 0
 
