@@ -21,8 +21,9 @@ from qsma.result import load_factors
 
 @pytest.fixture(scope="module")
 def coarse():
-    """The coarse BRB prepared and preloaded, with its tied modes."""
-    p = prepare(brb(1))
+    """The coarse BRB with a flat rigid interface, prepared and preloaded, with its tied
+    modes."""
+    p = prepare(brb(1, surfaces="flat"))
     red, _, pre = p.preloaded(RunOptions(), _Timer())
     modes = p.mode(pre.status != OPEN, RunOptions(n_modes=4), _Timer())[0]
     return p, red, pre, modes
@@ -128,7 +129,7 @@ def test_tied_frequency_converges_under_refinement():
     preload closes lie inside the lap at every mesh."""
     f = []
     for r in (1, 2):
-        p = prepare(brb(r))
+        p = prepare(brb(r, surfaces="flat"))
         _, _, pre = p.preloaded(RunOptions(), _Timer())
         closed = pre.status != OPEN
         assert 0 < closed.sum() < p.pairing.n_pairs
@@ -140,7 +141,8 @@ def test_tied_frequency_converges_under_refinement():
 @pytest.fixture(scope="module")
 def coarse_run():
     """Two stuck levels, three slipping ones (their loops are most of the cost)."""
-    return qsma.run(brb(1), levels=qsma.Levels("tip", (1e-6, 1e-5, 3e-5, 1e-4, 1e-3)),
+    return qsma.run(brb(1, surfaces="flat"),
+                    levels=qsma.Levels("tip", (1e-6, 1e-5, 3e-5, 1e-4, 1e-3)),
                     refine_levels=False)
 
 
@@ -206,3 +208,45 @@ def test_bolt_naming_the_interface_as_a_washer_is_refused():
 def test_bad_refine_is_refused(refine):
     with pytest.raises(InputError, match="refine must be a positive integer"):
         brb(refine)
+
+
+# --- the default: the measured surfaces of [P] -----------------------------------------
+
+@pytest.fixture(scope="module")
+def measured():
+    """The coarse BRB with its measured surfaces (the default), two levels."""
+    return qsma.run(brb(1), dissipation="masing",
+                    levels=qsma.Levels("tip", (1e-6, 1e-5)), refine_levels=False)
+
+
+def test_measured_surfaces_are_the_default():
+    m = brb(1)
+    assert m.interface.law.normal.name == "rough" and m.interface.gap is not None
+    assert m.damping.ratio == pytest.approx(0.087e-2)
+    assert brb(1, surfaces="flat").interface.law is None
+
+
+def test_measured_preload_follows_the_rough_law_and_the_gap(measured):
+    """The preload with the measured surfaces: the pressures sum to the three bolts,
+    every pair carries the rough law's pressure at its closure (the gap field included),
+    and the lap's ends, where the measured surfaces are closest, are pressed harder
+    than its centre, where the gap is 100 um."""
+    r = measured
+    pre, p = r.preload, r.pairing
+    assert pre.P.sum() == pytest.approx(3 * brb_pretension(), rel=1e-9)
+    gap = r.model.interface.gap(p.x)
+    h = -(pre.d[:, -1] + gap)
+    law = r.model.interface.law.normal
+    np.testing.assert_allclose(pre.P, p.area * law.pressure(h), rtol=1e-8,
+                               atol=1e-9 * pre.P.max())
+    x = p.x[:, 0]
+    pressure = pre.P / p.area
+    ends, centre = np.abs(x) > 0.05, np.abs(x) < 0.01
+    assert pressure[ends].mean() > pressure[centre].mean()
+
+
+def test_measured_stuck_level_is_the_tied_mode_with_linear_damping(measured):
+    r = measured
+    assert r.success and r.n_slip[0] == 0
+    assert r.f_hz[0] == pytest.approx(r.f0_hz, rel=1e-9)
+    np.testing.assert_allclose(r.zeta_total[0], 0.087e-2 + r.zeta[0])
