@@ -45,8 +45,8 @@ from .options import RunOptions
 from .model.bolt import bolt_functionals, with_bolt_loads
 from .pretension import lock
 from .rigid import ANCHOR_ROUNDS, anchored, elastic_probe, held_by_joint, support_share
-from .result import (FAILURE_FLAGS, LEVEL_FIELDS, DirectLoop, LevelStates,  # noqa: F401
-                     QSMAResult, load_factors as _load_factors)
+from .result import (FAILURE_FIXES, FAILURE_FLAGS, LEVEL_FIELDS,  # noqa: F401
+                     DirectLoop, LevelStates, QSMAResult, load_factors as _load_factors)
 
 log = logging.getLogger("qsma")
 
@@ -164,6 +164,14 @@ def _start(model, opts):
     return clock, pairing, limit
 
 
+#: What to change when a study varies or fits the model-wide friction coefficient of
+#: a model whose interfaces set their own (:meth:`qsma.model.Model.check_mu_reaches`).
+STUDY_MU_FIX = ("a study varies the model's mu only where no interface sets its own "
+                "(Interface(mu=None) in Python, one [interface] table in a configuration); "
+                "for the interfaces of a [[interfaces]] list, run one configuration per "
+                "value of their mu")
+
+
 @dataclass(frozen=True, eq=False)
 class Prepared:
     r"""The part of a run that a parameter study shares between its cases.
@@ -205,13 +213,7 @@ class Prepared:
         """The same preparation for friction coefficient ``mu`` (nothing recomputed).
         Refused when an interface sets a friction coefficient of its own (other than
         ``mu``): the model's ``mu`` would not reach it."""
-        own = [i for i in self.model.interface_list if i.mu is not None and i.mu != mu]
-        if own:
-            raise InputError(f"friction coefficient mu = {mu!r} for the whole model, but "
-                             f"interface {own[0].label} sets its own mu = {own[0].mu}; "
-                             f"leave the interfaces' mu unset (the model's mu then applies "
-                             f"to every interface) to vary it in a study")
-        return replace(self, model=replace(self.model, mu=mu))
+        return replace(self, model=self.model.with_mu(mu, STUDY_MU_FIX))
 
     def with_preload_scale(self, scale) -> "Prepared":
         """The same preparation with every pressure of the 'preload' pattern multiplied
@@ -266,12 +268,14 @@ class Prepared:
 
 
 def _scaled_preload(model, factor):
-    """``model`` with every pressure of the 'preload' pattern and every bolt's
-    pretension multiplied by ``factor``."""
+    """``model`` with every pressure and nodal force of the 'preload' pattern and every
+    bolt's pretension multiplied by ``factor``."""
     from .model import Pressure
     bodies = tuple(replace(b, pressures=tuple(
         Pressure(p.set, p.p * factor, p.load) if p.load == "preload" else p
-        for p in b.pressures)) for b in model.bodies)
+        for p in b.pressures), forces=tuple(
+        replace(f, force=tuple(v * factor for v in f.force)) if f.load == "preload" else f
+        for f in b.forces)) for b in model.bodies)
     bolts = tuple(replace(b, pretension=b.pretension * factor)
                   for b in getattr(model, "bolts", ()))      # part of 'preload' too
     return replace(model, bodies=bodies, bolts=bolts)
@@ -388,6 +392,7 @@ def preload(model, assembled, pairing, *, method="auto", opts=None, schur_backen
                             "separate, and tied modes of a disconnected assembly would be "
                             "meaningless. Check the sign and location of the bolt pressure.",
                             partial=pre)
+    _check_every_interface_closed(pairing, pre)
     return reduced, layer, pre
 
 
@@ -445,6 +450,22 @@ def _preload_attempts(layer, reduced, method, opts, zone):
         P = np.maximum(accelerate(P, np.maximum(res.P, 0.0), ((res.P > 0).tobytes(), low)),
                        0.0)
     return res, layer
+
+
+def _check_every_interface_closed(pairing, pre):
+    """Several interfaces: refuse a preload that leaves one of them without a pair in
+    contact. Its bodies then vibrate apart, so the tied modes and every level would
+    describe a structure the joint does not hold together (as for two bodies)."""
+    if not isinstance(pairing, MultiPairing):
+        return
+    rows = pairing.rows
+    for k, itf in enumerate(pairing.interfaces):
+        if np.all(pre.status[rows[k]:rows[k + 1]] == OPEN):
+            raise AnalysisError(
+                f"the preload leaves no pair of interface {itf.label} in contact: its "
+                f"bodies separate there, and tied modes of that assembly would describe "
+                f"bodies the joint does not hold together. Check the sign and location "
+                f"of the bolt pressures", partial=pre)
 
 
 def _contact_problem(model, pairing, K):
@@ -612,8 +633,9 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
                              pos.residual[user], pos.nit[user])
         omega = np.where(hyst["use_loop"], 2 * np.pi * hyst["f_hz_loop"],
                          2 * np.pi * hyst["f_hz_masing"])
-        flags = _flags(al, q, tip, hyst, status, pre, omega0, opts)
-        success, message = _outcome(pos, flags, opts)
+        flags = _flags(al, q, tip, hyst, omega0, opts)
+        _settle_dissipation(hyst, flags, al, q)
+        success, message = _outcome(pos, flags, hyst["loops"])
 
     loop = None
     if opts.direct_loop and n_ok:
@@ -1031,7 +1053,9 @@ def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref):
                f_hz_loop=nan.copy(), zeta_loop=nan.copy(), dissipation_loop=nan.copy(),
                loop_error=nan.copy(), first=nan.copy(), cycles=np.zeros(n_ok, int),
                shakedown=np.zeros(n_ok, bool), use_loop=use_loop[user],
-               reason=reason[user], loops={}, n_solves=0)
+               reason=reason[user], loops={}, n_solves=0,
+               no_slip=_no_rubbing(solver.problem.mu, pos.status, neg_status, nn)[user],
+               linear=linear[user])
     linear_end = _linear_end(pos, pre)
     zone = solver.zone          # every loop starts from the ramps' zone: its bits do
     todo = np.flatnonzero(out["use_loop"])   # not depend on the loops solved before it
@@ -1060,9 +1084,50 @@ def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref):
             out["dissipation_loop"][i] = lp.dissipation
             out["loop_error"][i] = lp.error
             out["first"][i] = lp.first_dissipation
-            out["shakedown"][i] = lp.shakedown
+            out["shakedown"][i] = lp.shakedown or _first_loading_differs(
+                lp, pos.q[user[i]], q_neg[user[i]], opts.dissipation_rtol)
     solver.zone = zone
     return out
+
+
+def _no_rubbing(mu, pos_status, neg_status, n_neg) -> np.ndarray:
+    """Per ramp point: no pair with friction (mu > 0) slips on either ramp up to it. A
+    cycle within that range is elastic (opening and closing store energy, only
+    friction dissipates), so its dissipation is exactly zero. Points beyond the
+    ``n_neg`` solved points of the -alpha ramp are not known to be so."""
+    rubbing = np.broadcast_to(np.asarray(mu, float) > 0, pos_status.shape[1:])
+    slips = np.any((pos_status == SLIPPING) & rubbing, axis=1) | \
+        np.any((neg_status == SLIPPING) & rubbing, axis=1)
+    slips[n_neg:] = True
+    return ~np.logical_or.accumulate(slips)
+
+
+def _settle_dissipation(hyst, flags, alpha, q):
+    """The dissipation as reported, where it is zero to the precision it was computed
+    with: exactly 0 where no pair with friction slipped (``hyst["no_slip"]``), and 0 for
+    a negative value within the round-off bound ``ZETA_ZERO 2 pi alpha |q|`` of the
+    contact solves it comes from (a cycle cannot create energy). A negative value
+    beyond that bound is flagged ``negative_dissipation`` (:func:`_flags`) and kept, as
+    is every value of a level with a failure flag."""
+    bound = ZETA_ZERO * 2 * np.pi * np.asarray(alpha) * np.abs(q)
+    sound = np.array([not set(f) & set(FAILURE_FLAGS) for f in flags], bool)
+    for method in ("masing", "loop"):
+        D, zeta = hyst[f"dissipation_{method}"], hyst[f"zeta_{method}"]
+        zero = sound & np.isfinite(D) & (hyst["no_slip"] | ((D < 0) & (-D <= bound)))
+        D[zero] = 0.0
+        zeta[zero] = 0.0
+
+
+def _first_loading_differs(lp, q_top, q_bottom, rtol) -> bool:
+    """Whether the stabilised loop turns elsewhere than the first loadings to ``+A`` and
+    ``-A`` (the backbones' ``q_top``, ``q_bottom``) by more than ``rtol`` of its
+    half-range: the ramps slipped where the cycle does not (pairs left at the friction
+    limit by the preload slide once, then the cycle is elastic). The level's ``q`` and
+    ``tip`` are then those of the first loading and its ``f`` and ``zeta`` those of the
+    settled cycle: a shakedown, flagged as one."""
+    off = max(abs(lp.q_top - q_top), abs(lp.q_bottom - q_bottom) if np.isfinite(q_bottom)
+              else 0.0)
+    return bool(off > rtol * abs(lp.q_amplitude))
 
 
 def _with_closed(zone, status):
@@ -1126,7 +1191,7 @@ def _loop_fractions(grid, g, linear_end, steps):
     return u
 
 
-def _flags(alpha, q, tip, hyst, status, pre, omega0, opts):
+def _flags(alpha, q, tip, hyst, omega0, opts):
     """Per level, what the physics forbids (failures) and what it allows but a reader
     should know (information); see :data:`FAILURE_FLAGS`."""
     n = len(alpha)
@@ -1136,7 +1201,10 @@ def _flags(alpha, q, tip, hyst, status, pre, omega0, opts):
     err = np.where(use_loop, hyst["loop_error"], hyst["masing_error"])
     D = np.where(use_loop, hyst["dissipation_loop"], hyst["dissipation_masing"])
     f0 = omega0 / (2 * np.pi)
-    untouched = _untouched(status, pre)
+    # no pair has left its preload state on either ramp up to the level (every point
+    # of both refined ramps): the +alpha states of the output levels alone would call
+    # a level whose -alpha ramp slips untouched, and its damping a misfire
+    untouched = hyst["linear"]
     out = []
     for k in range(n):
         fl = []
@@ -1145,8 +1213,8 @@ def _flags(alpha, q, tip, hyst, status, pre, omega0, opts):
             fl.append("not_finite" if lp is None else
                       "loop_not_stabilised" if lp.outcome == "not_stabilised" else
                       "loop_failed")
-        elif D[k] < -(abs(err[k]) + ZETA_ZERO * 2 * np.pi * alpha[k] * abs(q[k])):
-            fl.append("negative_dissipation")
+        elif D[k] < -ZETA_ZERO * 2 * np.pi * alpha[k] * abs(q[k]):
+            fl.append("negative_dissipation")       # whatever its error estimate says
         if hyst["zeta_masing"][k] < -ZETA_ZERO and use_loop[k]:
             fl.append("masing_negative")
         hard = f[k] > f0 * (1 + STUCK_FREQUENCY_RTOL) or (
@@ -1170,23 +1238,22 @@ def _flags(alpha, q, tip, hyst, status, pre, omega0, opts):
     return tuple(out)
 
 
-def _outcome(pos, flags, opts):
-    """``(success, message)`` of the run from the ramp and the level flags."""
-    bad = [k for k, f in enumerate(flags) if set(f) & set(FAILURE_FLAGS)]
-    parts = []
-    if not pos.success:
-        parts.append(pos.message)
-    if bad:
-        names = sorted({x for k in bad for x in flags[k] if x in FAILURE_FLAGS})
-        parts.append(f"{len(bad)} level(s) hold values the physics forbids "
-                     f"({', '.join(names)}): levels {bad[:12]}"
-                     f"{' ...' if len(bad) > 12 else ''}; see 'flags' in the results"
-                     + ("; dissipation='loop' computes the true loops"
-                        if opts.dissipation == "masing" else "")
-                     + ("; stuck_not_linear: the modal response of these levels is below "
-                        "the numerical resolution of the preload state (about 1e-9 of the "
-                        "preload displacements): raise the smallest load level, or check "
-                        "the units of the bolt load" if "stuck_not_linear" in names else ""))
+def _outcome(pos, flags, loops=None):
+    """``(success, message)`` of the run from the ramp and the level flags: per failure
+    flag its levels and what to change (:data:`qsma.result.FAILURE_FIXES`), with the
+    message of the first loop that failed or did not stabilise (``loops``: level ->
+    :class:`qsma.hysteresis.Loop`)."""
+    parts = [] if pos.success else [pos.message]
+    for name in FAILURE_FLAGS:
+        ks = [k for k, f in enumerate(flags) if name in f]
+        if not ks:
+            continue
+        text = (f"{name} at level(s) {ks[:12]}{' ...' if len(ks) > 12 else ''}: "
+                f"{FAILURE_FIXES[name]}")
+        lp = (loops or {}).get(ks[0])
+        if name in ("loop_failed", "loop_not_stabilised") and lp is not None:
+            text += f" (level {ks[0]}: {lp.message})"
+        parts.append(text)
     if not parts:
         return True, "all levels converged"
     return False, "; ".join(parts)

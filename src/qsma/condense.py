@@ -113,6 +113,11 @@ def condense_body(assembled, nodes, frames, backend="auto") -> CondensedBody:
         raise InputError(f"body {body.name!r}: interface node(s) {bad[:10].tolist()} are "
                          f"clamped; remove them from the interface set or from the clamp")
     free = assembled.free
+    if len(C) >= len(free):
+        raise InputError(f"body {body.name!r}: every DOF that is not clamped lies on the "
+                         f"interface ({len(C)} DOFs), none inside the body to condense; "
+                         f"mesh it with more elements (at least two layers of cells "
+                         f"through its thickness)")
     K = assembled.K.tocsr()
     Kf = K[free][:, free]
     try:

@@ -43,6 +43,10 @@ Measured surfaces ([P]) (what qsma's default takes from them):
   data file does not say which end is which);
 * the linear damping of the structure, 0.087 % (the first bending mode).
 
+With the measured surfaces the beam also carries its bolt sets (28 g each, half on
+each washer annulus) and [P]'s 0.8 g accelerometer at the tip; the flat variant keeps
+the massless bolts of the earlier model.
+
 Geometry [G] (x along the beam, y the bolt axis through the thickness, z across
 the width; origin at the centre of the joint on the interface):
 
@@ -71,9 +75,10 @@ Modelling choices (each an approximation named in docs/validation.md):
   contact law, which is not a Coulomb coefficient of a flat interface; 0.6 is the
   coefficient of qsma's other steel examples;
 * every bolt gets the mean of the three preloads of [P], as [P] does;
-* the bolts, nuts and washers have no mass (28 g a set by [G]'s dimensions; the
-  lap is an antinode of the first bending mode: docs/validation.md estimates the
-  effect) and the 0.8 g accelerometer of [P] is not modelled.
+* with ``surfaces="flat"`` the bolts, nuts and washers have no mass (28 g a set by
+  [G]'s dimensions; the lap is an antinode of the first bending mode:
+  docs/validation.md estimates the effect) and the 0.8 g accelerometer of [P] is not
+  modelled; the default (measured surfaces) carries both.
 """
 from __future__ import annotations
 
@@ -83,7 +88,8 @@ import math
 import numpy as np
 
 from ..errors import InputError
-from ..model import Body, Bolt, Interface, LinearDamping, Material, Model, Probe
+from ..model import (Body, Bolt, Interface, LinearDamping, Material, Model, PointMass,
+                     Probe)
 from ..model.generate import graded_axis, structured_mesh
 from ..model.mesh import Mesh
 
@@ -103,6 +109,8 @@ BRB = dict(
     E=192.31e9, nu=0.3, rho=7784.3,       # [P] 304L
     preloads=(12002.0, 12075.0, 12670.0),  # [P] per bolt, N; every bolt gets the mean
     E_bolt=200e9,                 # assumption (steel of the tutorial's bolts [G])
+    bolt_set_mass=0.028,          # [G] bolt, nut and two washers by their dimensions, kg
+    sensor_mass=0.8e-3,           # [P] the accelerometer at the tip (main_epmc.m), kg
     mu=0.6,                       # assumption (see the module docstring)
 )
 
@@ -219,6 +227,18 @@ def _sets(mesh, left):
 SURFACES = ("measured", "flat")
 
 
+def _with_masses(body):
+    """``body`` with the masses the beam carries: half a bolt set (head or nut, a
+    washer, half the shank) on each washer annulus, and the accelerometer on the right
+    beam's free end."""
+    s = BRB
+    masses = [PointMass(f"washer{k}", s["bolt_set_mass"] / 2)
+              for k in range(1, len(s["x_bolts"]) + 1)]
+    if body.name == "right":
+        masses.append(PointMass("end", s["sensor_mass"]))
+    return dataclasses.replace(body, masses=tuple(masses))
+
+
 def measured_interface(itf):
     """``itf`` with the measured surfaces of [P]: the rough-surface law
     (:data:`BRB_ROUGH`) and the mesoscale gap (:data:`BRB_MESOSCALE_GAP`)."""
@@ -289,6 +309,7 @@ def brb(refine: int = 1, mu: float | None = None, element: str = "C3D8I",
     damping = None
     if surfaces == "measured":
         itf, damping = measured_interface(itf), LinearDamping(ratio=BRB_DAMPING)
+        bodies = [_with_masses(b) for b in bodies]
     else:
         suffix += ", flat"
     return Model(bodies=tuple(bodies), interface=itf,

@@ -41,7 +41,8 @@ class Interface:
     slave : name of the body whose interface nodes carry the contact unknowns (mortar
         only). ``None``: the side with more interface nodes (the finer one, as mortar
         theory recommends), body 1 on a tie; if that side is not covered by the other,
-        the other side.
+        the other side, and where neither is covered, the one with the smaller share
+        uncovered.
     tol : node-to-node match tolerance (absolute, m). It can only tighten the default
         (:data:`NODE_MATCH_FRACTION` of the local element size); a larger value is
         refused: mismatched meshes are coupled by ``coupling="mortar"``, never snapped.
@@ -394,7 +395,7 @@ def mortar_pairing(model, interface=None) -> Pairing:
         n = [len(b.mesh.nodes(s)) for _, b, s in sides]
         first = [0, 1] if n[0] >= n[1] else [1, 0]
         candidates = [first, first[::-1]]
-    error = None
+    error, best = None, None
     for s, m in candidates:
         k, sb, ss = sides[s]
         _, mb, ms = sides[m]
@@ -404,12 +405,31 @@ def mortar_pairing(model, interface=None) -> Pairing:
         except InputError as exc:
             error = error or exc
             continue
-        normals = op.normals if k == 1 else -op.normals        # from body 1 into body 2
-        nodes = (op.slave_nodes, op.master_nodes) if k == 1 else (op.master_nodes,
-                                                                  op.slave_nodes)
-        return Pairing(nodes[0], nodes[1], sb.mesh.points[op.slave_nodes].copy(),
-                       local_frames(normals), op.area, "mortar", k, op.P, op.gap)
-    raise error
+        if best is None or op.unmatched_fraction < best[0].unmatched_fraction:
+            best = (op, k, sb, ss)
+        if op.fully_covered:
+            break
+    if best is None:
+        raise error
+    op, k, sb, ss = best
+    if not op.fully_covered:
+        _warn_partial(itf, op, sb.name, ss)
+    normals = op.normals if k == 1 else -op.normals            # from body 1 into body 2
+    nodes = (op.slave_nodes, op.master_nodes) if k == 1 else (op.master_nodes,
+                                                              op.slave_nodes)
+    return Pairing(nodes[0], nodes[1], sb.mesh.points[op.slave_nodes].copy(),
+                   local_frames(normals), op.area, "mortar", k, op.P, op.gap)
+
+
+def _warn_partial(itf, op, body, name):
+    """Name the part of the slave surface that faces no master facet."""
+    from ..errors import PartialCoverageWarning
+    warnings.warn(PartialCoverageWarning(
+        f"interface {itf.label}: {100 * op.unmatched_fraction:.3g} % of the slave surface "
+        f"(body {body!r} set {name!r}: {op.unmatched_area:.4g} of its area "
+        f"{op.slave_area:.4g}) faces no master facet and is left out of the contact (the "
+        f"edges of holes or of offset surfaces meshed apart); if the two surfaces should "
+        f"cover each other, check their facet sets"), stacklevel=3)
 
 
 def _warn_quad8(itf, *bodies):

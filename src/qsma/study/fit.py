@@ -42,6 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..analysis import STUDY_MU_FIX
 from ..errors import AnalysisError, InputError
 from ..levels import Levels
 from ..options import RunOptions
@@ -200,7 +201,9 @@ class _Evaluator:
         self.model, self.options, self.names = model, options, tuple(names)
         self.groups = {}
         self.nruns = 0
-        _check_bodies([Case(0, tuple((n, 1.0) for n in names))], model)
+        _check_bodies([Case(0, tuple((n, 1.0) for n in names if n != "mu"))], model)
+        if "mu" in names:
+            model.check_mu_reaches(None, STUDY_MU_FIX, what="fitting mu")
 
     def result(self, values):
         from ..analysis import prepare, run_prepared

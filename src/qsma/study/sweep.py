@@ -64,7 +64,7 @@ CASE_FILES = ("plots", "vtu", "rom", "report")
 #: fixed when the shared preparation is made.
 NOT_SWEPT = ("blas_threads", "schur_backend", "loop_workers", "parallel_ramps")
 #: Run options left out of a study's fingerprint: they change no result, so a study
-#: resumes whatever they are (and studies started before they existed still resume).
+#: resumes whatever they are.
 NOT_FINGERPRINTED = ("loop_workers", "parallel_ramps")
 
 
@@ -232,11 +232,16 @@ def _material_key(case, n_bodies, names):
 
 
 def _check_bodies(cases, model):
+    """Refuse before any case a body the model lacks and a friction coefficient the
+    model's interfaces would not see (their own mu)."""
+    from ..analysis import STUDY_MU_FIX
     names = [b.name for b in model.bodies]
     for name, _ in cases[0].params:
         base, _, body = name.partition(":")
         if base in MATERIAL_PARAMETERS and body and body not in names:
             raise InputError(f"sweep parameter {name!r}: no body {body!r}; bodies: {names}")
+    for mu in sorted({dict(c.params)["mu"] for c in cases if "mu" in dict(c.params)}):
+        model.check_mu_reaches(mu, STUDY_MU_FIX, what=f"mu = {mu:g} of the study")
 
 
 def _model_with_materials(model, key):
@@ -505,27 +510,14 @@ def _check_study(path, study):
 
 
 def _fingerprint(model, options) -> str:
-    """SHA-256 of what a case's results depend on besides its own parameters: every
-    body's mesh, material, clamps and loads, the interface, probe and mu, and every
-    run option (levels included)."""
+    """SHA-256 of what a case's results depend on besides its own parameters: the model
+    as a whole (:func:`qsma.model.fingerprint.fingerprint`: meshes with the contents of
+    every set, materials, clamps, loads, springs, interfaces, probe, mu, bolts) and
+    every run option that changes a result (levels included)."""
     import hashlib
+    from ..model.fingerprint import fingerprint
     h = hashlib.sha256()
-    for b in model.bodies:
-        h.update(b.name.encode())
-        h.update(np.ascontiguousarray(b.mesh.points).tobytes())
-        h.update(np.ascontiguousarray(b.mesh.cells).tobytes())
-        h.update(repr((b.mesh.cell_type, b.mesh.element, b.material, b.clamps,
-                       b.pressures)).encode())
-        if b.springs:                           # (absent: the bytes of earlier versions)
-            h.update(repr(b.springs).encode())
-        for c in b.mesh.extra_blocks:           # mixed meshes: the other cell blocks
-            h.update(np.ascontiguousarray(c.cells).tobytes())
-            h.update(repr((c.cell_type, c.element)).encode())
-    # two bodies: the bytes of earlier versions (studies still resume); several: all
-    interfaces = model.interface if model.interface is not None else model.interface_list
-    h.update(repr((interfaces, model.tip, model.mu)).encode())
-    if model.bolts:
-        h.update(repr(model.bolts).encode())
+    h.update(fingerprint(model).encode())
     h.update(repr(sorted((k, _fingerprinted(model, k, v))
                          for k, v in options.as_dict().items()
                          if k not in NOT_FINGERPRINTED)).encode())
@@ -535,10 +527,9 @@ def _fingerprint(model, options) -> str:
 
 def _fingerprinted(model, name, value):
     """The value of option ``name`` as the fingerprint holds it: ``method="auto"`` of a
-    2D model as the method it always runs (``basket``, the default of earlier versions:
-    their studies still resume). In 3D the choice depends on the number of interface
-    pairs, known only after the pairing, so ``"auto"`` stays ``"auto"``: a 3D study of
-    an earlier version resumes with ``--method basket``."""
+    2D model as the method it always runs (``basket``), so the two spellings resume each
+    other's studies. In 3D the choice depends on the number of interface pairs, known
+    only after the pairing, so ``"auto"`` stays ``"auto"``."""
     if name == "method" and value == "auto" and model.dim == 2:
         return "basket"
     return value
