@@ -49,6 +49,20 @@ def test_exponential_law_is_abaqus_form():
     assert law.pressure(-2e-6) == 0.0 and law.stiffness(-2e-6) == 0.0
 
 
+def test_exponential_law_is_calculix_form():
+    """CalculiX's EXPONENTIAL: p = p0 exp(ln(100) h / c0), 1 % of p0 at the clearance c0
+    and nothing beyond; a closure at c0 carries any pressure up to p0 / 100."""
+    law = ExponentialPressure(2e-6, 5e6, form="calculix")
+    assert law.pressure(0.0) == pytest.approx(5e6, rel=1e-14)
+    assert law.pressure(-2e-6 + 1e-15) == pytest.approx(5e4, rel=1e-6)
+    assert law.pressure(-2e-6 - 1e-9) == 0.0
+    h = np.linspace(-1.5e-6, 3e-6, 10)
+    assert np.allclose(law.overclosure(law.pressure(h)), h, rtol=0, atol=1e-18)
+    assert law.overclosure(1e4) == -2e-6
+    assert law_from_table({"normal": "exponential", "clearance": 2e-6,
+                           "pressure_at_zero": 5e6, "form": "calculix"}) == InterfaceLaw(law)
+
+
 @pytest.mark.parametrize("table, fix", [
     ({"normal": "linear"}, "needs ['normal_stiffness']"),
     ({"normal": "linear", "normal_stiffness": -1.0}, "> 0"),
@@ -180,6 +194,23 @@ def test_exponential_layer_satisfies_its_law_at_every_pair():
     assert np.allclose(res.P, P_law, rtol=1e-9, atol=1e-9 * res.P.max())
     # the contact reaches past where the surfaces touch: clearance up to c0 carries load
     assert np.count_nonzero(res.P > 0) > np.count_nonzero(h > 0)
+
+
+def test_calculix_exponential_layer_satisfies_its_law():
+    """The same blocks with CalculiX's exponential law: every pair on the law's graph,
+    the pairs at the clearance c0 anywhere on its vertical segment."""
+    law = ExponentialPressure(2e-6, 5e6, form="calculix")
+    model, pairing, physical, laws = _blocks(InterfaceLaw(law))
+    layer = Layer(physical, laws)
+    r = np.zeros((pairing.n_pairs, 2))
+    r[:, 1] = -3e-6
+    res = _layer_solve(layer, _shifted(layer, r))
+    assert res.success and res.law_residual <= 1e-10
+    h = -(res.d[:, 1] + physical.gap0)
+    on_curve = h > -2e-6 + 1e-12
+    assert np.allclose(res.P[on_curve], pairing.area[on_curve] * law.pressure(h[on_curve]),
+                       rtol=1e-8)
+    assert np.all(res.P[~on_curve] <= pairing.area[~on_curve] * 5e4 * (1 + 1e-9))
 
 
 def test_jenkins_loop_energy_with_stick_stiffness():

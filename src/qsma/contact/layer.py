@@ -132,6 +132,27 @@ class PairLaws:
                     P[rows] / self.area[rows]))
         return out
 
+    def graph_distance(self, P, h):
+        """How far ``(h, P)`` lies from each pair's law, in force: the smaller of the
+        pressure's miss ``|P - A p(h)|`` and the closure's ``A k |h - h(P/A)|`` (``k``
+        the law's slope there). The second measures a law with a vertical segment
+        (CalculiX's exponential jumps at its clearance), where any pressure up to the
+        jump belongs to the same closure."""
+        P = np.maximum(np.asarray(P, dtype=float), 0.0)
+        h = np.asarray(h, dtype=float)
+
+        def one(law, rows):
+            if law.normal.hard:
+                return 0.0
+            A, p = self.area[rows], P[rows] / self.area[rows]
+            force = np.abs(P[rows] - A * law.normal.pressure(h[rows]))
+            h_p = law.normal.overclosure(p)
+            k = law.normal.stiffness(h_p + np.abs(h_p) * 1e-12 + 1e-300)
+            with np.errstate(invalid="ignore"):
+                closure = np.where(P[rows] > 0, A * k * np.abs(h[rows] - h_p), np.inf)
+            return np.minimum(force, closure)
+        return self._per_law(one)
+
     def linear_pairs(self):
         """Pairs whose normal law is linear (hard or a constant stiffness)."""
         return self._per_law(lambda law, rows: law.normal.linear).astype(bool)
@@ -370,7 +391,7 @@ class Layer:
             return 0.0
         P = res.lam[:, -1]
         h = -(res.d[:, -1] + self.physical.gap0)
-        miss = np.where(self.curved, np.abs(P - self.laws.pair_pressure(h)), 0.0)
+        miss = np.where(self.curved, self.laws.graph_distance(P, h), 0.0)
         # round-off of h: the sum of the terms it is computed from, eps each
         terms = (np.abs(res.d[:, -1]) + np.abs(self.physical.gap0)
                  + np.abs(self.c[:, -1] * P) + np.abs(self.laws.layer_deformation(P)))

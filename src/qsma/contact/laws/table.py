@@ -14,14 +14,15 @@ from .tangential import ElasticStick, RigidStick
 NORMAL_KEYS = {
     "hard": (Hard, {}),
     "linear": (LinearPressure, {"normal_stiffness": "k"}),
-    "exponential": (ExponentialPressure, {"clearance": "c0", "pressure_at_zero": "p0"}),
+    "exponential": (ExponentialPressure, {"clearance": "c0", "pressure_at_zero": "p0",
+                                          "form": "form"}),
     "tabular": (TabularPressure, {"table": "table"}),
     "rough": (RoughSurface, {"sigma": "sigma", "radius": "radius", "density": "density",
                              "E": "E", "nu": "nu", "yield_strength": "yield_strength",
                              "hardening": "hardening", "n_sigma": "n_sigma"}),
 }
 #: Keys a table may leave out (the law's default applies).
-OPTIONAL_KEYS = {"yield_strength", "hardening", "n_sigma"}
+OPTIONAL_KEYS = {"yield_strength", "hardening", "n_sigma", "form"}
 #: tangential law name -> (class, {table key: constructor argument})
 TANGENTIAL_KEYS = {
     "rigid": (RigidStick, {}),
