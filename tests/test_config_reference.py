@@ -109,7 +109,11 @@ def test_the_complete_example_is_read():
     used = {"top"} | {k for k in data if isinstance(data[k], (dict, list))}
     for b in data["bodies"]:
         used |= {k for k in b if isinstance(b[k], list)}
+    for itf in data["interfaces"]:
+        used |= {k for k in itf if isinstance(itf[k], dict)}
     assert used >= set(SECTIONS) - {"interface", "pressures"}   # bolts instead of pressures
     assert cfg.modes == (0, 1) and len(cfg.model.bolts) == 1
     assert cfg.model.bodies[1].masses[0].mass == 0.05
     assert cfg.model.bodies[0].clamps[0].components == (0, 1)
+    assert cfg.model.interfaces[0].law.normal.k == 1e14 and cfg.model.damping.ratio == 1e-3
+    assert cfg.model.interfaces[0].gap.kind == "height"

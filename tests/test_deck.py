@@ -64,15 +64,29 @@ def lap_deck(path, sections=SECTIONS, loads=DSLOAD, extra=""):
     return path
 
 
+#: The deck's *SURFACE BEHAVIOR (LINEAR, slope 1e13) and *FRICTION stick slope (1e12) as
+#: the interface law's table.
+LAW_TABLE = {"normal": "linear", "normal_stiffness": 1e13, "tangential": "elastic",
+             "tangential_stiffness": 1e12}
+
+
+def _with_law(model):
+    import dataclasses
+    from qsma.contact.laws import law_from_table
+    return dataclasses.replace(model, interface=dataclasses.replace(
+        model.interface, law=law_from_table(LAW_TABLE)))
+
+
 def _run(config, base, levels=ALPHA):
     cfg = parse_config(config, base=base)
     return qsma.run(cfg.model, levels=levels, method="basket")
 
 
 def test_deck_is_the_sandwich_model(tmp_path):
-    """The lap deck runs as the sandwich-2d example: same bodies, clamps, pressures,
-    interface and mu, hence the same f0 and damping at the same modal forces (the
-    coordinates went through an .inp file: 5e-14 apart)."""
+    """The lap deck runs as the sandwich-2d example with the deck's interface law (the
+    linear pressure-overclosure slope and the stick slope): same bodies, clamps,
+    pressures, interface, mu and law, hence the same f0 and damping at the same modal
+    forces (the coordinates went through an .inp file: 5e-14 apart)."""
     deck = read_deck(lap_deck(tmp_path / "lap.inp"))
     assert not deck.refusals
     c = deck.config
@@ -81,25 +95,45 @@ def test_deck_is_the_sandwich_model(tmp_path):
     assert c["bodies"][1]["pressures"] == [{"set": "top_bolt", "p": P_BOLT}]
     assert c["interface"] == {"body1": "bottom", "set1": "bottom_interface", "body2": "top",
                               "set2": "top_interface", "mu": MU, "coupling": "auto",
-                              "slave": "top"}
+                              "slave": "top", "law": LAW_TABLE}
     assert deck.frequency_modes == 6
     a = _run(c, tmp_path)
-    b = qsma.run(sandwich_2d(1), levels=ALPHA, method="basket")
+    b = qsma.run(_with_law(sandwich_2d(1)), levels=ALPHA, method="basket")
     assert a.success and a.f0_hz == pytest.approx(b.f0_hz, rel=1e-9)
     np.testing.assert_allclose(a.zeta, b.zeta, rtol=1e-6, atol=1e-12)   # stuck: round-off
     np.testing.assert_allclose(a.f_hz, b.f_hz, rtol=1e-9)
 
 
-def test_interaction_parameters_are_kept_and_named(tmp_path):
+def test_interaction_parameters_become_the_interface_law(tmp_path):
     """The stick slope and the *SURFACE BEHAVIOR law are kept on the interface record and
-    named as not used yet, with their lines."""
+    become the interface's law; where qsma's law differs from CalculiX's (the tension
+    of its node-to-surface springs) the note says so, with the line."""
     deck = read_deck(lap_deck(tmp_path / "lap.inp"))
     law = deck.interfaces[0].interaction
     assert (law.name, law.mu, law.stick_slope) == ("JOINT", MU, 1e12)
     assert law.pressure_overclosure == "LINEAR" and law.behavior == (1e13, 0.0)
+    assert deck.config["interface"]["law"] == LAW_TABLE
     text = "\n".join(map(str, deck.notes))
     assert "lap.inp, line" in text and "*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR" in text
-    assert "stick slope 1e12" in text and not deck.refusals
+    assert "tension" in text and not deck.refusals
+
+
+@pytest.mark.parametrize("behavior, law", [
+    ("*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=EXPONENTIAL\n2e-6, 1e7",
+     {"normal": "exponential", "clearance": 2e-6, "pressure_at_zero": 1e7,
+      "form": "calculix"}),
+    ("*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=TABULAR\n0., -1e-6\n1e6, 0.\n5e6, 1e-6",
+     {"normal": "tabular", "table": [[0.0, -1e-6], [1e6, 0.0], [5e6, 1e-6]]}),
+])
+def test_other_surface_behaviors_become_laws(tmp_path, behavior, law):
+    text = lap_deck(tmp_path / "lap.inp").read_text().replace(
+        "*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR\n1e13, 0.", behavior)
+    (tmp_path / "lap.inp").write_text(text)
+    deck = read_deck(tmp_path / "lap.inp")
+    assert deck.config["interface"]["law"] == {**law, "tangential": "elastic",
+                                               "tangential_stiffness": 1e12}
+    from qsma.contact.laws import law_from_table
+    law_from_table(deck.config["interface"]["law"])          # a valid law
 
 
 def test_default_probe_is_the_node_of_largest_modal_displacement(tmp_path):

@@ -17,14 +17,16 @@ from .errors import InputError, MeshFileError
 from .levels import Levels, spec_levels
 from .options import RunOptions
 from .units import unit_system
-from .model import (Body, Bolt, Clamp, Interface, Material, Model, NodalForce, PointMass,
-                    Pressure, Probe, Spring)
+from .contact.laws import law_from_table
+from .model import (Body, Bolt, Clamp, Interface, LinearDamping, Material, Model, NodalForce,
+                    PointMass, Pressure, Probe, Spring, read_gap_field)
 
 _NUM = (int, float)
 # section -> {key: (types, required)}
 SCHEMA = {
     "": {"name": (str, False), "units": (str, False), "bodies": (list, True),
          "interface": (dict, False), "interfaces": (list, False), "bolts": (list, False),
+         "damping": (dict, False),
          "tip": (dict, True), "analysis": (dict, False), "levels": (dict, False)},
     "bodies": {"name": (str, True), "mesh": (str, True), "cells": (str, False),
                "part": (int, False), "E": (_NUM, True),
@@ -42,10 +44,14 @@ SCHEMA = {
     "forces": {"set": (str, True), "force": (list, True), "load": (str, False)},
     "interface": {"body1": (str, True), "set1": (str, True), "body2": (str, True),
                   "set2": (str, True), "mu": (_NUM, True), "tol": (_NUM, False),
-                  "coupling": (str, False), "slave": (str, False)},
+                  "coupling": (str, False), "slave": (str, False), "law": (dict, False),
+                  "gap": (dict, False)},
     "interfaces": {"body1": (str, True), "set1": (str, True), "body2": (str, True),
                    "set2": (str, True), "mu": (_NUM, True), "tol": (_NUM, False),
-                   "coupling": (str, False), "slave": (str, False)},
+                   "coupling": (str, False), "slave": (str, False), "law": (dict, False),
+                   "gap": (dict, False)},
+    "gap": {"file": (str, True), "scale": (_NUM, False), "coordinate_scale": (_NUM, False)},
+    "damping": {"ratio": (_NUM, False), "rayleigh": (list, False)},
     "tip": {"sets": (list, False), "points": (list, False), "direction": (list, True)},
     "levels": {"kind": (str, True), "spacing": (str, True), "start": (_NUM, False),
                "stop": (_NUM, False), "n": (int, False), "values": (list, False)},
@@ -142,10 +148,32 @@ def decode_toml(raw: bytes, where: str) -> str:
                          f"Save the file as UTF-8 (e.g. iconv -f LATIN1 -t UTF-8)") from None
 
 
-def _interface(t, with_mu=True) -> Interface:
+def _interface(t, where, base, with_mu=True) -> Interface:
+    law = law_from_table(t["law"], f"{where}.law") if "law" in t else None
+    gap = None
+    if "gap" in t:
+        g = _check(t["gap"], "gap", f"{where}.gap")
+        gap = read_gap_field(base / g["file"], scale=g.get("scale", 1.0),
+                             coordinate_scale=g.get("coordinate_scale", 1.0))
     return Interface(t["body1"], t["set1"], t["body2"], t["set2"], t.get("tol"),
                      coupling=t.get("coupling", "auto"), slave=t.get("slave"),
-                     mu=t["mu"] if with_mu else None)
+                     mu=t["mu"] if with_mu else None, law=law, gap=gap)
+
+
+def _damping(table, where):
+    """The ``[damping]`` table: ``ratio = 0.00087`` or ``rayleigh = [alpha, beta]``."""
+    if table is None:
+        return None
+    _check(table, "damping", where)
+    if ("ratio" in table) == ("rayleigh" in table):
+        raise InputError(f"{where}: give exactly one of ratio (a modal damping ratio, e.g. "
+                         f"0.00087) or rayleigh = [alpha, beta]")
+    if "ratio" in table:
+        return LinearDamping(ratio=table["ratio"])
+    ab = table["rayleigh"]
+    if len(ab) != 2:
+        raise InputError(f"{where}: rayleigh must be [alpha (1/s), beta (s)], got {ab!r}")
+    return LinearDamping(alpha=ab[0], beta=ab[1])
 
 
 def _body_mesh(path, cells, files, part=None):
@@ -280,6 +308,7 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
     tip = _check(data["tip"], "tip", f"{where}: tip")
     bodies, probe = _probe(tip, bodies, f"{where}: tip")
     name = data.get("name", "model")
+    damping = _damping(data.get("damping"), f"{where}: damping")
     if ("interface" in data) == ("interfaces" in data):
         raise InputError(f"{where}: give the contact interface as one [interface] table "
                          f"(two bodies) or as a list of [[interfaces]] tables (any number "
@@ -288,16 +317,19 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
                   for k, t in enumerate(data.get("bolts", [])))
     if "interface" in data:
         itf = _check(data["interface"], "interface", f"{where}: interface")
-        model = Model(bodies=tuple(bodies), interface=_interface(itf, with_mu=False),
-                      tip=probe, mu=itf["mu"], name=name, bolts=bolts, units=units)
+        model = Model(bodies=tuple(bodies),
+                      interface=_interface(itf, f"{where}: interface", base, with_mu=False),
+                      tip=probe, mu=itf["mu"], name=name, bolts=bolts, units=units,
+                      damping=damping)
     else:
         if not data["interfaces"]:
             raise InputError(f"{where}: interfaces is empty; list the touching facet sets "
                              f"as [[interfaces]] tables")
-        itfs = tuple(_interface(_check(t, "interfaces", f"{where}: interfaces[{k}]"))
+        itfs = tuple(_interface(_check(t, "interfaces", f"{where}: interfaces[{k}]"),
+                                f"{where}: interfaces[{k}]", base)
                      for k, t in enumerate(data["interfaces"]))
         model = Model(bodies=tuple(bodies), interfaces=itfs, tip=probe, mu=itfs[0].mu,
-                      name=name, bolts=bolts, units=units)
+                      name=name, bolts=bolts, units=units, damping=damping)
     analysis = dict(data.get("analysis", {})) if isinstance(data.get("analysis"), dict) \
         else data.get("analysis", {})
     modes = _modes(analysis, f"{where}: analysis")

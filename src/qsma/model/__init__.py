@@ -13,9 +13,12 @@ from .validate import validate_mesh  # noqa: E402
 
 from .bolt import Bolt  # noqa: E402
 from .spring import Spring  # noqa: E402
+from .damping import LinearDamping  # noqa: E402
+from .gapfield import GapField, read_gap_field  # noqa: E402
 from .mass import PointMass  # noqa: E402
 
-__all__ += ["Bolt", "Spring", "PointMass", "read_mesh", "write_mesh", "FacetIndex", "facet_index", "validate_mesh"]
+__all__ += ["Bolt", "Spring", "PointMass", "LinearDamping", "GapField", "read_gap_field",
+            "read_mesh", "write_mesh", "FacetIndex", "facet_index", "validate_mesh"]
 
 
 def __getattr__(name):

@@ -8,6 +8,7 @@ import warnings
 import numpy as np
 
 from ..errors import InputError, NearlyIncompressibleWarning
+from .damping import LinearDamping
 from .mesh import CELL_FACETS, Mesh
 
 #: Poisson's ratio above which the displacement elements of qsma lock. Measured with
@@ -213,7 +214,9 @@ class Model:
     reported as tip deflection and used to scale load levels. ``units`` names the
     unit system every number of the model is written in (:data:`qsma.units.UNIT_SYSTEMS`:
     ``"SI"``, the default, or ``"mm-N-s-tonne"``); nothing is converted, the name
-    labels the results.
+    labels the results. ``damping``: the linear damping of the structure besides the
+    joint (:class:`qsma.model.LinearDamping`), reported beside the joint's and added to
+    it.
     """
 
     bodies: tuple
@@ -225,6 +228,7 @@ class Model:
     interfaces: tuple = ()
     bolts: tuple = ()                 # qsma.model.bolt.Bolt, pretensioned then locked
     units: str = "SI"
+    damping: "LinearDamping | None" = None   # of the structure besides the joint
 
     def __post_init__(self):
         object.__setattr__(self, "bodies", tuple(self.bodies))
@@ -254,6 +258,9 @@ class Model:
         if self.tip is not None:
             self._check_probe(self.tip)
         self._check_bolts(names)
+        if self.damping is not None and not isinstance(self.damping, LinearDamping):
+            raise InputError(f"damping must be a qsma.model.LinearDamping, got "
+                             f"{type(self.damping).__name__}")
 
     def _check_bolts(self, names):
         """Bolt ends on bodies of the model, unique bolt names."""

@@ -9,6 +9,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
+from ..contact.laws import InterfaceLaw
 from ..errors import InputError, QuadraticFacetWarning
 from .mesh import Mesh, facet_index, facet_node_weights
 
@@ -46,6 +47,13 @@ class Interface:
         (:data:`NODE_MATCH_FRACTION` of the local element size); a larger value is
         refused: mismatched meshes are coupled by ``coupling="mortar"``, never snapped.
     mu : Coulomb friction coefficient of this interface; ``None``: the model's ``mu``.
+    law : :class:`qsma.contact.laws.InterfaceLaw` of this interface (normal and
+        tangential compliance); ``None``: hard contact with rigid stick.
+    gap : initial normal gap added at every contact point (m, positive apart, negative
+        overlapping): where the surfaces touch is an input, not an accident of the
+        mesh. A callable of the contact points' coordinates ``(n, dim) -> (n,)``, or a
+        :class:`qsma.model.gapfield.GapField` (e.g. a measured height map,
+        :func:`qsma.model.gapfield.read_gap_field`). ``None``: flat (the mesh's own gaps).
     """
 
     body1: str
@@ -56,6 +64,8 @@ class Interface:
     coupling: str = "auto"
     slave: str | None = None
     mu: float | None = None
+    law: object = None
+    gap: object = None
 
     @property
     def label(self) -> str:
@@ -68,6 +78,15 @@ class Interface:
                                     or not np.isfinite(self.mu) or self.mu < 0):
             raise InputError(f"interface {self.label}: friction coefficient mu must be a "
                              f"finite number >= 0, got {self.mu!r}")
+        if self.law is not None:
+            if not isinstance(self.law, InterfaceLaw):
+                raise InputError(f"interface {self.label}: law must be a "
+                                 f"qsma.contact.laws.InterfaceLaw, got "
+                                 f"{type(self.law).__name__}")
+        if self.gap is not None and not callable(self.gap):
+            raise InputError(f"interface {self.label}: gap must be a function of the "
+                             f"contact points' coordinates or a GapField, got "
+                             f"{type(self.gap).__name__}")
         if self.coupling not in COUPLINGS:
             raise InputError(f"interface coupling must be one of {list(COUPLINGS)}, "
                              f"got {self.coupling!r}")

@@ -133,13 +133,50 @@ class DeckNote:
         return f"{self.where}: {self.what}; {self.fix}"
 
 
+#: How a deck's ``*SURFACE BEHAVIOR`` becomes qsma's interface law, where they differ.
+LAW_NOTES = {
+    "LINEAR": "the slope K is the layer's normal stiffness; the tension sigma_inf that "
+              "CalculiX's node-to-surface springs carry at small clearances is not "
+              "modelled (qsma's layer never pulls)",
+    "EXPONENTIAL": "taken as CalculiX defines it, p = p0 exp(ln(100) h / c0) from the "
+                   "clearance c0 (form = \"calculix\"); an Abaqus deck means Abaqus' "
+                   "form (form = \"abaqus\" in the TOML of qsma init)",
+    "TABULAR": "linear between the rows; beyond the last row qsma continues its slope "
+               "where CalculiX keeps its pressure",
+}
+
+
+def law_table(record, where=""):
+    """The TOML ``law`` table of a deck's interaction (``*SURFACE BEHAVIOR`` and the
+    stick slope of ``*FRICTION``), or None for hard contact with rigid stick."""
+    if record is None:
+        return None
+    law, numbers = {}, record.behavior
+    kind = record.pressure_overclosure
+    if kind == "LINEAR" and numbers:
+        law.update(normal="linear", normal_stiffness=numbers[0])
+    elif kind == "EXPONENTIAL" and len(numbers) >= 2:
+        law.update(normal="exponential", clearance=numbers[0], pressure_at_zero=numbers[1],
+                   form="calculix")
+    elif kind == "TABULAR" and len(numbers) >= 4:
+        rows = [list(numbers[k:k + 2]) for k in range(0, len(numbers) - 1, 2)]
+        law.update(normal="tabular", table=rows)
+    elif kind not in (None, "HARD", "TIED"):
+        raise InputError(f"{record.where or where}: *SURFACE BEHAVIOR, "
+                         f"PRESSURE-OVERCLOSURE={kind} of interaction {record.name!r} lacks "
+                         f"its values; give them on the data line")
+    if record.stick_slope:
+        law.update(tangential="elastic", tangential_stiffness=record.stick_slope)
+    return law or None
+
+
 @dataclass(frozen=True)
 class SurfaceInteraction:
-    """A ``*SURFACE INTERACTION`` as the deck gives it. qsma uses ``mu``; the stick slope
-    (the tangential penalty of ``*FRICTION``, force per length^3) and the
-    ``*SURFACE BEHAVIOR`` law (``pressure_overclosure``: HARD, LINEAR, EXPONENTIAL,
-    TABULAR, TIED; ``behavior``: the numbers of its data lines) are kept for interface
-    laws, not used yet."""
+    """A ``*SURFACE INTERACTION`` as the deck gives it: ``mu``, the stick slope (the
+    tangential penalty of ``*FRICTION``, force per length^3) and the ``*SURFACE
+    BEHAVIOR`` law (``pressure_overclosure``: HARD, LINEAR, EXPONENTIAL, TABULAR, TIED;
+    ``behavior``: the numbers of its data lines), which :func:`law_table` turns into the
+    interface's law."""
 
     name: str
     mu: float | None = None
@@ -360,19 +397,21 @@ class _DeckReader:
                 interaction["mu"] = _number(t[0], w, "the friction coefficient")
                 if len(t) > 1 and t[1]:
                     interaction["stick_slope"] = _number(t[1], w, "the stick slope")
-                    self.note(_row_where(w), f"the stick slope {t[1]} of *FRICTION of "
-                              f"interaction {name!r} is not used yet", "qsma's stuck pairs "
-                              "do not slip (no tangential penalty)", False)
         elif card.keyword == "SURFACE BEHAVIOR":
             law = str(card.params.get("PRESSURE-OVERCLOSURE", "HARD")).upper()
             numbers = tuple(_number(x, w, "a surface behavior value")
                             for w, t in rows for x in t if x)
             interaction["pressure_overclosure"] = law
             interaction["behavior"] = numbers
-            if law != "HARD" or numbers:                 # HARD is qsma's own contact
+            if law in LAW_NOTES:
                 self.note(_where(card), f"*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE={law} "
-                          f"of interaction {name!r} is not used yet", "qsma's contact is "
-                          "hard (no penetration, no tension)", law == "TIED")
+                          f"of interaction {name!r}: {LAW_NOTES[law]}", "the interface "
+                          "law of qsma that is its layer (docs/theory.md section 12)", False)
+            elif law not in ("HARD", "LINEAR", "EXPONENTIAL", "TABULAR") or law == "TIED":
+                self.note(_where(card), f"*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE={law} "
+                          f"of interaction {name!r}", "qsma's interfaces open and slip: a "
+                          "tied contact is no joint (give HARD, LINEAR, EXPONENTIAL or "
+                          "TABULAR)", True)
         else:
             self.note(_where(card), f"*{card.keyword} of interaction {name!r} is not used",
                       _HARMLESS[card.keyword], False)
@@ -837,6 +876,9 @@ class _DeckReader:
                          "body2": names[s], "set2": self._find(bodies[s]["mesh"], slave,
                                                                 ("facet",)),
                          "mu": mu, "coupling": "auto", "slave": names[s]}
+                law = law_table(record, w)
+                if law is not None:
+                    table["law"] = law
                 comment = f"*CONTACT PAIR, {w}: master {master}, slave {slave}"
                 if record is None or record.mu is None:
                     comment += "; no *FRICTION: frictionless as in CalculiX (set mu)"
