@@ -107,11 +107,24 @@ class PairLaws:
 
     def layer_deformation(self, P):
         """Normal deformation of the layer under pair forces ``P`` (N):
-        ``h(P/A) - h_0`` (zero for hard laws and unloaded pairs)."""
+        ``h(P/A) - h_0`` (zero for hard laws and unloaded pairs, whose inverse is not
+        evaluated)."""
         P = np.maximum(np.asarray(P, dtype=float), 0.0)
+
+        def one(law, rows):
+            out = np.zeros(int(rows.sum()))
+            on = P[rows] > 0
+            if not law.normal.hard and on.any():
+                out[on] = (law.normal.overclosure(P[rows][on] / self.area[rows][on])
+                           - law.normal.onset)
+            return out
+        return self._per_law(one)
+
+    def pair_stiffness(self, h):
+        """``A dp/dh`` of each pair at overclosure ``h`` (zero for hard laws)."""
+        h = np.asarray(h, dtype=float)
         return self._per_law(lambda law, rows: 0.0 if law.normal.hard else
-                             law.normal.overclosure(P[rows] / self.area[rows])
-                             - law.normal.onset)
+                             self.area[rows] * law.normal.stiffness(h[rows]))
 
     def pair_pressure(self, h):
         """Normal force ``A p(h)`` of each contact point at overclosure ``h`` (m); zero
@@ -132,7 +145,7 @@ class PairLaws:
                     P[rows] / self.area[rows]))
         return out
 
-    def graph_distance(self, P, h):
+    def graph_distance(self, P, h, where=None):
         """How far ``(h, P)`` lies from each pair's law, in force: the smaller of the
         pressure's miss ``|P - A p(h)|`` and the closure's ``A k |h - h(P/A)|`` (``k``
         the law's slope there). The second measures a law with a vertical segment
@@ -140,17 +153,22 @@ class PairLaws:
         jump belongs to the same closure."""
         P = np.maximum(np.asarray(P, dtype=float), 0.0)
         h = np.asarray(h, dtype=float)
+        where = np.ones(len(P), bool) if where is None else np.asarray(where, bool)
 
         def one(law, rows):
-            if law.normal.hard:
-                return 0.0
-            A, p = self.area[rows], P[rows] / self.area[rows]
-            force = np.abs(P[rows] - A * law.normal.pressure(h[rows]))
+            out = np.zeros(int(rows.sum()))
+            sub = where[rows]
+            if law.normal.hard or not sub.any():
+                return out
+            idx = np.flatnonzero(rows)[sub]
+            A, p = self.area[idx], P[idx] / self.area[idx]
+            force = np.abs(P[idx] - A * law.normal.pressure(h[idx]))
             h_p = law.normal.overclosure(p)
             k = law.normal.stiffness(h_p + np.abs(h_p) * 1e-12 + 1e-300)
             with np.errstate(invalid="ignore"):
-                closure = np.where(P[rows] > 0, A * k * np.abs(h[rows] - h_p), np.inf)
-            return np.minimum(force, closure)
+                closure = np.where(P[idx] > 0, A * k * np.abs(h[idx] - h_p), np.inf)
+            out[sub] = np.minimum(force, closure)
+            return out
         return self._per_law(one)
 
     def linear_pairs(self):
@@ -389,16 +407,25 @@ class Layer:
         :func:`qsma.contact.residual` (hard pairs: 0, the slider's residual covers them)."""
         if not self.nonlinear:
             return 0.0
-        P = res.lam[:, -1]
+        P = np.maximum(res.lam[:, -1], 0.0)
         h = -(res.d[:, -1] + self.physical.gap0)
-        miss = np.where(self.curved, self.laws.graph_distance(P, h), 0.0)
-        # round-off of h: the sum of the terms it is computed from, eps each
+        curved = self.curved
+        miss = np.where(curved, np.abs(P - self.laws.pair_pressure(h)), 0.0)
+        # round-off of h: the sum of the terms it is computed from, eps each, times the
+        # law's slope there
         terms = (np.abs(res.d[:, -1]) + np.abs(self.physical.gap0)
-                 + np.abs(self.c[:, -1] * P) + np.abs(self.laws.layer_deformation(P)))
-        slope = self.laws.normal_slope(P)
-        allowance = ROUNDOFF * EPS * terms / np.where(slope > 0, slope, np.inf)
-        return float(np.max(np.maximum(miss - allowance, 0.0), initial=0.0)
-                     / reaction_scale(res.lam))
+                 + np.abs(self.c[:, -1] * P) + np.abs(h - self.laws.onset()))
+        allowance = ROUNDOFF * EPS * terms * self.laws.pair_stiffness(h)
+        F = reaction_scale(res.lam)
+        excess = np.maximum(miss - allowance, 0.0)
+        check = curved & (excess > 0)
+        if check.any():
+            # where the pressure misses, the distance to the law's graph (a vertical
+            # segment of the law holds any pressure at its closure): inverse evaluated
+            # only there
+            excess[check] = np.maximum(self.laws.graph_distance(P, h, check)[check]
+                                       - allowance[check], 0.0)
+        return float(np.max(excess, initial=0.0) / F)
 
     @property
     def flexibility(self):
