@@ -71,6 +71,17 @@ def _face_surface(body, facet_set, first_element):
     return out
 
 
+def contact_surfaces(model, first_elem):
+    """``*SURFACE`` cards of the interface: MASTER the faces of body 1, SLAVE of body 2."""
+    itf, lines = model.interface, []
+    for side, body_name, set_name in (("MASTER", itf.body1, itf.set1),
+                                      ("SLAVE", itf.body2, itf.set2)):
+        b = model.body_index(body_name)
+        lines += [f"*SURFACE, NAME={side}, TYPE=ELEMENT"]
+        lines += _face_surface(model.bodies[b], set_name, first_elem[b])
+    return lines
+
+
 def numbering(model):
     """First CalculiX node and element number of each body (1-based, bodies in
     order), and the two reference node numbers."""
@@ -110,12 +121,7 @@ def calculix_deck(model, penalty: float, tension: float = TENSION) -> str:
         lines += [f"*ELEMENT, TYPE=DCOUP3D, ELSET=DC{k}", f"{e_dc + k}, {ref[body_name]}",
                   f"*DISTRIBUTING COUPLING, ELSET=DC{k}"]
         lines += [f"{first_node[b] + n}, {_num(wi)}" for n, wi in zip(nodes, w)]
-    itf = model.interface
-    for side, body_name, set_name in (("MASTER", itf.body1, itf.set1),
-                                      ("SLAVE", itf.body2, itf.set2)):
-        b = model.body_index(body_name)
-        lines += [f"*SURFACE, NAME={side}, TYPE=ELEMENT"]
-        lines += _face_surface(model.bodies[b], set_name, first_elem[b])
+    lines += contact_surfaces(model, first_elem)
     lines += ["*NSET, NSET=NALL, GENERATE", f"1, {first_node[-1] + 1}, 1"]
     for b, n0 in zip(model.bodies, first_node):
         for c in b.clamps:

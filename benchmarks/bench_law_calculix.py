@@ -84,10 +84,6 @@ def model_of(refine, law, mu):
     return dataclasses.replace(m, interface=dataclasses.replace(m.interface, law=law))
 
 
-def _pressure_faces(body, facet_set, first_element):
-    return bolt._face_surface(body, facet_set, first_element)
-
-
 def calculix_deck(model, kn, kt, mphi, times, amplitude):
     """The deck (module docstring). ``mphi``: per body, the nodal force pattern
     ``M phi`` (n_nodes, 3); ``times``, ``amplitude``: the ``*AMPLITUDE`` of the modal
@@ -101,12 +97,7 @@ def calculix_deck(model, kn, kt, mphi, times, amplitude):
         lines.append(f"*ELEMENT, TYPE=C3D8, ELSET={b.name.upper()}")
         lines += [f"{e0 + e}, " + ", ".join(str(n0 + v) for v in c)
                   for e, c in enumerate(b.mesh.cells)]
-    itf = model.interface
-    for side, body_name, set_name in (("MASTER", itf.body1, itf.set1),
-                                      ("SLAVE", itf.body2, itf.set2)):
-        b = model.body_index(body_name)
-        lines += [f"*SURFACE, NAME={side}, TYPE=ELEMENT"]
-        lines += _pressure_faces(model.bodies[b], set_name, first_elem[b])
+    lines += bolt.contact_surfaces(model, first_elem)
     lines += ["*NSET, NSET=NALL, GENERATE", f"1, {first_node[-1] - 1}, 1"]
     for b, n0 in zip(model.bodies, first_node):
         for c in b.clamps:
@@ -127,7 +118,7 @@ def calculix_deck(model, kn, kt, mphi, times, amplitude):
               "*CONTROLS, PARAMETERS=FIELD", FIELD_CONTROLS, "*DLOAD"]
     for b, e0 in zip(model.bodies, first_elem):
         for p in b.pressures:
-            for row in _pressure_faces(b, p.set, e0):
+            for row in bolt._face_surface(b, p.set, e0):
                 e, face = row.split(", ")
                 lines.append(f"{e}, P{face[1:]}, {_num(p.p)}")
     lines += ["*NODE PRINT, NSET=NALL", "U", "*END STEP"]

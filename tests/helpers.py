@@ -180,3 +180,15 @@ STACK_INTERFACES = (
     'set2 = "middle_lower"\nmu = 0.6\n'
     '[[interfaces]]\nbody1 = "middle"\nset1 = "middle_upper"\nbody2 = "top"\n'
     'set2 = "top_lower"\nmu = 0.3\n')
+
+
+def load_benchmark(name):
+    """The module ``benchmarks/<name>.py`` (the CalculiX comparisons share their deck
+    writers with the tests)."""
+    import importlib.util
+    from pathlib import Path
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module

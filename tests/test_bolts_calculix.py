@@ -11,11 +11,11 @@ by 3.1e-3, 3.1e-4, 3.1e-5, 3.2e-6 of the largest for K = 1e15, 1e16, 1e17, 1e18 
 """
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
 import shutil
 
 import pytest
+
+from helpers import load_benchmark
 
 pytestmark = pytest.mark.skipif(shutil.which("ccx") is None,
                                 reason="CalculiX (ccx) not installed "
@@ -23,11 +23,7 @@ pytestmark = pytest.mark.skipif(shutil.which("ccx") is None,
 
 
 def _bench():
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_bolt_calculix.py"
-    spec = importlib.util.spec_from_file_location("bench_bolt_calculix", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("bench_bolt_calculix")
 
 
 bench = _bench()

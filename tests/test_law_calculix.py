@@ -13,12 +13,12 @@ stabilised dissipations differ by 1.0 to 1.4 % (qsma's own estimate 0.6 to 1.4 %
 """
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
 import shutil
 
 import numpy as np
 import pytest
+
+from helpers import load_benchmark
 
 pytestmark = pytest.mark.skipif(shutil.which("ccx") is None,
                                 reason="CalculiX (ccx) not installed "
@@ -26,11 +26,7 @@ pytestmark = pytest.mark.skipif(shutil.which("ccx") is None,
 
 
 def _bench():
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_law_calculix.py"
-    spec = importlib.util.spec_from_file_location("bench_law_calculix", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("bench_law_calculix")
 
 
 @pytest.fixture(scope="module")
