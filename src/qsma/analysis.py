@@ -404,8 +404,12 @@ def preload(model, assembled, pairing, *, method="auto", opts=None, schur_backen
     return reduced, layer, pre
 
 
-#: Secant iterations of the preload of a nonlinear interface law (:func:`_preload_solve`).
+#: Secant iterations of the preload of a nonlinear interface law (:func:`_preload_solve`),
+#: the chord iterations of its first attempt and of each tangent attempt, and the law
+#: residual of a secant iterate from which the tangent is tried.
 PRELOAD_SECANTS = 100
+PRELOAD_CHORDS = 8
+PRELOAD_SWITCH = 1e-3
 
 
 def _rigid_pressures(layer, reduced, method, opts, zone):
@@ -432,9 +436,11 @@ def _preload_solve(layer, reduced, method, opts, zone):
     :data:`PRELOAD_SECANTS` at most). Pairs below a floor pressure are linearised at
     the floor, lowered tenfold each time the law's residual stalls, from
     :data:`qsma.contact.layer.LOW_PRESSURE` to :data:`qsma.contact.layer.LOW_SECANT`
-    of the mean pressure. (A tangent linearisation started from the undeformed state
-    shifts the unloaded pairs apart and can end in another contact set; the secant is
-    exact where it is taken.) Returns ``(result, layer)``."""
+    of the mean pressure. Once the law's residual is below :data:`PRELOAD_SWITCH`, the
+    tangent's chord is tried from the secant's state (converging quadratically there).
+    (A tangent linearisation started from the undeformed state shifts the unloaded
+    pairs apart and can end in another contact set; the secant is exact where it is
+    taken.) Returns ``(result, layer)``."""
     if not layer.nonlinear:
         pre, _ = _solve(layer, reduced, 0.0, None, method, opts, "preload", zone)
         return pre, layer
@@ -444,7 +450,8 @@ def _preload_solve(layer, reduced, method, opts, zone):
 
 
 def _preload_attempts(layer, reduced, method, opts, zone):
-    pre, _ = _solve(layer, reduced, 0.0, None, method, opts, "preload", zone)
+    pre, _ = _solve(layer, reduced, 0.0, None, method, opts, "preload", zone,
+                    law_iterations=PRELOAD_CHORDS)
     if pre.success or not pre.law_residual:
         return pre, layer
     P = _rigid_pressures(layer, reduced, method, opts, zone)
@@ -455,6 +462,14 @@ def _preload_attempts(layer, reduced, method, opts, zone):
                         law_iterations=1)
         if res.success or not res.law_residual:   # converged, or the contact solve failed
             return res, secant
+        if res.law_residual < PRELOAD_SWITCH:
+            # close enough for the tangent: its chord from this state, on the whole
+            # interface (a zone solve would start from the undeformed state)
+            tangent = Layer(layer.physical, layer.laws, P_ref=res.P)
+            done, _ = _solve(tangent, reduced, 0.0, None, method, opts, "preload", None,
+                             guess=res.state, law_iterations=PRELOAD_CHORDS)
+            if done.success:
+                return done, tangent
         if res.law_residual > 0.9 * best and low > LOW_SECANT:
             low, best = max(0.1 * low, LOW_SECANT), np.inf    # stalled on the floor
         best = min(best, res.law_residual)

@@ -28,6 +28,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.linalg as sla
+from scipy.linalg import blas as sla_blas
 
 from ..errors import InputError
 from .problem import ContactProblem
@@ -266,8 +267,12 @@ def series_stiffness(K, c):
     L = sla.cholesky(B, lower=True, overwrite_a=True, check_finite=False)
     Y = sla.solve_triangular(L, s[:, None] * K[J, :], lower=True, overwrite_b=True,
                              check_finite=False)
-    out = K - Y.T @ Y
-    return 0.5 * (out + out.T)
+    # K - Y^T Y by a symmetric rank-k update (BLAS syrk: one triangle, half the flops
+    # of the product), the other triangle mirrored
+    out = sla_blas.dsyrk(-1.0, np.asfortranarray(Y), beta=1.0, c=np.array(K, order="F"),
+                         trans=1, lower=1)
+    lower = np.tril(out)
+    return lower + np.tril(out, -1).T
 
 
 def check_units(laws: PairLaws, K, c):
@@ -441,15 +446,27 @@ class Layer:
 
     def _closed_stiffness(self, closed):
         """The normal-normal block of the slider stiffness of the pairs ``closed`` with
-        the others free (cached for the last set)."""
+        the others free (cached for the last set): the Schur complement of ``K'`` that
+        eliminates the open pairs when they are the fewer (``O(n_open^3 + n_open n^2)``,
+        nothing when every pair is closed), else the inverse of the closed pairs'
+        block of the flexibility ``K'^{-1}``."""
         key = closed.tobytes()
         hit = self.__dict__.get("_closed")
         if hit is None or hit[0] != key:
-            dim = self.problem.dim
-            rows = (np.flatnonzero(closed)[:, None] * dim + np.arange(dim)).ravel()
-            S = np.linalg.inv(self.flexibility[np.ix_(rows, rows)])
+            dim, K = self.problem.dim, self.problem.K
+            flat = np.repeat(closed, dim)
+            C, O = np.flatnonzero(flat), np.flatnonzero(~flat)
             n = np.arange(int(closed.sum())) * dim + dim - 1
-            hit = (key, S[np.ix_(n, n)])
+            N = C[n]                                      # the closed normal rows of K'
+            if len(O) <= len(C):
+                S_nn = K[np.ix_(N, N)]
+                if len(O):
+                    L = sla.cho_factor(K[np.ix_(O, O)], lower=True, check_finite=False)
+                    S_nn = S_nn - K[np.ix_(N, O)] @ sla.cho_solve(L, K[np.ix_(O, N)],
+                                                                  check_finite=False)
+            else:
+                S_nn = np.linalg.inv(self.flexibility[np.ix_(C, C)])[np.ix_(n, n)]
+            hit = (key, S_nn)
             self._closed = hit
         return hit[1]
 
