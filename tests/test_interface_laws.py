@@ -438,3 +438,23 @@ def test_rough_law_in_a_run_freezes_on_its_unloading():
     assert np.allclose(pre.P, p.area * law.normal.pressure(h), rtol=1e-8,
                        atol=1e-9 * pre.P.max())
     assert res.n_slip[0] == 0 and res.f_hz[0] == pytest.approx(res.f0_hz, rel=1e-9)
+
+
+def test_nonlinear_layer_is_linear_about_the_preload_in_the_ramps():
+    """After the preload a nonlinear elastic layer is frozen on its tangent there (the
+    preload itself follows the law exactly): the run succeeds without the flags a
+    nonlinear elastic layer raises in the ramps."""
+    import qsma
+    from qsma.levels import Levels
+    law = InterfaceLaw(ExponentialPressure(2e-6, 1e7), ElasticStick(1e13))
+    res = qsma.run(dataclasses.replace(_sandwich(law), mu=2.0),
+                   levels=Levels.log("tip", 1e-6, 1e-3, 7))
+    assert res.success, res.message
+    h = -(res.preload.d[:, -1])
+    assert np.allclose(res.preload.P, res.pairing.area * law.normal.pressure(h),
+                       rtol=1e-8, atol=1e-9 * res.preload.P.max())
+    # the ramps see the layer linear: a nonlinear elastic layer would make the stuck
+    # levels nonlinear (flagged stuck_not_linear) and its hardening a negative Masing
+    # dissipation
+    flags = {f for fl in res.flags for f in fl}
+    assert not flags & {"stuck_not_linear", "negative_dissipation", "masing_on_hardening"}

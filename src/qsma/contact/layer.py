@@ -146,12 +146,13 @@ class PairLaws:
                     P[rows] / self.area[rows]))
         return out
 
-    def graph_distance(self, P, h, where=None):
+    def graph_distance(self, P, h, k, where=None):
         """How far ``(h, P)`` lies from each pair's law, in force: the smaller of the
-        pressure's miss ``|P - A p(h)|`` and the closure's ``A k |h - h(P/A)|`` (``k``
-        the law's slope there). The second measures a law with a vertical segment
-        (CalculiX's exponential jumps at its clearance), where any pressure up to the
-        jump belongs to the same closure."""
+        pressure's miss ``|P - A p(h)|`` and the closure's ``k |h - h(P/A)|``, ``k`` the
+        larger of a stiffness per pair (N/m; the layer's chord, finite and positive) and
+        the law's own slope at ``h(P/A)``. The second
+        measures a law with a vertical segment (CalculiX's exponential jumps at its
+        clearance), where any pressure up to the jump belongs to the same closure."""
         P = np.maximum(np.asarray(P, dtype=float), 0.0)
         h = np.asarray(h, dtype=float)
         where = np.ones(len(P), bool) if where is None else np.asarray(where, bool)
@@ -165,9 +166,12 @@ class PairLaws:
             A, p = self.area[idx], P[idx] / self.area[idx]
             force = np.abs(P[idx] - A * law.normal.pressure(h[idx]))
             h_p = law.normal.overclosure(p)
-            k = law.normal.stiffness(h_p + np.abs(h_p) * 1e-12 + 1e-300)
+            # the stiffer of the chord and the law's own slope there: a closure miss
+            # weighs at least what it costs in force on either (the slope alone vanishes
+            # where a law starts with zero stiffness)
+            slope = np.maximum(k[idx], A * law.normal.stiffness(h_p))
             with np.errstate(invalid="ignore"):
-                closure = np.where(P[idx] > 0, A * k * np.abs(h[idx] - h_p), np.inf)
+                closure = np.where(P[idx] > 0, slope * np.abs(h[idx] - h_p), np.inf)
             out[sub] = np.minimum(force, closure)
             return out
         return self._per_law(one)
@@ -323,12 +327,14 @@ class Layer:
         P_ref = np.zeros(n) if P_ref is None else np.maximum(np.asarray(P_ref, float), 0.0)
         self.c = laws.compliance(P_ref, p_ref, secant=secant, low=low)
         check_units(laws, physical.K, laws.scale_compliance())
-        self.frozen = laws.plastic() & (P_ref > 0) if frozen else np.zeros(n, bool)
+        self.frozen = ~laws.linear_pairs() if frozen else np.zeros(n, bool)
         if self.frozen.any():
-            # elastic unloading about the state reached: the tangent of the unloading
-            # curve, through the layer's deformation at that state
-            f = self.frozen
+            # linear about the state reached: the law's tangent there (a plastic law's
+            # elastic unloading), through the layer's deformation at that state; a pair
+            # without pressure keeps the tangent at the floor (the chord's) and no shift
+            f = self.frozen & laws.plastic() & (P_ref > 0)
             self.c[f, -1] = laws.unloading_compliance(P_ref)[f]
+            f = self.frozen
             self.s_fixed[f] = laws.layer_deformation(P_ref)[f] - self.c[f, -1] * P_ref[f]
         self.curved = ~laws.linear_pairs() & ~self.frozen
         K = series_stiffness(physical.K, self.c.ravel())
@@ -405,11 +411,15 @@ class Layer:
             d[:, -1] -= s
         return replace(res, d=d, state=ContactState(d, res.lam, res.status))
 
-    def law_residual(self, res):
+    def law_residual(self, res, start=None):
         """The law's own residual of a physical result: ``max_i |P_i - A_i p(h_i)| / F``
-        with ``h_i = -w_i`` the overclosure of the bodies, ``F = max|lam|``: the force by
-        which the pressure misses the pressure-overclosure law, dimensionless like
-        :func:`qsma.contact.residual` (hard pairs: 0, the slider's residual covers them)."""
+        with ``h_i = -w_i`` the overclosure of the bodies: the force by which the
+        pressure misses the pressure-overclosure law, dimensionless like
+        :func:`qsma.contact.residual` (hard pairs: 0, the slider's residual covers them).
+        ``F`` is the largest change of a contact force from the state ``start`` (its
+        ``lam``; ``None``: from zero, so ``F = max|lam|``): a level's increment is then
+        as accurate as the level itself, however small against the preload (a modal
+        load of 1e-6 of the bolts' must not be lost in a tolerance of the bolts')."""
         if not self.nonlinear:
             return 0.0
         P = np.maximum(res.lam[:, -1], 0.0)
@@ -420,15 +430,20 @@ class Layer:
         # law's slope there
         terms = (np.abs(res.d[:, -1]) + np.abs(self.physical.gap0)
                  + np.abs(self.c[:, -1] * P) + np.abs(h - self.laws.onset()))
-        allowance = ROUNDOFF * EPS * terms * self.laws.pair_stiffness(h)
-        F = reaction_scale(res.lam)
+        # and of P itself: a contact force is computed no closer than the round-off of
+        # the largest one (residual.roundoff_allowance's growth with the size)
+        allowance = ROUNDOFF * EPS * (terms * self.laws.pair_stiffness(h)
+                                      + np.sqrt(self.problem.size) * np.abs(res.lam).max())
+        F = reaction_scale(res.lam if start is None else res.lam - start.lam)
         excess = np.maximum(miss - allowance, 0.0)
         check = curved & (excess > 0)
         if check.any():
             # where the pressure misses, the distance to the law's graph (a vertical
             # segment of the law holds any pressure at its closure): inverse evaluated
             # only there
-            excess[check] = np.maximum(self.laws.graph_distance(P, h, check)[check]
+            with np.errstate(divide="ignore"):
+                k = np.where(self.c[:, -1] > 0, 1.0 / self.c[:, -1], np.inf)
+            excess[check] = np.maximum(self.laws.graph_distance(P, h, k, check)[check]
                                        - allowance[check], 0.0)
         return float(np.max(excess, initial=0.0) / F)
 
@@ -565,7 +580,7 @@ def solve_layered(layer, solve_once, lam_w, state, guess=None, tol=1e-10,
         out = layer.to_physical(res, s)
         if not res.success:
             return _with(out, nit=nit)
-        law = layer.law_residual(out)
+        law = layer.law_residual(out, state)
         if law <= tol or not layer.nonlinear:
             return _with(out, nit=nit, residual=max(res.residual, law), law_residual=law)
         guess = out.state
