@@ -478,3 +478,13 @@ def test_a_clamp_of_no_component_is_refused(tmp_path, capsys):
     assert "components = []" in config.read_text()
     assert main(["run", str(config), "--out", str(tmp_path / "out"), "--quiet"]) == 2
     assert "the clamp on 'clamp' holds no component" in capsys.readouterr().err
+
+
+def test_a_scheduler_that_is_no_address_is_refused_before_the_study(tmp_path, capsys,
+                                                                      monkeypatch):
+    """--scheduler notanaddress was an internal error, after the study folder was made."""
+    _no_case_computed(monkeypatch)
+    assert main(["sweep", "--example", "sandwich-2d", "--vary", "mu=0.5", "--scheduler",
+                 "notanaddress", "--quiet", "--out", str(tmp_path / "s")]) == 2
+    assert "is not a Dask scheduler address" in capsys.readouterr().err
+    assert not (tmp_path / "s").exists()

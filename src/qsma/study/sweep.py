@@ -424,6 +424,7 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
         raise InputError(f"workers must be an integer >= 0, got {workers!r}")
     cases = grid(vary)
     _check_bodies(cases, model)
+    _check_scheduler(scheduler)
     with StudyFolder(out, allowed=_in_study) as folder:   # locked before computing
         return _study(folder, model, vary, options, cases, scheduler, workers, files,
                       plots, progress, t0)
@@ -642,6 +643,26 @@ class RefactorisedEE:
                 f"factorised={self.factorised})")
 
 
+def _check_scheduler(scheduler):
+    """Refuse, before any work, a scheduler address that is not one (the connection
+    itself is tried when the cases are sent)."""
+    if not isinstance(scheduler, str) or scheduler == "serial":
+        return
+    try:
+        from distributed.comm import parse_address
+        from distributed.comm.addressing import parse_host_port
+    except ImportError:
+        return                          # said when the cases are sent (_run_dask)
+    try:
+        protocol, location = parse_address(scheduler)
+        if protocol in ("tcp", "tls", "ws", "wss"):
+            parse_host_port(location)
+    except (ValueError, TypeError) as exc:
+        raise InputError(f"--scheduler {scheduler!r} is not a Dask scheduler address "
+                         f"({exc}); give one such as tcp://host:8786, or drop --scheduler "
+                         f"to run on a local cluster") from None
+
+
 def _run_serial(groups, key_of, todo, options, out, files, scheduler, workers):
     for c in todo:
         yield run_case(groups[key_of(c)], c, options, out / c.name, files)
@@ -672,7 +693,7 @@ def _run_dask(groups, key_of, todo, options, out, files, scheduler, workers):
     elif isinstance(scheduler, str):
         try:
             client = Client(scheduler, timeout="20s")
-        except OSError as exc:
+        except (OSError, ValueError) as exc:
             raise InputError(f"cannot reach the Dask scheduler at {scheduler!r}: {exc}; "
                              f"start one (dask scheduler) or drop --scheduler") from None
     else:
