@@ -488,3 +488,36 @@ def test_a_scheduler_that_is_no_address_is_refused_before_the_study(tmp_path, ca
                  "notanaddress", "--quiet", "--out", str(tmp_path / "s")]) == 2
     assert "is not a Dask scheduler address" in capsys.readouterr().err
     assert not (tmp_path / "s").exists()
+
+
+@pytest.mark.parametrize("vary", [["mu=0.1:0.9:10000000000"],
+                                  ["mu=0.1:0.9:100000", "preload=0.5:1.5:100000"]],
+                         ids=["1e10 values", "1e10-case grid"])
+def test_a_study_too_large_to_hold_is_refused_before_allocating(tmp_path, capsys,
+                                                                monkeypatch, vary):
+    """10^10 values of one parameter (74.5 GiB asked) or a grid of 10^10 cases
+    (MemoryError): refused from the count, before the values or cases are made."""
+    import tracemalloc
+    _no_case_computed(monkeypatch)
+    argv = ["sweep", "--example", "sandwich-2d", "--quiet", "--out", str(tmp_path / "s")]
+    for v in vary:
+        argv += ["--vary", v]
+    tracemalloc.start()
+    try:
+        assert main(argv) == 2
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 200 * 2**20                      # nothing of the cases was made
+    assert "10000000000 cases, but this machine's free memory holds" in \
+        capsys.readouterr().err
+
+
+def test_max_cases_follows_the_free_memory(monkeypatch):
+    """The limit is the cases whose records fit in half the free memory."""
+    import qsma._resources as resources
+    from qsma.study.sweep import CASE_BYTES, LEVEL_BYTES, max_cases
+    monkeypatch.setattr(resources, "free_memory", lambda: 2**30)
+    assert max_cases(51) == int(0.5 * 2**30 // (CASE_BYTES + 51 * LEVEL_BYTES))
+    monkeypatch.setattr(resources, "free_memory", lambda: None)
+    assert max_cases(51) == 100_000

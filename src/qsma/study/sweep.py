@@ -59,6 +59,15 @@ DONE_SUFFIX = ".done.json"
 #: this package is developed on; ``workers=`` or ``--workers`` changes it.
 DEFAULT_WORKERS = 2
 CASE_FILES = ("plots", "vtu", "rom", "report")
+#: Memory a case holds in the calling process until the study ends, per load level: its
+#: rows of the study table (33 columns of Python objects: 43 kB per case of 51 levels,
+#: measured with tracemalloc over 200 cases of sandwich-2d) and their CSV text, with
+#: a margin for the report; plus a fixed part for the case, its outcome and its entry
+#: in study.json.
+CASE_BYTES, LEVEL_BYTES = 4096, 2048
+#: Share of the free memory (:func:`qsma._resources.free_memory`) a study's cases may
+#: take; where the system does not say, :data:`MAX_CASES_UNKNOWN_MEMORY` cases.
+CASES_MEMORY_SHARE, MAX_CASES_UNKNOWN_MEMORY = 0.5, 100_000
 #: Run options a sweep does not vary: the BLAS thread count, the loop workers and the
 #: parallel ramps do not change results (a sweep's workers compute their loops and
 #: ramps themselves: a daemonic process may not fork), the condensation backend is
@@ -149,7 +158,6 @@ def parse_values(name: str, spec) -> list:
                 start, stop, n = float(parts[0]), float(parts[1]), int(parts[2])
                 if n < 1:
                     raise ValueError
-                values = np.linspace(start, stop, n).tolist()
             elif len(parts) == 1:
                 values = [_scalar(v) for v in spec.split(",") if v.strip()]
             else:
@@ -157,21 +165,52 @@ def parse_values(name: str, spec) -> list:
         except ValueError:
             raise InputError(f"--vary {name}={spec!r}: expected START:STOP:N (e.g. "
                              f"0.2:0.8:10) or a list V1,V2,... (e.g. 0.3,0.5,0.7)") from None
+        if len(parts) == 3:
+            check_case_count(n, f"--vary {name}={spec}")
+            values = np.linspace(start, stop, n).tolist()
     if not values:
         raise InputError(f"--vary {name}: no values given")
     return [_typed(name, v) for v in values]
 
 
-def grid(vary: dict) -> list:
+def grid(vary: dict, n_levels: int | None = None) -> list:
     """The cases of the cartesian product of ``vary`` (name -> values or spec), the last
-    parameter varying fastest."""
+    parameter varying fastest; refused before it is made when the study could not hold
+    them (:func:`check_case_count`, with cases of ``n_levels`` load levels)."""
     if not vary:
         raise InputError("a sweep needs at least one parameter to vary, e.g. "
                          "vary={'mu': [0.3, 0.5]} or --vary mu=0.3,0.5")
     names = list(vary)
     values = [parse_values(n, vary[n]) for n in names]
+    check_case_count(int(np.prod([len(v) for v in values], dtype=object)),
+                     " x ".join(f"{len(v)} {n}" for n, v in zip(names, values)), n_levels)
     return [Case(i, tuple(zip(names, combo)))
             for i, combo in enumerate(itertools.product(*values))]
+
+
+def max_cases(n_levels: int = 1) -> int:
+    """Most cases of ``n_levels`` load levels a study may have: those whose rows and
+    records (:data:`CASE_BYTES`, :data:`LEVEL_BYTES`) fit in :data:`CASES_MEMORY_SHARE`
+    of the free memory."""
+    from .._resources import free_memory
+    free = free_memory()
+    if free is None:
+        return MAX_CASES_UNKNOWN_MEMORY
+    return max(1, int(CASES_MEMORY_SHARE * free // (CASE_BYTES + n_levels * LEVEL_BYTES)))
+
+
+def check_case_count(n: int, what: str, n_levels: int | None = None):
+    """Refuse ``n`` cases (from ``what``, for messages) beyond :func:`max_cases` of
+    ``n_levels`` levels (None: not known yet, counted as one), before anything of them
+    is made (a grid of 10^10 cases asked for 74.5 GiB)."""
+    most = max_cases(n_levels or 1)
+    if n > most:
+        of = (f"of {n_levels} load level(s), about "
+              f"{(CASE_BYTES + n_levels * LEVEL_BYTES) / 1024:.0f} kB each until the study "
+              f"ends" if n_levels else "even of one load level each")
+        raise InputError(f"{what}: {n} cases, but this machine's free memory holds the "
+                         f"records of at most {most} cases ({of}): ask for fewer values, "
+                         f"or split the study into several folders")
 
 
 def _scalar(text):
@@ -422,7 +461,7 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
             raise InputError(f"unknown per-case file kind {f!r}; valid: {CASE_FILES}")
     if not (isinstance(workers, int) and workers >= 0):
         raise InputError(f"workers must be an integer >= 0, got {workers!r}")
-    cases = grid(vary)
+    cases = grid(vary, n_levels=_most_levels(vary, options))
     _check_bodies(cases, model)
     _check_scheduler(scheduler)
     with StudyFolder(out, allowed=_in_study) as folder:   # locked before computing
@@ -641,6 +680,15 @@ class RefactorisedEE:
     def __repr__(self):
         return (f"RefactorisedEE(n={self.n}, backend={self.backend!r}, "
                 f"factorised={self.factorised})")
+
+
+def _most_levels(vary, options) -> int:
+    """The most load levels a case of the study has (its levels, or the default 51)."""
+    from ..levels import spec_levels
+    given = [v for v in vary.get("levels", ()) if isinstance(v, Levels)] \
+        if not isinstance(vary.get("levels", ()), str) else []
+    levels = given + [options.levels or spec_levels()]
+    return max(len(lv.values) for lv in levels)
 
 
 def _check_scheduler(scheduler):
