@@ -521,3 +521,19 @@ def test_max_cases_follows_the_free_memory(monkeypatch):
     assert max_cases(51) == int(0.5 * 2**30 // (CASE_BYTES + 51 * LEVEL_BYTES))
     monkeypatch.setattr(resources, "free_memory", lambda: None)
     assert max_cases(51) == 100_000
+
+
+@pytest.mark.parametrize("example, most", [("sandwich-2d", 9), ("sandwich-3d", 1)])
+def test_a_refinement_beyond_the_free_memory_is_refused_before_meshing(
+        capsys, monkeypatch, example, most):
+    """--refine 100 allocated 4.7 and 29.7 GiB before failing. With 1 GiB free, the
+    estimate (measured bytes per DOF) refuses it and names the largest refine that
+    fits (sandwich-2d refine 8 peaked at 709 MiB, so 9 is about right in 2D)."""
+    import qsma._resources as resources
+    from qsma.examples import EXAMPLES, run_bytes
+    monkeypatch.setattr(resources, "free_memory", lambda: 2**30)
+    assert main(["modes", "--example", example, "--refine", "100", "-n", "1"]) == 2
+    assert f"use --refine {most} or less" in capsys.readouterr().err
+    base = EXAMPLES[example](1)
+    assert run_bytes(base.n_dofs * most ** base.dim, base.dim) <= 2**30 < \
+        run_bytes(base.n_dofs * (most + 1) ** base.dim, base.dim)
