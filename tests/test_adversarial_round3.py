@@ -6,6 +6,7 @@ inconsistent, an internal error, or a bad input refused only after computing.
 """
 from dataclasses import replace
 from pathlib import Path
+import re
 
 import numpy as np
 import pytest
@@ -537,3 +538,45 @@ def test_a_refinement_beyond_the_free_memory_is_refused_before_meshing(
     base = EXAMPLES[example](1)
     assert run_bytes(base.n_dofs * most ** base.dim, base.dim) <= 2**30 < \
         run_bytes(base.n_dofs * (most + 1) ** base.dim, base.dim)
+
+
+@pytest.mark.parametrize("content, match", [
+    ("tip_m,f_hz\n1e-5,212\n2e-5,211\n".encode("utf-16"), "encoded as UTF-16"),
+    (b"# bei 20\xb0C\ntip_m,f_hz\n1e-5,212\n2e-5,211\n", r"line 1: byte 0xb0 is not UTF-8"),
+], ids=["utf-16", "latin-1"])
+def test_measured_data_that_cannot_be_read_is_refused_by_name(tmp_path, capsys, monkeypatch,
+                                                              content, match):
+    """Each was an internal error (a decoding error; arrays of two lengths)."""
+    csv = tmp_path / "m.csv"
+    csv.write_bytes(content)
+    _no_case_computed(monkeypatch)
+    assert main(["fit", "--example", "sandwich-2d", "--measured", str(csv), "--params",
+                 "mu", "--quiet", "--out", str(tmp_path / "fit")]) == 2
+    assert re.search(match, capsys.readouterr().err)
+
+
+@pytest.mark.parametrize("option", ["mesh", "config", "measured"])
+def test_an_input_path_that_is_a_fifo_is_refused_not_read(tmp_path, capsys, option):
+    """A FIFO that no program writes blocked the read forever; every input file is
+    checked to be a regular file on the opened descriptor."""
+    import os
+    import threading
+    fifo = tmp_path / ("fifo.inp" if option == "mesh" else "fifo")
+    os.mkfifo(fifo)
+    config = _example_config(tmp_path)
+    argv = {"mesh": ["run", str(config)], "config": ["run", str(fifo)],
+            "measured": ["fit", "--example", "sandwich-2d", "--measured", str(fifo),
+                         "--params", "mu"]}[option]
+    if option == "mesh":
+        config.write_text(config.read_text().replace("sandwich-2d-bottom.inp", "fifo.inp"))
+    done = []
+    t = threading.Thread(target=lambda: done.append(
+        main(argv + ["--quiet", "--out", str(tmp_path / "out")])), daemon=True)
+    t.start()
+    t.join(60)
+    if t.is_alive():                       # unblock the reader so the thread can end
+        with open(fifo, "wb"):
+            pass
+        pytest.fail("the read of a FIFO blocked")
+    assert done == [2]
+    assert "is not a regular file" in capsys.readouterr().err

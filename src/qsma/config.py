@@ -75,12 +75,9 @@ def load_config(path) -> RunConfig:
 
     The file must be UTF-8 (the TOML standard); a UTF-8 byte-order mark is accepted.
     """
+    from .model.io.common import read_regular
     path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise InputError(f"cannot read configuration {str(path)!r}: {exc.strerror}") from exc
-    text = decode_toml(raw, str(path))
+    text = decode_toml(read_regular(path, "a TOML configuration"), str(path))
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -95,15 +92,22 @@ _UTF32_BOMS = (b"\xff\xfe\x00\x00", b"\x00\x00\xfe\xff")
 def decode_toml(raw: bytes, where: str) -> str:
     """The text of a TOML file; :class:`InputError` naming the encoding problem, the line
     and the fix when the bytes are not UTF-8."""
+    return decode_utf8(raw, where, "TOML files")
+
+
+def decode_utf8(raw: bytes, where: str, kind: str) -> str:
+    """The text of a file that must be UTF-8 (a byte-order mark accepted);
+    :class:`InputError` naming the encoding problem, the line and the fix otherwise.
+    ``kind`` names the files in the message (e.g. "TOML files")."""
     if raw.startswith(_UTF32_BOMS) or raw.startswith(_UTF16_BOMS) or b"\x00" in raw[:200]:
-        raise InputError(f"{where}: the file is encoded as UTF-16 or UTF-32; TOML files "
+        raise InputError(f"{where}: the file is encoded as UTF-16 or UTF-32; {kind} "
                          f"must be UTF-8. Save it as UTF-8 (e.g. iconv -f UTF-16 -t UTF-8)")
     try:
         return raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         line = raw[:exc.start].count(b"\n") + 1
         raise InputError(f"{where}, line {line}: byte 0x{raw[exc.start]:02x} is not UTF-8 "
-                         f"(Latin-1 or another 8-bit encoding?); TOML files must be UTF-8. "
+                         f"(Latin-1 or another 8-bit encoding?); {kind} must be UTF-8. "
                          f"Save the file as UTF-8 (e.g. iconv -f LATIN1 -t UTF-8)") from None
 
 

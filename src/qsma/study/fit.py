@@ -132,12 +132,11 @@ def read_measured(path) -> Measured:
     frequency) and/or ``zeta`` (damping ratio of the joint); empty cells are missing
     values.
     """
+    from ..config import decode_utf8
+    from ..model.io.common import read_regular
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise InputError(f"cannot read the measured data {str(path)!r}: {exc.strerror}") \
-            from None
+    text = decode_utf8(read_regular(path, "a CSV of measured data"), str(path),
+                       "measured data files")
     rows = [r for r in csv.reader(line for line in text.splitlines()
                                   if line.strip() and not line.lstrip().startswith("#"))]
     if len(rows) < 2:
