@@ -543,7 +543,8 @@ def test_a_refinement_beyond_the_free_memory_is_refused_before_meshing(
 @pytest.mark.parametrize("content, match", [
     ("tip_m,f_hz\n1e-5,212\n2e-5,211\n".encode("utf-16"), "encoded as UTF-16"),
     (b"# bei 20\xb0C\ntip_m,f_hz\n1e-5,212\n2e-5,211\n", r"line 1: byte 0xb0 is not UTF-8"),
-], ids=["utf-16", "latin-1"])
+    (b"tip_m,f_hz,f_hz\n1e-5,212,212\n2e-5,211,211\n", "column 'f_hz' appears twice"),
+], ids=["utf-16", "latin-1", "duplicated column"])
 def test_measured_data_that_cannot_be_read_is_refused_by_name(tmp_path, capsys, monkeypatch,
                                                               content, match):
     """Each was an internal error (a decoding error; arrays of two lengths)."""

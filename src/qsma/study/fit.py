@@ -142,6 +142,10 @@ def read_measured(path) -> Measured:
     if len(rows) < 2:
         raise InputError(f"{path}: expected a header row and at least one data row")
     head = [h.strip() for h in rows[0]]
+    twice = sorted({h for h in head if head.count(h) > 1})
+    if twice:
+        raise InputError(f"{path}: column {twice[0]!r} appears twice in the header "
+                         f"{head}; give each column once")
     if head[0] not in AMPLITUDE_COLUMNS:
         raise InputError(f"{path}: the first column must be the amplitude, named one of "
                          f"{sorted(AMPLITUDE_COLUMNS)}, got {head[0]!r}")
