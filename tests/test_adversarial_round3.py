@@ -280,7 +280,6 @@ def test_a_slow_shakedown_of_a_tetrahedral_lap_joint_is_followed_to_its_end():
 def test_a_loop_stopped_by_max_cycles_says_which_max_cycles_would_do():
     """The run's message names the flag, its levels and what to change, the loop's own
     message with the max_cycles it needs."""
-    import re
     res = qsma.run(_tetrahedral_lap_3d(), levels=qsma.Levels("tip", FIRST_TIPS),
                    max_cycles=4)
     assert not res.success
@@ -554,6 +553,18 @@ def test_measured_data_that_cannot_be_read_is_refused_by_name(tmp_path, capsys, 
     assert main(["fit", "--example", "sandwich-2d", "--measured", str(csv), "--params",
                  "mu", "--quiet", "--out", str(tmp_path / "fit")]) == 2
     assert re.search(match, capsys.readouterr().err)
+
+
+def test_a_fitted_material_of_no_body_is_refused_before_any_evaluation(tmp_path, capsys,
+                                                                      monkeypatch):
+    """--params E:nobody was an internal error (the start value of a body not there)."""
+    csv = tmp_path / "m.csv"
+    csv.write_text("tip_m,f_hz\n1e-5,212\n2e-5,211\n")
+    _no_case_computed(monkeypatch)
+    assert main(["fit", "--example", "sandwich-2d", "--measured", str(csv), "--params",
+                 "E:nobody", "--quiet", "--out", str(tmp_path / "fit")]) == 2
+    assert "parameter 'E:nobody': no body 'nobody'; bodies: ['bottom', 'top']" in \
+        capsys.readouterr().err
 
 
 @pytest.mark.parametrize("option", ["mesh", "config", "measured"])

@@ -206,9 +206,6 @@ class _Evaluator:
         self.model, self.options, self.names = model, options, tuple(names)
         self.groups = {}
         self.nruns = 0
-        _check_bodies([Case(0, tuple((n, 1.0) for n in names if n != "mu"))], model)
-        if "mu" in names:
-            model.check_mu_reaches(None, STUDY_MU_FIX, what="fitting mu")
 
     def result(self, values):
         from ..analysis import prepare, run_prepared
@@ -374,6 +371,9 @@ def fit(model_or_config, measured, params, options: RunOptions | None = None, *,
         else check_measured(measured)
     names = tuple(params.split(",") if isinstance(params, str) else params)
     _check_names(names)
+    _check_bodies([Case(0, tuple((n, 1.0) for n in names if n != "mu"))], model)
+    if "mu" in names:
+        model.check_mu_reaches(None, STUDY_MU_FIX, what="fitting mu")
     for w, v in (("sigma_f", sigma_f), ("sigma_zeta", sigma_zeta)):
         if not (np.isfinite(v) and v > 0):
             raise InputError(f"{w} must be a positive number, got {v!r}")

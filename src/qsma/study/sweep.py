@@ -279,7 +279,7 @@ def _check_bodies(cases, model):
     for name, _ in cases[0].params:
         base, _, body = name.partition(":")
         if base in MATERIAL_PARAMETERS and body and body not in names:
-            raise InputError(f"sweep parameter {name!r}: no body {body!r}; bodies: {names}")
+            raise InputError(f"parameter {name!r}: no body {body!r}; bodies: {names}")
     for mu in sorted({dict(c.params)["mu"] for c in cases if "mu" in dict(c.params)}):
         model.check_mu_reaches(mu, STUDY_MU_FIX, what=f"mu = {mu:g} of the study")
 
