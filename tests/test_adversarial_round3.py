@@ -14,7 +14,7 @@ import pytest
 import qsma
 from qsma.cli import main
 from qsma.config import load_config
-from qsma.errors import AnalysisError
+from qsma.errors import AnalysisError, InputError
 from qsma.examples import stack_2d
 from qsma.model import Pressure
 from qsma.rundir import verify_run_folder
@@ -592,3 +592,19 @@ def test_an_input_path_that_is_a_fifo_is_refused_not_read(tmp_path, capsys, opti
         pytest.fail("the read of a FIFO blocked")
     assert done == [2]
     assert "is not a regular file" in capsys.readouterr().err
+
+
+# ---- refusals that came late or not at all -------------------------------------------
+
+def test_a_model_without_bodies_is_refused_as_such(tmp_path, capsys):
+    """bodies = [] said 'all bodies must have the same dimension, got []'."""
+    from qsma.model import Model
+    with pytest.raises(InputError, match="the model has no bodies"):
+        Model(bodies=())
+    config = _example_config(tmp_path)
+    text = config.read_text()
+    text = "bodies = []\n" + text[:text.index("[[bodies]]")] + text[text.index("[interface]"):]
+    config.write_text(text)
+    assert main(["run", str(config), "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    assert "sandwich-2d.toml: bodies is empty; describe each body as a [[bodies]] table" \
+        in capsys.readouterr().err
