@@ -608,3 +608,32 @@ def test_a_model_without_bodies_is_refused_as_such(tmp_path, capsys):
     assert main(["run", str(config), "--out", str(tmp_path / "out"), "--quiet"]) == 2
     assert "sandwich-2d.toml: bodies is empty; describe each body as a [[bodies]] table" \
         in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("levels, match", [
+    ("kind = 'tip'\nspacing = 'log'\nstart = 1e-3\nstop = 1e-6\nn = 1\n",
+     "one level \\(n = 1\\) from start=0.001 to stop=1e-06"),
+    ("kind = 'tip'\nspacing = 'linear'\nstart = 1e-6\nstop = 1e-3\nn = 1\n",
+     "the level would be start and stop ignored"),
+    ("kind = 'tip'\nspacing = 'list'\nvalues = [1e-6, 1e-5]\nstart = 1e-6\nstop = 1e-3\n"
+     "n = 51\n", "spacing 'list' takes its levels from 'values'; 'start', 'stop', 'n' given "
+                 "too would be ignored"),
+    ("kind = 'tip'\nspacing = 'log'\nstart = 1e-6\nstop = 1e-3\nn = 5\nvalues = [1e-6]\n",
+     "'values' is given too"),
+], ids=["n=1, start > stop", "n=1, start < stop", "list with a range", "range with values"])
+def test_levels_whose_keys_contradict_each_other_are_refused(tmp_path, capsys, levels,
+                                                             match):
+    """A key that would be ignored (stop with n = 1; start, stop, n beside a list) is a
+    contradiction the user should resolve, not a choice qsma makes silently."""
+    config = _example_config(tmp_path)
+    text = config.read_text()
+    config.write_text(text[:text.index("[levels]")] + "[levels]\n" + levels)
+    assert main(["run", str(config), "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    assert re.search(match, capsys.readouterr().err)
+
+
+def test_one_swept_value_from_a_range_is_refused(tmp_path, capsys, monkeypatch):
+    _no_case_computed(monkeypatch)
+    assert main(["sweep", "--example", "sandwich-2d", "--vary", "mu=0.8:0.2:1", "--quiet",
+                 "--out", str(tmp_path / "s")]) == 2
+    assert "one value from 0.8 to 0.2" in capsys.readouterr().err

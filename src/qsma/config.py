@@ -224,6 +224,12 @@ def parse_levels(table, where="levels") -> Levels:
     if spacing == "list":
         if "values" not in table:
             raise InputError(f"{where}: spacing 'list' needs key 'values'")
+        given = [key for key in ("start", "stop", "n") if key in table]
+        if given:
+            raise InputError(f"{where}: spacing 'list' takes its levels from 'values'; "
+                             f"{', '.join(repr(k) for k in given)} given too would be "
+                             f"ignored: remove them, or use spacing 'log' or 'linear' "
+                             f"without 'values'")
         values = table["values"]
         if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
             raise InputError(f"{where}: values must be a list of numbers, got {values!r}")
@@ -233,5 +239,9 @@ def parse_levels(table, where="levels") -> Levels:
     for key in ("start", "stop", "n"):
         if key not in table:
             raise InputError(f"{where}: spacing {spacing!r} needs key {key!r}")
+    if "values" in table:
+        raise InputError(f"{where}: spacing {spacing!r} makes its levels from start, stop "
+                         f"and n, but 'values' is given too; remove it, or use spacing "
+                         f"'list'")
     make = Levels.log if spacing == "log" else Levels.linear
     return make(kind, table["start"], table["stop"], table["n"])

@@ -166,6 +166,10 @@ def parse_values(name: str, spec) -> list:
             raise InputError(f"--vary {name}={spec!r}: expected START:STOP:N (e.g. "
                              f"0.2:0.8:10) or a list V1,V2,... (e.g. 0.3,0.5,0.7)") from None
         if len(parts) == 3:
+            if n == 1 and start != stop:
+                raise InputError(f"--vary {name}={spec}: one value from {start:g} to "
+                                 f"{stop:g}: it would be {start:g} and {stop:g} ignored; "
+                                 f"give the value alone ({name}={start:g})")
             check_case_count(n, f"--vary {name}={spec}")
             values = np.linspace(start, stop, n).tolist()
     if not values:
