@@ -637,3 +637,18 @@ def test_one_swept_value_from_a_range_is_refused(tmp_path, capsys, monkeypatch):
     assert main(["sweep", "--example", "sandwich-2d", "--vary", "mu=0.8:0.2:1", "--quiet",
                  "--out", str(tmp_path / "s")]) == 2
     assert "one value from 0.8 to 0.2" in capsys.readouterr().err
+
+
+def test_more_local_workers_than_cores_are_refused(tmp_path, capsys, monkeypatch):
+    """--workers 6 on a 2-core machine started 7 processes without a word; with a
+    scheduler the workers are the cluster's."""
+    import qsma._threads as threads
+    monkeypatch.setattr(threads, "usable_cores", lambda: 2)
+    _no_case_computed(monkeypatch)
+    assert main(["sweep", "--example", "sandwich-2d", "--vary", "mu=0.5", "--workers", "6",
+                 "--quiet", "--out", str(tmp_path / "s")]) == 2
+    assert "--workers 6: this machine lets qsma use 2 core(s)" in capsys.readouterr().err
+    assert not (tmp_path / "s").exists()
+    from qsma.study.sweep import _check_workers
+    _check_workers(2, None)
+    _check_workers(64, "tcp://cluster:8786")

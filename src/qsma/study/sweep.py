@@ -56,7 +56,8 @@ STUDY_NAME, TABLE_NAME, PARQUET_NAME = "study.json", "study.csv", "study.parquet
 #: exactly what ``qsma run`` writes (a result folder holds one run and nothing else).
 DONE_SUFFIX = ".done.json"
 #: Workers of the default local cluster: one process per core of the 2-core machines
-#: this package is developed on; ``workers=`` or ``--workers`` changes it.
+#: this package is developed on (fewer where fewer cores are usable); ``workers=`` or
+#: ``--workers`` changes it, up to the usable cores.
 DEFAULT_WORKERS = 2
 CASE_FILES = ("plots", "vtu", "rom", "report")
 #: Memory a case holds in the calling process until the study ends, per load level: its
@@ -415,7 +416,7 @@ def _roundtrip(x):
 # --------------------------------------------------------------------------- the study
 
 def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out,
-          scheduler=None, workers: int = DEFAULT_WORKERS, files=(), plots=True,
+          scheduler=None, workers: int | None = None, files=(), plots=True,
           progress=None) -> SweepResult:
     """Run a parameter study: every case of the grid ``vary``, sharing the work the
     cases have in common (module docstring), on Dask or serially.
@@ -435,8 +436,9 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
         ``None``: a local cluster of ``workers`` processes; ``"serial"`` (or
         ``workers=0``): in this process, in order; an address (``tcp://host:8786``)
         or a client: that scheduler (the workers must see ``out``).
-    workers : int
-        Processes of the local cluster.
+    workers : int, optional
+        Processes of the local cluster, at most the usable cores (default
+        :data:`DEFAULT_WORKERS`, or the cores if fewer).
     files : iterable of {"plots", "vtu", "rom", "report"}
         Per-case files besides results.json and results.csv (rom: :mod:`qsma.rom`,
         written beside the case folder as ``case-NNNN.rom.json``; report: the case's
@@ -463,8 +465,12 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
     for f in files:
         if f not in CASE_FILES:
             raise InputError(f"unknown per-case file kind {f!r}; valid: {CASE_FILES}")
+    if workers is None:
+        from .._threads import usable_cores
+        workers = min(DEFAULT_WORKERS, usable_cores())
     if not (isinstance(workers, int) and workers >= 0):
         raise InputError(f"workers must be an integer >= 0, got {workers!r}")
+    _check_workers(workers, scheduler)
     cases = grid(vary, n_levels=_most_levels(vary, options))
     _check_bodies(cases, model)
     _check_scheduler(scheduler)
@@ -693,6 +699,22 @@ def _most_levels(vary, options) -> int:
         if not isinstance(vary.get("levels", ()), str) else []
     levels = given + [options.levels or spec_levels()]
     return max(len(lv.values) for lv in levels)
+
+
+def _check_workers(workers, scheduler):
+    """Refuse a local cluster of more worker processes than the cores this process may
+    use (:func:`qsma._threads.usable_cores`): each case is a CPU-bound process, so the
+    extra ones only compete for the cores (6 workers on a 2-core machine started 7
+    processes). A cluster of more machines is reached by a scheduler address."""
+    from .._threads import usable_cores
+    if scheduler is not None:
+        return
+    cores = usable_cores()
+    if workers > cores:
+        raise InputError(f"--workers {workers}: this machine lets qsma use {cores} core(s); "
+                         f"more local worker processes than cores only compete for them. "
+                         f"Give --workers {cores} or fewer, or --scheduler ADDRESS to run "
+                         f"on a Dask cluster of more machines")
 
 
 def _check_scheduler(scheduler):
