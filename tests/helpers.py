@@ -127,11 +127,9 @@ def assert_same_solve_bits(a, b, rtol=1e-14):
         assert np.abs(np.asarray(a) - np.asarray(b)).max() <= rtol * np.abs(a).max()
 
 
-# ---- models in one mesh file with a TOML configuration (tests/test_assembly_file.py)
-
-def one_file(bodies, path):
-    """Write the meshes of ``bodies`` as one mesh (nodes of each body kept apart), each
-    body a cell set of its name, each set ``<body>_<set>``."""
+def bodies_in_one_mesh(bodies) -> Mesh:
+    """The meshes of ``bodies`` as one mesh (nodes of each body kept apart), each body a
+    cell set of its name, each set ``<body>_<set>``."""
     pts, cells, node_sets, facet_sets, cell_sets = [], [], {}, {}, {}
     n = c = 0
     for b in bodies:
@@ -143,8 +141,13 @@ def one_file(bodies, path):
         facet_sets.update({f"{b.name}_{k}": v + n for k, v in m.facet_sets.items()})
         n += m.n_nodes
         c += len(m.cells)
-    write_mesh(path, Mesh(np.vstack(pts), np.vstack(cells), bodies[0].mesh.cell_type,
-                          node_sets, facet_sets, cell_sets))
+    return Mesh(np.vstack(pts), np.vstack(cells), bodies[0].mesh.cell_type, node_sets,
+                facet_sets, cell_sets)
+
+
+def one_file(bodies, path):
+    """Write the meshes of ``bodies`` as one mesh file (:func:`bodies_in_one_mesh`)."""
+    write_mesh(path, bodies_in_one_mesh(bodies))
     return path
 
 

@@ -186,8 +186,8 @@ def test_rerun_replaces_every_file(tmp_path):
     assert main(["run", *QUICK, "--out", str(out)]) == 0
     assert (out / "backbone.png").exists()
     assert main(["run", *QUICK, "--no-plots", "--out", str(out)]) == 0
-    assert sorted(p.name for p in out.iterdir()) == ["manifest.json", "results.csv",
-                                                      "results.json"]
+    assert sorted(p.name for p in out.iterdir()) == ["manifest.json", "qsma.log",
+                                                      "results.csv", "results.json"]
     verify_run_folder(out)
 
 
@@ -212,7 +212,7 @@ def test_two_runs_on_one_folder(previous, start):
     verify_run_folder(out)
     data = json.loads((out / "results.json").read_text())
     with open(out / "results.csv") as f:
-        csv_f = [float(row["f_hz"]) for row in csv.DictReader(f)]
+        csv_f = [float(row["f_hz [Hz]"]) for row in csv.DictReader(f)]
     assert np.allclose(csv_f, data["levels"]["f_hz"], rtol=1e-9)
     assert _only_the_folder(out)
 

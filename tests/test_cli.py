@@ -59,7 +59,7 @@ def test_results_csv_matches_json(run_dir):
     data = json.loads((run_dir / "results.json").read_text())
     rows = list(csv.DictReader((run_dir / "results.csv").open()))
     assert len(rows) == 51
-    assert np.allclose([float(r["zeta"]) for r in rows], data["levels"]["zeta"], rtol=1e-9,
+    assert np.allclose([float(r["zeta [-]"]) for r in rows], data["levels"]["zeta"], rtol=1e-9,
                        atol=1e-15)
 
 
@@ -163,17 +163,19 @@ def test_busy_folder_names_the_owner_that_is_still_writing_its_name(tmp_path):
 
 
 #: Modules a ``qsma run`` of a built-in example never needs: parameter studies, fits
-#: and reduced-order models, the mesh-file readers, meshio (fields.vtu is written by
-#: qsma), Dask, pyplot (figures are drawn on matplotlib's Figure + Agg).
+#: and reduced-order models, the mesh-file readers, Dask, pyplot (figures are drawn on
+#: matplotlib's Figure + Agg). meshio writes the VTU files: a run with ``--no-vtu``
+#: does not import it.
 NOT_IMPORTED_BY_A_RUN = ("qsma.study", "qsma.rom", "qsma.model.io",
-                         "meshio", "dask", "distributed", "matplotlib.pyplot")
+                         "dask", "distributed", "matplotlib.pyplot")
 
 
 @pytest.mark.parametrize("plots", [False, True])
 def test_a_run_imports_only_what_it_needs(tmp_path, plots):
     """In a fresh process: ``qsma run --no-plots`` never imports matplotlib (nor
-    Pillow), and no run imports the modules of :data:`NOT_IMPORTED_BY_A_RUN`; the run
-    still writes its files (with the figures and report.html when plotting). The
+    Pillow), ``--no-vtu`` never meshio, and no run imports the modules of
+    :data:`NOT_IMPORTED_BY_A_RUN`; the run still writes its files (with the figures,
+    report.html and the VTU files when plotting). The
     figures are drawn in this process here (``QSMA_PLOT_WORKER=0``); with the worker
     the qsma process imports no matplotlib at all (tests/test_plot_worker.py)."""
     import subprocess
@@ -181,7 +183,7 @@ def test_a_run_imports_only_what_it_needs(tmp_path, plots):
             "print(json.dumps([code, sorted(sys.modules)]))")
     out = tmp_path / "run"
     args = ["run", "--example", "sandwich-2d", "--levels", "tip:log:1e-6:1e-4:3",
-            "--quiet", "--out", str(out)] + ([] if plots else ["--no-plots"])
+            "--quiet", "--out", str(out)] + ([] if plots else ["--no-plots", "--no-vtu"])
     proc = subprocess.run([sys.executable, "-c", code, *args], capture_output=True,
                           text=True, env=dict(os.environ, QSMA_PLOT_WORKER="0"))
     assert proc.returncode == 0, proc.stderr
@@ -194,10 +196,12 @@ def test_a_run_imports_only_what_it_needs(tmp_path, plots):
                 if any(m == n or m.startswith(n + ".") for n in NOT_IMPORTED_BY_A_RUN)]
     assert unwanted == []
     assert ("matplotlib" in loaded) == plots and ("PIL" in loaded) == plots
+    assert ("meshio" in loaded) == plots
     assert "qsma.analysis" in loaded                     # the check sees imports at all
     files = {p.name for p in out.iterdir()}
-    assert {"results.json", "results.csv", "fields.vtu", "manifest.json"} <= files
-    assert ({"report.html", "backbone.png", "interface.png"} <= files) == plots
+    assert {"results.json", "results.csv", "manifest.json"} <= files
+    assert ({"report.html", "backbone.png", "interface.png", "fields.vtu",
+             "fields.pvd"} <= files) == plots
 
 
 def test_a_level_whose_loop_failed_is_written_as_null_beside_its_flag(tmp_path):
@@ -227,7 +231,8 @@ def test_a_level_whose_loop_failed_is_written_as_null_beside_its_flag(tmp_path):
     assert levels["zeta"][2:] == pytest.approx(list(res.zeta[2:]), rel=1e-15)
     write_csv(flagged, tmp_path / "r.csv")
     rows = list(csv.DictReader(open(tmp_path / "r.csv")))
-    assert rows[1]["f_hz"] == "" and rows[1]["zeta"] == "" and rows[0]["f_hz"] != ""
+    assert rows[1]["f_hz [Hz]"] == "" and rows[1]["zeta [-]"] == "" \
+        and rows[0]["f_hz [Hz]"] != ""
     with pytest.raises(AnalysisError, match="non-finite value in results.levels.f_hz"):
         results_dict(dataclasses.replace(res, **nan_at_1))
     q = res.q.copy()

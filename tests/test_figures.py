@@ -154,10 +154,9 @@ def test_log_axes_have_a_1_2_5_minor_grid(results, tmp_path, monkeypatch):
 
 def test_figures_hold_the_plotted_data(results, tmp_path, monkeypatch):
     """Each figure draws the result's own numbers (not a resampled or truncated copy):
-    the backbone (q, alpha) and the tied line, the loops at the three levels, the
-    secant frequency and damping against the peak tip velocity, the preload pressure
-    along the interface."""
-    from qsma.masing import masing_loop
+    the backbone (q, alpha) and the tied line, the loops at their levels normalised by
+    the amplitude, the secant frequency and damping against the peak tip deflection,
+    the preload pressure along the interface."""
     res = results["sandwich-2d"]
     figures = _capture(res, tmp_path, monkeypatch)
 
@@ -167,30 +166,96 @@ def test_figures_hold_the_plotted_data(results, tmp_path, monkeypatch):
     backbone = figures["backbone.png"].axes[0].get_lines()
     np.testing.assert_array_equal(data(backbone[0]), (res.q, res.alpha))
     np.testing.assert_allclose(data(backbone[1])[1], res.q * res.omega0 ** 2)
-    n, k0 = res.n_levels, res.omega0 ** 2
-    loops = figures["loops.png"].axes[0].get_lines()
-    for line, k in zip(loops, sorted({n // 2, (3 * n) // 4, n - 1})):
+    k0 = res.omega0 ** 2
+    panels = [ax for ax in figures["loops.png"].axes if ax.get_visible()]
+    levels = plots.loop_levels(res)
+    assert len(panels) == len(levels) and levels[-1] == res.n_levels - 1
+    for ax, k in zip(panels, levels):
+        line = ax.get_lines()[0]
         assert line.get_label().endswith(f"level {k}")
-        lp = res.loops.get(k)
-        if lp is not None and lp.success:
-            q, f = lp.q, lp.alpha
-        else:
-            q, f = masing_loop(res.alpha, res.q, k)
-        np.testing.assert_allclose(data(line)[1], f - k0 * q)
+        q, f, _ = plots.loop_curve(res, k)
+        qa = abs(res.q[k])
+        np.testing.assert_allclose(data(line), (q / qa, (f - k0 * q) / (k0 * qa)))
     top, bottom = figures["damping_frequency.png"].axes
-    v = np.abs(res.tip_velocity)
-    np.testing.assert_array_equal(data(top.get_lines()[0]), (v, res.f_hz))
-    np.testing.assert_array_equal(data(bottom.get_lines()[0]), (v, res.zeta))
+    tip = np.abs(res.tip)
+    np.testing.assert_array_equal(data(top.get_lines()[0]), (tip, res.f_hz))
+    np.testing.assert_array_equal(data(bottom.get_lines()[0]), (tip, res.zeta))
+    assert bottom.get_xlabel() == "peak tip deflection [m]"
     pressure = figures["interface.png"].axes[0].get_lines()[0]
     p = res.pairing
     np.testing.assert_allclose(data(pressure), (p.x[:, 0], res.preload.lam[:, -1] / p.area
                                                 / 1e6))
 
 
+def test_every_loop_drawn_fills_its_panel(results, tmp_path, monkeypatch):
+    """Loops of very different size are each visible: every panel's loop spans at
+    least half of its axes in both directions (on one shared axis the loop at the
+    first dissipating level of sandwich-2d is a thousandth of the largest one)."""
+    res = results["sandwich-2d"]
+    figures = _capture(res, tmp_path, monkeypatch)
+    fig = figures["loops.png"]
+    fig.canvas.draw()
+    heights = []
+    for ax in (a for a in fig.axes if a.get_visible()):
+        x, y = (np.asarray(v, float) for v in ax.get_lines()[0].get_data())
+        (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+        assert np.ptp(x) > 0.5 * (x1 - x0) and np.ptp(y) > 0.5 * (y1 - y0)
+        k = int(ax.get_lines()[0].get_label().rsplit(" ", 1)[1])
+        heights.append(np.ptp(y) * abs(res.q[k]))      # the loop's height unnormalised
+    assert max(heights) > 100 * min(heights)
+
+
+def test_the_amplitude_measure_is_selectable_and_shared_with_studies(results, tmp_path,
+                                                                    monkeypatch):
+    """``amplitude`` picks what frequency and damping are drawn against, in a run's
+    figures and in a study's alike (tip deflection by default in both)."""
+    import qsma.study.plots as study_plots
+    res = results["sandwich-2d"]
+    table = {"case": [0] * res.n_levels, "level": list(range(res.n_levels)),
+             "mu": [0.6] * res.n_levels, "tip": list(res.tip), "q": list(res.q),
+             "tip_velocity": list(res.tip_velocity), "f_hz": list(res.f_hz),
+             "zeta": list(res.zeta)}
+    drawn = []
+    monkeypatch.setattr(study_plots, "_save", lambda fig, path: drawn.append(fig))
+    for amplitude, field, label in (
+            (None, "tip", "peak tip deflection [m]"),
+            ("velocity", "tip_velocity", "peak tip velocity [m/s]"),
+            ("q", "q", "peak modal amplitude q [\u221a(kg/m) m]")):
+        run_ax = plots.draw_damping_frequency(plots.plot_data(res, amplitude)).axes[1]
+        study_plots.plot_parameter(table, "mu", [], tmp_path / "s.png", "SI", 2, amplitude)
+        study_ax = drawn[-1].axes[1]
+        assert run_ax.get_xlabel() == study_ax.get_xlabel() == label
+        for ax in (run_ax, study_ax):
+            np.testing.assert_array_equal(ax.get_lines()[0].get_xdata(),
+                                          np.abs(getattr(res, field)))
+    with pytest.raises(qsma.errors.InputError, match="unknown amplitude measure"):
+        plots.plot_data(res, "speed")
+
+
+def test_the_interface_map_has_one_colour_scale_per_row(results, tmp_path, monkeypatch):
+    """Pressure and shear keep their colours across the levels drawn: one norm per row,
+    from 0 to the largest value of any level shown."""
+    res = results["lap-3d"]
+    fig = _capture(res, tmp_path, monkeypatch)["interface_map.png"]
+    maps = [ax for ax in fig.axes if ax.collections and ax.get_label() != "<colorbar>"]
+    rows = {}
+    for ax in maps:
+        coll = ax.collections[0]
+        rows.setdefault(coll.cmap.name, []).append(coll)
+    assert len(rows) == 3 and all(len(c) == 3 for c in rows.values())
+    for name, colls in rows.items():
+        assert len({(c.norm.vmin, c.norm.vmax) for c in colls}) == 1, name
+        if name == "viridis":
+            top = max(float(np.max(c.get_array())) for c in colls)
+            assert colls[0].norm.vmin == 0 and colls[0].norm.vmax == pytest.approx(top)
+    bars = [ax for ax in fig.axes if ax.get_label() == "<colorbar>"]
+    assert len(bars) == 3                           # one per row
+
+
 def test_a_level_whose_loop_failed_stays_in_the_figures(results, tmp_path, monkeypatch):
     """A level without a used frequency (its loop failed: f, zeta and the velocity are
-    NaN) is drawn with its Masing values at Masing's velocity and marked, not dropped;
-    loops.png says why a level shows Masing's construction."""
+    NaN) is drawn with its Masing values and marked, not dropped (against the velocity:
+    at Masing's velocity); loops.png says why a level shows Masing's construction."""
     from dataclasses import replace
     from types import SimpleNamespace
     res = results["sandwich-2d"]
@@ -203,18 +268,19 @@ def test_a_level_whose_loop_failed_stays_in_the_figures(results, tmp_path, monke
                   dissipation_method=np.where(np.arange(n) == k, "loop",
                                               res.dissipation_method),
                   loops={**res.loops, k: failed})
-    figures = _capture(bad, tmp_path, monkeypatch)
     v_masing = 2 * np.pi * res.f_hz_masing[k] * abs(res.tip[k])
-    for ax, y in zip(figures["damping_frequency.png"].axes,
-                     (res.f_hz_masing[k], res.zeta_masing[k])):
-        marked = [l for l in ax.get_lines() if l.get_label().startswith("loop failed")]
-        assert len(marked) == 1
-        np.testing.assert_allclose(np.asarray(marked[0].get_data(), float).ravel(),
-                                   [v_masing, y])
-        masing = [l for l in ax.get_lines() if l.get_label() == "Masing"][0]
-        assert np.isfinite(np.asarray(masing.get_xdata(), float)).all()
-    labels = [l.get_label() for l in figures["loops.png"].axes[0].get_lines()]
-    assert f"Masing, level {k} (its computed loop failed)" in labels
+    for amplitude, x in (("tip", abs(res.tip[k])), ("velocity", v_masing)):
+        fig = plots.draw_damping_frequency(plots.plot_data(bad, amplitude))
+        for ax, y in zip(fig.axes, (res.f_hz_masing[k], res.zeta_masing[k])):
+            marked = [l for l in ax.get_lines() if l.get_label().startswith("loop failed")]
+            assert len(marked) == 1
+            np.testing.assert_allclose(np.asarray(marked[0].get_data(), float).ravel(),
+                                       [x, y])
+            masing = [l for l in ax.get_lines() if l.get_label() == "Masing"][0]
+            assert np.isfinite(np.asarray(masing.get_xdata(), float)).all()
+    figures = _capture(bad, tmp_path, monkeypatch)
+    labels = [l.get_label() for ax in figures["loops.png"].axes for l in ax.get_lines()]
+    assert f"Masing (its computed loop failed), level {k}" in labels
     for name, fig in figures.items():
         assert not _check_figure(name, fig)
 

@@ -130,7 +130,7 @@ def test_cli_auto_on_lap_joint_succeeds_and_writes_loops(tmp_path, capsys):
     assert all(z >= -1e-8 for z in lv["zeta"])
     assert (tmp_path / "damping_frequency.png").stat().st_size > 0
     header = (tmp_path / "results.csv").read_text().splitlines()[0].split(",")
-    assert header[0] == "level" and "zeta_loop" in header and "flags" in header
+    assert header[0] == "level" and "zeta_loop [-]" in header and "flags" in header
 
 
 def test_lap_joint_meshed_apart_runs_through_the_mortar_coupling(tmp_path):

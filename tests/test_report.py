@@ -13,7 +13,7 @@ import pytest
 import qsma
 from qsma.examples import sandwich_2d
 import qsma.report
-from qsma.report import REPORT_NAME, mesh_svg, nice_ticks, run_report_html, tick_labels
+from qsma.report import REPORT_NAME, run_report_html
 
 LEVELS = qsma.Levels.log("tip", 1e-6, 1e-3, 5)
 #: Debian's chromium and its driver (apt-get install chromium chromium-driver; .ci/run
@@ -71,66 +71,81 @@ def test_run_report_is_self_contained_and_complete(run_report, run_result):
     assert level_rows == [str(k) for k in range(run_result.n_levels)]
 
 
-SVG = "{http://www.w3.org/2000/svg}"
+def _pixels_per_unit(ax):
+    """Pixels per data unit along x and along y of a drawn axes."""
+    o, x, y = ax.transData.transform([(0.0, 0.0), (1.0, 0.0), (0.0, 1.0)])
+    return abs(x[0] - o[0]), abs(y[1] - o[1])
 
 
 def test_mesh_figure_shows_every_cell_and_pair_where_it_is(run_result):
-    """The 2D mesh figure (SVG written by qsma): the whole-model panel outlines every
-    cell of each body, one dot per interface pair in the colour of its state after the
-    preload (counts as in the result), dots placed by one map x -> a + s x,
-    y -> b - s y (the same scale s on both axes: the drawing is not distorted)."""
+    """The 2D mesh figure (matplotlib, written as SVG): the whole-model panel draws
+    every cell edge of each body once, the interface panel one dot per pair in the
+    colour of its state after the preload (counts as in the result) at the pair's
+    position, both panels at the same scale in x and y (the drawing is not
+    distorted), axes labelled with the model's length unit."""
+    from qsma.report import _body_corner_blocks, _cell_edges, draw_mesh_2d
     res = run_result
-    root = ET.fromstring(mesh_svg(res))
-    paths = root.findall(f".//{SVG}path[@class='cells']")
-    assert len(paths) == 2 * len(res.model.bodies)          # whole model + interface
-    for path, body in zip(paths, res.model.bodies):         # whole model first
-        assert path.get("d").count("M") == len(body.mesh.cells)
-        assert path.get("d").count("Z") == len(body.mesh.cells)
+    fig = draw_mesh_2d(res)
+    fig.canvas.draw()
+    whole, zoom = fig.axes
+    for ax in (whole, zoom):
+        sx, sy = _pixels_per_unit(ax)
+        assert sx == pytest.approx(sy, rel=1e-6)
+        assert ax.get_xlabel() == "x [m]" and ax.get_ylabel() == "y [m]"
+    for i, body in enumerate(res.model.bodies):
+        patch = [p for p in whole.patches if p.get_gid() == f"cells-{i}"]
+        assert len(patch) == 1
+        edges = _cell_edges(_body_corner_blocks(body.mesh))
+        assert len(patch[0].get_path().vertices) == 2 * len(edges)
+        # quads: 2 n + (rows + columns) edges; each cell's four edges are among them
+        assert len(edges) < 4 * len(body.mesh.cells)
     pre = res.preload
     for name, count in (("stuck", pre.n_stuck), ("slipping", pre.n_slipping),
                         ("open", pre.n_open)):
-        dots = root.findall(f".//{SVG}circle[@class='pair-{name}']")
-        assert len(dots) == count
+        dots = [c for c in zoom.collections if c.get_gid() == f"pairs-{name}"]
+        if count == 0:
+            assert dots == []
+            continue
+        np.testing.assert_array_equal(dots[0].get_offsets(),
+                                      res.pairing.x[pre.status == {"stuck": 0,
+                                                                   "slipping": 1,
+                                                                   "open": 2}[name]])
     assert pre.n_stuck and pre.n_open        # both colours are exercised here
-    order = np.concatenate([np.flatnonzero(pre.status == s) for s in (0, 1, 2)])
-    dots = root.findall(f".//{SVG}circle[@class]")
-    cx = np.array([float(c.get("cx")) for c in dots])
-    cy = np.array([float(c.get("cy")) for c in dots])
-    x, y = res.pairing.x[order, 0], res.pairing.x[order, 1]
-    scale, offset = np.polyfit(x, cx, 1)
-    assert scale > 0 and np.max(np.abs(offset + scale * x - cx)) < 0.06   # 0.1 px rounding
-    if np.ptp(y) > 0:
-        assert np.allclose(np.polyfit(y, cy, 1)[0], -scale, rtol=1e-3)
-    else:                                    # a straight interface: one row of dots
-        assert np.ptp(cy) < 0.06
-    legend = "".join(root.itertext())
+    legend = [t.get_text() for t in fig.legends[0].get_texts()]
     assert f"interface pair, stuck after preload ({pre.n_stuck})" in legend
-    assert f"{res.model.n_nodes} nodes, {res.pairing.n_pairs} interface pairs" in legend
+    assert fig._suptitle.get_text().endswith(
+        f"{res.model.n_nodes} nodes, {res.pairing.n_pairs} interface pairs")
+    mime, svg = qsma.report.mesh_figure(res)
+    root = ET.fromstring(svg)
+    assert mime == "image/svg+xml" and root.tag.endswith("svg")
+    assert root.find(".//*[@id='cells-0']") is not None
 
 
 def test_every_cell_of_a_mixed_mesh_is_drawn():
-    """A body meshed with a quadrilateral and two triangles (two cell blocks) draws
-    three cells in each panel (found in review: only the first block was drawn), and
+    """A body meshed with a quadrilateral and two triangles (two cell blocks) draws the
+    edges of all three cells (found in review: only the first block was drawn), and
     its outline is the strip's rectangle: 6 edges."""
-    from types import SimpleNamespace as NS
-
     from qsma.model.mesh import CellBlock, Mesh
+    from qsma.report import _body_corner_blocks, body_edges
     pts = np.array([[0, 0], [1, 0], [2, 0], [0, 1], [1, 1], [2, 1]], float)
     mesh = Mesh(pts, np.array([[0, 1, 4, 3]]), "quad",
                 extra_blocks=(CellBlock("triangle", np.array([[1, 2, 5], [1, 5, 4]]),
                                         None),))
-    model = NS(bodies=[NS(mesh=mesh, name="strip")], name="mixed", n_nodes=6, dim=2)
-    res = NS(model=model, pairing=NS(x=np.array([[0.5, 0.0], [1.5, 0.0]]), n_pairs=2),
-             preload=NS(status=np.array([0, 2])))
-    paths = ET.fromstring(mesh_svg(res)).iter("{http://www.w3.org/2000/svg}path")
-    drawn = [p.get("d").count("M") for p in paths if p.get("class") == "cells"]
-    assert drawn == [3, 3]
-    assert len(qsma.report._outline_edges(qsma.report._body_corner_blocks(mesh))) == 6
+    edges, kind = body_edges(mesh)
+    assert kind == "cells"
+    drawn = {tuple(e) for e in np.sort(edges, axis=1).tolist()}
+    for cells in _body_corner_blocks(mesh):
+        for cell in cells.tolist():
+            for a, b in zip(cell, cell[1:] + cell[:1]):
+                assert tuple(sorted((a, b))) in drawn
+    assert len(drawn) == 8
+    assert len(qsma.report._outline_edges(_body_corner_blocks(mesh))) == 6
 
 
 def test_a_fine_mesh_is_drawn_by_its_outline(run_result, monkeypatch):
     """Beyond MAX_SVG_CELLS cells a body is drawn by the edges of one cell only: on a
-    structured grid of nx x ny cells the 2 (nx + ny) edges of its rectangle."""
+    structured grid of nx x ny cells the 2 (nx + ny) edges of its rectangle; the SVG
+    file is then much smaller."""
     nx, ny = 3, 2
     node = np.arange((nx + 1) * (ny + 1)).reshape(ny + 1, nx + 1)
     cells = np.array([[node[j, i], node[j, i + 1], node[j + 1, i + 1], node[j + 1, i]]
@@ -141,63 +156,31 @@ def test_a_fine_mesh_is_drawn_by_its_outline(run_result, monkeypatch):
     on_side = ((rows == 0).all(1) | (rows == ny).all(1) | (cols == 0).all(1)
                | (cols == nx).all(1))
     assert on_side.all()
-    every_cell = mesh_svg(run_result)
+    every_cell = qsma.report.mesh_figure(run_result)[1]
     monkeypatch.setattr(qsma.report, "MAX_SVG_CELLS", 100)
-    outline = mesh_svg(run_result)
-    root = ET.fromstring(outline)
-    assert root.findall(f".//{SVG}path[@class='cells']") == []
-    assert len(root.findall(f".//{SVG}path[@class='outline']")) == \
-        2 * len(run_result.model.bodies)
-    assert len(outline) < len(every_cell) / 3
+    fig = qsma.report.draw_mesh_2d(run_result)
+    gids = {p.get_gid() for p in fig.axes[0].patches}
+    assert gids == {f"outline-{i}" for i in range(len(run_result.model.bodies))}
+    outline = qsma.report.mesh_figure(run_result)[1]
+    assert len(outline) < len(every_cell) / 2
 
 
-def test_2d_report_needs_no_matplotlib(run_result, monkeypatch):
-    """A 2D run's report without figures draws its mesh figure without matplotlib
-    (any import of it fails here)."""
-    for name in [m for m in sys.modules if m.split(".")[0] in ("matplotlib", "mpl_toolkits")]:
-        monkeypatch.delitem(sys.modules, name)
-    monkeypatch.setitem(sys.modules, "matplotlib", None)
-    html = run_report_html(run_result, figures={})
-    assert len(images(html)) == 1 and "data:image/svg+xml;base64," in html
-
-
-def test_3d_mesh_figure_is_a_png_with_every_pair_state():
-    """A 3D model's mesh figure stays a matplotlib PNG (nodes in a 3D projection),
-    with a legend entry per pair state that occurs after the preload."""
+def test_3d_mesh_figure_is_a_png_with_every_pair_state_at_equal_scales():
+    """A 3D model's mesh figure is a PNG (nodes in a 3D projection) scaled equally
+    along x, y and z (the box's sides in proportion to the model's extent), with a
+    legend entry per pair state that occurs after the preload."""
     from qsma.examples import lap_3d
     res = qsma.run(lap_3d(), levels=qsma.Levels.log("tip", 1e-6, 1e-4, 2))
     mime, png = qsma.report.mesh_figure(res)
     assert mime == "image/png" and png.startswith(PNG_MAGIC)
+    ax = qsma.report.draw_mesh_3d(res).axes[0]
+    extent = np.ptp(np.vstack([b.mesh.points for b in res.model.bodies]), axis=0)
+    box = np.asarray(ax.get_box_aspect())
+    np.testing.assert_allclose(box / box[0], extent / extent[0], rtol=1e-9)
     states = qsma.report._pair_states(res.preload.status)    # every pair in one state
     assert sum(int(sel.sum()) for *_, sel in states) == res.pairing.n_pairs
     html = run_report_html(res, figures={})
     assert images(html)[0].startswith("data:image/png;base64,")
-
-
-@pytest.mark.parametrize("lo, hi, n, expected", [
-    (0.0, 0.2032, 5, [0.0, 0.05, 0.1, 0.15, 0.2]),      # step 0.05 >= 0.2032 / 5
-    (0.0, 0.2032, 4, [0.0, 0.1, 0.2]),                  # 0.05 < 0.0508: step 0.1
-    (-3.3e-3, 3.3e-3, 4, [-2e-3, 0.0, 2e-3]),
-    (0.00635, 0.0127, 4, [0.008, 0.01, 0.012]),
-    (175.0, 215.0, 4, [180.0, 190.0, 200.0, 210.0])])
-def test_nice_ticks_are_1_2_5_steps_inside_the_interval(lo, hi, n, expected):
-    """The smallest step of 1, 2 or 5 times a power of ten that is at least
-    ``(hi - lo) / n``; its multiples inside ``[lo, hi]``."""
-    assert np.allclose(nice_ticks(lo, hi, n), expected, rtol=0, atol=1e-12)
-
-
-@pytest.mark.parametrize("lo, hi, expected", [
-    (123456.0, 123458.0, ["123456.0", "123456.5", "123457.0", "123457.5", "123458.0"]),
-    (1e6, 1e6 + 1.0, ["1000000.0", "1000000.2", "1000000.4", "1000000.6", "1000000.8",
-                      "1000001.0"]),
-    (0.0, 0.2032, ["0.00", "0.05", "0.10", "0.15", "0.20"]),
-    (175.0, 215.0, ["180", "190", "200", "210"])])
-def test_tick_labels_keep_the_digits_their_step_needs(lo, hi, expected):
-    """Labels of a mesh far from the origin stay distinct (six significant digits,
-    the general format, printed 123456 for every tick of a two-metre span there)."""
-    labels = tick_labels(nice_ticks(lo, hi, 5 if hi - lo < 10 else 4))
-    assert labels == expected and len(set(labels)) == len(labels)
-    assert tick_labels(nice_ticks(0.0031, 0.0052, 2)) == ["0.004"]   # a lone tick
 
 
 def test_report_names_the_warnings(run_result):
@@ -268,14 +251,73 @@ def show(driver, path):
     return errors, widths
 
 
+#: The window the layout is checked at: a laptop screen.
+WINDOW = (1200, 900)
+#: Smallest font size of the page's text [CSS px] and smallest scale at which a figure
+#: is shown (its text, 8-10 pt at 100-120 dpi, then stays at 9 px or more).
+MIN_FONT_PX = 12
+MIN_FIGURE_SCALE = 0.7
+
+
+def layout(driver, path):
+    """Layout facts of the page at :data:`WINDOW`: header cells without text, the
+    smallest font size of any text, how far the page overflows the window sideways,
+    and per image its natural and shown width, right edge and top."""
+    driver.set_window_size(*WINDOW)
+    show(driver, path)
+    return driver.execute_script("""
+        const texts = Array.from(document.querySelectorAll(
+            'p, td, th, figcaption, li, h1, h2')).filter(e => e.textContent.trim());
+        const root = document.documentElement;
+        return {
+          empty_headers: Array.from(document.querySelectorAll('th'))
+              .filter(t => !t.textContent.trim()).length,
+          smallest_font: Math.min(...texts.map(e => parseFloat(getComputedStyle(e).fontSize))),
+          overflow: root.scrollWidth - root.clientWidth,
+          width: root.clientWidth,
+          images: Array.from(document.images).map(i => {
+              const r = i.getBoundingClientRect();
+              return [i.naturalWidth, r.width, r.right, Math.round(r.top)]; }),
+        };""")
+
+
+def layout_problems(facts):
+    """What makes the page hard to read (empty list: nothing)."""
+    out = []
+    if facts["empty_headers"]:
+        out.append(f"{facts['empty_headers']} empty table header cell(s)")
+    if facts["smallest_font"] < MIN_FONT_PX:
+        out.append(f"text at {facts['smallest_font']} px")
+    if facts["overflow"] > 0:
+        out.append(f"the page is {facts['overflow']} px wider than the window")
+    for natural, shown, right, _ in facts["images"]:
+        if natural and shown < MIN_FIGURE_SCALE * natural:
+            out.append(f"a figure {natural} px wide is shown at {shown:.0f} px")
+        if right > facts["width"] + 1:
+            out.append("a figure runs beyond the window")
+    return out
+
+
 def test_browser_check_catches_a_broken_page(browser, tmp_path):
-    """The check itself: a console error and an undecodable image are seen."""
+    """The checks themselves: a console error, an undecodable image, an empty header
+    cell, small text and a figure shrunk to a thumbnail are seen."""
     bad = tmp_path / "bad.html"
     bad.write_text('<!DOCTYPE html><html><body><img src="data:image/png;base64,AAAA">'
                    '<script>console.error("broken on purpose")</script></body></html>')
     errors, widths = show(browser, bad)
     assert any("broken on purpose" in e["message"] for e in errors)
     assert widths == [0]
+    from qsma.plots import _figure, png_bytes
+    png = base64.b64encode(png_bytes(_figure()[0])).decode()
+    cramped = tmp_path / "cramped.html"
+    cramped.write_text('<!DOCTYPE html><html><body><table><tr><th></th><th></th></tr>'
+                       '<tr><td style="font-size: 9px">value</td><td>1</td></tr></table>'
+                       f'<img style="max-width: 20em" src="data:image/png;base64,{png}">'
+                       '</body></html>')
+    problems = layout_problems(layout(browser, cramped))
+    assert any("empty table header" in p for p in problems)
+    assert any("text at 9 px" in p for p in problems)
+    assert any("is shown at" in p for p in problems)
 
 
 @pytest.mark.parametrize("which", ["run_report", "study_report"])
@@ -284,3 +326,21 @@ def test_report_shows_in_a_browser(browser, which, request):
     errors, widths = show(browser, path)
     assert errors == []
     assert widths and all(w > 100 for w in widths), widths
+
+
+@pytest.mark.parametrize("which", ["run_report", "study_report"])
+def test_report_layout_reads_on_a_laptop_screen(browser, which, request, tmp_path):
+    """At 1200 x 900 pixels: no empty header row, no text below 12 px, nothing wider
+    than the window, every figure shown at 70 % of its size or more; the run's
+    figures two to a row where they fit. The screenshot is kept beside the test's
+    temporary files for a person to look at."""
+    path = request.getfixturevalue(which)
+    facts = layout(browser, path)
+    assert layout_problems(facts) == []
+    if which == "run_report":
+        tops = [top for *_, top in facts["images"]]
+        assert len(tops) > len(set(tops))            # some figures side by side
+    shot = tmp_path / f"{which}.png"
+    browser.set_window_size(WINDOW[0], min(browser.execute_script(
+        "return document.documentElement.scrollHeight"), 8000))
+    assert browser.save_screenshot(str(shot)) and shot.read_bytes().startswith(PNG_MAGIC)

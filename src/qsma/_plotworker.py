@@ -109,13 +109,15 @@ class PlotWorker:
         theirs.close()              # the worker's end: EOF here once it is gone
         return cls(process, ours)
 
-    def submit(self, res):
-        """Hand the worker the :class:`qsma.plots.PlotData` of ``res``. The data are
+    def submit(self, res, amplitude=None):
+        """Hand the worker the :class:`qsma.plots.PlotData` of ``res`` (drawn against
+        ``amplitude``, :func:`qsma.plots.plot_data`). The data are
         sent by a thread, so that a worker still importing matplotlib (not reading
         yet) does not hold this process up once the pipe's buffer is full."""
         from .plots import plot_data
         try:
-            payload = pickle.dumps(plot_data(res), protocol=pickle.HIGHEST_PROTOCOL)
+            payload = pickle.dumps(plot_data(res, amplitude),
+                                   protocol=pickle.HIGHEST_PROTOCOL)
         except Exception as exc:            # collect() finds nothing submitted
             log.debug("the figures' data cannot be sent: %s", exc)
             return

@@ -23,6 +23,9 @@ from ._threads import CONTACT_BLAS_THREADS, blas_threads as threads_limited, thr
 from .condense import reduce_two_bodies
 from .contact import DEFAULT_TOL, ContactProblem, ContactState, OPEN, SLIPPING, STUCK
 from .contact import solve as contact_solve
+from .contact.laws import InterfaceLaw
+from .contact.layer import (LOW_PRESSURE, LOW_SECANT, MAX_LAW_ITERATIONS, Anderson, Layer,
+                            interface_springs, solve_layered)
 from .contact.registry import chosen_method, method_for
 from .contact.zone import (expected_closing, release_zones, solve_in_zone, solve_preload,
                            zone_from_state)
@@ -35,13 +38,15 @@ from .masing import loop_area
 from .levels import spec_levels
 from .modal import linear_modes, probe_vector
 from .model import make_pairing
-from .multibody import (MultiPairing, body_order, multi_pairing, pair_gaps, pair_mu,
-                        reduce_model, warn_closed_gaps)
+from .multibody import (MultiPairing, body_order, multi_pairing, pair_gaps, pair_laws,
+                        pair_mu, reduce_model, warn_closed_gaps)
 from . import _resources
 from .options import RunOptions
+from .progress import Progress, reporter
 from .model.bolt import bolt_functionals, with_bolt_loads
 from .pretension import lock
 from .rigid import ANCHOR_ROUNDS, anchored, elastic_probe, held_by_joint, support_share
+from .units import check_model_units
 from .result import (FAILURE_FIXES, FAILURE_FLAGS, LEVEL_FIELDS,  # noqa: F401
                      DirectLoop, LevelStates, QSMAResult, load_factors as _load_factors)
 
@@ -69,14 +74,17 @@ def _counts(status):
 
 
 class _Timer:
-    """Seconds per stage of :data:`STAGES`; a stage may be entered several times."""
+    """Seconds per stage of :data:`STAGES`; a stage may be entered several times. Each
+    entry is told to ``report`` (:class:`qsma.progress.Progress`)."""
 
     def __init__(self):
         self.t = dict.fromkeys(STAGES, 0.0)
         self.t0 = time.perf_counter()
+        self.report = Progress()
 
     @contextmanager
     def stage(self, name):
+        self.report.stage(name)
         start = time.perf_counter()
         try:
             yield
@@ -98,8 +106,10 @@ def run(model, options: RunOptions | None = None, *, progress=None, **overrides)
         problem over all of them, :mod:`qsma.multibody`)
     options : :class:`qsma.options.RunOptions`, optional
         Every option of the run (defaults: :class:`RunOptions` ``()``).
-    progress : callable, optional
-        ``progress(k, n)`` after each level of the user's grid.
+    progress : :class:`qsma.progress.Progress` or callable, optional
+        Told of each stage and of the load levels, refinement rounds and loops as they
+        are solved; a callable ``progress(k, n)`` is called after each level of the
+        user's grid (:func:`qsma.progress.reporter`).
     **overrides
         Fields of :class:`RunOptions` to change, e.g. ``mode=1, dissipation="loop"``.
 
@@ -156,6 +166,7 @@ def _start(model, opts):
         pairing = make_pairing(model) if model.interface is not None \
             else multi_pairing(model)
     _warn_closed_gaps(model, pairing)
+    check_model_units(model)
     limit = threads_for(pairing.n_pairs * model.dim) if opts.blas_threads == "auto" \
         else opts.blas_threads
     return clock, pairing, limit
@@ -240,34 +251,39 @@ class Prepared:
             out = preload(self.model, self.assembled, self.pairing, method=method,
                           opts=opts.solver_options, clock=clock, reduced=self.reduced,
                           contact_threads=_contact_threads(opts))
-            self.cache[key] = out, out[1].__dict__.get("_zone_outer")
+            self.cache[key] = out, out[1].problem.__dict__.get("_zone_outer")
         out, zone = self.cache[key]
         # every run starts from the elimination of the preload, whatever the zones of
         # earlier runs grew to (qsma.contact.zone.zone_from_state reads the last one
         # cached on the problem): the same bits in every run, in any order, whether
         # its ramps and loops grew the zones in this process or in forked ones
         if zone is None:
-            out[1].__dict__.pop("_zone_outer", None)
+            out[1].problem.__dict__.pop("_zone_outer", None)
         else:
-            out[1].__dict__["_zone_outer"] = zone
+            out[1].problem.__dict__["_zone_outer"] = zone
         return out
 
-    def mode(self, closed, opts, clock, reduced=None):
-        """:func:`_mode` cached by the mask of closed pairs, the mode and ``n_modes``."""
-        key = ("mode", np.asarray(closed, bool).tobytes(), opts.mode, opts.n_modes)
+    def mode(self, closed, opts, clock, reduced=None, layer=None):
+        """:func:`_mode` cached by the mask of closed pairs, the mode, ``n_modes`` and the
+        interface springs of a compliant layer."""
+        springs = interface_springs(layer, closed)
+        key = ("mode", np.asarray(closed, bool).tobytes(), opts.mode, opts.n_modes,
+               None if springs is None else springs.tobytes())
         if key not in self.cache:
             self.cache[key] = _mode(self.model, self.assembled, self.pairing, closed, opts,
-                                    clock, reduced)
+                                    clock, reduced, layer)
         return self.cache[key]
 
 
 def _scaled_preload(model, factor):
-    """``model`` with every pressure of the 'preload' pattern and every bolt's
-    pretension multiplied by ``factor``."""
+    """``model`` with every pressure and nodal force of the 'preload' pattern and every
+    bolt's pretension multiplied by ``factor``."""
     from .model import Pressure
     bodies = tuple(replace(b, pressures=tuple(
         Pressure(p.set, p.p * factor, p.load) if p.load == "preload" else p
-        for p in b.pressures)) for b in model.bodies)
+        for p in b.pressures), forces=tuple(
+        replace(f, force=tuple(v * factor for v in f.force)) if f.load == "preload" else f
+        for f in b.forces)) for b in model.bodies)
     bolts = tuple(replace(b, pretension=b.pretension * factor)
                   for b in getattr(model, "bolts", ()))      # part of 'preload' too
     return replace(model, bodies=bodies, bolts=bolts)
@@ -344,7 +360,9 @@ def preload(model, assembled, pairing, *, method="auto", opts=None, schur_backen
     ``eliminate_open``: solve on the predicted contact zone, the other pairs eliminated
     exactly (:func:`qsma.contact.zone.solve_preload`; the answer is judged on the whole
     interface either way). ``contact_threads``: BLAS thread limit of the contact solve
-    (``None``: as set around the call). Returns ``(reduced, problem, result)``. Raises
+    (``None``: as set around the call). Returns ``(reduced, layer, result)``, ``layer``
+    the :class:`qsma.contact.layer.Layer` of the ramps (the interface laws linearised at
+    the preload; a rigid interface's problem, unchanged, in ``layer.problem``). Raises
     :class:`AnalysisError` if the solve fails or leaves no pair in contact (tied modes
     of a disconnected assembly would be meaningless).
     """
@@ -353,30 +371,96 @@ def preload(model, assembled, pairing, *, method="auto", opts=None, schur_backen
         reduced = _condense(model, assembled, pairing, schur_backend, clock)
     with clock.stage("condensation"):
         problem = _contact_problem(model, pairing, reduced.K)
+        laws = pair_laws(model, pairing)
     zone = "preload" if eliminate_open else None
     with clock.stage("contact"), threads_limited(contact_threads):
-        pre, _ = _solve(problem, reduced, 0.0, None, method, opts or {}, "preload", zone)
+        layer = _first_layer(problem, laws, reduced, method, opts or {}, zone)
+        pre, layer = _preload_solve(layer, reduced, method, opts or {}, zone)
         for _ in range(ANCHOR_ROUNDS if getattr(reduced, "ghost", None) else 0):
             if not pre.success:                    # docs/theory.md section 10
                 break
             reduced = anchored(reduced, pre.d)
-            pre, _ = _solve(problem, reduced, 0.0, None, method, opts or {}, "preload", zone)
+            pre, layer = _preload_solve(layer, reduced, method, opts or {}, zone)
     if pre.success:
         pre = held_by_joint(reduced, pre, _load_factors(reduced, 0.0), "the preload")
     if not pre.success:
         raise AnalysisError(f"the preload contact solve failed: {pre.message} "
                             f"(residual {pre.residual:.2e})", partial=pre)
-    if getattr(model, "bolts", ()):
-        with clock.stage("condensation"):                 # bolts locked from here on
-            reduced = lock(reduced, model.bolts, pre.d)
-            problem = _contact_problem(model, pairing, reduced.K)   # same mu, gaps
+    bolts = getattr(model, "bolts", ())
+    if bolts or layer.nonlinear or (laws is not None and laws.plastic().any()):
+        with clock.stage("condensation"):
+            if bolts:                                      # bolts locked from here on
+                reduced = lock(reduced, model.bolts, pre.d)
+                problem = _contact_problem(model, pairing, reduced.K)   # same mu, gaps
+            # the layer of the ramps: linearised at the preload's pressures, a plastic
+            # one frozen on its elastic unloading from there
+            layer = Layer(problem, laws, P_ref=pre.P, frozen=True)
     if np.all(pre.status == OPEN):
         raise AnalysisError("the preload leaves no interface pair in contact: the bodies "
                             "separate, and tied modes of a disconnected assembly would be "
                             "meaningless. Check the sign and location of the bolt pressure.",
                             partial=pre)
     _check_every_interface_closed(pairing, pre)
-    return reduced, problem, pre
+    return reduced, layer, pre
+
+
+#: Secant iterations of the preload of a nonlinear interface law (:func:`_preload_solve`).
+PRELOAD_SECANTS = 100
+
+
+def _rigid_pressures(layer, reduced, method, opts, zone):
+    """Pair forces of the rigid interface's preload (where the secants start)."""
+    rigid, _ = _solve(layer.physical, reduced, 0.0, None, method, opts, "preload", zone)
+    return np.maximum(rigid.P, 0.0)
+
+
+def _first_layer(problem, laws, reduced, method, opts, zone):
+    """The layer the preload starts from: a nonlinear law linearised at the pressures of
+    the rigid interface's preload (a linear one needs no pressures)."""
+    layer = Layer(problem, laws)
+    if not layer.nonlinear:
+        return layer
+    rigid, _ = _solve(problem, reduced, 0.0, None, method, opts, "preload", zone)
+    return Layer(problem, laws, P_ref=rigid.P) if rigid.success else layer
+
+
+def _preload_solve(layer, reduced, method, opts, zone):
+    """The preload solve. For a nonlinear interface law whose chord iteration does not
+    converge from the rigid preload's linearisation, secant iterations: the layer
+    linearised by its secants at the pressures ``P`` (exact there), one solve, ``P``
+    the new pressures (Anderson-accelerated, :class:`qsma.contact.layer.Anderson`;
+    :data:`PRELOAD_SECANTS` at most). Pairs below a floor pressure are linearised at
+    the floor, lowered tenfold each time the law's residual stalls, from
+    :data:`qsma.contact.layer.LOW_PRESSURE` to :data:`qsma.contact.layer.LOW_SECANT`
+    of the mean pressure. (A tangent linearisation started from the undeformed state
+    shifts the unloaded pairs apart and can end in another contact set; the secant is
+    exact where it is taken.) Returns ``(result, layer)``."""
+    if not layer.nonlinear:
+        pre, _ = _solve(layer, reduced, 0.0, None, method, opts, "preload", zone)
+        return pre, layer
+    with warnings.catch_warnings():       # attempts; a failure is preload()'s AnalysisError
+        warnings.simplefilter("ignore", ContactConvergenceWarning)
+        return _preload_attempts(layer, reduced, method, opts, zone)
+
+
+def _preload_attempts(layer, reduced, method, opts, zone):
+    pre, _ = _solve(layer, reduced, 0.0, None, method, opts, "preload", zone)
+    if pre.success or not pre.law_residual:
+        return pre, layer
+    P = _rigid_pressures(layer, reduced, method, opts, zone)
+    accelerate, low, best = Anderson(), LOW_PRESSURE, np.inf
+    for _ in range(PRELOAD_SECANTS):
+        secant = Layer(layer.physical, layer.laws, P_ref=P, secant=True, low=low)
+        res, _ = _solve(secant, reduced, 0.0, None, method, opts, "preload", zone,
+                        law_iterations=1)
+        if res.success or not res.law_residual:   # converged, or the contact solve failed
+            return res, secant
+        if res.law_residual > 0.9 * best and low > LOW_SECANT:
+            low, best = max(0.1 * low, LOW_SECANT), np.inf    # stalled on the floor
+        best = min(best, res.law_residual)
+        P = np.maximum(accelerate(P, np.maximum(res.P, 0.0), ((res.P > 0).tobytes(), low)),
+                       0.0)
+    return res, layer
 
 
 def _check_every_interface_closed(pairing, pre):
@@ -448,15 +532,17 @@ def _assemble(model, clock, keep=None):
     return assembled
 
 
-def _mode(model, assembled, pairing, closed, opts, clock, reduced=None):
+def _mode(model, assembled, pairing, closed, opts, clock, reduced=None, layer=None):
     """The loaded mode: ``(modes, phi, phi_tip, omega0, ltip)``, tip deflection positive.
     ``reduced``: the condensed model of the preload, whose factors the shift-invert of
-    the tied modes reuses (:func:`qsma.modal.linear_modes`)."""
+    the tied modes reuses (:func:`qsma.modal.linear_modes`). ``layer``: the interface
+    layer of the ramps; a compliant one holds the closed pairs by its springs
+    (:func:`qsma.contact.layer.interface_springs`) instead of tying them."""
     mode = opts.mode
     with clock.stage("modal"):
         nm = max(6, mode + 1) if opts.n_modes is None else opts.n_modes
         modes = linear_modes(model, assembled, pairing, tied=closed, n_modes=nm,
-                             reduced=reduced)
+                             reduced=reduced, springs=interface_springs(layer, closed))
         n_el = len(modes.omega) - modes.n_rigid
         if mode >= n_el:
             raise InputError(f"mode index {mode} is beyond the {n_el} computed modes "
@@ -486,21 +572,24 @@ def _contact_threads(opts):
 
 
 def _run(model, pairing, opts, progress, clock, prepared=None):
+    report = clock.report = reporter(progress)
     order = body_order(model, pairing)
     sopts = opts.solver_options
     if prepared is None:
         assembled = _assemble(model, clock)
-        reduced, problem, pre = preload(model, assembled, pairing, method=opts.method,
-                                        opts=sopts, schur_backend=opts.schur_backend,
-                                        clock=clock, contact_threads=_contact_threads(opts))
+        reduced, layer, pre = preload(model, assembled, pairing, method=opts.method,
+                                      opts=sopts, schur_backend=opts.schur_backend,
+                                      clock=clock, contact_threads=_contact_threads(opts))
         closed = pre.status != OPEN
         modes, phi, phi_tip, omega0, ltip = _mode(model, assembled, pairing, closed, opts,
-                                                  clock, reduced)
+                                                  clock, reduced, layer)
     else:
         assembled = prepared.assembled
-        reduced, problem, pre = prepared.preloaded(opts, clock)
+        reduced, layer, pre = prepared.preloaded(opts, clock)
         closed = pre.status != OPEN
-        modes, phi, phi_tip, omega0, ltip = prepared.mode(closed, opts, clock, reduced)
+        modes, phi, phi_tip, omega0, ltip = prepared.mode(closed, opts, clock, reduced,
+                                                          layer)
+    problem = layer.problem
 
     with clock.stage("condensation"):
         off = model.dof_offsets()
@@ -511,19 +600,19 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
             "tip": tuple(part(ltip, i) for i in order),
         })
     response = _Response(reduced, pre)
-    levels = spec_levels() if opts.levels is None else opts.levels
+    levels = spec_levels(model.units) if opts.levels is None else opts.levels
     alpha = levels.alpha(omega0, phi_tip)
     k_ref = omega0 ** 2
 
     contact_limit = _contact_threads(opts)
     try:
         with clock.stage("contact"), threads_limited(contact_limit):
-            solver = _Solver(problem, reduced, opts.method, sopts,
+            solver = _Solver(layer, reduced, opts.method, sopts,
                              zone_from_state(problem, pre.state) if opts.eliminate_open
                              else None)
             negative = _NegativeRamp(solver, response, pre, opts.parallel_ramps)
             try:
-                grid, user, pos = _refined_backbone(solver, alpha, pre, opts, progress,
+                grid, user, pos = _refined_backbone(solver, alpha, pre, opts, report,
                                                     response, k_ref, negative.start)
                 n_ok = len(user)
                 neg = negative.result(grid[:pos.n])
@@ -533,7 +622,7 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
 
         with clock.stage("hysteresis"), threads_limited(contact_limit):
             hyst = _hysteresis(solver, response, grid[:pos.n], user, pos, neg, pre, opts,
-                               k_ref)
+                               k_ref, report)
     finally:
         if prepared is None:        # the problem dies with this run: free its zones now,
             release_zones(problem)  # not at the next collection of the cycle collector
@@ -575,6 +664,9 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
                         n_closed_after_preload=int(closed.sum()),
                         elements={a.body.name: a.formulation for a in assembled},
                         coupling=pairing.coupling,
+                        interface_laws=_law_info(model),
+                        linear_damping=None if model.damping is None
+                        else model.damping.as_dict(),
                         **_rigid_info(reduced, modes, pos, grid, user)),
         mode_index=opts.mode, omega0=omega0, phi_tip=phi_tip,
         alpha=al, tip_lin=al * phi_tip / omega0 ** 2, q=q, tip=tip,
@@ -608,6 +700,17 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
                     negative_ramp_levels=int(neg.n)),
         timings_s=timings, resources=_resources.snapshot(), direct_loop=loop,
         gross_slip_level=gross[0] if gross else None)
+
+
+def _law_info(model):
+    """Each interface's law (its table, :meth:`InterfaceLaw.as_dict`) and whether a gap
+    field shapes it; None where every interface is rigid and flat."""
+    itfs = model.interface_list
+    if all(i.law is None and i.gap is None for i in itfs):
+        return None
+    return [dict((i.law or InterfaceLaw()).as_dict(), interface=i.label,
+                 gap_field=None if i.gap is None else getattr(i.gap, "source", "function"))
+            for i in itfs]
 
 
 def _mu_info(model):
@@ -648,47 +751,76 @@ class _Response:
         return float(self.ct @ (np.asarray(d).ravel() - self.d0) + self.at * alpha)
 
 
-def _solve(problem, reduced, alpha, state, method, opts, where, zone=None, guess=None,
-           closing=None):
+def _solve(layer, reduced, alpha, state, method, opts, where, zone=None, guess=None,
+           closing=None, law_iterations=MAX_LAW_ITERATIONS):
     """One contact solve at modal force ``alpha``; returns ``(result, zone)``.
 
+    ``layer``: the interface's :class:`qsma.contact.layer.Layer` (a plain
+    :class:`ContactProblem` is the rigid interface); ``state``, ``guess`` and the result
+    are physical, the solves see the slider (:func:`qsma.contact.layer.solve_layered`).
     ``zone``: None (the whole interface), ``"preload"`` (from the reference state on the
     predicted zone, :func:`qsma.contact.zone.solve_preload`) or a
-    :class:`qsma.contact.zone.ContactZone`. ``guess``: a state to start the iteration
-    from (the slip is measured from ``state``; see :func:`qsma.contact.solve`).
-    ``closing``: pairs expected to close (a zone's ``closing``, see
-    :func:`qsma.contact.zone.solve_in_zone`)."""
+    :class:`qsma.contact.zone.ContactZone` of ``layer.problem``. ``guess``: a state to
+    start the iteration from (the slip is measured from ``state``; see
+    :func:`qsma.contact.solve`). ``closing``: pairs expected to close (a zone's
+    ``closing``, see :func:`qsma.contact.zone.solve_in_zone`)."""
+    layer = layer if isinstance(layer, Layer) else Layer.identity(layer)
     factors = _load_factors(reduced, alpha)
-    lam_w = reduced.welded_contact_force(factors)
-    basis = (reduced.W, factors)            # lam_w = W a: the zone eliminates W once
+    W = layer.welded_basis(reduced.W)
+    lam_w = (W @ factors).reshape(-1, layer.problem.dim)
+    at = {"zone": zone}
+
+    def once(load, st, gs):
+        z = at["zone"]
+        basis = (W, factors) if load is lam_w else None   # lam_w = W a: eliminated once
+        if z is None:
+            res = contact_solve(layer.problem, load, st, method=method, guess=gs, **opts)
+        elif isinstance(z, str):
+            res, z = solve_preload(layer.problem, load, method=method, basis=basis, **opts)
+        else:
+            res, z = solve_in_zone(z, load, st, method=method, basis=basis, guess=gs,
+                                   closing=closing, **opts)
+        at["zone"] = z
+        return res
+
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ContactConvergenceWarning)
-        if zone is None:
-            res = contact_solve(problem, lam_w, state, method=method, guess=guess, **opts)
-        elif isinstance(zone, str):
-            res, zone = solve_preload(problem, lam_w, method=method, basis=basis, **opts)
-        else:
-            res, zone = solve_in_zone(zone, lam_w, state, method=method, basis=basis,
-                                      guess=guess, closing=closing, **opts)
+        res = solve_layered(layer, once, lam_w, state, guess,
+                            opts.get("tol") or DEFAULT_TOL, law_iterations)
     if not res.success:
         warnings.warn(f"contact solve at {where} did not converge: {res.message} "
                       f"(residual {res.residual:.2e})", ContactConvergenceWarning,
                       stacklevel=3)
-    return res, zone
+    return res, at["zone"]
 
 
 class _Solver:
     """The contact solve of a load level, with the open-pair elimination if enabled."""
 
-    def __init__(self, problem, reduced, method, opts, zone):
-        self.problem, self.reduced, self.method, self.opts = problem, reduced, method, opts
+    def __init__(self, layer, reduced, method, opts, zone):
+        self.layer = layer if isinstance(layer, Layer) else Layer.identity(layer)
+        self.reduced, self.method, self.opts = reduced, method, opts
         self.zone = zone
         self.guess = None       # a state to start the next solve from (set by _ramp)
 
+    @property
+    def problem(self):
+        """The contact problem the solves see (the slider's of a compliant interface)."""
+        return self.layer.problem
+
     def __call__(self, alpha, state, where, closing=None):
         guess, self.guess = self.guess, None
-        res, self.zone = _solve(self.problem, self.reduced, alpha, state, self.method,
+        res, self.zone = _solve(self.layer, self.reduced, alpha, state, self.method,
                                 self.opts, where, self.zone, guess, closing)
+        if not res.success and res.law_residual:
+            # a nonlinear law whose chord iteration stalled: linearise at this level's
+            # pressures (kept for the levels after it) and solve the level again
+            layer = self.layer.relinearised(res.P)
+            zone = None if self.zone is None else zone_from_state(layer.problem, res.state)
+            again, zone = _solve(layer, self.reduced, alpha, state, self.method, self.opts,
+                                 where, zone, guess, closing)
+            if again.success:
+                res, self.layer, self.zone = again, layer, zone
         if res.success:
             res = held_by_joint(self.reduced, res, _load_factors(self.reduced, alpha), where)
         return res
@@ -834,12 +966,12 @@ class _NegativeRamp:
 
     def _solved(self, grid):
         s = self.solver
-        solver = _Solver(s.problem, s.reduced, s.method, s.opts, self.zone)
+        solver = _Solver(s.layer, s.reduced, s.method, s.opts, self.zone)
         return _ramp(solver, -np.asarray(grid, dtype=float), self.pre.state, True, None,
                      "negative load level", response=self.response)
 
 
-def _refined_backbone(solver, alpha, pre, opts, progress, response, k_ref, last_round=None):
+def _refined_backbone(solver, alpha, pre, opts, report, response, k_ref, last_round=None):
     """The +alpha ramp on the user's levels, then on a grid refined where the Masing
     integral needs it (pair states change in an interval, or the error estimate exceeds
     ``dissipation_rtol``). Returns ``(grid, user_index, ramp)``: ``grid[user_index]``
@@ -847,7 +979,8 @@ def _refined_backbone(solver, alpha, pre, opts, progress, response, k_ref, last_
     with the grid of the last refinement round before that round is solved (the
     grid kept unless the round fails)."""
     grid = np.asarray(alpha, float)
-    tick = (lambda k, n: progress(min(k, len(alpha)), len(alpha))) if progress else None
+    report.task("levels", len(alpha))
+    tick = lambda k, n: report.advance("levels", min(k, len(alpha)), len(alpha))
     out = _ramp(solver, grid, pre.state, opts.continue_on_failure, tick, response=response)
     rounds = LEVEL_REFINE_ROUNDS if opts.refine_levels and out.success else 0
     for r in range(rounds):
@@ -858,7 +991,9 @@ def _refined_backbone(solver, alpha, pre, opts, progress, response, k_ref, last_
             new[:len(grid)], grid) else len(grid)
         if last_round is not None and r == rounds - 1:
             last_round(new)
-        trial = _ramp(solver, new, pre.state, False, None, response=response,
+        report.task("refinement", len(new))
+        trial = _ramp(solver, new, pre.state, False,
+                      lambda k, n: report.advance("refinement", k, n), response=response,
                       prefix=(out, first),
                       guesses={float(grid[j]): out.state(j) for j in range(first, out.n)
                                if out.ok[j]})
@@ -893,7 +1028,7 @@ def _insert_levels(grid, out, k_ref, rtol, pre_status):
     return np.union1d(grid, 0.5 * (lo + grid[:n])[pick])
 
 
-def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref):
+def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref, report=None):
     """Masing estimates, checks and loops at the user's levels (see module docstring)."""
     n_ok, n = len(user), pos.n
     est = masing_estimate(grid, pos.q, k_ref)
@@ -952,7 +1087,10 @@ def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref):
                             atol=ZETA_ZERO * 2 * np.pi * A * abs(pos.q[g]),
                             expect_closing=True)
 
-    for i, lp in zip(todo, map_loops(level_loop, todo, opts.loop_worker_count)):
+    report = report or Progress()
+    report.task("loops", len(todo))
+    done = lambda j: report.advance("loops", j, len(todo))
+    for i, lp in zip(todo, map_loops(level_loop, todo, opts.loop_worker_count, done)):
         out["loops"][i] = lp
         out["n_solves"] += lp.n_solves
         log.info("level %d: loop at A=%.4g, %s, %d solves, D=%.4g +- %.1g", i,

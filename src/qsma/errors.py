@@ -46,6 +46,11 @@ class InterfaceGapWarning(QSMAWarning):
     """Mortar surfaces that do not touch in the mesh were taken as touching."""
 
 
+class PartialCoverageWarning(QSMAWarning):
+    """Part of a mortar interface's slave surface faces no master facet (a hole, an
+    offset edge) and is left out of the contact."""
+
+
 class QuadraticFacetWarning(QSMAWarning):
     """An interface on serendipity quad8 facets (hexahedron20 cells): a uniform pressure
     needs the corner pairs to pull, so they open under a preload (docs/theory.md,
@@ -54,3 +59,8 @@ class QuadraticFacetWarning(QSMAWarning):
 
 class NearlyIncompressibleWarning(QSMAWarning):
     """Poisson's ratio close to 0.5: displacement elements lock (too stiff)."""
+
+
+class UnitSystemWarning(QSMAWarning):
+    """A model's numbers look like another unit system than the one it declares
+    (:func:`qsma.units.check_model_units`)."""

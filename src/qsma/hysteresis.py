@@ -510,8 +510,9 @@ def _call_job(i):
     return out, recorded_warnings(seen)
 
 
-def map_loops(job, indices, workers=1) -> list:
-    """``[job(i) for i in indices]``, on ``workers`` processes when ``workers > 1``.
+def map_loops(job, indices, workers=1, done=None) -> list:
+    """``[job(i) for i in indices]``, on ``workers`` processes when ``workers > 1``;
+    ``done(j)``, if given, after the first ``j`` results are in (for progress).
 
     The levels' loops are independent given the backbone: each starts from the
     backbone state at its amplitude, on the ramps' contact zone, so the loop of a level
@@ -534,8 +535,13 @@ def map_loops(job, indices, workers=1) -> list:
     why_not = fork_refusal() if workers > 1 else None
     if why_not is not None:
         log.info("loops computed in this process, not on %d workers: %s", workers, why_not)
+    done = done or (lambda j: None)
     if workers <= 1 or why_not is not None:
-        return [job(i) for i in indices]
+        out = []
+        for i in indices:
+            out.append(job(i))
+            done(len(out))
+        return out
     _JOB = job
     with quiet_fork():
         pool = multiprocessing.get_context("fork").Pool(workers, initializer=default_signals)
@@ -546,6 +552,7 @@ def map_loops(job, indices, workers=1) -> list:
             result, raised = pending[i].get()
             raise_again(raised)
             out.append(result)
+            done(len(out))
         return out
     finally:
         pool.terminate()        # idle workers at the end; running ones on an exception

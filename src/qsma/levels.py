@@ -84,6 +84,9 @@ def _range_check(start, stop, n):
         raise InputError(f"level range needs 0 < start < stop, got start={start}, stop={stop}")
 
 
-def spec_levels() -> Levels:
-    """The 51 levels of sandwich-2d: linear tied tip deflection 10^(-6 + 3k/50) m."""
-    return Levels("tip", tuple(10.0 ** (-6 + 3 * np.arange(51) / 50)))
+def spec_levels(units="SI") -> Levels:
+    """The 51 levels of sandwich-2d: linear tied tip deflection 10^(-6 + 3k/50) m, in
+    the length unit of ``units`` (1 um to 1 mm: 1e-3 to 1 in a millimetre model)."""
+    from .units import unit_system
+    metres = 10.0 ** (-6 + 3 * np.arange(51) / 50)
+    return Levels("tip", tuple(metres / unit_system(units).length_m))

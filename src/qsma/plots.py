@@ -1,7 +1,7 @@
 """Figures of a QSMA run (matplotlib, Agg backend; imported only when plotting)."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import io
 from pathlib import Path
 
@@ -9,6 +9,7 @@ import numpy as np
 
 from .masing import masing_loop
 from .rundir import atomic_write
+from .units import SI, display_stress, quantity_unit
 
 
 #: Figure margins in inches (left, right, bottom, top): room for the tick labels, the
@@ -47,6 +48,17 @@ def png_bytes(fig) -> bytes:
     buf = io.BytesIO()
     fig.savefig(buf, dpi=DPI, format="png", pil_kwargs={"compress_level": PNG_COMPRESSION})
     return buf.getvalue()
+
+
+def _unit(res, quantity) -> str:
+    """The unit of ``quantity`` in the result's unit system, for an axis label."""
+    return quantity_unit(quantity, getattr(res, "units", None) or SI, res.model.dim,
+                         pretty=True)
+
+
+def _stress(res) -> tuple:
+    """``(label, factor)`` of the contact pressures drawn (MPa whatever the system)."""
+    return display_stress(getattr(res, "units", None) or SI)
 
 
 def _save(fig, path):
@@ -118,8 +130,8 @@ def draw_backbone(res):
     fig, ax = _figure(figsize=(6, 4.5))
     ax.loglog(res.q, res.alpha, "o-", ms=3, label="QSMA backbone")
     ax.loglog(res.q, res.q * res.omega0 ** 2, "--", lw=1, label="linear (tied)")
-    ax.set_xlabel("modal amplitude q [\u221akg m]")
-    ax.set_ylabel("modal force \u03b1 [N/\u221akg]")
+    ax.set_xlabel(f"modal amplitude q [{_unit(res, 'modal_amplitude')}]")
+    ax.set_ylabel(f"modal force \u03b1 [{_unit(res, 'modal_force')}]")
     _set_ticks(ax)
     ax.set_title(f"Backbone, mode {res.mode_index} (f0 = {res.f0_hz:.2f} Hz)")
     ax.grid(True, which="both", alpha=0.3)
@@ -127,34 +139,79 @@ def draw_backbone(res):
     return fig
 
 
+#: Most loops drawn in loops.png (one panel each).
+MAX_LOOP_PANELS = 6
+
+
+def loop_levels(res, n=MAX_LOOP_PANELS) -> list:
+    """The levels whose loops loops.png draws: up to ``n`` of those that dissipate
+    (every computed loop first, then Masing levels), spread over the amplitudes and
+    always with the largest level; the largest level alone where none dissipates."""
+    last = res.n_levels - 1
+    if last < 0:
+        return []
+    dissipating = [k for k in range(res.n_levels)
+                   if np.isfinite(res.zeta_masing[k]) and res.zeta_masing[k] > 0
+                   or res.loops.get(k) is not None]
+    if not dissipating:
+        return [last]
+    if len(dissipating) > n:
+        pick = np.unique(np.round(np.linspace(0, len(dissipating) - 1, n)).astype(int))
+        dissipating = [dissipating[i] for i in pick]
+    return sorted(set(dissipating) | {last})[-n:]
+
+
+def loop_curve(res, k):
+    """``(q, alpha, label)`` of the loop drawn at level ``k``: the computed stabilised
+    loop where it exists, else Masing's construction from the backbone."""
+    lp = res.loops.get(k)
+    if lp is not None and lp.success:
+        return lp.q, lp.alpha, "computed loop"
+    q, f = masing_loop(res.alpha, res.q, k)
+    return q, f, "Masing" + (" (its computed loop failed)" if lp is not None else "")
+
+
 def draw_loops(res):
-    """Hysteresis loops at three amplitudes: the computed stabilised loops where they
-    exist, Masing's construction elsewhere (and the direct loop if asked for). The
-    tied linear force w0^2 q is subtracted so that thin loops are visible."""
-    fig, ax = _figure(figsize=(6, 4.5))
-    n = res.n_levels
+    """Hysteresis loops at up to :data:`MAX_LOOP_PANELS` levels (:func:`loop_levels`),
+    one panel each so that the small loops are as visible as the large ones. Each loop
+    is drawn normalised by its own amplitude: ``q / q_a`` against the deviation from
+    the tied line ``(alpha - omega0^2 q) / (omega0^2 q_a)`` (both dimensionless), the
+    computed stabilised loop where it exists and Masing's construction elsewhere, with
+    the level's amplitude (:func:`amplitude_of`) and damping ratio in its title; the
+    direct loop, if computed, in the panel of the largest level."""
+    levels = loop_levels(res)
+    ncols = min(3, len(levels))
+    nrows = -(-len(levels) // ncols)
+    fig, axes = _figure(nrows, ncols, figsize=(3.4 * ncols + 0.6, 3.3 * nrows + 0.5),
+                        hspace=0.75, wspace=0.5, squeeze=False,
+                        margins=(0.85, 0.2, 0.6, 1.0))
     k0 = res.omega0 ** 2
-    for k in sorted({n // 2, (3 * n) // 4, n - 1}):
-        lp = res.loops.get(k)
-        if lp is not None and lp.success:
-            ax.plot(lp.q, lp.alpha - k0 * lp.q, lw=1.2, label=f"computed loop, level {k}")
-        else:
-            q, f = masing_loop(res.alpha, res.q, k)
-            why = " (its computed loop failed)" if lp is not None else ""
-            ax.plot(q, f - k0 * q, lw=1.2, label=f"Masing, level {k}{why}")
-    if res.direct_loop is not None:
-        dl = res.direct_loop
-        label = (f"direct loop (D = {dl.dissipation:.3g} vs Masing "
-                 f"{dl.dissipation_masing:.3g})" if dl.success
-                 else "direct loop (not closed: a contact solve failed)")
-        ax.plot(dl.q, dl.alpha - k0 * dl.q, "k.", ms=3, label=label)
-    ax.set_xlabel("modal amplitude q [\u221akg m]")
-    ax.set_ylabel("\u03b1 \u2212 \u03c9\u2080\u00b2 q [N/\u221akg]")
-    ax.ticklabel_format(style="sci", scilimits=(-3, 3))
-    _set_ticks(ax)
-    ax.set_title("Hysteresis loops")
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8)
+    kind, name, measure = amplitude_of(res)
+    for ax, k in zip(axes.ravel(), levels):
+        q, f, label = loop_curve(res, k)
+        qa = abs(res.q[k])
+        ax.plot(q / qa, (f - k0 * q) / (k0 * qa), lw=1.2, label=f"{label}, level {k}")
+        if res.direct_loop is not None and k == res.n_levels - 1:
+            dl = res.direct_loop
+            dlabel = (f"direct loop (D = {dl.dissipation:.3g} vs Masing "
+                      f"{dl.dissipation_masing:.3g})" if dl.success
+                      else "direct loop (not closed: a contact solve failed)")
+            ax.plot(dl.q / qa, (dl.alpha - k0 * dl.q) / (k0 * qa), "k.", ms=2,
+                    label=dlabel)
+        zeta = res.zeta[k]
+        ax.set_title(f"level {k}: {kind} {measure[k]:.3g} {_unit(res, name)}\n"
+                     f"\u03b6 = {zeta:.3g}, {label}", fontsize=8)
+        ax.set_xlabel("q / q\u2090 [-]")
+        ax.set_ylabel("(\u03b1 \u2212 \u03c9\u2080\u00b2q) / \u03c9\u2080\u00b2q\u2090 [-]")
+        ax.ticklabel_format(axis="y", style="sci", scilimits=(-2, 3))
+        _set_ticks(ax)
+        ax.grid(True, alpha=0.3)
+        if res.direct_loop is not None and k == res.n_levels - 1:
+            ax.legend(fontsize=6)
+    for ax in axes.ravel()[len(levels):]:
+        ax.set_visible(False)
+    fig.suptitle("Hysteresis loops, each normalised by its amplitude (tied line "
+                 "subtracted)", fontsize=10)
     return fig
 
 
@@ -162,20 +219,48 @@ def draw_loops(res):
 #: zero, round-off and negative values stay visible (none is dropped from the figure).
 ZETA_LINEAR = 1e-6
 
+#: The amplitude measures the figures may draw against: key -> (result field, axis
+#: text, quantity of :mod:`qsma.units`). The run's and the study's figures use the same
+#: one (``amplitude``, default :data:`DEFAULT_AMPLITUDE`).
+AMPLITUDES = {"tip": ("tip", "peak tip deflection", "length"),
+              "velocity": ("tip_velocity", "peak tip velocity", "velocity"),
+              "q": ("q", "peak modal amplitude q", "modal_amplitude")}
+DEFAULT_AMPLITUDE = "tip"
+
+
+def check_amplitude(amplitude) -> str:
+    """``amplitude`` if it is a key of :data:`AMPLITUDES`, else :class:`InputError`."""
+    from .errors import InputError
+    if amplitude not in AMPLITUDES:
+        raise InputError(f"unknown amplitude measure {amplitude!r} for the figures; "
+                         f"valid: {sorted(AMPLITUDES)} (tip: peak tip deflection, "
+                         f"velocity: peak tip velocity, q: peak modal amplitude)")
+    return amplitude
+
+
+def amplitude_of(res):
+    """``(axis text, quantity, values)`` of the amplitude measure the figures of
+    ``res`` draw against (its ``amplitude``, default :data:`DEFAULT_AMPLITUDE`)."""
+    field, text, quantity = AMPLITUDES[getattr(res, "amplitude", None) or DEFAULT_AMPLITUDE]
+    return text, quantity, np.abs(np.asarray(getattr(res, field), float))
+
 
 def draw_damping_frequency(res):
-    """Secant frequency and damping ratio versus peak tip velocity: the values used
-    (filled), Masing's and the loops' where they differ, hardening levels marked.
+    """Secant frequency and damping ratio versus the amplitude (:func:`amplitude_of`,
+    the peak tip deflection by default): the values used (filled), Masing's and the
+    loops' where they differ, hardening levels marked.
 
-    A level whose loop failed has no used frequency, hence no velocity; its Masing
-    values are drawn at Masing's own velocity ``2 pi f_masing |tip|`` and marked, so
-    that no level leaves the figure unseen."""
+    A level whose loop failed has no used frequency; drawn against the velocity it has
+    no abscissa either, so its Masing values are drawn at Masing's own velocity
+    ``2 pi f_masing |tip|`` and marked: no level leaves the figure unseen."""
     fig, (a1, a2) = _figure(2, 1, figsize=(6, 6.5), hspace=0.08, sharex=True)
-    v = np.abs(res.tip_velocity)
+    text, quantity, v = amplitude_of(res)
     loop = res.dissipation_method == "loop"
     hard = np.array(["hardening" in f or "masing_on_hardening" in f for f in res.flags])
-    unused = loop & ~np.isfinite(v)
-    v_masing = np.where(unused, 2 * np.pi * res.f_hz_masing * np.abs(res.tip), v)
+    unused = loop & ~np.isfinite(res.f_hz)
+    v_masing = v
+    if quantity == "velocity":
+        v_masing = np.where(unused, 2 * np.pi * res.f_hz_masing * np.abs(res.tip), v)
     a1.semilogx(v, res.f_hz, "o-", ms=3, label="used")
     a2.plot(v, res.zeta, "o-", ms=3, label="used")
     if loop.any():
@@ -194,16 +279,17 @@ def draw_damping_frequency(res):
     if hard.any():
         a1.plot(v[hard], res.f_hz[hard], "^", color="tab:red", ms=6, label="hardening")
         a2.plot(v[hard], res.zeta[hard], "^", color="tab:red", ms=6, label="hardening")
-    a1.axhline(res.f0_hz, color="gray", lw=0.8, ls=":", label="f0 (tied)")
+    span = [np.nanmin(v_masing), np.nanmax(v_masing)]     # (lines in data coordinates)
+    a1.plot(span, [res.f0_hz] * 2, color="gray", lw=0.8, ls=":", label="f0 (tied)")
     a1.set_ylabel("secant frequency [Hz]")
     a2.set_yscale("symlog", linthresh=ZETA_LINEAR)
-    a2.axhline(0.0, color="gray", lw=0.8)
+    a2.plot(span, [0.0, 0.0], color="gray", lw=0.8)
     shown = np.concatenate([res.zeta, res.zeta_masing if loop.any() else []])
     lowest = np.nanmin(shown) if np.isfinite(shown).any() else 0.0
     a2.set_ylim(bottom=min(-ZETA_LINEAR, 3 * lowest))
     a2.set_ylabel("damping ratio \u03b6 [-]")
     _set_ticks(a1, a2)
-    a2.set_xlabel("peak tip velocity [m/s]")
+    a2.set_xlabel(f"{text} [{_unit(res, quantity)}]")
     for a in (a1, a2):
         a.grid(True, which="both", alpha=0.3)
         a.legend(fontsize=7)
@@ -230,19 +316,21 @@ def draw_interface(res, levels=None):
     x = p.x[:, 0]
     fig, axes = _figure(3, 1, figsize=(7, 8), hspace=0.1, sharex=True)
     pre = res.preload.lam
-    axes[0].plot(x, pre[:, -1] / p.area / 1e6, "k--", lw=1, label="preload")
+    stress, factor = _stress(res)
+    length = _unit(res, "length")
+    axes[0].plot(x, pre[:, -1] / p.area * factor, "k--", lw=1, label="preload")
     for k in levels:
         lam = res.states.lam[k]
-        lbl = f"level {k} (tip {res.tip[k]:.2e} m)"
-        axes[0].plot(x, lam[:, -1] / p.area / 1e6, lw=1.2, label=lbl)
+        lbl = f"level {k} (tip {res.tip[k]:.2e} {length})"
+        axes[0].plot(x, lam[:, -1] / p.area * factor, lw=1.2, label=lbl)
         axes[1].plot(x, np.linalg.norm(lam[:, :-1], axis=1) * np.sign(lam[:, 0]) / p.area
-                     / 1e6, lw=1.2, label=lbl)
+                     * factor, lw=1.2, label=lbl)
         axes[2].plot(x, res.states.status[k] + 0.05 * levels.index(k), ".", ms=5, label=lbl)
-    axes[0].set_ylabel("contact pressure [MPa]")
-    axes[1].set_ylabel("shear [MPa]")
+    axes[0].set_ylabel(f"contact pressure [{stress}]")
+    axes[1].set_ylabel(f"shear [{stress}]")
     axes[2].set_yticks([0, 1, 2], ["stuck", "slip", "open"])
     axes[2].set_ylabel("contact state [-]")
-    axes[2].set_xlabel("x along the interface [m]")
+    axes[2].set_xlabel(f"x along the interface [{length}]")
     _set_ticks(*axes)
     for a in axes:
         a.grid(True, alpha=0.3)
@@ -253,35 +341,45 @@ def draw_interface(res, levels=None):
 
 def draw_interface_map(res, levels=None):
     """3D: maps over the interface plane (first two in-plane coordinates of the pair
-    frames, x and z for sandwich-3d) of pressure, shear magnitude and state."""
-    from matplotlib.colors import ListedColormap
+    frames, x and z for sandwich-3d) of pressure, shear magnitude and state, one column
+    per level. Each row has one colour scale over every level drawn (the largest
+    pressure and shear of those levels; one colour bar per row), so that the colours
+    of two levels compare."""
+    from matplotlib.colors import ListedColormap, Normalize
     n = res.n_levels
     levels = sorted({n // 2, (3 * n) // 4, n - 1}) if levels is None else levels
     p = res.pairing
     t1, t2 = p.frames[0, 0], p.frames[0, 1]
     u, v = p.x @ t1, p.x @ t2
-    fig, axes = _figure(3, len(levels), figsize=(4.2 * len(levels), 6.5), hspace=0.3,
-                        wspace=0.45, squeeze=False, sharex=True, sharey=True)
+    fig, axes = _figure(3, len(levels), figsize=(3.6 * len(levels) + 1.4, 7.0),
+                        hspace=0.3, wspace=0.15, squeeze=False, sharex=True, sharey=True,
+                        margins=(0.85, 1.45, 0.65, 0.45))
     states = ListedColormap(["tab:blue", "tab:orange", "lightgray"])
-    pmax = max(res.states.lam[k][:, -1].max() for k in levels) / p.area.max() / 1e6
-    for j, k in enumerate(levels):
-        lam = res.states.lam[k]
-        for i, (val, cmap, label, kw) in enumerate((
-                (lam[:, -1] / p.area / 1e6, "viridis", "pressure [MPa]",
-                 dict(vmin=0, vmax=pmax)),
-                (np.linalg.norm(lam[:, :-1], axis=1) / p.area / 1e6, "magma",
-                 "shear [MPa]", {}),
-                (res.states.status[k], states, "0 stuck, 1 slip, 2 open",
-                 dict(vmin=-0.5, vmax=2.5)))):
+    stress, factor = _stress(res)
+    length = _unit(res, "length")
+    pressure = {k: res.states.lam[k][:, -1] / p.area * factor for k in levels}
+    shear = {k: np.linalg.norm(res.states.lam[k][:, :-1], axis=1) / p.area * factor
+             for k in levels}
+    top = lambda vals: max(max(float(np.max(x)) for x in vals.values()), 1e-300)
+    rows = ((pressure, "viridis", f"contact pressure [{stress}]",
+             Normalize(0.0, top(pressure))),
+            (shear, "magma", f"shear [{stress}]", Normalize(0.0, top(shear))),
+            ({k: res.states.status[k] for k in levels}, states, "state [-]",
+             Normalize(-0.5, 2.5)))
+    for i, (values, cmap, label, norm) in enumerate(rows):
+        for j, k in enumerate(levels):
             ax = axes[i, j]
-            sc = ax.scatter(u, v, c=val, cmap=cmap, s=12, marker="s", **kw)
+            sc = ax.scatter(u, v, c=values[k], cmap=cmap, norm=norm, s=12, marker="s")
             ax.set_aspect("equal")
-            fig.colorbar(sc, ax=ax, shrink=0.8, label=label)
             if i == 0:
-                ax.set_title(f"level {k}, tip {res.tip[k]:.2e} m", fontsize=9)
-            ax.set_xlabel("t1 coordinate [m]")
-            ax.set_ylabel("t2 coordinate [m]")
+                ax.set_title(f"level {k}, tip {res.tip[k]:.2e} {length}", fontsize=9)
+            ax.set_xlabel(f"t1 coordinate [{length}]")
+            ax.set_ylabel(f"t2 coordinate [{length}]")
             ax.label_outer()            # coordinates once per row and column
+        bar = fig.colorbar(sc, ax=list(axes[i]), shrink=0.9, pad=0.02, label=label)
+        if i == 2:
+            bar.set_ticks([0, 1, 2], labels=["stuck", "slip", "open"])
+    fig.suptitle("Interface maps (one colour scale per row)", fontsize=10)
     return fig
 
 
@@ -387,6 +485,8 @@ class PlotData:
     preload: ContactView
     states: ContactView
     model: ModelView
+    units: object = None        # qsma.units.UnitSystem of the model
+    amplitude: str = DEFAULT_AMPLITUDE     # a key of AMPLITUDES
 
     @property
     def n_levels(self) -> int:
@@ -401,10 +501,14 @@ def _loop_curve(loop) -> LoopCurve:
     return LoopCurve(None, None, False)
 
 
-def plot_data(res) -> PlotData:
-    """The :class:`PlotData` of ``res`` (a :class:`PlotData` is returned as it is)."""
+def plot_data(res, amplitude=None) -> PlotData:
+    """The :class:`PlotData` of ``res``, drawn against ``amplitude`` (a key of
+    :data:`AMPLITUDES`; ``None``: :data:`DEFAULT_AMPLITUDE`, or a :class:`PlotData`'s
+    own, which is returned as it is otherwise)."""
     if isinstance(res, PlotData):
-        return res
+        return res if amplitude is None else replace(res, amplitude=check_amplitude(
+            amplitude))
+    amplitude = check_amplitude(amplitude or DEFAULT_AMPLITUDE)
     dl = res.direct_loop
     p = res.pairing
     return PlotData(
@@ -419,7 +523,7 @@ def plot_data(res) -> PlotData:
         pairing=PairsView(p.x, p.area, p.frames),
         preload=ContactView(res.preload.lam, res.preload.status),
         states=ContactView(res.states.lam, res.states.status),
-        model=ModelView(res.model.dim))
+        model=ModelView(res.model.dim), units=res.units, amplitude=amplitude)
 
 
 # -- Every figure of a run -----------------------------------------------------------------
@@ -435,7 +539,7 @@ def figure_files(dim) -> dict:
             "interface": interface}
 
 
-def write_plots(res, out) -> dict:
+def write_plots(res, out, amplitude=None) -> dict:
     """Every figure of a run into folder ``out``: backbone.png, loops.png,
     damping_frequency.png and interface.png (2D) or interface_map.png (3D), drawn from
     :func:`plot_data` of ``res``.
@@ -445,17 +549,17 @@ def write_plots(res, out) -> dict:
     dict
         figure name -> path written.
     """
-    data = plot_data(res)
+    data = plot_data(res, amplitude)
     out = Path(out)
     return {name: _save(draw(data), out / file)
             for name, (file, draw) in figure_files(data.model.dim).items()}
 
 
-def figure_pngs(res, names=None) -> dict:
+def figure_pngs(res, names=None, amplitude=None) -> dict:
     """The PNG bytes of the figures ``names`` (default all, :func:`figure_files`) of
     ``res`` (a result or its :class:`PlotData`), nothing written: name -> bytes, the
     same bytes :func:`write_plots` writes."""
-    data = plot_data(res)
+    data = plot_data(res, amplitude)
     figures = figure_files(data.model.dim)
     names = list(figures) if names is None else names
     return {name: png_bytes(figures[name][1](data)) for name in names}

@@ -148,12 +148,33 @@ class QSMAResult:
     version: str = __version__
 
     @property
+    def units(self):
+        """The model's :class:`qsma.units.UnitSystem` (every result is in it)."""
+        from .units import unit_system
+        return unit_system(getattr(self.model, "units", "SI"))
+
+    @property
     def f0_hz(self):
         return self.omega0 / (2 * np.pi)
 
     @property
     def n_levels(self):
         return len(self.alpha)
+
+    @property
+    def zeta_structure(self):
+        """Linear damping ratio of the structure besides the joint at each level's
+        frequency (``model.damping``; zero without it)."""
+        damping = getattr(self.model, "damping", None)
+        if damping is None:
+            return np.zeros_like(np.asarray(self.zeta, dtype=float))
+        return damping.zeta(2 * np.pi * np.asarray(self.f_hz, dtype=float))
+
+    @property
+    def zeta_total(self):
+        """The joint's damping ratio plus the structure's (``zeta + zeta_structure``):
+        what a test of the assembly measures."""
+        return np.asarray(self.zeta, dtype=float) + self.zeta_structure
 
     @property
     def iterations(self):
@@ -183,7 +204,7 @@ class QSMAResult:
 
 #: The per-level quantities, in the order of results.csv (docs/results.md has units).
 LEVEL_FIELDS = ("alpha", "tip_lin", "q", "tip", "q_neg", "asymmetry", "f_hz", "zeta",
-                "dissipation", "dissipation_error", "dissipation_method", "f_hz_masing",
+                "zeta_structure", "zeta_total", "dissipation", "dissipation_error", "dissipation_method", "f_hz_masing",
                 "zeta_masing", "dissipation_masing", "f_hz_loop", "zeta_loop",
                 "dissipation_loop", "dissipation_first_cycle", "loop_cycles", "shakedown",
                 "tip_velocity", "n_stuck", "n_slip", "n_open", "iterations", "residual",

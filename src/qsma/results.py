@@ -3,9 +3,13 @@ into a result folder (:mod:`qsma.rundir`)."""
 from __future__ import annotations
 
 import csv
+from dataclasses import dataclass
 import io
 import json
+import os
 from pathlib import Path
+import shutil
+import tempfile
 
 import numpy as np
 
@@ -13,7 +17,8 @@ from .errors import AnalysisError
 from .fe import stress_at_nodes
 from .multibody import body_order, contact_sides
 from .result import LEVEL_FIELDS
-from .rundir import (RunFolder, atomic_path, atomic_write,  # noqa: F401 (re-exported)
+from .units import column_label, level_units, units_block
+from .rundir import (TMP_PREFIX, RunFolder, atomic_path, atomic_write,  # noqa: F401
                      prepare_output_dir, write_error)
 
 SCHEMA_VERSION = 1
@@ -50,7 +55,8 @@ NAN_FLAGS = ("not_finite", "loop_failed", "loop_not_stabilised")
 #: The per-level columns that come from the frequency, the damping or the loop, and so
 #: may be NaN at a level flagged with one of :data:`NAN_FLAGS`; the backbone (alpha,
 #: q, tip, residual) and the Masing values never may.
-LOOP_DERIVED = ("f_hz", "zeta", "dissipation", "tip_velocity")
+LOOP_DERIVED = ("f_hz", "zeta", "zeta_structure", "zeta_total", "dissipation",
+                "tip_velocity")
 
 
 def _level_columns(res) -> dict:
@@ -83,7 +89,8 @@ def results_dict(res) -> dict:
     Returns
     -------
     dict
-        ``schema_version``, ``success``, ``message``, ``failed_levels``, the model
+        ``schema_version``, ``success``, ``message``, ``failed_levels``, the
+        ``units`` of every quantity (:func:`qsma.units.units_block`), the model
         summary, the analysed mode (``f0_hz = omega0 / 2 pi``), the preload solve, the
         per-level columns :data:`qsma.result.LEVEL_FIELDS` (NaN of optional fields as
         ``None``), timings, solver statistics and the options of the run. Every field,
@@ -100,6 +107,7 @@ def results_dict(res) -> dict:
         "success": bool(res.success),
         "message": res.message,
         "failed_levels": res.failed_levels,
+        "units": units_block(res.units, res.model.dim),
         "model": {k: res.model_info[k] for k in ("name", "n_nodes", "n_dofs", "n_pairs",
                                                   "mu", "dim", "n_closed_after_preload",
                                                   "elements", "coupling")},
@@ -141,6 +149,18 @@ def csv_columns() -> tuple[str, ...]:
     return ("level",) + LEVEL_FIELDS
 
 
+def csv_header(units="SI", dim=3) -> list[str]:
+    """The header row of results.csv: each of :func:`csv_columns` with its unit in
+    brackets (``tip [m]``, ``zeta [-]``), counts, names and flags bare."""
+    unit = level_units(units, dim)
+    return [column_label(c, unit.get(c)) for c in csv_columns()]
+
+
+def column_name(heading: str) -> str:
+    """The field name of a results.csv heading (``"tip [m]"`` -> ``"tip"``)."""
+    return heading.split(" [", 1)[0]
+
+
 def _csv_cell(v):
     if v is None:
         return ""
@@ -156,13 +176,14 @@ def _csv_cell(v):
 def write_csv(res, path):
     """Write the per-level table to ``path`` as CSV, atomically.
 
-    One row per level, columns :func:`csv_columns`; floats with 10 significant digits,
-    optional values that were not computed as empty cells, flags joined by ``;``.
+    One row per level, columns :func:`csv_columns` headed with their units
+    (:func:`csv_header`); floats with 10 significant digits, optional values that were
+    not computed as empty cells, flags joined by ``;``.
     """
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     columns = csv_columns()
-    w.writerow(columns)
+    w.writerow(csv_header(res.units, res.model.dim))
     table = _clean(_level_columns(res), "levels")          # refuses NaN / Inf
     for k in range(res.n_levels):
         w.writerow([k] + [_csv_cell(table[c][k]) for c in columns[1:]])
@@ -172,91 +193,194 @@ def write_csv(res, path):
 def write_vtu(res, path, levels=None):
     """Write one VTU file holding every body of the model, atomically.
 
-    Point data: ``body`` (index), at the preload ``u_preload`` and
+    Point data: ``body`` (index, an integer), at the preload ``u_preload`` and
     ``von_mises_preload``, and for each level ``k`` of ``levels`` the total displacement
     ``u_levelKK``, the modal part ``u_modal_levelKK = u_levelKK - u_preload``, the von
-    Mises stress and the interface pressure, shear and contact state (``-1`` off the
-    interface). Coordinates are the model's, in its units.
+    Mises stress and the interface pressure, shear and contact state (an integer,
+    ``-1`` off the interface). Coordinates are the model's, in its units; the units of
+    every array are the file's field data ``units`` (:func:`write_vtu_file`).
 
     Parameters
     ----------
     res : :class:`qsma.result.QSMAResult`
     path : file to write (``.vtu``)
-    levels : level indices to write; default the first, middle and last level.
+    levels : level indices to write; default :func:`vtu_levels`.
     """
-    model = res.model
-    if levels is None:
-        levels = sorted({0, res.n_levels // 2, res.n_levels - 1}) if res.n_levels else []
-    dim = model.dim
-    points, cells, offsets = [], [], [0]
+    fields = _Fields(res, levels)
+    return write_vtu_file(path, fields.grid, fields.combined(), res.units, res.model.dim)
+
+
+def vtu_levels(res) -> list:
+    """The levels written to the VTU files by default: the first, middle and last."""
+    return sorted({0, res.n_levels // 2, res.n_levels - 1}) if res.n_levels else []
+
+
+#: Name of the ParaView time series of the levels (:func:`write_series`).
+SERIES_NAME = "fields.pvd"
+
+
+def series_file(k) -> str:
+    """The VTU file of level ``k`` in the time series."""
+    return f"fields_level{k:02d}.vtu"
+
+
+def write_series(res, folder, levels=None, fields=None) -> dict:
+    """Write the levels as a time series ParaView steps through: one VTU file per level
+    (:func:`series_file`, the arrays of :func:`write_vtu` without the level suffix:
+    ``u``, ``u_modal``, ``von_mises``, ``contact_pressure``, ``contact_shear``,
+    ``contact_state``, with ``body``, ``u_preload`` and ``von_mises_preload``) and the
+    collection :data:`SERIES_NAME` (ParaView's PVD format) listing them, the time of
+    each being its level index.
+
+    Returns
+    -------
+    dict
+        name -> path written (``"series"`` the collection, ``"level_KK"`` the files).
+    """
+    folder = Path(folder)
+    fields = _Fields(res, levels) if fields is None else fields
+    paths = {}
+    for k, arrays in fields.levels.items():
+        paths[f"level_{k:02d}"] = write_vtu_file(
+            folder / series_file(k), fields.grid, {**fields.common, **arrays}, res.units,
+            res.model.dim)
+    steps = "\n".join(f'<DataSet timestep="{k}" part="0" file="{series_file(k)}"/>'
+                      for k in fields.levels)
+    atomic_write(folder / SERIES_NAME,
+                 '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n'
+                 f'<Collection>\n{steps}\n</Collection>\n</VTKFile>\n')
+    paths["series"] = folder / SERIES_NAME
+    return paths
+
+
+def write_fields(res, folder, levels=None) -> dict:
+    """fields.vtu (:func:`write_vtu`) and the time series (:func:`write_series`) into
+    ``folder``, each level's fields computed once; name -> path."""
+    fields = _Fields(res, levels)
+    path = write_vtu_file(Path(folder) / "fields.vtu", fields.grid, fields.combined(),
+                          res.units, res.model.dim)
+    return {"vtu": path, **write_series(res, folder, fields=fields)}
+
+
+class _Fields:
+    """The point arrays of a run's VTU files: ``common`` (``body`` and the preload's
+    fields) and per level of ``levels`` its own (:func:`_level_point_data`)."""
+
+    def __init__(self, res, levels=None):
+        self.grid = vtu_grid(res.model)
+        self.common = _preload_point_data(res)
+        self.levels = {k: _level_point_data(res, k, self.grid, self.common["u_preload"])
+                       for k in (vtu_levels(res) if levels is None else levels)}
+
+    def combined(self) -> dict:
+        """Every array in one file, the level's suffixed ``_levelKK``."""
+        out = dict(self.common)
+        for k, arrays in self.levels.items():
+            out.update({f"{name}_level{k:02d}": v for name, v in arrays.items()})
+        return out
+
+
+@dataclass(frozen=True)
+class VtuGrid:
+    """Every body of a model as one unstructured grid: ``points`` ``(n, 3)`` (z = 0 in
+    2D), cell ``blocks`` (``(meshio cell type, cells)`` per body and cell type) and the
+    index of each body's first point ``offsets``."""
+
+    points: np.ndarray
+    blocks: list
+    offsets: list
+
+
+def vtu_grid(model) -> VtuGrid:
+    """The :class:`VtuGrid` of ``model``'s bodies, in their order."""
+    points, blocks, offsets = [], [], [0]
     for b in model.bodies:
         p = b.mesh.points
-        points.append(np.column_stack([p, np.zeros(len(p))]) if dim == 2 else p)
-        cells.append([(c.cell_type, c.cells + offsets[-1]) for c in b.mesh.cell_blocks])
+        points.append(np.column_stack([p, np.zeros(len(p))]) if model.dim == 2 else p)
+        blocks += [(c.cell_type, c.cells + offsets[-1]) for c in b.mesh.cell_blocks]
         offsets.append(offsets[-1] + len(p))
-    pts = np.vstack(points)
-    point_data = {"body": np.concatenate([np.full(b.mesh.n_nodes, k, float)
-                                          for k, b in enumerate(model.bodies)])}
-    pre = _stack_fields(res, None)
-    point_data["u_preload"], point_data["von_mises_preload"] = pre
-    for k in levels:
-        u, vm = _stack_fields(res, k)
-        point_data[f"u_level{k:02d}"] = u
-        point_data[f"u_modal_level{k:02d}"] = u - pre[0]
-        point_data[f"von_mises_level{k:02d}"] = vm
-        for name, v in _interface_point_data(res, k, offsets, len(pts)).items():
-            point_data[f"{name}_level{k:02d}"] = v
-    blocks = [block for body in cells for block in body]  # per body, per cell type
-    with atomic_path(path) as tmp:
-        Path(tmp).write_text(vtu_text(pts, blocks, point_data), encoding="ascii")
+    return VtuGrid(np.vstack(points).astype(float), blocks, offsets)
 
 
-#: VTK cell type numbers of the meshio cell types (the node order of both is VTK's).
-VTK_CELL_TYPES = {"triangle": 5, "quad": 9, "tetra": 10, "hexahedron": 12, "triangle6": 22,
-                  "quad8": 23, "tetra10": 24, "hexahedron20": 25, "quad9": 28,
-                  "hexahedron27": 29}
+#: The quantity (:data:`qsma.units.QUANTITIES`) of each point array of the VTU files,
+#: by name without the level suffix; the others (``body``, ``contact_state``) are
+#: integers without a unit.
+VTU_QUANTITIES = {"u": "length", "u_modal": "length", "u_preload": "length",
+                  "von_mises": "stress", "von_mises_preload": "stress",
+                  "contact_pressure": "stress", "contact_shear": "stress",
+                  "mode": "mode_shape"}
 
 
-def _vtu_array(values, name=None, components=None) -> str:
-    """One ``<DataArray>`` of a VTU file: little-endian values, zlib-compressed as one
-    block, base64-encoded after the VTK header ``[blocks = 1, block size, last block
-    size, compressed size]`` (``UInt64``)."""
-    import base64
-    import zlib
-    kind = {"f": "Float", "i": "Int", "u": "UInt"}[values.dtype.kind]
-    raw = np.ascontiguousarray(values, dtype=values.dtype.newbyteorder("<")).tobytes()
-    packed = zlib.compress(raw, 1)
-    header = np.array([1, len(raw), len(raw), len(packed)], dtype="<u8").tobytes()
-    attrs = f' type="{kind}{8 * values.dtype.itemsize}"'
-    attrs += f' Name="{name}"' if name else ""
-    attrs += f' NumberOfComponents="{components}"' if components else ""
-    data = base64.b64encode(header).decode() + base64.b64encode(packed).decode()
-    return f'<DataArray{attrs} format="binary">{data}</DataArray>'
+def vtu_units(names, units="SI", dim=3) -> dict:
+    """The ``units`` field data of a VTU file: the system, the unit of the points and
+    of each array of ``names`` that has one."""
+    from .units import quantity_unit, unit_system
+    import re
+    out = {"system": unit_system(units).name, "Points": quantity_unit("length", units)}
+    for name in names:
+        base = re.sub(r"_(level)?\d+$", "", name)
+        if base in VTU_QUANTITIES:
+            out[name] = quantity_unit(VTU_QUANTITIES[base], units, dim)
+    return out
 
 
-def vtu_text(points, blocks, point_data) -> str:
-    """A VTK XML unstructured grid (``.vtu``) of ``points`` ``(n, 3)``, cell ``blocks``
-    (``(meshio cell type, cells)``, written in that order) and ``point_data`` (name ->
-    ``(n,)`` or ``(n, k)`` array): binary, zlib-compressed, readable by ParaView and
-    ``meshio.read``."""
-    connectivity = np.concatenate([c.ravel() for _, c in blocks]).astype(np.int64)
-    sizes = np.concatenate([np.full(len(c), c.shape[1]) for _, c in blocks])
-    types = np.concatenate([np.full(len(c), VTK_CELL_TYPES[t]) for t, c in blocks])
-    fields = "\n".join(_vtu_array(np.asarray(v, dtype=float), name,
-                                   None if np.ndim(v) == 1 else np.shape(v)[1])
-                       for name, v in point_data.items())
-    return (
-        '<?xml version="1.0"?>\n<VTKFile type="UnstructuredGrid" version="1.0" '
-        'byte_order="LittleEndian" header_type="UInt64" '
-        'compressor="vtkZLibDataCompressor">\n<UnstructuredGrid>\n'
-        f'<Piece NumberOfPoints="{len(points)}" NumberOfCells="{len(sizes)}">\n'
-        f'<Points>\n{_vtu_array(np.asarray(points, dtype=float), components=3)}\n'
-        '</Points>\n<Cells>\n'
-        f'{_vtu_array(connectivity, "connectivity")}\n'
-        f'{_vtu_array(np.cumsum(sizes).astype(np.int64), "offsets")}\n'
-        f'{_vtu_array(types.astype(np.uint8), "types")}\n</Cells>\n'
-        f'<PointData>\n{fields}\n</PointData>\n</Piece>\n</UnstructuredGrid>\n'
-        '</VTKFile>\n')
+def write_vtu_file(path, grid: VtuGrid, point_data, units="SI", dim=3):
+    """Write ``grid`` with ``point_data`` (name -> ``(n,)`` or ``(n, k)`` array; float
+    or integer) to the VTU file ``path``, atomically, through meshio (binary,
+    zlib-compressed). The units of the arrays travel as the grid's field data
+    ``units``: the UTF-8 bytes of a JSON object ``{"system": ..., "Points": ...,
+    array name: unit}`` (:func:`vtu_units`), readable by ParaView, VTK and
+    ``meshio.read`` alike (``json.loads(bytes(mesh.field_data["units"]))``). meshio
+    reads VTU field data but does not write it, so the block is inserted into its
+    output here."""
+    import meshio
+    mesh = meshio.Mesh(grid.points, [(t, np.asarray(c)) for t, c in grid.blocks],
+                       point_data={k: np.ascontiguousarray(v) for k, v in point_data.items()})
+    text = json.dumps(vtu_units(point_data, units, dim), separators=(",", ":"))
+    with tempfile.TemporaryDirectory(prefix=TMP_PREFIX, dir=Path(path).parent) as tmp:
+        plain = Path(tmp) / "plain.vtu"
+        meshio.write(plain, mesh, file_format="vtu", binary=True, compression="zlib",
+                     header_type="UInt64")
+        with atomic_path(path) as out, open(plain, "rb") as src, open(out, "wb") as dst:
+            _copy_with_field_data(src, dst, "units", text.encode())
+            dst.flush()
+            os.fsync(dst.fileno())
+    return Path(path)
+
+
+#: Bytes of meshio's VTU output read to find the start of the grid (its XML header
+#: and a comment come first).
+_HEAD_BYTES = 4096
+
+
+def _copy_with_field_data(src, dst, name: str, data: bytes):
+    """Copy the VTU file ``src`` to ``dst`` with a ``<FieldData>`` block holding
+    ``data`` as a ``UInt8`` array ``name`` (ASCII format) at the start of its grid."""
+    head = src.read(_HEAD_BYTES)
+    tag = b"<UnstructuredGrid>"
+    at = head.index(tag) + len(tag)
+    values = " ".join(str(b) for b in data).encode()
+    dst.write(head[:at] + b'<FieldData><DataArray type="UInt8" Name="' + name.encode()
+              + b'" NumberOfTuples="' + str(len(data)).encode() + b'" format="ascii">'
+              + values + b"</DataArray></FieldData>" + head[at:])
+    shutil.copyfileobj(src, dst, 1 << 20)
+
+
+def _preload_point_data(res) -> dict:
+    """The arrays every VTU file of a run holds: ``body`` and the preload's fields."""
+    u, vm = _stack_fields(res, None)
+    body = np.concatenate([np.full(b.mesh.n_nodes, k, np.int32)
+                           for k, b in enumerate(res.model.bodies)])
+    return {"body": body, "u_preload": u, "von_mises_preload": vm}
+
+
+def _level_point_data(res, k, grid, u_preload) -> dict:
+    """The arrays of level ``k``: displacement, its modal part (from ``u_preload``), von
+    Mises stress and the interface's pressure, shear and state."""
+    u, vm = _stack_fields(res, k)
+    out = {"u": u, "u_modal": u - u_preload, "von_mises": vm}
+    out.update(_interface_point_data(res, k, grid.offsets, len(grid.points)))
+    return out
 
 
 def _stack_fields(res, k):
@@ -274,12 +398,13 @@ def _stack_fields(res, k):
 
 
 def _interface_point_data(res, k, offsets, n):
-    """Contact pressure [Pa] and shear [Pa] (force over tributary area), state."""
+    """Contact pressure and shear (force over tributary area, the model's stress
+    unit), state (an integer)."""
     p = res.pairing
     lam = res.states.lam[k]
     area = p.area
     out = {"contact_pressure": np.zeros(n), "contact_shear": np.zeros(n),
-           "contact_state": np.full(n, -1.0)}
+           "contact_state": np.full(n, -1, np.int32)}
     # node-to-node: both sides; mortar: the slave nodes
     for i, nodes, rows in contact_sides(res.model, p):
         idx = offsets[i] + nodes
@@ -290,7 +415,7 @@ def _interface_point_data(res, k, offsets, n):
 
 
 def write_all(res, out, plots=True, vtu=True, folder=None, report=None,
-              plot_worker=None):
+              plot_worker=None, amplitude=None):
     """Write every result file of a run as one run into folder ``out``.
 
     The files are written into a private staging folder, listed with their SHA-256 in
@@ -309,6 +434,8 @@ def write_all(res, out, plots=True, vtu=True, folder=None, report=None,
         figures while the other files are written (``None``: drawn here). Its PNG
         bytes are written here; if it fails, the figures are drawn here instead (the
         same files). The caller closes it.
+    amplitude : the amplitude measure the figures are drawn against (a key of
+        :data:`qsma.plots.AMPLITUDES`; default the peak tip deflection)
 
     Returns
     -------
@@ -324,25 +451,24 @@ def write_all(res, out, plots=True, vtu=True, folder=None, report=None,
     """
     if folder is None:
         with RunFolder(out) as folder:
-            return write_all(res, out, plots, vtu, folder, report, plot_worker)
+            return write_all(res, out, plots, vtu, folder, report, plot_worker, amplitude)
     stage = folder.staging
     paths = {"json": stage / "results.json", "csv": stage / "results.csv"}
     draw = plots and res.n_levels > 0
     if draw and plot_worker is not None:
-        plot_worker.submit(res)                 # drawn while the files below are written
+        plot_worker.submit(res, amplitude)      # drawn while the files below are written
     try:
         write_csv(res, paths["csv"])
         if vtu and res.n_levels:
-            paths["vtu"] = stage / "fields.vtu"
-            write_vtu(res, paths["vtu"])
+            paths.update(write_fields(res, stage))
         write_json(res, paths["json"])
         figures = None
         if draw:
-            figures = _write_figures(res, stage, plot_worker)
+            figures = _write_figures(res, stage, plot_worker, amplitude)
             paths.update(figures)
         if plots if report is None else report:
             from .report import REPORT_NAME, write_report
-            paths["report"] = write_report(res, stage / REPORT_NAME, figures)
+            paths["report"] = write_report(res, stage / REPORT_NAME, figures, amplitude)
     except OSError as exc:
         raise write_error(exc, folder.path) from exc
     folder.commit()
@@ -350,7 +476,7 @@ def write_all(res, out, plots=True, vtu=True, folder=None, report=None,
     return {k: folder.path / Path(p).name for k, p in paths.items()}
 
 
-def _write_figures(res, stage, plot_worker=None) -> dict:
+def _write_figures(res, stage, plot_worker=None, amplitude=None) -> dict:
     """The figures of ``res`` written into ``stage``: the PNG bytes of ``plot_worker``
     (:mod:`qsma._plotworker`) if it delivers every figure, else drawn here
     (:func:`qsma.plots.write_plots`, the same files); name -> path."""
@@ -370,4 +496,4 @@ def _write_figures(res, stage, plot_worker=None) -> dict:
             for name, path in paths.items():
                 atomic_write(path, pngs[name], "wb")
             return paths
-    return write_plots(res, stage)
+    return write_plots(res, stage, amplitude)

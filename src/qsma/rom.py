@@ -286,6 +286,16 @@ def fit_jenkins(q, alpha, slip=None, n_elements=JENKINS_ELEMENTS):
     return series, series.alpha(q) / alpha - 1
 
 
+def _rom_units(res) -> dict:
+    """Units of the model's quantities in its unit system (:mod:`qsma.units`)."""
+    from .units import quantity_unit
+    unit = lambda q: quantity_unit(q, res.units, res.model.dim)
+    return {"system": res.units.name, "q": unit("modal_amplitude"),
+            "alpha": unit("modal_force"), "F_S": unit("modal_force"),
+            "K_T": f"{res.units.time}^-2", "phi_max": unit("modal_amplitude"),
+            "dissipation": unit("energy")}
+
+
 def rom_dict(res, fit: IwanFit) -> dict:
     """The content of rom.json for a :class:`qsma.result.QSMAResult` and its fit."""
     from .results import _clean
@@ -302,8 +312,7 @@ def rom_dict(res, fit: IwanFit) -> dict:
         "model": res.model_info["name"],
         "mode": {"index": res.mode_index, "omega0": res.omega0, "f0_hz": res.f0_hz,
                  "phi_tip": res.phi_tip},
-        "units": {"q": "kg^0.5 m", "alpha": "N kg^-0.5", "F_S": "N kg^-0.5",
-                  "K_T": "s^-2", "phi_max": "kg^0.5 m", "dissipation": "J"},
+        "units": _rom_units(res),
         "iwan": {**m.element.as_dict(), "k_inf": m.k_inf},
         "fit": {"success": fit.success, "message": fit.message,
                 "objective": "least squares of (alpha_fit - alpha) / alpha over the levels",

@@ -1,4 +1,5 @@
-"""Command line: ``qsma run``, ``modes``, ``sweep`` and ``fit``. The only place that prints.
+"""Command line: ``qsma run``, ``modes``, ``sweep``, ``fit`` and ``init``. The only place
+that prints.
 
 Exit codes: 0 success, 1 analysis failed (or results could not be written), 2 bad
 input (including an output folder in use by another run), 130 interrupted
@@ -17,13 +18,14 @@ import warnings
 
 from ..errors import (AnalysisError, ContactConvergenceWarning, InputError, QSMAError,
                       QSMAWarning)
-from . import fit as _fit, modes as _modes, run as _run, sweep as _sweep
+from . import fit as _fit, init as _init, modes as _modes, run as _run, sweep as _sweep
+from .progress import LOG_LEVELS, LogSetup
 
 EXIT_OK, EXIT_FAILED, EXIT_INPUT = 0, 1, 2
 #: 128 + SIGINT, the shell convention for a command stopped by Ctrl-C; also used for
 #: SIGTERM so that scripts see one code for "interrupted"
 EXIT_INTERRUPTED = 130
-SUBCOMMANDS = {"run": _run, "modes": _modes, "sweep": _sweep, "fit": _fit}
+SUBCOMMANDS = {"run": _run, "modes": _modes, "sweep": _sweep, "fit": _fit, "init": _init}
 
 
 def build_parser():
@@ -39,6 +41,11 @@ def build_parser():
         module.add_arguments(p)
         p.add_argument("--debug", action="store_true",
                        help="show Python tracebacks of errors")
+        p.add_argument("--log-level", choices=LOG_LEVELS, default="warning",
+                       help="qsma's log messages shown on stderr from this level on "
+                            "(default warning; info: refinements, fallbacks, the "
+                            "processes used); a run also writes them to qsma.log in "
+                            "its result folder (info and above)")
     return parser
 
 
@@ -137,6 +144,7 @@ def _main(argv):
     except SystemExit as exc:           # argparse: usage error (2) or --help/--version (0)
         return int(exc.code or 0)
     _Process.command = args.command
+    args.log = LogSetup(args.log_level)
     try:
         with warnings.catch_warnings(record=True) as seen:
             warnings.simplefilter("ignore", ContactConvergenceWarning)  # reported by the CLI
@@ -152,6 +160,8 @@ def _main(argv):
         if _Interrupt.signum is not None:   # the signal surfaced as another exception
             return _interrupted()
         return _exit_code(args, exc)
+    finally:
+        args.log.close()
 
 
 def _print_warnings(seen):

@@ -6,7 +6,8 @@ import sys
 import numpy as np
 
 from ..errors import InputError
-from .common import add_model_arguments, load_model
+from .common import add_amplitude_argument, add_model_arguments, is_deck, load_model
+from .progress import LOG_NAME
 
 HELP = "quasi-static modal analysis: backbone, frequency and damping versus amplitude"
 #: RunOptions fields that have a command-line flag of the same name.
@@ -30,8 +31,9 @@ def add_arguments(p):
     p.add_argument("--tol", type=float, help="contact solver tolerance")
     p.add_argument("--levels", metavar="SPEC",
                    help="load levels KIND:log|linear:START:STOP:N or KIND:list:V1,V2,...; "
-                        "KIND is tip (linear tied tip deflection [m]) or alpha (modal "
-                        "force), e.g. tip:log:1e-6:1e-3:51 (the default)")
+                        "KIND is tip (linear tied tip deflection, in the model's length "
+                        "unit) or alpha (modal force), e.g. tip:log:1e-6:1e-3:51 (the "
+                        "default in SI: 1 um to 1 mm; 1e-3 to 1 in a mm-N-s-tonne model)")
     p.add_argument("--maxiter", type=int, help="contact solver iteration cap")
     p.add_argument("--dissipation", choices=["auto", "masing", "loop"],
                    help="dissipation per cycle: Masing's rules where verified and the "
@@ -45,6 +47,7 @@ def add_arguments(p):
     p.add_argument("--continue", dest="continue_on_failure", action="store_true",
                    default=None, help="keep going after a level that does not converge")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    add_amplitude_argument(p)
     p.add_argument("--no-vtu", action="store_true", help="skip the VTU fields")
     g = p.add_mutually_exclusive_group()
     g.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
@@ -53,6 +56,12 @@ def add_arguments(p):
 
 def execute(args) -> int:
     from ..rundir import RunFolder
+    if args.modes is None and args.mode is None and args.config is not None \
+            and not is_deck(args.config):
+        from ..config import config_modes
+        modes = config_modes(args.config)          # [analysis] modes = [...]
+        if modes is not None:
+            args.modes = ",".join(map(str, modes))
     if args.modes is not None:
         from .modes import execute_modes
         return execute_modes(args)
@@ -92,12 +101,16 @@ def _run_into(args, folder, worker=None):
     options = options.replace(**{key: getattr(args, key) for key in CLI_OPTIONS},
                               levels=None if args.levels is None
                               else parse_levels_spec(args.levels))
-    progress = None if args.quiet or not sys.stderr.isatty() else _bar
-    res = run(model, options, progress=progress)
-    if progress:
-        print(file=sys.stderr)
+    log = getattr(args, "log", None)
+    if log is not None:
+        log.to_file(folder.staging / LOG_NAME)
+    try:
+        res = _with_progress(args, log, lambda bars: run(model, options, progress=bars))
+    finally:
+        if log is not None:
+            log.close_file()            # complete before the manifest lists it
     paths = write_all(res, folder.path, plots=not args.no_plots, vtu=not args.no_vtu,
-                      folder=folder, plot_worker=worker)
+                      folder=folder, plot_worker=worker, amplitude=args.amplitude)
     return res, paths, options
 
 
@@ -173,17 +186,28 @@ def _warn_flags(res):
               file=sys.stderr)
 
 
-def _bar(k, n, width=40, label="load levels"):
-    """A progress bar on stderr (the line is rewritten in place)."""
-    done = int(width * k / n) if n else width
-    print(f"\r  {label} [{'#' * done}{'.' * (width - done)}] {k}/{n}", end="",
-          file=sys.stderr, flush=True)
+def _with_progress(args, log, call):
+    """``call(bars)`` with the run's progress bars on stderr (:class:`RunBars`; ``None``
+    with ``--quiet`` or when stderr is not a terminal), the log messages printed above
+    them while they are shown."""
+    if args.quiet or not sys.stderr.isatty():
+        return call(None)
+    from .progress import RunBars
+    with RunBars() as bars:
+        if log is not None:
+            log.console_handler.console = bars.console
+        try:
+            return call(bars)
+        finally:
+            if log is not None:
+                log.console_handler.console = None
 
 
 def _summary(res, paths, verbose):
     info = res.model_info
+    u = res.units
     print(f"{info['name']}: {info['n_nodes']} nodes, {info['n_pairs']} interface pairs "
-          f"({info['coupling']} coupling), mu = {info['mu']}")
+          f"({info['coupling']} coupling), mu = {info['mu']}, units {u.name}")
     for body, element in info["elements"].items():
         print(f"  {body}: {element}")
     print(f"mode {res.mode_index}: f0 = {res.f0_hz:.3f} Hz; {res.n_levels} load levels, "
@@ -192,7 +216,8 @@ def _summary(res, paths, verbose):
     print(f"dissipation: {res.n_levels - n_loop} level(s) by Masing's rules, {n_loop} by "
           f"computed loops ({res.options.dissipation})")
     if verbose:
-        print(f"{'k':>3} {'alpha':>11} {'tip [m]':>10} {'f [Hz]':>9} {'zeta':>10} "
+        tip = f"tip [{u.length}]"
+        print(f"{'k':>3} {'alpha':>11} {tip:>10} {'f [Hz]':>9} {'zeta':>10} "
               f"{'stuck':>5} {'slip':>5} {'open':>5} {'it':>4}")
         for k in range(res.n_levels):
             print(f"{k:3d} {res.alpha[k]:11.4e} {res.tip[k]:10.3e} {res.f_hz[k]:9.3f} "
@@ -200,7 +225,7 @@ def _summary(res, paths, verbose):
                   f"{res.n_open[k]:5d} {res.iterations[k]:4d}")
     if res.n_levels:
         print(f"last level: f = {res.f_hz[-1]:.3f} Hz, zeta = {res.zeta[-1]:.4e}, "
-              f"tip = {res.tip[-1]:.3e} m")
+              f"tip = {res.tip[-1]:.3e} {u.length}")
     dl = res.direct_loop
     if dl is not None and dl.success:
         print(f"direct loop dissipation {dl.dissipation:.4e} vs Masing "

@@ -4,7 +4,7 @@ from __future__ import annotations
 import sys
 
 from ..errors import InputError
-from .common import add_model_arguments, load_model
+from .common import add_amplitude_argument, add_model_arguments, load_model
 
 HELP = ("parameter study: QSMA over a grid of friction, preload scale, materials, mode "
         "or levels, sharing assembly and condensation; cases run on Dask")
@@ -34,6 +34,7 @@ def add_arguments(p):
                    help="per-case files besides results.json/csv: plots, vtu, rom "
                         "(rom.json: a fitted modal Iwan model), report (report.html)")
     p.add_argument("--no-plots", action="store_true", help="skip the study figures")
+    add_amplitude_argument(p)
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
 
 
@@ -70,11 +71,15 @@ def execute(args) -> int:
                               else parse_levels_spec(args.levels))
     workers = args.workers
     scheduler = args.scheduler or ("serial" if workers == 0 else None)
-    progress = None if args.quiet or not sys.stderr.isatty() else _bar
-    res = sweep(model, vary, options, out=args.out, scheduler=scheduler, workers=workers,
-                files=files, plots=not args.no_plots, progress=progress)
-    if progress:
-        print(file=sys.stderr)
+    call = lambda progress: sweep(model, vary, options, out=args.out, scheduler=scheduler,
+                                  workers=workers, files=files, plots=not args.no_plots,
+                                  progress=progress, amplitude=args.amplitude)
+    if args.quiet or not sys.stderr.isatty():
+        res = call(None)
+    else:
+        from .progress import CountBar
+        with CountBar("qsma: cases") as bar:
+            res = call(bar)
     if not args.quiet:
         print(f"{len(res.cases)} cases over {', '.join(res.parameters)} "
               f"({res.n_skipped} already done); {res.timings_s['total']:.1f} s")
@@ -84,7 +89,3 @@ def execute(args) -> int:
         return 1
     return 0
 
-
-def _bar(k, n):
-    from .run import _bar as bar
-    bar(k, n, label="cases")

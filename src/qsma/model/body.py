@@ -8,7 +8,8 @@ import warnings
 import numpy as np
 
 from ..errors import InputError, NearlyIncompressibleWarning
-from .mesh import Mesh
+from .damping import LinearDamping
+from .mesh import CELL_FACETS, Mesh
 
 #: Poisson's ratio above which the displacement elements of qsma lock. Measured with
 #: linear_modes on sandwich-2d, f0 at refine 1 against refine 4: the discretisation
@@ -27,7 +28,8 @@ def _finite(name, value):
 
 @dataclass(frozen=True)
 class Material:
-    """Isotropic linear elastic material (SI units).
+    """Isotropic linear elastic material, in the model's unit system (``Model.units``:
+    E in Pa and rho in kg/m^3 in SI, MPa and t/mm^3 in mm-N-s-tonne).
 
     Plane strain is used in 2D (unit out-of-plane depth).
     """
@@ -74,8 +76,9 @@ class Clamp:
 
 @dataclass(frozen=True)
 class Pressure:
-    """Pressure ``p`` (Pa, positive pushes into the body) on a facet set, part of the
-    load pattern named ``load`` (the bolt preload is ``"preload"``)."""
+    """Pressure ``p`` (the model's stress unit, positive pushes into the body) on a
+    facet set, part of the load pattern named ``load`` (the bolt preload is
+    ``"preload"``)."""
 
     set: str
     p: float
@@ -85,10 +88,30 @@ class Pressure:
         object.__setattr__(self, "p", _finite(f"pressure on {self.set!r}", self.p))
 
 
+@dataclass(frozen=True)
+class NodalForce:
+    """Force ``force`` (N; N per metre of depth in 2D, one component per direction) on
+    every node of a node or facet set, as an Abaqus / CalculiX ``*CLOAD`` applies it;
+    part of the load pattern named ``load``."""
+
+    set: str
+    force: tuple
+    load: str = "preload"
+
+    def __post_init__(self):
+        f = self.force
+        if isinstance(f, (str, bytes)) or not hasattr(f, "__len__"):
+            raise InputError(f"force on {self.set!r}: force must be a list of one value "
+                             f"per direction (N), got {f!r}")
+        object.__setattr__(self, "force", tuple(_finite(f"force on {self.set!r}", v)
+                                                for v in f))
+
+
 @dataclass(frozen=True, eq=False)
 class Body:
-    """One elastic body: mesh, material, clamps, pressure loads and grounded springs
-    (:class:`qsma.model.spring.Spring`)."""
+    """One elastic body: mesh, material, clamps, pressure loads, grounded springs
+    (:class:`qsma.model.spring.Spring`), point masses
+    (:class:`qsma.model.mass.PointMass`) and nodal forces (:class:`NodalForce`)."""
 
     name: str
     mesh: Mesh
@@ -96,13 +119,16 @@ class Body:
     clamps: tuple = ()
     pressures: tuple = ()
     springs: tuple = ()
+    masses: tuple = ()
+    forces: tuple = ()
 
     def __post_init__(self):
-        object.__setattr__(self, "clamps", tuple(self.clamps))
-        object.__setattr__(self, "pressures", tuple(self.pressures))
-        object.__setattr__(self, "springs", tuple(self.springs))
+        for name in ("clamps", "pressures", "springs", "masses", "forces"):
+            object.__setattr__(self, name, tuple(getattr(self, name)))
         from .spring import check_springs
+        from .mass import check_masses
         check_springs(self)
+        check_masses(self)
         names = self.mesh.set_names()
         for c in self.clamps:
             if c.set not in names:
@@ -121,9 +147,15 @@ class Body:
                                  f"{c.components!r}")
         for p in self.pressures:
             if p.set not in self.mesh.facet_sets:
-                raise InputError(f"body {self.name!r}: pressure on unknown facet set "
-                                 f"{p.set!r}; available facet sets: "
-                                 f"{sorted(self.mesh.facet_sets)}")
+                raise InputError(f"body {self.name!r}: pressure on {p.set!r}, "
+                                 f"{_not_a_facet_set(self.mesh, p.set)}")
+        for f in self.forces:
+            if f.set not in names:
+                raise InputError(f"body {self.name!r}: force on unknown set {f.set!r}; "
+                                 f"available sets: {names}")
+            if len(f.force) != self.mesh.dim:
+                raise InputError(f"body {self.name!r}: force on {f.set!r} needs "
+                                 f"{self.mesh.dim} components, got {list(f.force)!r}")
 
     @property
     def dim(self):
@@ -143,7 +175,23 @@ class Body:
             else np.zeros(0, dtype=np.int64)
 
     def load_names(self):
-        return sorted({p.load for p in self.pressures})
+        return sorted({p.load for p in self.pressures} | {f.load for f in self.forces})
+
+
+def _not_a_facet_set(mesh, name) -> str:
+    """Why ``name`` cannot carry a pressure and what to name instead."""
+    facets = f"available facet sets: {sorted(mesh.facet_sets)}"
+    faces = ("a facet set: in an .inp file a *SURFACE, TYPE=ELEMENT of the loaded faces "
+             f"(rows 'element set, S1'..'S{len(CELL_FACETS[mesh.cell_type])}'), in a Gmsh "
+             f"file a physical group of dimension {mesh.dim - 1}")
+    if name in mesh.cell_sets:
+        return (f"which is a cell set (elements, e.g. the set of an Abaqus *DLOAD), not a "
+                f"facet set: a pressure acts on element faces. Name {faces}; {facets}")
+    if name in mesh.node_sets:
+        return (f"which is a node set, not a facet set: a pressure acts on element faces "
+                f"(loads on nodes, as an Abaqus *CLOAD, are forces: forces = [{{ set = "
+                f"{name!r}, force = [...] }}]). Name {faces}; {facets}")
+    return f"an unknown facet set; {facets}"
 
 
 @dataclass(frozen=True)
@@ -163,7 +211,12 @@ class Model:
     ``interfaces`` (``interface`` then stays ``None``); :attr:`interface_list` is the
     tuple of interfaces either way. ``mu`` is the friction coefficient of every
     interface that sets none of its own (``Interface.mu``). ``tip`` is the probe
-    reported as tip deflection and used to scale load levels.
+    reported as tip deflection and used to scale load levels. ``units`` names the
+    unit system every number of the model is written in (:data:`qsma.units.UNIT_SYSTEMS`:
+    ``"SI"``, the default, or ``"mm-N-s-tonne"``); nothing is converted, the name
+    labels the results. ``damping``: the linear damping of the structure besides the
+    joint (:class:`qsma.model.LinearDamping`), reported beside the joint's and added to
+    it.
     """
 
     bodies: tuple
@@ -174,6 +227,8 @@ class Model:
     extra: dict = field(default_factory=dict)
     interfaces: tuple = ()
     bolts: tuple = ()                 # qsma.model.bolt.Bolt, pretensioned then locked
+    units: str = "SI"
+    damping: "LinearDamping | None" = None   # of the structure besides the joint
 
     def __post_init__(self):
         object.__setattr__(self, "bodies", tuple(self.bodies))
@@ -191,6 +246,8 @@ class Model:
         if mu < 0:
             raise InputError(f"friction coefficient mu must be >= 0, got {mu}")
         object.__setattr__(self, "mu", mu)
+        from ..units import unit_system
+        object.__setattr__(self, "units", unit_system(self.units).name)
         if self.interface is not None and self.interfaces:
             raise InputError("give either interface (two bodies) or interfaces (a list), "
                              "not both")
@@ -204,6 +261,9 @@ class Model:
         if self.tip is not None:
             self._check_probe(self.tip)
         self._check_bolts(names)
+        if self.damping is not None and not isinstance(self.damping, LinearDamping):
+            raise InputError(f"damping must be a qsma.model.LinearDamping, got "
+                             f"{type(self.damping).__name__}")
 
     def _check_bolts(self, names):
         """Bolt ends on bodies of the model, unique bolt names."""

@@ -78,7 +78,7 @@ DIFF_STEP = 3e-3
 class Measured:
     """Measured amplitude-dependent frequency and damping (arrays of equal length;
     NaN where a value is missing). ``amplitude`` in SI units, of ``kind`` ``tip`` or
-    ``q``."""
+    ``q`` (:func:`fit` compares them in the model's units, :func:`in_model_units`)."""
 
     kind: str
     amplitude: np.ndarray
@@ -166,6 +166,17 @@ def read_measured(path) -> Measured:
                  np.asarray(cols.get("f_hz", nan), float),
                  np.asarray(cols.get("zeta", nan), float), str(path))
     return check_measured(m)
+
+
+def in_model_units(m: Measured, units) -> Measured:
+    """``m`` (amplitudes in SI) with its amplitudes in the model's unit system, where
+    they are compared with the computed ones: a tip deflection of 1e-4 m is 0.1 in a
+    millimetre model, a modal amplitude (kg^0.5 m) is divided by sqrt(t/kg) mm/m."""
+    from dataclasses import replace
+    from ..units import unit_system
+    u = unit_system(units)
+    scale = u.length_m * (1.0 if m.kind == "tip" else np.sqrt(u.mass_kg))
+    return m if scale == 1.0 else replace(m, amplitude=np.asarray(m.amplitude) / scale)
 
 
 def _number(cell, path, row, column):
@@ -369,6 +380,7 @@ def fit(model_or_config, measured, params, options: RunOptions | None = None, *,
         model = model_or_config
     measured = read_measured(measured) if not isinstance(measured, Measured) \
         else check_measured(measured)
+    measured = in_model_units(measured, model.units)
     names = tuple(params.split(",") if isinstance(params, str) else params)
     _check_names(names)
     _check_bodies([Case(0, tuple((n, 1.0) for n in names if n != "mu"))], model)
@@ -518,7 +530,10 @@ def write_fit(fr: FitResult, out, start_prediction=None) -> FitResult:
     paths = {"json": out / "fit.json", "csv": out / "fit.csv"}
     atomic_write(paths["json"], json.dumps(fit_dict(fr), indent=1) + "\n")
     m = fr.measured
-    lines = [f"{m.kind},f_hz,zeta,f_hz_fit,zeta_fit"]
+    from ..units import column_label, level_units
+    unit = level_units(fr.result.units, fr.result.model.dim)
+    lines = [",".join(column_label(c, unit[c]) for c in (m.kind, "f_hz", "zeta"))
+             + ",f_hz_fit [Hz],zeta_fit [-]"]
     for k in range(m.amplitude.size):
         vals = (m.amplitude[k], m.f_hz[k], m.zeta[k], fr.predicted["f_hz"][k],
                 fr.predicted["zeta"][k])

@@ -65,24 +65,15 @@ def write_modes_vtu(model, modes, path):
     modes : :class:`qsma.modal.Modes` (mass-normalised shapes over the stacked DOFs)
     path : output file (the frequencies are in modes.json)
     """
-    from ..results import vtu_text
-    from ..rundir import atomic_path
+    from ..results import vtu_grid, write_vtu_file
     dim = model.dim
-    points, blocks, offset = [], [], 0
-    for b in model.bodies:
-        p = b.mesh.points
-        points.append(np.column_stack([p, np.zeros(len(p))]) if dim == 2 else p)
-        blocks.append((b.mesh.cell_type, b.mesh.cells + offset))
-        offset += len(p)
-    point_data = {"body": np.concatenate([np.full(b.mesh.n_nodes, k, float)
+    point_data = {"body": np.concatenate([np.full(b.mesh.n_nodes, k, np.int32)
                                           for k, b in enumerate(model.bodies)])}
     for k in range(modes.shapes.shape[1]):
         u = modes.shapes[:, k].reshape(-1, dim)
         point_data[f"mode_{k:02d}"] = np.column_stack([u, np.zeros(len(u))]) \
             if dim == 2 else u
-    with atomic_path(path) as tmp:
-        Path(tmp).write_text(vtu_text(np.vstack(points), blocks, point_data),
-                             encoding="ascii")
+    write_vtu_file(path, vtu_grid(model), point_data, model.units, dim)
     return Path(path)
 
 

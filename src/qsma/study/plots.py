@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from ..plots import _figure, _save
+from ..units import quantity_unit
 
 
 def _cases(table):
@@ -18,9 +19,13 @@ def _cases(table):
     return out
 
 
-def plot_parameter(table, parameter, others, path):
-    """Secant frequency and damping ratio versus peak tip deflection, a curve per case,
-    coloured by the value of ``parameter`` (the other parameters in the label)."""
+def plot_parameter(table, parameter, others, path, units="SI", dim=3, amplitude=None):
+    """Secant frequency and damping ratio versus the amplitude, a curve per case,
+    coloured by the value of ``parameter`` (the other parameters in the label), in
+    the model's ``units``. ``amplitude``: the measure of a run's figures
+    (:data:`qsma.plots.AMPLITUDES`, default the peak tip deflection)."""
+    from ..plots import AMPLITUDES, DEFAULT_AMPLITUDE, check_amplitude
+    field, text, quantity = AMPLITUDES[check_amplitude(amplitude or DEFAULT_AMPLITUDE)]
     from matplotlib import colormaps
     fig, (a1, a2) = _figure(2, 1, figsize=(6.5, 7), sharex=True)
     rows = _cases(table)
@@ -29,19 +34,20 @@ def plot_parameter(table, parameter, others, path):
     for c, r in rows.items():
         v = table[parameter][r[0]]
         colour = cmap(values.index(v) / max(len(values) - 1, 1))
-        tip = np.abs(np.array([table["tip"][i] for i in r], float))
+        amp = np.abs(np.array([np.nan if table[field][i] is None else table[field][i]
+                               for i in r], float))
         f = np.array([table["f_hz"][i] for i in r], float)
         z = np.array([table["zeta"][i] for i in r], float)
         label = f"{parameter} = {v:.4g}" if isinstance(v, float) else f"{parameter} = {v}"
         rest = ", ".join(f"{o} = {table[o][r[0]]:.3g}" if isinstance(table[o][r[0]], float)
                          else f"{o} = {table[o][r[0]]}" for o in others)
-        a1.semilogx(tip, f, "-", color=colour, lw=1.2, label=label + (f" ({rest})" if rest
+        a1.semilogx(amp, f, "-", color=colour, lw=1.2, label=label + (f" ({rest})" if rest
                                                                        else ""))
-        a2.semilogx(tip, z, "-", color=colour, lw=1.2)
+        a2.semilogx(amp, z, "-", color=colour, lw=1.2)
     a1.set_ylabel("secant frequency [Hz]")
-    a2.set_ylabel(r"damping ratio $\zeta$")
+    a2.set_ylabel("damping ratio \u03b6 [-]")
     a2.set_yscale("symlog", linthresh=1e-6)   # zero and round-off stay visible (plots.py)
-    a2.set_xlabel("peak tip deflection [m]")
+    a2.set_xlabel(f"{text} [{quantity_unit(quantity, units, dim, pretty=True)}]")
     a1.set_title(f"Study over {parameter}")
     for a in (a1, a2):
         a.grid(True, alpha=0.3)
@@ -50,7 +56,7 @@ def plot_parameter(table, parameter, others, path):
     return _save(fig, path)
 
 
-def plot_study(table, parameters, out) -> dict:
+def plot_study(table, parameters, out, units="SI", dim=3, amplitude=None) -> dict:
     """One figure per varied parameter: ``sweep_<parameter>.png`` in ``out``."""
     paths = {}
     if not _cases(table):
@@ -58,7 +64,8 @@ def plot_study(table, parameters, out) -> dict:
     for p in parameters:
         others = [o for o in parameters if o != p]
         safe = p.replace(":", "_")
-        paths[f"plot_{p}"] = plot_parameter(table, p, others, Path(out) / f"sweep_{safe}.png")
+        paths[f"plot_{p}"] = plot_parameter(table, p, others, Path(out) / f"sweep_{safe}.png",
+                                            units, dim, amplitude)
     return paths
 
 
@@ -80,8 +87,10 @@ def plot_fit(fr, path, start_prediction=None):
     a2.loglog(m.amplitude, m.zeta, "ko", ms=4, mfc="none")
     a1.set_ylabel("secant frequency [Hz]")
     a2.set_ylabel(r"damping ratio $\zeta$")
-    a2.set_xlabel("peak tip deflection [m]" if m.kind == "tip"
-                  else "peak modal amplitude q [kg$^{1/2}$ m]")
+    unit = quantity_unit("length" if m.kind == "tip" else "modal_amplitude", res.units,
+                         res.model.dim, pretty=True)
+    a2.set_xlabel(f"peak tip deflection [{unit}]" if m.kind == "tip"
+                  else f"peak modal amplitude q [{unit}]")
     lo, hi = m.amplitude.min(), m.amplitude.max()
     a2.set_xlim(lo / 2, hi * 2)
     z = m.zeta[np.isfinite(m.zeta)]

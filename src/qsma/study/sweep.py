@@ -417,7 +417,7 @@ def _roundtrip(x):
 
 def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out,
           scheduler=None, workers: int | None = None, files=(), plots=True,
-          progress=None) -> SweepResult:
+          progress=None, amplitude=None) -> SweepResult:
     """Run a parameter study: every case of the grid ``vary``, sharing the work the
     cases have in common (module docstring), on Dask or serially.
 
@@ -448,6 +448,9 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
         study's report.html is written in any case.
     progress : callable, optional
         ``progress(done, total)`` after each case (skipped ones included).
+    amplitude : str, optional
+        The amplitude measure of the study figures (:data:`qsma.plots.AMPLITUDES`,
+        default the peak tip deflection, as a run's figures).
 
     Returns
     -------
@@ -468,6 +471,9 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
     if workers is None:
         from .._threads import usable_cores
         workers = min(DEFAULT_WORKERS, usable_cores())
+    if amplitude is not None:
+        from ..plots import check_amplitude
+        check_amplitude(amplitude)
     if not (isinstance(workers, int) and workers >= 0):
         raise InputError(f"workers must be an integer >= 0, got {workers!r}")
     _check_workers(workers, scheduler)
@@ -476,11 +482,11 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
     _check_scheduler(scheduler)
     with StudyFolder(out, allowed=_in_study) as folder:   # locked before computing
         return _study(folder, model, vary, options, cases, scheduler, workers, files,
-                      plots, progress, t0)
+                      plots, progress, t0, amplitude)
 
 
 def _study(folder, model, vary, options, cases, scheduler, workers, files, plots, progress,
-           t0) -> SweepResult:
+           t0, amplitude=None) -> SweepResult:
     """:func:`sweep` in its entered :class:`qsma.rundir.StudyFolder` (manifest written
     when every case is done)."""
     from ..results import atomic_write
@@ -516,11 +522,12 @@ def _study(folder, model, vary, options, cases, scheduler, workers, files, plots
             progress(len(outcomes), n_total)
     ordered = tuple(outcomes[c.index] for c in cases)
     table = study_table(cases, ordered, out)
-    paths = write_table(table, out)
+    paths = write_table(table, out, units=model.units, dim=model.dim)
     figures = {}
     if plots:
         from .plots import plot_study
-        figures = plot_study(table, list(vary), out)
+        figures = plot_study(table, list(vary), out, units=model.units, dim=model.dim,
+                             amplitude=amplitude)
         paths.update(figures)
     from ..report import REPORT_NAME, write_study_report
     paths["report"] = write_study_report(list(vary), ordered, table,
@@ -829,13 +836,17 @@ def study_table(cases, outcomes, out) -> dict:
     return cols
 
 
-def write_table(table, out) -> dict:
-    """Write the study table as CSV (always) and Parquet (when pyarrow is installed)."""
+def write_table(table, out, units="SI", dim=3) -> dict:
+    """Write the study table as CSV (always) and Parquet (when pyarrow is installed);
+    the CSV header names the units of the level columns in the model's system
+    (``tip [m]``, as results.csv)."""
     from ..results import atomic_path, atomic_write, _csv_cell
+    from ..units import column_label, level_units
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     names = list(table)
-    w.writerow(names)
+    unit = level_units(units, dim)
+    w.writerow([column_label(c, unit.get(c)) for c in names])
     n = len(table[names[0]]) if names else 0
     for i in range(n):
         w.writerow([_csv_cell(table[c][i]) for c in names])
@@ -855,10 +866,12 @@ def write_table(table, out) -> dict:
 
 
 def read_table(path) -> dict:
-    """The study CSV as column name -> list of strings (empty cells as '')."""
+    """The study CSV as column name (its unit left out: ``tip [m]`` -> ``tip``) -> list
+    of strings (empty cells as '')."""
+    from ..results import column_name
     with open(path, newline="") as f:
         rows = list(csv.reader(f))
-    return {name: [r[i] for r in rows[1:]] for i, name in enumerate(rows[0])}
+    return {column_name(name): [r[i] for r in rows[1:]] for i, name in enumerate(rows[0])}
 
 
 __all__ = ["sweep", "grid", "parse_values", "Case", "CaseOutcome", "SweepResult",
