@@ -279,14 +279,14 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
     ...                    base=Path("examples"))                     # doctest: +SKIP
     """
     _check(data, "", where)
-    if not data["bodies"]:
-        raise InputError(f"{where}: bodies is empty; describe each body as a [[bodies]] "
-                         f"table (name, mesh, E, nu, rho, clamps, pressures)")
     units = data.get("units", "SI")
     try:
         unit_system(units)
     except InputError as exc:
         raise InputError(f"{where}: units: {exc}") from None
+    if not data["bodies"]:
+        raise InputError(f"{where}: bodies is empty; describe each body as a [[bodies]] "
+                         f"table (name, mesh, E, nu, rho, clamps, pressures)")
     bodies = []
     files = {}
     for k, b in enumerate(data["bodies"]):
