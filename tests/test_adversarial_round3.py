@@ -6,6 +6,7 @@ inconsistent, an internal error, or a bad input refused only after computing.
 """
 from dataclasses import replace
 from pathlib import Path
+import re
 
 import numpy as np
 import pytest
@@ -13,7 +14,7 @@ import pytest
 import qsma
 from qsma.cli import main
 from qsma.config import load_config
-from qsma.errors import AnalysisError
+from qsma.errors import AnalysisError, InputError
 from qsma.examples import stack_2d
 from qsma.model import Pressure
 from qsma.rundir import verify_run_folder
@@ -279,7 +280,6 @@ def test_a_slow_shakedown_of_a_tetrahedral_lap_joint_is_followed_to_its_end():
 def test_a_loop_stopped_by_max_cycles_says_which_max_cycles_would_do():
     """The run's message names the flag, its levels and what to change, the loop's own
     message with the max_cycles it needs."""
-    import re
     res = qsma.run(_tetrahedral_lap_3d(), levels=qsma.Levels("tip", FIRST_TIPS),
                    max_cycles=4)
     assert not res.success
@@ -478,3 +478,177 @@ def test_a_clamp_of_no_component_is_refused(tmp_path, capsys):
     assert "components = []" in config.read_text()
     assert main(["run", str(config), "--out", str(tmp_path / "out"), "--quiet"]) == 2
     assert "the clamp on 'clamp' holds no component" in capsys.readouterr().err
+
+
+def test_a_scheduler_that_is_no_address_is_refused_before_the_study(tmp_path, capsys,
+                                                                      monkeypatch):
+    """--scheduler notanaddress was an internal error, after the study folder was made."""
+    _no_case_computed(monkeypatch)
+    assert main(["sweep", "--example", "sandwich-2d", "--vary", "mu=0.5", "--scheduler",
+                 "notanaddress", "--quiet", "--out", str(tmp_path / "s")]) == 2
+    assert "is not a Dask scheduler address" in capsys.readouterr().err
+    assert not (tmp_path / "s").exists()
+
+
+@pytest.mark.parametrize("vary", [["mu=0.1:0.9:10000000000"],
+                                  ["mu=0.1:0.9:100000", "preload=0.5:1.5:100000"]],
+                         ids=["1e10 values", "1e10-case grid"])
+def test_a_study_too_large_to_hold_is_refused_before_allocating(tmp_path, capsys,
+                                                                monkeypatch, vary):
+    """10^10 values of one parameter (74.5 GiB asked) or a grid of 10^10 cases
+    (MemoryError): refused from the count, before the values or cases are made."""
+    import tracemalloc
+    _no_case_computed(monkeypatch)
+    argv = ["sweep", "--example", "sandwich-2d", "--quiet", "--out", str(tmp_path / "s")]
+    for v in vary:
+        argv += ["--vary", v]
+    tracemalloc.start()
+    try:
+        assert main(argv) == 2
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 200 * 2**20                      # nothing of the cases was made
+    assert "10000000000 cases, but this machine's free memory holds" in \
+        capsys.readouterr().err
+
+
+def test_max_cases_follows_the_free_memory(monkeypatch):
+    """The limit is the cases whose records fit in half the free memory."""
+    import qsma._resources as resources
+    from qsma.study.sweep import CASE_BYTES, LEVEL_BYTES, max_cases
+    monkeypatch.setattr(resources, "free_memory", lambda: 2**30)
+    assert max_cases(51) == int(0.5 * 2**30 // (CASE_BYTES + 51 * LEVEL_BYTES))
+    monkeypatch.setattr(resources, "free_memory", lambda: None)
+    assert max_cases(51) == 100_000
+
+
+@pytest.mark.parametrize("example, most", [("sandwich-2d", 9), ("sandwich-3d", 1)])
+def test_a_refinement_beyond_the_free_memory_is_refused_before_meshing(
+        capsys, monkeypatch, example, most):
+    """--refine 100 allocated 4.7 and 29.7 GiB before failing. With 1 GiB free, the
+    estimate (measured bytes per DOF) refuses it and names the largest refine that
+    fits (sandwich-2d refine 8 peaked at 709 MiB, so 9 is about right in 2D)."""
+    import qsma._resources as resources
+    from qsma.examples import EXAMPLES, run_bytes
+    monkeypatch.setattr(resources, "free_memory", lambda: 2**30)
+    assert main(["modes", "--example", example, "--refine", "100", "-n", "1"]) == 2
+    assert f"use --refine {most} or less" in capsys.readouterr().err
+    base = EXAMPLES[example](1)
+    assert run_bytes(base.n_dofs * most ** base.dim, base.dim) <= 2**30 < \
+        run_bytes(base.n_dofs * (most + 1) ** base.dim, base.dim)
+
+
+@pytest.mark.parametrize("content, match", [
+    ("tip_m,f_hz\n1e-5,212\n2e-5,211\n".encode("utf-16"), "encoded as UTF-16"),
+    (b"# bei 20\xb0C\ntip_m,f_hz\n1e-5,212\n2e-5,211\n", r"line 1: byte 0xb0 is not UTF-8"),
+    (b"tip_m,f_hz,f_hz\n1e-5,212,212\n2e-5,211,211\n", "column 'f_hz' appears twice"),
+], ids=["utf-16", "latin-1", "duplicated column"])
+def test_measured_data_that_cannot_be_read_is_refused_by_name(tmp_path, capsys, monkeypatch,
+                                                              content, match):
+    """Each was an internal error (a decoding error; arrays of two lengths)."""
+    csv = tmp_path / "m.csv"
+    csv.write_bytes(content)
+    _no_case_computed(monkeypatch)
+    assert main(["fit", "--example", "sandwich-2d", "--measured", str(csv), "--params",
+                 "mu", "--quiet", "--out", str(tmp_path / "fit")]) == 2
+    assert re.search(match, capsys.readouterr().err)
+
+
+def test_a_fitted_material_of_no_body_is_refused_before_any_evaluation(tmp_path, capsys,
+                                                                      monkeypatch):
+    """--params E:nobody was an internal error (the start value of a body not there)."""
+    csv = tmp_path / "m.csv"
+    csv.write_text("tip_m,f_hz\n1e-5,212\n2e-5,211\n")
+    _no_case_computed(monkeypatch)
+    assert main(["fit", "--example", "sandwich-2d", "--measured", str(csv), "--params",
+                 "E:nobody", "--quiet", "--out", str(tmp_path / "fit")]) == 2
+    assert "parameter 'E:nobody': no body 'nobody'; bodies: ['bottom', 'top']" in \
+        capsys.readouterr().err
+
+
+@pytest.mark.parametrize("option", ["mesh", "config", "measured"])
+def test_an_input_path_that_is_a_fifo_is_refused_not_read(tmp_path, capsys, option):
+    """A FIFO that no program writes blocked the read forever; every input file is
+    checked to be a regular file on the opened descriptor."""
+    import os
+    import threading
+    fifo = tmp_path / ("fifo.inp" if option == "mesh" else "fifo")
+    os.mkfifo(fifo)
+    config = _example_config(tmp_path)
+    argv = {"mesh": ["run", str(config)], "config": ["run", str(fifo)],
+            "measured": ["fit", "--example", "sandwich-2d", "--measured", str(fifo),
+                         "--params", "mu"]}[option]
+    if option == "mesh":
+        config.write_text(config.read_text().replace("sandwich-2d-bottom.inp", "fifo.inp"))
+    done = []
+    t = threading.Thread(target=lambda: done.append(
+        main(argv + ["--quiet", "--out", str(tmp_path / "out")])), daemon=True)
+    t.start()
+    t.join(60)
+    if t.is_alive():                       # unblock the reader so the thread can end
+        with open(fifo, "wb"):
+            pass
+        pytest.fail("the read of a FIFO blocked")
+    assert done == [2]
+    assert "is not a regular file" in capsys.readouterr().err
+
+
+# ---- refusals that came late or not at all -------------------------------------------
+
+def test_a_model_without_bodies_is_refused_as_such(tmp_path, capsys):
+    """bodies = [] said 'all bodies must have the same dimension, got []'."""
+    from qsma.model import Model
+    with pytest.raises(InputError, match="the model has no bodies"):
+        Model(bodies=())
+    config = _example_config(tmp_path)
+    text = config.read_text()
+    text = "bodies = []\n" + text[:text.index("[[bodies]]")] + text[text.index("[interface]"):]
+    config.write_text(text)
+    assert main(["run", str(config), "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    assert "sandwich-2d.toml: bodies is empty; describe each body as a [[bodies]] table" \
+        in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("levels, match", [
+    ("kind = 'tip'\nspacing = 'log'\nstart = 1e-3\nstop = 1e-6\nn = 1\n",
+     "one level \\(n = 1\\) from start=0.001 to stop=1e-06"),
+    ("kind = 'tip'\nspacing = 'linear'\nstart = 1e-6\nstop = 1e-3\nn = 1\n",
+     "the level would be start and stop ignored"),
+    ("kind = 'tip'\nspacing = 'list'\nvalues = [1e-6, 1e-5]\nstart = 1e-6\nstop = 1e-3\n"
+     "n = 51\n", "spacing 'list' takes its levels from 'values'; 'start', 'stop', 'n' given "
+                 "too would be ignored"),
+    ("kind = 'tip'\nspacing = 'log'\nstart = 1e-6\nstop = 1e-3\nn = 5\nvalues = [1e-6]\n",
+     "'values' is given too"),
+], ids=["n=1, start > stop", "n=1, start < stop", "list with a range", "range with values"])
+def test_levels_whose_keys_contradict_each_other_are_refused(tmp_path, capsys, levels,
+                                                             match):
+    """A key that would be ignored (stop with n = 1; start, stop, n beside a list) is a
+    contradiction the user should resolve, not a choice qsma makes silently."""
+    config = _example_config(tmp_path)
+    text = config.read_text()
+    config.write_text(text[:text.index("[levels]")] + "[levels]\n" + levels)
+    assert main(["run", str(config), "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    assert re.search(match, capsys.readouterr().err)
+
+
+def test_one_swept_value_from_a_range_is_refused(tmp_path, capsys, monkeypatch):
+    _no_case_computed(monkeypatch)
+    assert main(["sweep", "--example", "sandwich-2d", "--vary", "mu=0.8:0.2:1", "--quiet",
+                 "--out", str(tmp_path / "s")]) == 2
+    assert "one value from 0.8 to 0.2" in capsys.readouterr().err
+
+
+def test_more_local_workers_than_cores_are_refused(tmp_path, capsys, monkeypatch):
+    """--workers 6 on a 2-core machine started 7 processes without a word; with a
+    scheduler the workers are the cluster's."""
+    import qsma._threads as threads
+    monkeypatch.setattr(threads, "usable_cores", lambda: 2)
+    _no_case_computed(monkeypatch)
+    assert main(["sweep", "--example", "sandwich-2d", "--vary", "mu=0.5", "--workers", "6",
+                 "--quiet", "--out", str(tmp_path / "s")]) == 2
+    assert "--workers 6: this machine lets qsma use 2 core(s)" in capsys.readouterr().err
+    assert not (tmp_path / "s").exists()
+    from qsma.study.sweep import _check_workers
+    _check_workers(2, None)
+    _check_workers(64, "tcp://cluster:8786")

@@ -62,7 +62,8 @@ def test_config_run_equals_example_run():
     (lambda c: c["interface"].update(body2="middle"), "body 'middle'"),
     (lambda c: c["bodies"][0].update(nu=0.7), "nu must lie"),
     (lambda c: c["interface"].update(mu=-1.0), "mu must be >= 0"),
-    (lambda c: c["levels"].update(spacing="list", values=[1e-5, 1e-6]), "increase"),
+    (lambda c: c.update(levels=dict(kind="tip", spacing="list", values=[1e-5, 1e-6])),
+     "increase"),
 ])
 def test_bad_config_names_the_problem(base, mutate, match):
     cfg = copy.deepcopy(base)

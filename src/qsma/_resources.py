@@ -31,6 +31,23 @@ def _status_kb(key):
     return None
 
 
+def free_memory() -> int | None:
+    """Available physical memory in bytes (Linux ``MemAvailable``, which counts the
+    reclaimable page cache; else the free pages), ``None`` where the system does not say.
+    The limits that refuse a model or a study too large to hold are derived from it."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (AttributeError, ValueError, OSError):
+        return None
+
+
 def peak_memory_mb() -> float | None:
     """Peak resident memory of this process in MiB since its start (or since the last
     :func:`reset_peak`), ``None`` where the platform does not report it."""

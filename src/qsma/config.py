@@ -116,12 +116,9 @@ def load_config(path) -> RunConfig:
 
     The file must be UTF-8 (the TOML standard); a UTF-8 byte-order mark is accepted.
     """
+    from .model.io.common import read_regular
     path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise InputError(f"cannot read configuration {str(path)!r}: {exc.strerror}") from exc
-    text = decode_toml(raw, str(path))
+    text = decode_toml(read_regular(path, "a TOML configuration"), str(path))
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -136,15 +133,22 @@ _UTF32_BOMS = (b"\xff\xfe\x00\x00", b"\x00\x00\xfe\xff")
 def decode_toml(raw: bytes, where: str) -> str:
     """The text of a TOML file; :class:`InputError` naming the encoding problem, the line
     and the fix when the bytes are not UTF-8."""
+    return decode_utf8(raw, where, "TOML files")
+
+
+def decode_utf8(raw: bytes, where: str, kind: str) -> str:
+    """The text of a file that must be UTF-8 (a byte-order mark accepted);
+    :class:`InputError` naming the encoding problem, the line and the fix otherwise.
+    ``kind`` names the files in the message (e.g. "TOML files")."""
     if raw.startswith(_UTF32_BOMS) or raw.startswith(_UTF16_BOMS) or b"\x00" in raw[:200]:
-        raise InputError(f"{where}: the file is encoded as UTF-16 or UTF-32; TOML files "
+        raise InputError(f"{where}: the file is encoded as UTF-16 or UTF-32; {kind} "
                          f"must be UTF-8. Save it as UTF-8 (e.g. iconv -f UTF-16 -t UTF-8)")
     try:
         return raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         line = raw[:exc.start].count(b"\n") + 1
         raise InputError(f"{where}, line {line}: byte 0x{raw[exc.start]:02x} is not UTF-8 "
-                         f"(Latin-1 or another 8-bit encoding?); TOML files must be UTF-8. "
+                         f"(Latin-1 or another 8-bit encoding?); {kind} must be UTF-8. "
                          f"Save the file as UTF-8 (e.g. iconv -f LATIN1 -t UTF-8)") from None
 
 
@@ -280,6 +284,9 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
         unit_system(units)
     except InputError as exc:
         raise InputError(f"{where}: units: {exc}") from None
+    if not data["bodies"]:
+        raise InputError(f"{where}: bodies is empty; describe each body as a [[bodies]] "
+                         f"table (name, mesh, E, nu, rho, clamps, pressures)")
     bodies = []
     files = {}
     for k, b in enumerate(data["bodies"]):
@@ -343,10 +350,12 @@ def config_modes(path) -> tuple | None:
     """The ``modes`` of a configuration file's ``[analysis]`` table (None if it gives
     none), read without its meshes: the command line chooses one run or several before
     it loads the model."""
+    from .model.io.common import read_regular
     path = Path(path)
     try:
-        data = tomllib.loads(decode_toml(path.read_bytes(), str(path)))
-    except (OSError, tomllib.TOMLDecodeError):
+        data = tomllib.loads(decode_toml(read_regular(path, "a TOML configuration"),
+                                         str(path)))
+    except (InputError, tomllib.TOMLDecodeError):
         return None                    # load_config names the problem
     analysis = data.get("analysis")
     return _modes(dict(analysis), f"{path}: analysis") if isinstance(analysis, dict) else None
@@ -458,6 +467,12 @@ def parse_levels(table, where="levels") -> Levels:
     if spacing == "list":
         if "values" not in table:
             raise InputError(f"{where}: spacing 'list' needs key 'values'")
+        given = [key for key in ("start", "stop", "n") if key in table]
+        if given:
+            raise InputError(f"{where}: spacing 'list' takes its levels from 'values'; "
+                             f"{', '.join(repr(k) for k in given)} given too would be "
+                             f"ignored: remove them, or use spacing 'log' or 'linear' "
+                             f"without 'values'")
         values = table["values"]
         if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
             raise InputError(f"{where}: values must be a list of numbers, got {values!r}")
@@ -467,5 +482,9 @@ def parse_levels(table, where="levels") -> Levels:
     for key in ("start", "stop", "n"):
         if key not in table:
             raise InputError(f"{where}: spacing {spacing!r} needs key {key!r}")
+    if "values" in table:
+        raise InputError(f"{where}: spacing {spacing!r} makes its levels from start, stop "
+                         f"and n, but 'values' is given too; remove it, or use spacing "
+                         f"'list'")
     make = Levels.log if spacing == "log" else Levels.linear
     return make(kind, table["start"], table["stop"], table["n"])

@@ -414,22 +414,24 @@ def _cycles(step, modal, A, start, u, k_ref, max_cycles, rtol, atol, closings=No
                                    rtol * abs(D) + atol)
         previous, state0 = (qs, D), state
     return Loop(A, path, qs, D, first, cycle_area_error(path, qs, k_ref), qs[0], qs[len(u)],
-                cycle, n_solves, "not_stabilised", _not_stabilised(A, cycle, needed)), \
+                cycle, n_solves, "not_stabilised", _not_stabilised(A, cycle, needed, drifts)), \
         _changed(out.status, len(u)), state
 
 
-def _not_stabilised(A, cycles, needed):
+def _not_stabilised(A, cycles, needed, drifts=()):
     """Why a loop stopped without repeating, and what to change: a contraction too slow
     for the cycles allowed (``needed``: the cycles it predicts in all), or a drift that
-    does not contract."""
+    does not contract (by how much it changed over the last cycles)."""
     if needed is not None:
         return (f"loop at A = {A:.6g} not stabilised after {cycles} cycles: its drift at "
                 f"+A contracts, but too slowly for the cycles allowed: it would repeat "
                 f"after about {needed} cycles; raise max_cycles to {needed} or more "
                 f"(RunOptions / [analysis] max_cycles)")
+    ratio = (f" (its drift changed by a factor {_ratio(drifts):.3g} per cycle, slower "
+             f"than {CONTRACTION:g})" if len(drifts) >= 3 else "")
     return (f"loop at A = {A:.6g} not stabilised after {cycles} cycles: the state at +A "
-            f"still changes and does not converge geometrically (ratcheting, or a "
-            f"cycle alternating between two states: no steady cycle at this "
+            f"still changes and does not converge geometrically{ratio}: ratcheting, or a "
+            f"cycle alternating between two states (no steady cycle at this "
             f"amplitude); if it is a very slow shakedown, raise max_cycles "
             f"(RunOptions / [analysis] max_cycles)")
 

@@ -74,7 +74,13 @@ def _range_check(start, stop, n):
     if not (isinstance(n, (int, np.integer)) and not isinstance(n, bool) and n >= 1):
         raise InputError(f"number of levels must be a positive integer, got {n!r}")
     _count_check(n)
-    if not (np.isfinite(start) and np.isfinite(stop) and 0 < start and (start < stop or n == 1)):
+    if not (np.isfinite(start) and np.isfinite(stop) and 0 < start):
+        raise InputError(f"level range needs 0 < start < stop, got start={start}, stop={stop}")
+    if n == 1 and start != stop:
+        raise InputError(f"one level (n = 1) from start={start} to stop={stop}: the level "
+                         f"would be start and stop ignored; give start = stop, or the "
+                         f"level as a list (spacing 'list', values = [...])")
+    if n > 1 and not start < stop:
         raise InputError(f"level range needs 0 < start < stop, got start={start}, stop={stop}")
 
 

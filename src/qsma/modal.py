@@ -9,12 +9,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-import os
-
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from ._resources import free_memory
 from .errors import AnalysisError, InputError
 
 #: Most modes one eigen solve may ask for. ARPACK keeps 2k+1 Lanczos vectors and
@@ -257,27 +256,11 @@ def check_n_modes(n_modes, n_free=None):
         raise InputError(f"{n_modes} modes asked, but the model has {n_free} free DOFs, "
                          f"of which at most {max(n_free - 2, 0)} modes can be computed")
     need = (2 * n_modes + 1) * n_free * 8
-    free = _free_memory()
+    free = free_memory()
     if free is not None and need > LANCZOS_MEMORY_SHARE * free:
         raise InputError(f"{n_modes} modes of {n_free} DOFs need {need / 2**30:.1f} GiB "
                          f"of Lanczos vectors, more than half the free memory "
                          f"({free / 2**30:.1f} GiB); ask for fewer modes")
-
-
-def _free_memory():
-    """Available physical memory in bytes (Linux ``MemAvailable``, which counts the
-    reclaimable page cache; else the free pages), ``None`` where the system does not say."""
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    try:
-        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    except (AttributeError, ValueError, OSError):
-        return None
 
 
 def _factor(K, model, assembled, T):

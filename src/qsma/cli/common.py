@@ -80,7 +80,7 @@ def add_amplitude_argument(p):
 
 def load_model(args):
     """``(model, RunOptions)`` from ``--example`` or a configuration file."""
-    from ..examples import EXAMPLES
+    from ..examples import EXAMPLES, check_refine
     if (args.config is None) == (args.example is None):
         raise InputError("give either a configuration file or --example NAME "
                          f"(examples: {sorted(EXAMPLES)})")
@@ -88,6 +88,7 @@ def load_model(args):
         if args.example not in EXAMPLES:
             raise InputError(f"unknown example {args.example!r}; valid: {sorted(EXAMPLES)}")
         refine = 1 if args.refine is None else args.refine
+        check_refine(args.example, refine)          # before the mesh is made
         model = EXAMPLES[args.example](refine=refine, mu=args.mu)
         return model, RunOptions()
     if args.refine is not None:

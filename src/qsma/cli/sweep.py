@@ -20,7 +20,8 @@ def add_arguments(p):
     p.add_argument("--out", required=True, help="study folder (created; resumed if it "
                                                 "holds this study)")
     p.add_argument("--workers", type=int, default=None,
-                   help="processes of the local Dask cluster (default 2); 0 runs the "
+                   help="processes of the local Dask cluster (default 2, at most the "
+                        "usable cores); 0 runs the "
                         "cases one after the other in this process")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="Dask scheduler to run on, e.g. tcp://host:8786 (its workers "
@@ -68,7 +69,7 @@ def execute(args) -> int:
     options = options.replace(mode=args.mode, method=args.method,
                               levels=None if args.levels is None
                               else parse_levels_spec(args.levels))
-    workers = 2 if args.workers is None else args.workers
+    workers = args.workers
     scheduler = args.scheduler or ("serial" if workers == 0 else None)
     call = lambda progress: sweep(model, vary, options, out=args.out, scheduler=scheduler,
                                   workers=workers, files=files, plots=not args.no_plots,

@@ -233,6 +233,9 @@ class Model:
     def __post_init__(self):
         object.__setattr__(self, "bodies", tuple(self.bodies))
         object.__setattr__(self, "interfaces", tuple(self.interfaces))
+        if not self.bodies:
+            raise InputError("the model has no bodies; give at least the two bodies that "
+                             "an interface joins ([[bodies]] tables in a configuration)")
         names = [b.name for b in self.bodies]
         if len(set(names)) != len(names):
             raise InputError(f"body names must be unique, got {names}")

@@ -132,17 +132,20 @@ def read_measured(path) -> Measured:
     frequency) and/or ``zeta`` (damping ratio of the joint); empty cells are missing
     values.
     """
+    from ..config import decode_utf8
+    from ..model.io.common import read_regular
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise InputError(f"cannot read the measured data {str(path)!r}: {exc.strerror}") \
-            from None
+    text = decode_utf8(read_regular(path, "a CSV of measured data"), str(path),
+                       "measured data files")
     rows = [r for r in csv.reader(line for line in text.splitlines()
                                   if line.strip() and not line.lstrip().startswith("#"))]
     if len(rows) < 2:
         raise InputError(f"{path}: expected a header row and at least one data row")
     head = [h.strip() for h in rows[0]]
+    twice = sorted({h for h in head if head.count(h) > 1})
+    if twice:
+        raise InputError(f"{path}: column {twice[0]!r} appears twice in the header "
+                         f"{head}; give each column once")
     if head[0] not in AMPLITUDE_COLUMNS:
         raise InputError(f"{path}: the first column must be the amplitude, named one of "
                          f"{sorted(AMPLITUDE_COLUMNS)}, got {head[0]!r}")
@@ -214,9 +217,6 @@ class _Evaluator:
         self.model, self.options, self.names = model, options, tuple(names)
         self.groups = {}
         self.nruns = 0
-        _check_bodies([Case(0, tuple((n, 1.0) for n in names if n != "mu"))], model)
-        if "mu" in names:
-            model.check_mu_reaches(None, STUDY_MU_FIX, what="fitting mu")
 
     def result(self, values):
         from ..analysis import prepare, run_prepared
@@ -383,6 +383,9 @@ def fit(model_or_config, measured, params, options: RunOptions | None = None, *,
     measured = in_model_units(measured, model.units)
     names = tuple(params.split(",") if isinstance(params, str) else params)
     _check_names(names)
+    _check_bodies([Case(0, tuple((n, 1.0) for n in names if n != "mu"))], model)
+    if "mu" in names:
+        model.check_mu_reaches(None, STUDY_MU_FIX, what="fitting mu")
     for w, v in (("sigma_f", sigma_f), ("sigma_zeta", sigma_zeta)):
         if not (np.isfinite(v) and v > 0):
             raise InputError(f"{w} must be a positive number, got {v!r}")

@@ -56,9 +56,19 @@ STUDY_NAME, TABLE_NAME, PARQUET_NAME = "study.json", "study.csv", "study.parquet
 #: exactly what ``qsma run`` writes (a result folder holds one run and nothing else).
 DONE_SUFFIX = ".done.json"
 #: Workers of the default local cluster: one process per core of the 2-core machines
-#: this package is developed on; ``workers=`` or ``--workers`` changes it.
+#: this package is developed on (fewer where fewer cores are usable); ``workers=`` or
+#: ``--workers`` changes it, up to the usable cores.
 DEFAULT_WORKERS = 2
 CASE_FILES = ("plots", "vtu", "rom", "report")
+#: Memory a case holds in the calling process until the study ends, per load level: its
+#: rows of the study table (33 columns of Python objects: 43 kB per case of 51 levels,
+#: measured with tracemalloc over 200 cases of sandwich-2d) and their CSV text, with
+#: a margin for the report; plus a fixed part for the case, its outcome and its entry
+#: in study.json.
+CASE_BYTES, LEVEL_BYTES = 4096, 2048
+#: Share of the free memory (:func:`qsma._resources.free_memory`) a study's cases may
+#: take; where the system does not say, :data:`MAX_CASES_UNKNOWN_MEMORY` cases.
+CASES_MEMORY_SHARE, MAX_CASES_UNKNOWN_MEMORY = 0.5, 100_000
 #: Run options a sweep does not vary: the BLAS thread count, the loop workers and the
 #: parallel ramps do not change results (a sweep's workers compute their loops and
 #: ramps themselves: a daemonic process may not fork), the condensation backend is
@@ -149,7 +159,6 @@ def parse_values(name: str, spec) -> list:
                 start, stop, n = float(parts[0]), float(parts[1]), int(parts[2])
                 if n < 1:
                     raise ValueError
-                values = np.linspace(start, stop, n).tolist()
             elif len(parts) == 1:
                 values = [_scalar(v) for v in spec.split(",") if v.strip()]
             else:
@@ -157,21 +166,56 @@ def parse_values(name: str, spec) -> list:
         except ValueError:
             raise InputError(f"--vary {name}={spec!r}: expected START:STOP:N (e.g. "
                              f"0.2:0.8:10) or a list V1,V2,... (e.g. 0.3,0.5,0.7)") from None
+        if len(parts) == 3:
+            if n == 1 and start != stop:
+                raise InputError(f"--vary {name}={spec}: one value from {start:g} to "
+                                 f"{stop:g}: it would be {start:g} and {stop:g} ignored; "
+                                 f"give the value alone ({name}={start:g})")
+            check_case_count(n, f"--vary {name}={spec}")
+            values = np.linspace(start, stop, n).tolist()
     if not values:
         raise InputError(f"--vary {name}: no values given")
     return [_typed(name, v) for v in values]
 
 
-def grid(vary: dict) -> list:
+def grid(vary: dict, n_levels: int | None = None) -> list:
     """The cases of the cartesian product of ``vary`` (name -> values or spec), the last
-    parameter varying fastest."""
+    parameter varying fastest; refused before it is made when the study could not hold
+    them (:func:`check_case_count`, with cases of ``n_levels`` load levels)."""
     if not vary:
         raise InputError("a sweep needs at least one parameter to vary, e.g. "
                          "vary={'mu': [0.3, 0.5]} or --vary mu=0.3,0.5")
     names = list(vary)
     values = [parse_values(n, vary[n]) for n in names]
+    check_case_count(int(np.prod([len(v) for v in values], dtype=object)),
+                     " x ".join(f"{len(v)} {n}" for n, v in zip(names, values)), n_levels)
     return [Case(i, tuple(zip(names, combo)))
             for i, combo in enumerate(itertools.product(*values))]
+
+
+def max_cases(n_levels: int = 1) -> int:
+    """Most cases of ``n_levels`` load levels a study may have: those whose rows and
+    records (:data:`CASE_BYTES`, :data:`LEVEL_BYTES`) fit in :data:`CASES_MEMORY_SHARE`
+    of the free memory."""
+    from .._resources import free_memory
+    free = free_memory()
+    if free is None:
+        return MAX_CASES_UNKNOWN_MEMORY
+    return max(1, int(CASES_MEMORY_SHARE * free // (CASE_BYTES + n_levels * LEVEL_BYTES)))
+
+
+def check_case_count(n: int, what: str, n_levels: int | None = None):
+    """Refuse ``n`` cases (from ``what``, for messages) beyond :func:`max_cases` of
+    ``n_levels`` levels (None: not known yet, counted as one), before anything of them
+    is made (a grid of 10^10 cases asked for 74.5 GiB)."""
+    most = max_cases(n_levels or 1)
+    if n > most:
+        of = (f"of {n_levels} load level(s), about "
+              f"{(CASE_BYTES + n_levels * LEVEL_BYTES) / 1024:.0f} kB each until the study "
+              f"ends" if n_levels else "even of one load level each")
+        raise InputError(f"{what}: {n} cases, but this machine's free memory holds the "
+                         f"records of at most {most} cases ({of}): ask for fewer values, "
+                         f"or split the study into several folders")
 
 
 def _scalar(text):
@@ -240,7 +284,7 @@ def _check_bodies(cases, model):
     for name, _ in cases[0].params:
         base, _, body = name.partition(":")
         if base in MATERIAL_PARAMETERS and body and body not in names:
-            raise InputError(f"sweep parameter {name!r}: no body {body!r}; bodies: {names}")
+            raise InputError(f"parameter {name!r}: no body {body!r}; bodies: {names}")
     for mu in sorted({dict(c.params)["mu"] for c in cases if "mu" in dict(c.params)}):
         model.check_mu_reaches(mu, STUDY_MU_FIX, what=f"mu = {mu:g} of the study")
 
@@ -372,7 +416,7 @@ def _roundtrip(x):
 # --------------------------------------------------------------------------- the study
 
 def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out,
-          scheduler=None, workers: int = DEFAULT_WORKERS, files=(), plots=True,
+          scheduler=None, workers: int | None = None, files=(), plots=True,
           progress=None, amplitude=None) -> SweepResult:
     """Run a parameter study: every case of the grid ``vary``, sharing the work the
     cases have in common (module docstring), on Dask or serially.
@@ -392,8 +436,9 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
         ``None``: a local cluster of ``workers`` processes; ``"serial"`` (or
         ``workers=0``): in this process, in order; an address (``tcp://host:8786``)
         or a client: that scheduler (the workers must see ``out``).
-    workers : int
-        Processes of the local cluster.
+    workers : int, optional
+        Processes of the local cluster, at most the usable cores (default
+        :data:`DEFAULT_WORKERS`, or the cores if fewer).
     files : iterable of {"plots", "vtu", "rom", "report"}
         Per-case files besides results.json and results.csv (rom: :mod:`qsma.rom`,
         written beside the case folder as ``case-NNNN.rom.json``; report: the case's
@@ -423,13 +468,18 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
     for f in files:
         if f not in CASE_FILES:
             raise InputError(f"unknown per-case file kind {f!r}; valid: {CASE_FILES}")
+    if workers is None:
+        from .._threads import usable_cores
+        workers = min(DEFAULT_WORKERS, usable_cores())
     if amplitude is not None:
         from ..plots import check_amplitude
         check_amplitude(amplitude)
     if not (isinstance(workers, int) and workers >= 0):
         raise InputError(f"workers must be an integer >= 0, got {workers!r}")
-    cases = grid(vary)
+    _check_workers(workers, scheduler)
+    cases = grid(vary, n_levels=_most_levels(vary, options))
     _check_bodies(cases, model)
+    _check_scheduler(scheduler)
     with StudyFolder(out, allowed=_in_study) as folder:   # locked before computing
         return _study(folder, model, vary, options, cases, scheduler, workers, files,
                       plots, progress, t0, amplitude)
@@ -649,6 +699,51 @@ class RefactorisedEE:
                 f"factorised={self.factorised})")
 
 
+def _most_levels(vary, options) -> int:
+    """The most load levels a case of the study has (its levels, or the default 51)."""
+    from ..levels import spec_levels
+    given = [v for v in vary.get("levels", ()) if isinstance(v, Levels)] \
+        if not isinstance(vary.get("levels", ()), str) else []
+    levels = given + [options.levels or spec_levels()]
+    return max(len(lv.values) for lv in levels)
+
+
+def _check_workers(workers, scheduler):
+    """Refuse a local cluster of more worker processes than the cores this process may
+    use (:func:`qsma._threads.usable_cores`): each case is a CPU-bound process, so the
+    extra ones only compete for the cores (6 workers on a 2-core machine started 7
+    processes). A cluster of more machines is reached by a scheduler address."""
+    from .._threads import usable_cores
+    if scheduler is not None:
+        return
+    cores = usable_cores()
+    if workers > cores:
+        raise InputError(f"--workers {workers}: this machine lets qsma use {cores} core(s); "
+                         f"more local worker processes than cores only compete for them. "
+                         f"Give --workers {cores} or fewer, or --scheduler ADDRESS to run "
+                         f"on a Dask cluster of more machines")
+
+
+def _check_scheduler(scheduler):
+    """Refuse, before any work, a scheduler address that is not one (the connection
+    itself is tried when the cases are sent)."""
+    if not isinstance(scheduler, str) or scheduler == "serial":
+        return
+    try:
+        from distributed.comm import parse_address
+        from distributed.comm.addressing import parse_host_port
+    except ImportError:
+        return                          # said when the cases are sent (_run_dask)
+    try:
+        protocol, location = parse_address(scheduler)
+        if protocol in ("tcp", "tls", "ws", "wss"):
+            parse_host_port(location)
+    except (ValueError, TypeError) as exc:
+        raise InputError(f"--scheduler {scheduler!r} is not a Dask scheduler address "
+                         f"({exc}); give one such as tcp://host:8786, or drop --scheduler "
+                         f"to run on a local cluster") from None
+
+
 def _run_serial(groups, key_of, todo, options, out, files, scheduler, workers):
     for c in todo:
         yield run_case(groups[key_of(c)], c, options, out / c.name, files)
@@ -679,7 +774,7 @@ def _run_dask(groups, key_of, todo, options, out, files, scheduler, workers):
     elif isinstance(scheduler, str):
         try:
             client = Client(scheduler, timeout="20s")
-        except OSError as exc:
+        except (OSError, ValueError) as exc:
             raise InputError(f"cannot reach the Dask scheduler at {scheduler!r}: {exc}; "
                              f"start one (dask scheduler) or drop --scheduler") from None
     else:

@@ -10,6 +10,7 @@ messages that name the file, file ids to indices, and the atomic write of
 from __future__ import annotations
 
 import os
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -262,15 +263,40 @@ def _match_facets(src, name, rows, boundary: FacetIndex, labels, mesh: Mesh) -> 
 # reading files
 
 def _read_bytes(path: Path) -> bytes:
+    return read_regular(path, "a mesh file", MeshFileError)
+
+
+def read_regular(path, what: str, error=InputError) -> bytes:
+    """The bytes of the input file ``path``; ``error`` (naming ``what`` the file should
+    be) for a missing or unreadable path and for anything but a regular file. A FIFO,
+    a socket or a device is refused, not read: a read from a FIFO that no program
+    writes waits forever. The file is opened without blocking and checked on the
+    opened descriptor, so it cannot be swapped for a FIFO in between."""
+    path = Path(path)
     try:
-        return path.read_bytes()
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
     except FileNotFoundError:
-        raise MeshFileError(f"{path}: no such file; check the path (relative paths start "
-                            f"in {os.getcwd()})") from None
+        raise error(f"{path}: no such file; check the path (relative paths start in "
+                    f"{os.getcwd()})") from None
     except IsADirectoryError:
-        raise MeshFileError(f"{path}: is a folder, not a mesh file") from None
+        raise error(f"{path}: is a folder, not {what}") from None
     except OSError as exc:
-        raise MeshFileError(f"{path}: cannot be read ({exc.strerror})") from exc
+        raise error(f"{path}: cannot be read ({exc.strerror})") from exc
+    try:
+        mode = os.fstat(fd).st_mode
+        if stat.S_ISDIR(mode):
+            raise error(f"{path}: is a folder, not {what}")
+        if not stat.S_ISREG(mode):
+            raise error(f"{path}: is not a regular file (a FIFO, socket or device, whose "
+                        f"read could wait forever); give {what}")
+        with os.fdopen(fd, "rb") as f:
+            fd = None
+            return f.read()
+    except OSError as exc:
+        raise error(f"{path}: cannot be read ({exc.strerror})") from exc
+    finally:
+        if fd is not None:
+            os.close(fd)
 
 
 def _line_of(data: bytes, offset: int) -> int:
