@@ -12,10 +12,11 @@ from qsma.model.generate import structured_mesh
 from qsma.model.io import read_mesh
 from qsma.model.mesh import Mesh
 from qsma.model.validate import (DEGENERATE_SCALED_JACOBIAN, MeshQualityWarning,
+from qsma.examples import example_dir
                                  scaled_jacobians, validate_mesh)
 
 DATA = Path(__file__).parent / "data"
-EXAMPLES = Path(__file__).parent.parent / "examples"
+EXAMPLES = example_dir()        # the example files shipped with qsma
 
 
 def unit_square_quads():
