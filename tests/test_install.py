@@ -88,18 +88,23 @@ def test_wheel_and_sdist_install_and_run_in_a_fresh_environment(tmp_path):
     (its dependencies from the package index: needs the network), run the examples
     there (a built-in one and the shipped TOML configuration, from a folder without the
     sources), and run a test module from the unpacked sdist against it."""
+    import shutil
+    clean = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    tree = tmp_path / "tree"                   # a copy: the build writes egg-info there
+    shutil.copytree(ROOT, tree, ignore=shutil.ignore_patterns(
+        ".git", ".venv", "out", "build", "dist", "*.egg-info", "__pycache__",
+        ".pytest_cache", ".hypothesis"))
     tools = _venv(tmp_path / "build-env")
-    _run([str(tools / "python"), "-m", "pip", "install", "-q", "build"])
+    _run([str(tools / "python"), "-m", "pip", "install", "-q", "build"], env=clean)
     dist = tmp_path / "dist"
     _run([str(tools / "python"), "-m", "build", "--sdist", "--wheel", "--outdir", str(dist),
-          str(ROOT)])
+          str(tree)], env=clean)
     wheel = next(dist.glob("qsma-*.whl"))
     sdist = next(dist.glob("qsma-*.tar.gz"))
     env = _venv(tmp_path / "fresh")
-    _run([str(env / "python"), "-m", "pip", "install", "-q", f"{wheel}[test]"])
+    _run([str(env / "python"), "-m", "pip", "install", "-q", f"{wheel}[test]"], env=clean)
     work = tmp_path / "work"
     work.mkdir()
-    clean = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     _run([str(env / "qsma"), "run", "--example", "sandwich-2d", "--levels",
           "tip:log:1e-6:1e-3:6", "--out", "ex", "-q"], cwd=work, env=clean)
     _run([str(env / "qsma"), "examples", "--copy", "cfg"], cwd=work, env=clean)
