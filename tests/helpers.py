@@ -4,7 +4,8 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 from qsma.fe import assemble_body, stress_at_nodes
-from qsma.model import Body, Material, Mesh, boundary_facets
+from qsma.examples import stack_2d
+from qsma.model import Body, Material, Mesh, boundary_facets, write_mesh
 from qsma.model.generate import structured_mesh
 
 STEEL = Material(200e9, 0.285, 7800.0)
@@ -49,6 +50,17 @@ def check_patch(mesh, A):
 HEX_TO_TETS = [(0, 1, 2, 6), (0, 2, 3, 6), (0, 3, 7, 6), (0, 7, 4, 6), (0, 4, 5, 6), (0, 5, 1, 6)]
 
 
+def tetrahedra_of(mesh):
+    """The hexahedra of ``mesh`` split into six tetrahedra each (:data:`HEX_TO_TETS`,
+    conforming between neighbours), every tetrahedron positively oriented; no sets."""
+    tets = np.concatenate([mesh.cells[:, list(t)] for t in HEX_TO_TETS])
+    q = mesh.points[tets]
+    vol = np.einsum("ij,ij->i", np.cross(q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]),
+                    q[:, 3] - q[:, 0])
+    tets[vol < 0] = tets[vol < 0][:, [0, 2, 1, 3]]
+    return Mesh(mesh.points, tets, "tetra")
+
+
 def distorted_3d(cell_type):
     """A 3 x 3 x 3 unit-cube patch of hexahedra (or tetrahedra) with its interior nodes
     moved at random (seeded)."""
@@ -59,11 +71,7 @@ def distorted_3d(cell_type):
     p[inner] += np.random.default_rng(0).uniform(-0.08, 0.08, size=(inner.sum(), 3))
     if cell_type == "hexahedron":
         return Mesh(p, m.cells, "hexahedron")
-    tets = np.concatenate([m.cells[:, list(t)] for t in HEX_TO_TETS])
-    q = p[tets]
-    vol = np.einsum("ij,ij->i", np.cross(q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]), q[:, 3] - q[:, 0])
-    tets[vol < 0] = tets[vol < 0][:, [0, 2, 1, 3]]
-    return Mesh(p, tets, "tetra")
+    return tetrahedra_of(Mesh(p, m.cells, "hexahedron"))
 
 
 #: Two CPE4 elements with the four surface spellings of Abaqus (S1-S4)
@@ -117,3 +125,58 @@ def assert_same_solve_bits(a, b, rtol=1e-14):
         assert np.array_equal(a, b)
     else:
         assert np.abs(np.asarray(a) - np.asarray(b)).max() <= rtol * np.abs(a).max()
+
+
+def bodies_in_one_mesh(bodies) -> Mesh:
+    """The meshes of ``bodies`` as one mesh (nodes of each body kept apart), each body a
+    cell set of its name, each set ``<body>_<set>``."""
+    pts, cells, node_sets, facet_sets, cell_sets = [], [], {}, {}, {}
+    n = c = 0
+    for b in bodies:
+        m = b.mesh
+        pts.append(m.points)
+        cells.append(m.cells + n)
+        cell_sets[b.name] = np.arange(c, c + len(m.cells))
+        node_sets.update({f"{b.name}_{k}": v + n for k, v in m.node_sets.items()})
+        facet_sets.update({f"{b.name}_{k}": v + n for k, v in m.facet_sets.items()})
+        n += m.n_nodes
+        c += len(m.cells)
+    return Mesh(np.vstack(pts), np.vstack(cells), bodies[0].mesh.cell_type, node_sets,
+                facet_sets, cell_sets)
+
+
+def one_file(bodies, path):
+    """Write the meshes of ``bodies`` as one mesh file (:func:`bodies_in_one_mesh`)."""
+    write_mesh(path, bodies_in_one_mesh(bodies))
+    return path
+
+
+def body_toml(name, mesh, pressures=True):
+    """The ``[[bodies]]`` table of body ``name``: cell set ``name`` of ``mesh``, steel,
+    clamped on ``<name>_clamp``, the bolt pressure on ``<name>_bolt``."""
+    text = (f'[[bodies]]\nname = "{name}"\nmesh = "{mesh}"\ncells = "{name}"\n'
+            f'E = 200e9\nnu = 0.285\nrho = 6600.0\nclamps = [{{ set = "{name}_clamp" }}]\n')
+    if pressures:
+        text += f'pressures = [{{ set = "{name}_bolt", p = 17.554e6 }}]\n'
+    return text
+
+
+def stack_toml(tmp_path, interfaces):
+    """stack-2d as one Gmsh file and a configuration with ``interfaces`` (TOML text);
+    returns the configuration's path and the model it was written from."""
+    model = stack_2d(1)
+    one_file(model.bodies, tmp_path / "stack.msh")
+    text = "".join(body_toml(b.name, "stack.msh", b.name != "middle")
+                   for b in model.bodies)
+    text += interfaces
+    text += ('[tip]\nsets = [["bottom", "bottom_tip"], ["middle", "middle_tip"], '
+             '["top", "top_tip"]]\ndirection = [0.0, 1.0]\n')
+    (tmp_path / "stack.toml").write_text(text)
+    return tmp_path / "stack.toml", model
+
+
+STACK_INTERFACES = (
+    '[[interfaces]]\nbody1 = "bottom"\nset1 = "bottom_upper"\nbody2 = "middle"\n'
+    'set2 = "middle_lower"\nmu = 0.6\n'
+    '[[interfaces]]\nbody1 = "middle"\nset1 = "middle_upper"\nbody2 = "top"\n'
+    'set2 = "top_lower"\nmu = 0.3\n')

@@ -21,8 +21,9 @@ from qsma.result import load_factors
 
 @pytest.fixture(scope="module")
 def coarse():
-    """The coarse BRB prepared and preloaded, with its tied modes."""
-    p = prepare(brb(1))
+    """The coarse BRB with a flat rigid interface, prepared and preloaded, with its tied
+    modes."""
+    p = prepare(brb(1, surfaces="flat"))
     red, _, pre = p.preloaded(RunOptions(), _Timer())
     modes = p.mode(pre.status != OPEN, RunOptions(n_modes=4), _Timer())[0]
     return p, red, pre, modes
@@ -35,7 +36,8 @@ def test_registered_as_the_brb_example():
 def test_geometry_and_mass_of_the_published_beam():
     """Two half beams 420 x 25.4 x 25.4 mm halved over the 120 mm lap [G]: the
     assembled beam spans 720 mm, the interface is the 120 x 25.4 mm lap, and the
-    consistent mass matrices carry rho times the volume."""
+    consistent mass matrices carry rho times the volume, plus the bolt sets (half of
+    each per beam) and the accelerometer on the right beam."""
     m = brb(1)
     left, right = m.bodies
     xs = np.concatenate([b.mesh.points[:, 0] for b in m.bodies])
@@ -53,7 +55,8 @@ def test_geometry_and_mass_of_the_published_beam():
         # a unit rigid translation along x: u^T M u = total mass
         u = np.zeros(M.shape[0])
         u[0::3] = 1.0
-        assert u @ (M @ u) == pytest.approx(BRB["rho"] * volume, rel=1e-12)
+        extra = 3 * BRB["bolt_set_mass"] / 2 + (BRB["sensor_mass"] if body is right else 0)
+        assert u @ (M @ u) == pytest.approx(BRB["rho"] * volume + extra, rel=1e-12)
 
 
 def test_washers_are_the_annuli_around_the_three_bolt_axes():
@@ -128,7 +131,7 @@ def test_tied_frequency_converges_under_refinement():
     preload closes lie inside the lap at every mesh."""
     f = []
     for r in (1, 2):
-        p = prepare(brb(r))
+        p = prepare(brb(r, surfaces="flat"))
         _, _, pre = p.preloaded(RunOptions(), _Timer())
         closed = pre.status != OPEN
         assert 0 < closed.sum() < p.pairing.n_pairs
@@ -140,7 +143,8 @@ def test_tied_frequency_converges_under_refinement():
 @pytest.fixture(scope="module")
 def coarse_run():
     """Two stuck levels, three slipping ones (their loops are most of the cost)."""
-    return qsma.run(brb(1), levels=qsma.Levels("tip", (1e-6, 1e-5, 3e-5, 1e-4, 1e-3)),
+    return qsma.run(brb(1, surfaces="flat"),
+                    levels=qsma.Levels("tip", (1e-6, 1e-5, 3e-5, 1e-4, 1e-3)),
                     refine_levels=False)
 
 
@@ -206,3 +210,47 @@ def test_bolt_naming_the_interface_as_a_washer_is_refused():
 def test_bad_refine_is_refused(refine):
     with pytest.raises(InputError, match="refine must be a positive integer"):
         brb(refine)
+
+
+# --- the default: the measured surfaces of [P] -----------------------------------------
+
+@pytest.fixture(scope="module")
+def measured():
+    """The coarse BRB with its measured surfaces (the default), two levels."""
+    return qsma.run(brb(1), dissipation="masing",
+                    levels=qsma.Levels("tip", (1e-6, 1e-5)), refine_levels=False)
+
+
+def test_measured_surfaces_are_the_default():
+    m = brb(1)
+    assert m.interface.law.normal.name == "rough" and m.interface.gap is not None
+    assert m.damping.ratio == pytest.approx(0.087e-2)
+    assert brb(1, surfaces="flat").interface.law is None
+
+
+def test_measured_preload_follows_the_rough_law_and_the_gap(measured):
+    """The preload with the measured surfaces: the pressures sum to the three bolts,
+    every pair carries the rough law's pressure at its closure (the gap field included),
+    and the lap's ends, where the measured surfaces are closest, carry more of the load
+    than on flat surfaces (the bolts still close the 100 um at the centre)."""
+    r = measured
+    pre, p = r.preload, r.pairing
+    assert pre.P.sum() == pytest.approx(3 * brb_pretension(), rel=1e-9)
+    gap = r.model.interface.gap(p.x)
+    h = -(pre.d[:, -1] + gap)
+    law = r.model.interface.law.normal
+    np.testing.assert_allclose(pre.P, p.area * law.pressure(h), rtol=1e-8,
+                               atol=1e-9 * pre.P.max())
+    ends = np.abs(p.x[:, 0]) > 0.05
+    flat_model = brb(1)
+    flat_model = dataclasses.replace(flat_model, interface=dataclasses.replace(
+        flat_model.interface, gap=None))
+    flat = prepare(flat_model).preloaded(RunOptions(), _Timer())[2]
+    assert pre.P[ends].sum() > 1.5 * flat.P[ends].sum()
+
+
+def test_measured_stuck_level_is_the_tied_mode_with_linear_damping(measured):
+    r = measured
+    assert r.success and r.n_slip[0] == 0
+    assert r.f_hz[0] == pytest.approx(r.f0_hz, rel=1e-9)
+    np.testing.assert_allclose(r.zeta_total[0], 0.087e-2 + r.zeta[0])

@@ -252,3 +252,27 @@ def test_tied_solver_equals_the_sparse_solve_of_the_tied_assembly(setup, fractio
     u1, u2 = tied_solver(red, tied)(f[off[0]:off[1]], f[off[1]:off[2]])
     u = np.concatenate([u1, u2])
     assert np.abs(u - T @ x).max() < 1e-9 * np.abs(T @ x).max()
+
+
+def test_body_with_nothing_inside_to_condense_is_refused_by_name():
+    """Two one-element cubes (CalculiX's changefric deck): every free DOF of each lies on
+    the interface. The message says so and how to mesh it, instead of the Schur
+    complement's own check ('C must hold between 1 and n - 1 DOFs')."""
+    from qsma.analysis import prepare
+    from qsma.errors import InputError
+    from qsma.model import Body, Clamp, Interface, Material, Model
+    from qsma.model.generate import structured_mesh
+    bodies = []
+    for name, z0, clamp, face in (("lower", 0.0, "bottom", "top"),
+                                  ("upper", 1.0, "top", "bottom")):
+        m = structured_mesh(np.array([0.0, 1.0]), np.array([0.0, 1.0]),
+                            np.array([z0, z0 + 1.0]))
+        at = {"bottom": z0, "top": z0 + 1.0}
+        m = m.with_sets(node_sets={"clamp": np.flatnonzero(m.points[:, 2] == at[clamp])},
+                        facet_sets={"face": m.boundary_facets_where(
+                            lambda p, z=at[face]: p[:, 2] == z)})
+        bodies.append(Body(name, m, Material(2e11, 0.3, 7800.0), (Clamp("clamp"),)))
+    model = Model(tuple(bodies), Interface("lower", "face", "upper", "face"))
+    with pytest.raises(InputError, match=r"body 'lower': every DOF that is not clamped lies "
+                       r"on the interface \(12 DOFs\), none inside the body"):
+        prepare(model)

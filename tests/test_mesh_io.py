@@ -243,6 +243,69 @@ RF
     np.testing.assert_allclose(reaction, 1000.0 * np.array(force), rtol=1e-9, atol=1e-6)
 
 
+def full_digit_mesh(cell_type="hexahedron") -> Mesh:
+    """A distorted box in metres of millimetre size whose coordinates need 16-17
+    significant digits: ``repr`` of those near zero (order 1e-5, written with an exponent)
+    has 21 to 23 characters."""
+    m = structured_mesh(np.linspace(0, 3, 4), np.linspace(0, 1, 3), np.array([0, .5, 2.]),
+                        cell_type=cell_type)
+    rng = np.random.default_rng(1)
+    points = (m.points + 0.01 * rng.standard_normal(m.points.shape)) * 1.234567e-3
+    return Mesh(points, m.cells, cell_type).with_sets(cell_sets={"every": np.arange(len(m.cells))})
+
+
+@pytest.mark.parametrize("cell_type", ["hexahedron", "hexahedron20"])
+def test_inp_fields_fit_calculix(tmp_path, cell_type):
+    """Coordinates are written in at most 20 characters (CalculiX reads no more of a
+    field) to 13 significant digits or more; lines hold at most 16 entries (a C3D20 row
+    of 21 continues on the next line)."""
+    from qsma.model.io.abaqus import CALCULIX_ENTRIES, CALCULIX_FIELD
+    mesh = full_digit_mesh(cell_type)
+    path = write_mesh(tmp_path / "m.inp", mesh)
+    lines = path.read_text().splitlines()
+    nodes = lines[lines.index("*NODE") + 1:lines.index(next(t for t in lines
+                                                            if t.startswith("*ELEMENT")))]
+    assert len(nodes) == mesh.n_nodes
+    assert max(len(f.strip()) for t in nodes for f in t.split(",")[1:]) <= CALCULIX_FIELD
+    assert max(len(t.split(",")) - t.endswith(",") for t in lines) <= CALCULIX_ENTRIES
+    read = read_mesh(path)
+    np.testing.assert_allclose(read.points, mesh.points, rtol=5e-14, atol=0)
+    np.testing.assert_array_equal(read.cells, mesh.cells)
+
+
+@pytest.mark.skipif(shutil.which("ccx") is None, reason="CalculiX (ccx) is not installed")
+@pytest.mark.parametrize("cell_type", ["hexahedron", "hexahedron20"])
+def test_calculix_reads_our_coordinates(tmp_path, cell_type):
+    """CalculiX reads every coordinate of our .inp as written: the volume of each element
+    it prints (EVOL, 7 digits) is the one qsma computes (its mass matrix at rho = 1)."""
+    from qsma.fe import assemble_body
+    from qsma.model import Body, Material
+    mesh = full_digit_mesh(cell_type)
+    path = write_mesh(tmp_path / "job.inp", mesh)
+    path.write_text(path.read_text() + """*MATERIAL, NAME=STEEL
+*ELASTIC
+200e9, 0.3
+*SOLID SECTION, ELSET=every, MATERIAL=STEEL
+*STEP
+*STATIC
+*EL PRINT, ELSET=every
+EVOL
+*END STEP
+""")
+    run = subprocess.run(["ccx", "job"], cwd=tmp_path, capture_output=True, text=True,
+                         timeout=120)
+    assert run.returncode == 0 and "ERROR" not in run.stdout, run.stdout[-400:]
+    rows = re.findall(r"^\s+(\d+)\s+(\S+E[-+]\d+)\s*$", (tmp_path / "job.dat").read_text(),
+                      re.M)
+    ccx = np.array([float(v) for _, v in rows])
+    n = mesh.cells.shape[1]
+    volume = [assemble_body(Body("c", Mesh(mesh.points[c], np.arange(n)[None], cell_type),
+                                 Material(1.0, 0.3, 1.0))).M[0::3, 0::3].sum()
+              for c in mesh.cells]
+    assert len(ccx) == len(mesh.cells)
+    np.testing.assert_allclose(ccx, volume, rtol=1e-6)
+
+
 # --- hand-written Abaqus input --------------------------------------------------------
 
 TWO_QUADS = """\
@@ -309,7 +372,7 @@ def test_inp_face_numbering(tmp_path, etype, nodes, faces):
     lines += [f"*ELEMENT, TYPE={etype}", "7, " + ", ".join(str(i) for i in range(1, len(nodes) + 1))]
     for k in range(1, len(faces) + 1):
         lines += [f"*SURFACE, NAME=f{k}", f"7, S{k}"]
-    m = read_mesh(write_text(tmp_path, "one.inp", "\n".join(lines)))
+    m = read_mesh(write_text(tmp_path, "one.inp", "\n".join(lines) + "\n"))
     for k, face in enumerate(faces, 1):
         assert facet_keys(m.facet_sets[f"f{k}"]) == {tuple(sorted(i - 1 for i in face))}
 
@@ -346,7 +409,8 @@ def test_inp_continuation_lines_free_faces_and_node_surface(tmp_path):
 
 def test_inp_include_and_facet_elements(tmp_path):
     write_text(tmp_path, "nodes.inc", "\n".join(
-        f"{i + 1}, {x}, {y}" for i, (x, y) in enumerate([(0, 0), (1, 0), (1, 1), (0, 1)])))
+        f"{i + 1}, {x}, {y}" for i, (x, y) in enumerate([(0, 0), (1, 0), (1, 1), (0, 1)]))
+        + "\n")
     path = write_text(tmp_path, "main.inp", """\
 *NODE
 *INCLUDE, INPUT=nodes.inc

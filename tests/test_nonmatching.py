@@ -360,12 +360,89 @@ def test_surface_that_projects_nowhere():
         make_pairing(m)
 
 
-def test_partly_covered_surfaces_name_the_uncovered_nodes():
-    """The top beam shifted by 0.3 mm: neither side lies within the other."""
-    m = _shifted_top(sandwich_2d(1), lambda p: np.full(len(p), 3e-4))
+def test_offset_surfaces_couple_their_overlap_and_report_the_rest():
+    """The top beam shifted by 0.3 mm: neither side lies within the other. The overlap
+    is coupled (rows of P sum to one, linear fields reproduced, the tributary areas add
+    up to the overlap) and the 0.3 mm of the slave that faces nothing is reported, to
+    round-off; QSMA runs through it."""
+    from qsma.errors import PartialCoverageWarning
+    from qsma.model.coupling import mortar_operator
+    shift, length = 3e-4, 0.0508                    # sandwich-2d contact zone
+    m = _shifted_top(sandwich_2d(1), lambda p: np.full(len(p), shift))
     m = dataclasses.replace(m, interface=dataclasses.replace(m.interface, coupling="auto"))
-    with pytest.raises(InputError, match=r"is not covered by(.|\n)*% covered(.|\n)*restrict"):
-        make_pairing(m)
+    bottom, top = m.bodies
+    op = mortar_operator(bottom.mesh, bottom.mesh.facets("interface"), top.mesh,
+                         top.mesh.facets("interface"))
+    assert op.slave_area == pytest.approx(length, rel=1e-12)
+    assert op.unmatched_area == pytest.approx(shift, rel=1e-9)
+    assert op.area.sum() == pytest.approx(length - shift, rel=1e-12)
+    np.testing.assert_allclose(op.P.sum(axis=1).A1, 1.0, rtol=0, atol=1e-13)
+    xs, xm = bottom.mesh.points[op.slave_nodes], top.mesh.points[op.master_nodes]
+    np.testing.assert_allclose(op.P @ xm[:, 0], xs[:, 0], rtol=0, atol=1e-15)
+    assert np.all(op.area > 0)              # the end facet is partly covered: kept
+    with pytest.warns(PartialCoverageWarning, match=r"0.591 % of the slave surface"):
+        res = qsma.run(m, levels=qsma.Levels.log("tip", 1e-5, 1e-3, 3), method="basket")
+    assert res.success and res.model_info["coupling"] == "mortar"
+
+
+def _holed_plate(y0, n, centre, half):
+    """A plate [0, W] x [y0, y0 + H] x [0, W] of n x 2 x n hexahedra with a square hole
+    through it: the cells whose centres lie within ``half`` of ``centre`` (x and z)
+    removed. Returns the mesh (facet sets 'lower', 'upper') and the hole's extent."""
+    m = structured_mesh(np.linspace(0, W, n + 1), np.linspace(y0, y0 + H, 3),
+                        np.linspace(0, W, n + 1))
+    c = m.points[m.cells].mean(axis=1)
+    keep = ~((np.abs(c[:, 0] - centre) < half) & (np.abs(c[:, 2] - centre) < half))
+    cells = m.cells[keep]
+    used = np.unique(cells)
+    renumber = np.full(m.n_nodes, -1)
+    renumber[used] = np.arange(len(used))
+    mesh = Mesh(m.points[used], renumber[cells], "hexahedron")
+    e = 1e-9 * W
+    mesh = mesh.with_sets(facet_sets={
+        "lower": mesh.boundary_facets_where(lambda p: np.abs(p[:, 1] - y0) < e),
+        "upper": mesh.boundary_facets_where(lambda p: np.abs(p[:, 1] - y0 - H) < e)})
+    hole = c[~keep][:, 0]
+    pitch = W / n
+    return mesh, (hole.min() - pitch / 2, hole.max() + pitch / 2)
+
+
+def test_plates_with_holes_meshed_apart_couple_their_overlap():
+    """Two plates with a bolt hole each, meshed apart (4 mm and 5.7 mm elements, the holes
+    16-24 mm and 17.1-28.6 mm square): neither surface covers the other, whichever is
+    the slave. The overlap is coupled exactly (rows of P sum to one, linear fields
+    reproduced, sum of D = the overlap's area) and the unmatched area is the part of the
+    master's hole over the slave's material, to round-off; the tied modes solve."""
+    from qsma.model.coupling import mortar_operator
+    from qsma.modal import linear_modes
+    mb, hb = _holed_plate(0.0, 10, 0.020, 0.006)
+    mt, ht = _holed_plate(H, 7, 0.021, 0.006)
+    overlap = max(0.0, min(hb[1], ht[1]) - max(hb[0], ht[0])) ** 2
+    for (ms, hs), (mm, hm) in (((mb, hb), (mt, ht)), ((mt, ht), (mb, hb))):
+        face = "upper" if ms is mb else "lower"
+        op = mortar_operator(ms, ms.facets(face), mm, mm.facets("upper" if mm is mb
+                                                                  else "lower"))
+        unmatched = (hm[1] - hm[0]) ** 2 - overlap        # master hole over slave material
+        assert op.slave_area == pytest.approx(W ** 2 - (hs[1] - hs[0]) ** 2, rel=1e-12)
+        assert op.unmatched_area == pytest.approx(unmatched, rel=1e-9)
+        assert op.area.sum() == pytest.approx(op.slave_area - unmatched, rel=1e-12)
+        np.testing.assert_allclose(op.P.sum(axis=1).A1, 1.0, rtol=0, atol=1e-12)
+        xs, xm = ms.points[op.slave_nodes], mm.points[op.master_nodes]
+        np.testing.assert_allclose(op.P @ xm[:, [0, 2]], xs[:, [0, 2]], rtol=0,
+                                   atol=1e-13 * W)
+    _, cb = _block(0.0, (1, 1, 1), 3, "")
+    edge = lambda m, y: np.flatnonzero((m.points[:, 0] < 1e-9) & (np.abs(m.points[:, 1] - y) < H))
+    bottom = Body("bottom", mb.with_sets(node_sets={"end": edge(mb, 0.0)}), STEEL,
+                  clamps=(Clamp("end"),))
+    top = Body("top", mt.with_sets(node_sets={"end": np.flatnonzero(
+        mt.points[:, 0] > W - 1e-9)}), STEEL, clamps=(Clamp("end"),))
+    model = Model((bottom, top), Interface("bottom", "upper", "top", "lower"))
+    with pytest.warns(qsma.errors.PartialCoverageWarning):
+        pairing = make_pairing(model)
+    assert pairing.coupling == "mortar"
+    modes = linear_modes(model, [assemble_body(b) for b in model.bodies], pairing,
+                         n_modes=2)
+    assert np.all(modes.f_hz > 0)
 
 
 def test_normals_pointing_the_same_way():

@@ -23,6 +23,9 @@ from ._threads import CONTACT_BLAS_THREADS, blas_threads as threads_limited, thr
 from .condense import reduce_two_bodies, refactorised_bodies
 from .contact import DEFAULT_TOL, ContactProblem, ContactState, OPEN, SLIPPING, STUCK
 from .contact import solve as contact_solve
+from .contact.laws import InterfaceLaw
+from .contact.layer import (LOW_PRESSURE, LOW_SECANT, MAX_LAW_ITERATIONS, Anderson, Layer,
+                            interface_springs, solve_layered)
 from .contact.registry import chosen_method, method_for
 from .contact.zone import (expected_closing, release_zones, solve_in_zone, solve_preload,
                            zone_from_state)
@@ -35,8 +38,8 @@ from .masing import loop_area
 from .levels import spec_levels
 from .modal import linear_modes, probe_vector
 from .model import make_pairing
-from .multibody import (MultiPairing, body_order, multi_pairing, pair_gaps, pair_mu,
-                        reduce_model, warn_closed_gaps)
+from .multibody import (MultiPairing, body_order, multi_pairing, pair_gaps, pair_laws,
+                        pair_mu, reduce_model, warn_closed_gaps)
 from . import _resources
 from .options import RunOptions
 from .progress import Progress, reporter
@@ -44,8 +47,8 @@ from .model.bolt import bolt_functionals, with_bolt_loads
 from .pretension import lock
 from .rigid import ANCHOR_ROUNDS, anchored, elastic_probe, held_by_joint, support_share
 from .units import check_model_units
-from .result import (FAILURE_FLAGS, LEVEL_FIELDS, DirectLoop, LevelStates,  # noqa: F401
-                     QSMAResult, load_factors as _load_factors)
+from .result import (FAILURE_FIXES, FAILURE_FLAGS, LEVEL_FIELDS,  # noqa: F401
+                     DirectLoop, LevelStates, QSMAResult, load_factors as _load_factors)
 
 log = logging.getLogger("qsma")
 
@@ -169,6 +172,14 @@ def _start(model, opts):
     return clock, pairing, limit
 
 
+#: What to change when a study varies or fits the model-wide friction coefficient of
+#: a model whose interfaces set their own (:meth:`qsma.model.Model.check_mu_reaches`).
+STUDY_MU_FIX = ("a study varies the model's mu only where no interface sets its own "
+                "(Interface(mu=None) in Python, one [interface] table in a configuration); "
+                "for the interfaces of a [[interfaces]] list, run one configuration per "
+                "value of their mu")
+
+
 @dataclass(frozen=True, eq=False)
 class Prepared:
     r"""The part of a run that a parameter study shares between its cases.
@@ -218,13 +229,7 @@ class Prepared:
         """The same preparation for friction coefficient ``mu`` (nothing recomputed).
         Refused when an interface sets a friction coefficient of its own (other than
         ``mu``): the model's ``mu`` would not reach it."""
-        own = [i for i in self.model.interface_list if i.mu is not None and i.mu != mu]
-        if own:
-            raise InputError(f"friction coefficient mu = {mu!r} for the whole model, but "
-                             f"interface {own[0].label} sets its own mu = {own[0].mu}; "
-                             f"leave the interfaces' mu unset (the model's mu then applies "
-                             f"to every interface) to vary it in a study")
-        return replace(self, model=replace(self.model, mu=mu))
+        return replace(self, model=self.model.with_mu(mu, STUDY_MU_FIX))
 
     def with_preload_scale(self, scale) -> "Prepared":
         """The same preparation with every pressure of the 'preload' pattern multiplied
@@ -254,34 +259,39 @@ class Prepared:
             out = preload(self.model, self.assembled, self.pairing, method=method,
                           opts=opts.solver_options, clock=clock, reduced=self.reduced,
                           contact_threads=_contact_threads(opts))
-            self.cache[key] = out, out[1].__dict__.get("_zone_outer")
+            self.cache[key] = out, out[1].problem.__dict__.get("_zone_outer")
         out, zone = self.cache[key]
         # every run starts from the elimination of the preload, whatever the zones of
         # earlier runs grew to (qsma.contact.zone.zone_from_state reads the last one
         # cached on the problem): the same bits in every run, in any order, whether
         # its ramps and loops grew the zones in this process or in forked ones
         if zone is None:
-            out[1].__dict__.pop("_zone_outer", None)
+            out[1].problem.__dict__.pop("_zone_outer", None)
         else:
-            out[1].__dict__["_zone_outer"] = zone
+            out[1].problem.__dict__["_zone_outer"] = zone
         return out
 
-    def mode(self, closed, opts, clock, reduced=None):
-        """:func:`_mode` cached by the mask of closed pairs, the mode and ``n_modes``."""
-        key = ("mode", np.asarray(closed, bool).tobytes(), opts.mode, opts.n_modes)
+    def mode(self, closed, opts, clock, reduced=None, layer=None):
+        """:func:`_mode` cached by the mask of closed pairs, the mode, ``n_modes`` and the
+        interface springs of a compliant layer."""
+        springs = interface_springs(layer, closed)
+        key = ("mode", np.asarray(closed, bool).tobytes(), opts.mode, opts.n_modes,
+               None if springs is None else springs.tobytes())
         if key not in self.cache:
             self.cache[key] = _mode(self.model, self.assembled, self.pairing, closed, opts,
-                                    clock, reduced)
+                                    clock, reduced, layer)
         return self.cache[key]
 
 
 def _scaled_preload(model, factor):
-    """``model`` with every pressure of the 'preload' pattern and every bolt's
-    pretension multiplied by ``factor``."""
+    """``model`` with every pressure and nodal force of the 'preload' pattern and every
+    bolt's pretension multiplied by ``factor``."""
     from .model import Pressure
     bodies = tuple(replace(b, pressures=tuple(
         Pressure(p.set, p.p * factor, p.load) if p.load == "preload" else p
-        for p in b.pressures)) for b in model.bodies)
+        for p in b.pressures), forces=tuple(
+        replace(f, force=tuple(v * factor for v in f.force)) if f.load == "preload" else f
+        for f in b.forces)) for b in model.bodies)
     bolts = tuple(replace(b, pretension=b.pretension * factor)
                   for b in getattr(model, "bolts", ()))      # part of 'preload' too
     return replace(model, bodies=bodies, bolts=bolts)
@@ -348,7 +358,9 @@ def preload(model, assembled, pairing, *, method="auto", opts=None, schur_backen
     ``eliminate_open``: solve on the predicted contact zone, the other pairs eliminated
     exactly (:func:`qsma.contact.zone.solve_preload`; the answer is judged on the whole
     interface either way). ``contact_threads``: BLAS thread limit of the contact solve
-    (``None``: as set around the call). Returns ``(reduced, problem, result)``. Raises
+    (``None``: as set around the call). Returns ``(reduced, layer, result)``, ``layer``
+    the :class:`qsma.contact.layer.Layer` of the ramps (the interface laws linearised at
+    the preload; a rigid interface's problem, unchanged, in ``layer.problem``). Raises
     :class:`AnalysisError` if the solve fails or leaves no pair in contact (tied modes
     of a disconnected assembly would be meaningless).
     """
@@ -357,29 +369,109 @@ def preload(model, assembled, pairing, *, method="auto", opts=None, schur_backen
         reduced = _condense(model, assembled, pairing, schur_backend, clock)
     with clock.stage("condensation"):
         problem = _contact_problem(model, pairing, reduced.K)
+        laws = pair_laws(model, pairing)
     zone = "preload" if eliminate_open else None
     with clock.stage("contact"), threads_limited(contact_threads):
-        pre, _ = _solve(problem, reduced, 0.0, None, method, opts or {}, "preload", zone)
+        layer = _first_layer(problem, laws, reduced, method, opts or {}, zone)
+        pre, layer = _preload_solve(layer, reduced, method, opts or {}, zone)
         for _ in range(ANCHOR_ROUNDS if getattr(reduced, "ghost", None) else 0):
             if not pre.success:                    # docs/theory.md section 10
                 break
             reduced = anchored(reduced, pre.d)
-            pre, _ = _solve(problem, reduced, 0.0, None, method, opts or {}, "preload", zone)
+            pre, layer = _preload_solve(layer, reduced, method, opts or {}, zone)
     if pre.success:
         pre = held_by_joint(reduced, pre, _load_factors(reduced, 0.0), "the preload")
     if not pre.success:
         raise AnalysisError(f"the preload contact solve failed: {pre.message} "
                             f"(residual {pre.residual:.2e})", partial=pre)
-    if getattr(model, "bolts", ()):
-        with clock.stage("condensation"):                 # bolts locked from here on
-            reduced = lock(reduced, model.bolts, pre.d)
-            problem = _contact_problem(model, pairing, reduced.K)   # same mu, gaps
+    bolts = getattr(model, "bolts", ())
+    if bolts or layer.nonlinear or (laws is not None and laws.plastic().any()):
+        with clock.stage("condensation"):
+            if bolts:                                      # bolts locked from here on
+                reduced = lock(reduced, model.bolts, pre.d)
+                problem = _contact_problem(model, pairing, reduced.K)   # same mu, gaps
+            # the layer of the ramps: linearised at the preload's pressures, a plastic
+            # one frozen on its elastic unloading from there
+            layer = Layer(problem, laws, P_ref=pre.P, frozen=True)
     if np.all(pre.status == OPEN):
         raise AnalysisError("the preload leaves no interface pair in contact: the bodies "
                             "separate, and tied modes of a disconnected assembly would be "
                             "meaningless. Check the sign and location of the bolt pressure.",
                             partial=pre)
-    return reduced, problem, pre
+    _check_every_interface_closed(pairing, pre)
+    return reduced, layer, pre
+
+
+#: Secant iterations of the preload of a nonlinear interface law (:func:`_preload_solve`).
+PRELOAD_SECANTS = 100
+
+
+def _rigid_pressures(layer, reduced, method, opts, zone):
+    """Pair forces of the rigid interface's preload (where the secants start)."""
+    rigid, _ = _solve(layer.physical, reduced, 0.0, None, method, opts, "preload", zone)
+    return np.maximum(rigid.P, 0.0)
+
+
+def _first_layer(problem, laws, reduced, method, opts, zone):
+    """The layer the preload starts from: a nonlinear law linearised at the pressures of
+    the rigid interface's preload (a linear one needs no pressures)."""
+    layer = Layer(problem, laws)
+    if not layer.nonlinear:
+        return layer
+    rigid, _ = _solve(problem, reduced, 0.0, None, method, opts, "preload", zone)
+    return Layer(problem, laws, P_ref=rigid.P) if rigid.success else layer
+
+
+def _preload_solve(layer, reduced, method, opts, zone):
+    """The preload solve. For a nonlinear interface law whose chord iteration does not
+    converge from the rigid preload's linearisation, secant iterations: the layer
+    linearised by its secants at the pressures ``P`` (exact there), one solve, ``P``
+    the new pressures (Anderson-accelerated, :class:`qsma.contact.layer.Anderson`;
+    :data:`PRELOAD_SECANTS` at most). Pairs below a floor pressure are linearised at
+    the floor, lowered tenfold each time the law's residual stalls, from
+    :data:`qsma.contact.layer.LOW_PRESSURE` to :data:`qsma.contact.layer.LOW_SECANT`
+    of the mean pressure. (A tangent linearisation started from the undeformed state
+    shifts the unloaded pairs apart and can end in another contact set; the secant is
+    exact where it is taken.) Returns ``(result, layer)``."""
+    with warnings.catch_warnings():       # a failure here is an AnalysisError of preload()
+        warnings.simplefilter("ignore", ContactConvergenceWarning)
+        return _preload_attempts(layer, reduced, method, opts, zone)
+
+
+def _preload_attempts(layer, reduced, method, opts, zone):
+    pre, _ = _solve(layer, reduced, 0.0, None, method, opts, "preload", zone)
+    if pre.success or not pre.law_residual:
+        return pre, layer
+    P = _rigid_pressures(layer, reduced, method, opts, zone)
+    accelerate, low, best = Anderson(), LOW_PRESSURE, np.inf
+    for _ in range(PRELOAD_SECANTS):
+        secant = Layer(layer.physical, layer.laws, P_ref=P, secant=True, low=low)
+        res, _ = _solve(secant, reduced, 0.0, None, method, opts, "preload", zone,
+                        law_iterations=1)
+        if res.success or not res.law_residual:   # converged, or the contact solve failed
+            return res, secant
+        if res.law_residual > 0.9 * best and low > LOW_SECANT:
+            low, best = max(0.1 * low, LOW_SECANT), np.inf    # stalled on the floor
+        best = min(best, res.law_residual)
+        P = np.maximum(accelerate(P, np.maximum(res.P, 0.0), ((res.P > 0).tobytes(), low)),
+                       0.0)
+    return res, layer
+
+
+def _check_every_interface_closed(pairing, pre):
+    """Several interfaces: refuse a preload that leaves one of them without a pair in
+    contact. Its bodies then vibrate apart, so the tied modes and every level would
+    describe a structure the joint does not hold together (as for two bodies)."""
+    if not isinstance(pairing, MultiPairing):
+        return
+    rows = pairing.rows
+    for k, itf in enumerate(pairing.interfaces):
+        if np.all(pre.status[rows[k]:rows[k + 1]] == OPEN):
+            raise AnalysisError(
+                f"the preload leaves no pair of interface {itf.label} in contact: its "
+                f"bodies separate there, and tied modes of that assembly would describe "
+                f"bodies the joint does not hold together. Check the sign and location "
+                f"of the bolt pressures", partial=pre)
 
 
 def _contact_problem(model, pairing, K):
@@ -435,15 +527,17 @@ def _assemble(model, clock, keep=None):
     return assembled
 
 
-def _mode(model, assembled, pairing, closed, opts, clock, reduced=None):
+def _mode(model, assembled, pairing, closed, opts, clock, reduced=None, layer=None):
     """The loaded mode: ``(modes, phi, phi_tip, omega0, ltip)``, tip deflection positive.
     ``reduced``: the condensed model of the preload, whose factors the shift-invert of
-    the tied modes reuses (:func:`qsma.modal.linear_modes`)."""
+    the tied modes reuses (:func:`qsma.modal.linear_modes`). ``layer``: the interface
+    layer of the ramps; a compliant one holds the closed pairs by its springs
+    (:func:`qsma.contact.layer.interface_springs`) instead of tying them."""
     mode = opts.mode
     with clock.stage("modal"):
         nm = max(6, mode + 1) if opts.n_modes is None else opts.n_modes
         modes = linear_modes(model, assembled, pairing, tied=closed, n_modes=nm,
-                             reduced=reduced)
+                             reduced=reduced, springs=interface_springs(layer, closed))
         n_el = len(modes.omega) - modes.n_rigid
         if mode >= n_el:
             raise InputError(f"mode index {mode} is beyond the {n_el} computed modes "
@@ -478,17 +572,19 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
     sopts = opts.solver_options
     if prepared is None:
         assembled = _assemble(model, clock)
-        reduced, problem, pre = preload(model, assembled, pairing, method=opts.method,
-                                        opts=sopts, schur_backend=opts.schur_backend,
-                                        clock=clock, contact_threads=_contact_threads(opts))
+        reduced, layer, pre = preload(model, assembled, pairing, method=opts.method,
+                                      opts=sopts, schur_backend=opts.schur_backend,
+                                      clock=clock, contact_threads=_contact_threads(opts))
         closed = pre.status != OPEN
         modes, phi, phi_tip, omega0, ltip = _mode(model, assembled, pairing, closed, opts,
-                                                  clock, reduced)
+                                                  clock, reduced, layer)
     else:
         assembled = prepared.assembled
-        reduced, problem, pre = prepared.preloaded(opts, clock)
+        reduced, layer, pre = prepared.preloaded(opts, clock)
         closed = pre.status != OPEN
-        modes, phi, phi_tip, omega0, ltip = prepared.mode(closed, opts, clock, reduced)
+        modes, phi, phi_tip, omega0, ltip = prepared.mode(closed, opts, clock, reduced,
+                                                          layer)
+    problem = layer.problem
 
     with clock.stage("condensation"):
         off = model.dof_offsets()
@@ -506,7 +602,7 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
     contact_limit = _contact_threads(opts)
     try:
         with clock.stage("contact"), threads_limited(contact_limit):
-            solver = _Solver(problem, reduced, opts.method, sopts,
+            solver = _Solver(layer, reduced, opts.method, sopts,
                              zone_from_state(problem, pre.state) if opts.eliminate_open
                              else None)
             negative = _NegativeRamp(solver, response, pre, opts.parallel_ramps)
@@ -544,8 +640,9 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
                              pos.residual[user], pos.nit[user])
         omega = np.where(hyst["use_loop"], 2 * np.pi * hyst["f_hz_loop"],
                          2 * np.pi * hyst["f_hz_masing"])
-        flags = _flags(al, q, tip, hyst, status, pre, omega0, opts)
-        success, message = _outcome(pos, flags, opts)
+        flags = _flags(al, q, tip, hyst, omega0, opts)
+        _settle_dissipation(hyst, flags, al, q)
+        success, message = _outcome(pos, flags, hyst["loops"])
 
     loop = None
     if opts.direct_loop and n_ok:
@@ -562,6 +659,9 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
                         n_closed_after_preload=int(closed.sum()),
                         elements={a.body.name: a.formulation for a in assembled},
                         coupling=pairing.coupling,
+                        interface_laws=_law_info(model),
+                        linear_damping=None if model.damping is None
+                        else model.damping.as_dict(),
                         **_rigid_info(reduced, modes, pos, grid, user)),
         mode_index=opts.mode, omega0=omega0, phi_tip=phi_tip,
         alpha=al, tip_lin=al * phi_tip / omega0 ** 2, q=q, tip=tip,
@@ -595,6 +695,17 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
                     negative_ramp_levels=int(neg.n)),
         timings_s=timings, resources=_resources.snapshot(), direct_loop=loop,
         gross_slip_level=gross[0] if gross else None)
+
+
+def _law_info(model):
+    """Each interface's law (its table, :meth:`InterfaceLaw.as_dict`) and whether a gap
+    field shapes it; None where every interface is rigid and flat."""
+    itfs = model.interface_list
+    if all(i.law is None and i.gap is None for i in itfs):
+        return None
+    return [dict((i.law or InterfaceLaw()).as_dict(), interface=i.label,
+                 gap_field=None if i.gap is None else getattr(i.gap, "source", "function"))
+            for i in itfs]
 
 
 def _mu_info(model):
@@ -635,47 +746,76 @@ class _Response:
         return float(self.ct @ (np.asarray(d).ravel() - self.d0) + self.at * alpha)
 
 
-def _solve(problem, reduced, alpha, state, method, opts, where, zone=None, guess=None,
-           closing=None):
+def _solve(layer, reduced, alpha, state, method, opts, where, zone=None, guess=None,
+           closing=None, law_iterations=MAX_LAW_ITERATIONS):
     """One contact solve at modal force ``alpha``; returns ``(result, zone)``.
 
+    ``layer``: the interface's :class:`qsma.contact.layer.Layer` (a plain
+    :class:`ContactProblem` is the rigid interface); ``state``, ``guess`` and the result
+    are physical, the solves see the slider (:func:`qsma.contact.layer.solve_layered`).
     ``zone``: None (the whole interface), ``"preload"`` (from the reference state on the
     predicted zone, :func:`qsma.contact.zone.solve_preload`) or a
-    :class:`qsma.contact.zone.ContactZone`. ``guess``: a state to start the iteration
-    from (the slip is measured from ``state``; see :func:`qsma.contact.solve`).
-    ``closing``: pairs expected to close (a zone's ``closing``, see
-    :func:`qsma.contact.zone.solve_in_zone`)."""
+    :class:`qsma.contact.zone.ContactZone` of ``layer.problem``. ``guess``: a state to
+    start the iteration from (the slip is measured from ``state``; see
+    :func:`qsma.contact.solve`). ``closing``: pairs expected to close (a zone's
+    ``closing``, see :func:`qsma.contact.zone.solve_in_zone`)."""
+    layer = layer if isinstance(layer, Layer) else Layer.identity(layer)
     factors = _load_factors(reduced, alpha)
-    lam_w = reduced.welded_contact_force(factors)
-    basis = (reduced.W, factors)            # lam_w = W a: the zone eliminates W once
+    W = layer.welded_basis(reduced.W)
+    lam_w = (W @ factors).reshape(-1, layer.problem.dim)
+    at = {"zone": zone}
+
+    def once(load, st, gs):
+        z = at["zone"]
+        basis = (W, factors) if load is lam_w else None   # lam_w = W a: eliminated once
+        if z is None:
+            res = contact_solve(layer.problem, load, st, method=method, guess=gs, **opts)
+        elif isinstance(z, str):
+            res, z = solve_preload(layer.problem, load, method=method, basis=basis, **opts)
+        else:
+            res, z = solve_in_zone(z, load, st, method=method, basis=basis, guess=gs,
+                                   closing=closing, **opts)
+        at["zone"] = z
+        return res
+
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ContactConvergenceWarning)
-        if zone is None:
-            res = contact_solve(problem, lam_w, state, method=method, guess=guess, **opts)
-        elif isinstance(zone, str):
-            res, zone = solve_preload(problem, lam_w, method=method, basis=basis, **opts)
-        else:
-            res, zone = solve_in_zone(zone, lam_w, state, method=method, basis=basis,
-                                      guess=guess, closing=closing, **opts)
+        res = solve_layered(layer, once, lam_w, state, guess,
+                            opts.get("tol") or DEFAULT_TOL, law_iterations)
     if not res.success:
         warnings.warn(f"contact solve at {where} did not converge: {res.message} "
                       f"(residual {res.residual:.2e})", ContactConvergenceWarning,
                       stacklevel=3)
-    return res, zone
+    return res, at["zone"]
 
 
 class _Solver:
     """The contact solve of a load level, with the open-pair elimination if enabled."""
 
-    def __init__(self, problem, reduced, method, opts, zone):
-        self.problem, self.reduced, self.method, self.opts = problem, reduced, method, opts
+    def __init__(self, layer, reduced, method, opts, zone):
+        self.layer = layer if isinstance(layer, Layer) else Layer.identity(layer)
+        self.reduced, self.method, self.opts = reduced, method, opts
         self.zone = zone
         self.guess = None       # a state to start the next solve from (set by _ramp)
 
+    @property
+    def problem(self):
+        """The contact problem the solves see (the slider's of a compliant interface)."""
+        return self.layer.problem
+
     def __call__(self, alpha, state, where, closing=None):
         guess, self.guess = self.guess, None
-        res, self.zone = _solve(self.problem, self.reduced, alpha, state, self.method,
+        res, self.zone = _solve(self.layer, self.reduced, alpha, state, self.method,
                                 self.opts, where, self.zone, guess, closing)
+        if not res.success and res.law_residual:
+            # a nonlinear law whose chord iteration stalled: linearise at this level's
+            # pressures (kept for the levels after it) and solve the level again
+            layer = self.layer.relinearised(res.P)
+            zone = None if self.zone is None else zone_from_state(layer.problem, res.state)
+            again, zone = _solve(layer, self.reduced, alpha, state, self.method, self.opts,
+                                 where, zone, guess, closing)
+            if again.success:
+                res, self.layer, self.zone = again, layer, zone
         if res.success:
             res = held_by_joint(self.reduced, res, _load_factors(self.reduced, alpha), where)
         return res
@@ -821,7 +961,7 @@ class _NegativeRamp:
 
     def _solved(self, grid):
         s = self.solver
-        solver = _Solver(s.problem, s.reduced, s.method, s.opts, self.zone)
+        solver = _Solver(s.layer, s.reduced, s.method, s.opts, self.zone)
         return _ramp(solver, -np.asarray(grid, dtype=float), self.pre.state, True, None,
                      "negative load level", response=self.response)
 
@@ -923,7 +1063,9 @@ def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref, report
                f_hz_loop=nan.copy(), zeta_loop=nan.copy(), dissipation_loop=nan.copy(),
                loop_error=nan.copy(), first=nan.copy(), cycles=np.zeros(n_ok, int),
                shakedown=np.zeros(n_ok, bool), use_loop=use_loop[user],
-               reason=reason[user], loops={}, n_solves=0)
+               reason=reason[user], loops={}, n_solves=0,
+               no_slip=_no_rubbing(solver.problem.mu, pos.status, neg_status, nn)[user],
+               linear=linear[user])
     linear_end = _linear_end(pos, pre)
     zone = solver.zone          # every loop starts from the ramps' zone: its bits do
     todo = np.flatnonzero(out["use_loop"])   # not depend on the loops solved before it
@@ -955,40 +1097,50 @@ def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref, report
             out["dissipation_loop"][i] = lp.dissipation
             out["loop_error"][i] = lp.error
             out["first"][i] = lp.first_dissipation
-            out["shakedown"][i] = lp.shakedown
+            out["shakedown"][i] = lp.shakedown or _first_loading_differs(
+                lp, pos.q[user[i]], q_neg[user[i]], opts.dissipation_rtol)
     solver.zone = zone
-    tol = opts.tol or DEFAULT_TOL
-    lin = linear[user]
-    for kind in ("masing", "loop"):
-        _exact_zeros(out, kind, lin, tol, grid[user], pos.q[user])
     return out
 
 
-#: Bound of the Masing integral over a backbone whose deviation from the tied line
-#: ``g = alpha - omega0^2 q`` is at most ``tol alpha`` at each point:
-#: ``|8 int_0^q g dq - 4 g q| <= 12 tol alpha q`` (``|g| <= tol alpha_k`` along the
-#: ramp, 8 from the integral, 4 from the last point).
-ZERO_BOUND_FACTOR = 12.0
+def _no_rubbing(mu, pos_status, neg_status, n_neg) -> np.ndarray:
+    """Per ramp point: no pair with friction (mu > 0) slips on either ramp up to it. A
+    cycle within that range is elastic (opening and closing store energy, only
+    friction dissipates), so its dissipation is exactly zero. Points beyond the
+    ``n_neg`` solved points of the -alpha ramp are not known to be so."""
+    rubbing = np.broadcast_to(np.asarray(mu, float) > 0, pos_status.shape[1:])
+    slips = np.any((pos_status == SLIPPING) & rubbing, axis=1) | \
+        np.any((neg_status == SLIPPING) & rubbing, axis=1)
+    slips[n_neg:] = True
+    return ~np.logical_or.accumulate(slips)
 
 
-def _exact_zeros(out, kind, linear, tol, alpha, q):
-    r"""Exact zeros where the joint has not moved: at a level where no pair has left its
-    preload state on either ramp up to it (``linear``), the interface responds
-    linearly over the whole amplitude, every cycle is a line and the dissipation is
-    zero. The computed value holds only the error of the contact solves: there the
-    response leaves the tied line by at most the relative tolerance ``tol`` of the
-    solves, ``|g| <= tol alpha``, which bounds the dissipation by
-    :data:`ZERO_BOUND_FACTOR` ``tol alpha q`` (``|zeta| <= 6 tol / pi``). A dissipation
-    within that bound is set to exactly 0 (the damping ratio with it) and its error
-    estimate raised to cover what was removed; one beyond it is kept as computed (and
-    flagged ``stuck_not_linear`` if it is not zero to :data:`ZETA_ZERO`)."""
-    D, zeta, err = (out[f"dissipation_{kind}"], out[f"zeta_{kind}"],
-                    out["masing_error" if kind == "masing" else "loop_error"])
-    bound = ZERO_BOUND_FACTOR * tol * alpha * np.abs(q)
-    clip = linear & np.isfinite(D) & (np.abs(D) <= bound)
-    err[clip] = np.maximum(np.nan_to_num(err[clip]), np.abs(D[clip]))
-    D[clip] = 0.0
-    zeta[clip] = 0.0
+def _settle_dissipation(hyst, flags, alpha, q):
+    """The dissipation as reported, where it is zero to the precision it was computed
+    with: exactly 0 where no pair with friction slipped (``hyst["no_slip"]``), and 0 for
+    a negative value within the round-off bound ``ZETA_ZERO 2 pi alpha |q|`` of the
+    contact solves it comes from (a cycle cannot create energy). A negative value
+    beyond that bound is flagged ``negative_dissipation`` (:func:`_flags`) and kept, as
+    is every value of a level with a failure flag."""
+    bound = ZETA_ZERO * 2 * np.pi * np.asarray(alpha) * np.abs(q)
+    sound = np.array([not set(f) & set(FAILURE_FLAGS) for f in flags], bool)
+    for method in ("masing", "loop"):
+        D, zeta = hyst[f"dissipation_{method}"], hyst[f"zeta_{method}"]
+        zero = sound & np.isfinite(D) & (hyst["no_slip"] | ((D < 0) & (-D <= bound)))
+        D[zero] = 0.0
+        zeta[zero] = 0.0
+
+
+def _first_loading_differs(lp, q_top, q_bottom, rtol) -> bool:
+    """Whether the stabilised loop turns elsewhere than the first loadings to ``+A`` and
+    ``-A`` (the backbones' ``q_top``, ``q_bottom``) by more than ``rtol`` of its
+    half-range: the ramps slipped where the cycle does not (pairs left at the friction
+    limit by the preload slide once, then the cycle is elastic). The level's ``q`` and
+    ``tip`` are then those of the first loading and its ``f`` and ``zeta`` those of the
+    settled cycle: a shakedown, flagged as one."""
+    off = max(abs(lp.q_top - q_top), abs(lp.q_bottom - q_bottom) if np.isfinite(q_bottom)
+              else 0.0)
+    return bool(off > rtol * abs(lp.q_amplitude))
 
 
 def _with_closed(zone, status):
@@ -1052,7 +1204,7 @@ def _loop_fractions(grid, g, linear_end, steps):
     return u
 
 
-def _flags(alpha, q, tip, hyst, status, pre, omega0, opts):
+def _flags(alpha, q, tip, hyst, omega0, opts):
     """Per level, what the physics forbids (failures) and what it allows but a reader
     should know (information); see :data:`FAILURE_FLAGS`."""
     n = len(alpha)
@@ -1062,7 +1214,10 @@ def _flags(alpha, q, tip, hyst, status, pre, omega0, opts):
     err = np.where(use_loop, hyst["loop_error"], hyst["masing_error"])
     D = np.where(use_loop, hyst["dissipation_loop"], hyst["dissipation_masing"])
     f0 = omega0 / (2 * np.pi)
-    untouched = _untouched(status, pre)
+    # no pair has left its preload state on either ramp up to the level (every point
+    # of both refined ramps): the +alpha states of the output levels alone would call
+    # a level whose -alpha ramp slips untouched, and its damping a misfire
+    untouched = hyst["linear"]
     out = []
     for k in range(n):
         fl = []
@@ -1071,8 +1226,8 @@ def _flags(alpha, q, tip, hyst, status, pre, omega0, opts):
             fl.append("not_finite" if lp is None else
                       "loop_not_stabilised" if lp.outcome == "not_stabilised" else
                       "loop_failed")
-        elif D[k] < -(abs(err[k]) + ZETA_ZERO * 2 * np.pi * alpha[k] * abs(q[k])):
-            fl.append("negative_dissipation")
+        elif D[k] < -ZETA_ZERO * 2 * np.pi * alpha[k] * abs(q[k]):
+            fl.append("negative_dissipation")       # whatever its error estimate says
         if hyst["zeta_masing"][k] < -ZETA_ZERO and use_loop[k]:
             fl.append("masing_negative")
         hard = f[k] > f0 * (1 + STUCK_FREQUENCY_RTOL) or (
@@ -1096,23 +1251,22 @@ def _flags(alpha, q, tip, hyst, status, pre, omega0, opts):
     return tuple(out)
 
 
-def _outcome(pos, flags, opts):
-    """``(success, message)`` of the run from the ramp and the level flags."""
-    bad = [k for k, f in enumerate(flags) if set(f) & set(FAILURE_FLAGS)]
-    parts = []
-    if not pos.success:
-        parts.append(pos.message)
-    if bad:
-        names = sorted({x for k in bad for x in flags[k] if x in FAILURE_FLAGS})
-        parts.append(f"{len(bad)} level(s) hold values the physics forbids "
-                     f"({', '.join(names)}): levels {bad[:12]}"
-                     f"{' ...' if len(bad) > 12 else ''}; see 'flags' in the results"
-                     + ("; dissipation='loop' computes the true loops"
-                        if opts.dissipation == "masing" else "")
-                     + ("; stuck_not_linear: the modal response of these levels is below "
-                        "the numerical resolution of the preload state (about 1e-9 of the "
-                        "preload displacements): raise the smallest load level, or check "
-                        "the units of the bolt load" if "stuck_not_linear" in names else ""))
+def _outcome(pos, flags, loops=None):
+    """``(success, message)`` of the run from the ramp and the level flags: per failure
+    flag its levels and what to change (:data:`qsma.result.FAILURE_FIXES`), with the
+    message of the first loop that failed or did not stabilise (``loops``: level ->
+    :class:`qsma.hysteresis.Loop`)."""
+    parts = [] if pos.success else [pos.message]
+    for name in FAILURE_FLAGS:
+        ks = [k for k, f in enumerate(flags) if name in f]
+        if not ks:
+            continue
+        text = (f"{name} at level(s) {ks[:12]}{' ...' if len(ks) > 12 else ''}: "
+                f"{FAILURE_FIXES[name]}")
+        lp = (loops or {}).get(ks[0])
+        if name in ("loop_failed", "loop_not_stabilised") and lp is not None:
+            text += f" (level {ks[0]}: {lp.message})"
+        parts.append(text)
     if not parts:
         return True, "all levels converged"
     return False, "; ".join(parts)

@@ -115,6 +115,11 @@ def condense_body(assembled, nodes, frames, backend="auto") -> CondensedBody:
         raise InputError(f"body {body.name!r}: interface node(s) {bad[:10].tolist()} are "
                          f"clamped; remove them from the interface set or from the clamp")
     free = assembled.free
+    if len(C) >= len(free):
+        raise InputError(f"body {body.name!r}: every DOF that is not clamped lies on the "
+                         f"interface ({len(C)} DOFs), none inside the body to condense; "
+                         f"mesh it with more elements (at least two layers of cells "
+                         f"through its thickness)")
     K = assembled.K.tocsr()
     Kf = K[free][:, free]
     try:
@@ -586,19 +591,31 @@ class TiedSolver:
         return tuple(recovered(rm.bodies, u, (F1, F2)))
 
 
-def tied_solver(reduced, tied) -> TiedSolver | None:
+def tied_solver(reduced, tied, springs=None) -> TiedSolver | None:
     """The :class:`TiedSolver` of ``reduced`` (a :class:`ReducedModel`, or a model with
     locked bolts whose ``base`` is one) with the contact points in mask ``tied`` tied;
     None where ``K_GG`` is not positive definite (the tied pairs do not hold the bodies
-    together: a mechanism, left to the caller's full solve to diagnose)."""
+    together: a mechanism, left to the caller's full solve to diagnose).
+
+    ``springs``, optional: (n_pairs, dim) stiffness of a compliant layer at the tied
+    points (``inf``: tied component; see :func:`qsma.modal.linear_modes`): the
+    components with a finite spring are free DOFs of ``d`` whose stiffness gains it,
+    ``(K_GG + S_G) d_G = -w_G``."""
     rm = getattr(reduced, "base", reduced)
     if not isinstance(rm, ReducedModel):
         return None
     tied = np.asarray(tied, dtype=bool)
-    G = np.flatnonzero(np.repeat(~tied, rm.dim))
+    if springs is None:
+        fixed, spring = np.repeat(tied, rm.dim), np.zeros(len(tied) * rm.dim)
+    else:
+        springs = np.asarray(springs, dtype=float)
+        fixed = (tied[:, None] & np.isinf(springs)).ravel()
+        spring = np.where(tied[:, None] & np.isfinite(springs), springs, 0.0).ravel()
+    G = np.flatnonzero(~fixed)
     if not len(G):
         return TiedSolver(rm, G, None)
     K_GG = rm.K[np.ix_(G, G)]
+    K_GG[np.diag_indices_from(K_GG)] += spring[G]
     if rm.ghost is not None:                     # the bodies' own stiffness
         N_G = rm.ghost.N[G]
         K_GG -= rm.ghost.k * (N_G @ N_G.T)

@@ -6,50 +6,88 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 try:
     import tomllib
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
-from .errors import InputError
+from .errors import InputError, MeshFileError
 from .levels import Levels, spec_levels
 from .options import RunOptions
 from .units import unit_system
-from .model import Body, Clamp, Interface, Material, Model, Pressure, Probe, Spring
+from .contact.laws import law_from_table
+from .model import (Body, Bolt, Clamp, Interface, LinearDamping, Material, Model, NodalForce,
+                    PointMass, Pressure, Probe, Spring, read_gap_field)
 
 _NUM = (int, float)
 # section -> {key: (types, required)}
 SCHEMA = {
     "": {"name": (str, False), "units": (str, False), "bodies": (list, True),
-         "interface": (dict, False),
-         "interfaces": (list, False),
+         "interface": (dict, False), "interfaces": (list, False), "bolts": (list, False),
+         "damping": (dict, False),
          "tip": (dict, True), "analysis": (dict, False), "levels": (dict, False)},
     "bodies": {"name": (str, True), "mesh": (str, True), "cells": (str, False),
-               "E": (_NUM, True),
+               "part": (int, False), "E": (_NUM, True),
                "nu": (_NUM, True), "rho": (_NUM, True), "clamps": (list, False),
-               "pressures": (list, False), "springs": (list, False)},
-    "clamps": {"set": (str, True), "components": (list, False)},
+               "pressures": (list, False), "springs": (list, False),
+               "masses": (list, False), "forces": (list, False)},
+    "clamps": {"set": (str, True), "components": (list, False), "dofs": (list, False)},
     "springs": {"set": (str, True), "stiffness": (list, True)},
-    "pressures": {"set": (str, True), "p": (_NUM, True), "load": (str, False)},
+    "masses": {"set": (str, True), "mass": (_NUM, True)},
+    "bolts": {"name": (str, True), "body_a": (str, True), "set_a": (str, True),
+              "body_b": (str, True), "set_b": (str, True), "pretension": (_NUM, True),
+              "stiffness": (_NUM, True)},
+    "pressures": {"set": (str, True), "p": (_NUM, True), "load": (str, False),
+                  "face": (int, False)},
+    "forces": {"set": (str, True), "force": (list, True), "load": (str, False)},
     "interface": {"body1": (str, True), "set1": (str, True), "body2": (str, True),
                   "set2": (str, True), "mu": (_NUM, True), "tol": (_NUM, False),
-                  "coupling": (str, False), "slave": (str, False)},
+                  "coupling": (str, False), "slave": (str, False), "law": (dict, False),
+                  "gap": (dict, False)},
     "interfaces": {"body1": (str, True), "set1": (str, True), "body2": (str, True),
                    "set2": (str, True), "mu": (_NUM, True), "tol": (_NUM, False),
-                   "coupling": (str, False), "slave": (str, False)},
-    "tip": {"sets": (list, True), "direction": (list, True)},
+                   "coupling": (str, False), "slave": (str, False), "law": (dict, False),
+                   "gap": (dict, False)},
+    "gap": {"file": (str, True), "scale": (_NUM, False), "coordinate_scale": (_NUM, False)},
+    "damping": {"ratio": (_NUM, False), "rayleigh": (list, False)},
+    "tip": {"sets": (list, False), "points": (list, False), "direction": (list, True)},
     "levels": {"kind": (str, True), "spacing": (str, True), "start": (_NUM, False),
                "stop": (_NUM, False), "n": (int, False), "values": (list, False)},
 }
 
 
+#: How each table is written in a file, for the messages.
+_TABLE_NAMES = {"": "the top level", "bodies": "[[bodies]]", "clamps": "a body's clamps",
+                "springs": "a body's springs", "pressures": "a body's pressures",
+                "masses": "a body's masses", "bolts": "[[bolts]]",
+                "forces": "a body's forces",
+                "interface": "[interface]", "interfaces": "[[interfaces]]", "tip": "[tip]",
+                "levels": "[levels]", "analysis": "[analysis]"}
+
+
+def _key_hint(key, section) -> str:
+    """`` (...)``: where an unknown key belongs, or the nearest allowed key."""
+    import difflib
+    tables = dict(SCHEMA, analysis=dict(RunOptions.table_keys(), modes=list))
+    owners = [_TABLE_NAMES[t] for t, keys in tables.items() if key in keys and t != section]
+    if owners:
+        return f" (it belongs in {' or '.join(owners)})"
+    close = difflib.get_close_matches(key, SCHEMA[section], n=1)
+    return f" (did you mean {close[0]!r}?)" if close else ""
+
+
 @dataclass(frozen=True)
 class RunConfig:
     """A model and the options of :func:`qsma.run` (the ``[analysis]`` table is
-    :class:`qsma.options.RunOptions`, its keys are that class's fields)."""
+    :class:`qsma.options.RunOptions`, its keys are that class's fields, and ``modes``:
+    several modes, one backbone each, as ``qsma run --modes``; ``None``: one run of
+    ``options.mode``)."""
 
     model: Model
     options: RunOptions
+    modes: tuple | None = None
 
 
 def _check(table, section, where):
@@ -58,7 +96,8 @@ def _check(table, section, where):
     schema = SCHEMA[section]
     for key in table:
         if key not in schema:
-            raise InputError(f"{where}: unknown key {key!r}; allowed keys: {sorted(schema)}")
+            raise InputError(f"{where}: unknown key {key!r}{_key_hint(key, section)}; "
+                             f"allowed keys: {sorted(schema)}")
     for key, (types, required) in schema.items():
         if key not in table:
             if required:
@@ -109,22 +148,95 @@ def decode_toml(raw: bytes, where: str) -> str:
                          f"Save the file as UTF-8 (e.g. iconv -f LATIN1 -t UTF-8)") from None
 
 
-def _interface(t, with_mu=True) -> Interface:
+def _interface(t, where, base, with_mu=True) -> Interface:
+    law = law_from_table(t["law"], f"{where}.law") if "law" in t else None
+    gap = None
+    if "gap" in t:
+        g = _check(t["gap"], "gap", f"{where}.gap")
+        gap = read_gap_field(base / g["file"], scale=g.get("scale", 1.0),
+                             coordinate_scale=g.get("coordinate_scale", 1.0))
     return Interface(t["body1"], t["set1"], t["body2"], t["set2"], t.get("tol"),
                      coupling=t.get("coupling", "auto"), slave=t.get("slave"),
-                     mu=t["mu"] if with_mu else None)
+                     mu=t["mu"] if with_mu else None, law=law, gap=gap)
 
 
-def _body_mesh(path, cells, files):
-    """The mesh of a body: the whole file, or its cell set ``cells`` (one file read once
-    for all the bodies taken from it)."""
-    from .model.io import read_mesh, read_assembly
+def _damping(table, where):
+    """The ``[damping]`` table: ``ratio = 0.00087`` or ``rayleigh = [alpha, beta]``."""
+    if table is None:
+        return None
+    _check(table, "damping", where)
+    if ("ratio" in table) == ("rayleigh" in table):
+        raise InputError(f"{where}: give exactly one of ratio (a modal damping ratio, e.g. "
+                         f"0.00087) or rayleigh = [alpha, beta]")
+    if "ratio" in table:
+        return LinearDamping(ratio=table["ratio"])
+    ab = table["rayleigh"]
+    if len(ab) != 2:
+        raise InputError(f"{where}: rayleigh must be [alpha (1/s), beta (s)], got {ab!r}")
+    return LinearDamping(alpha=ab[0], beta=ab[1])
+
+
+def _body_mesh(path, cells, files, part=None):
+    """The mesh of a body: the whole file, its cell set ``cells`` or its connected part
+    number ``part`` (from 1; one file read once for all the bodies taken from it)."""
+    from .model.io import read_mesh
+    if part is not None:
+        if cells is not None:
+            raise InputError("give either cells (a cell set) or part (a connected part "
+                             "of the mesh), not both")
+        meshes = files.setdefault(("parts", str(path)),
+                                  _assembly(path, files).component_meshes())
+        if not 1 <= part <= len(meshes):
+            raise InputError(f"part = {part}: {path} has {len(meshes)} connected part(s) "
+                             f"(cells joined through shared nodes), numbered from 1")
+        return meshes[part - 1]
     if cells is None:
-        return read_mesh(path)
+        try:
+            return read_mesh(path)
+        except MeshFileError as exc:
+            sets = _cell_sets(path, files)
+            if len(sets) < 2:
+                raise
+            raise MeshFileError(f"{path} holds {len(sets)} cell sets {sets} and was read as "
+                                f"one body without 'cells': if it holds several bodies, "
+                                f"name this body's cell set in its [[bodies]] table, e.g. "
+                                f"cells = {sets[0]!r}. Reading it whole gave: {exc}") from exc
+    return _assembly(path, files).body_mesh(cells)
+
+
+def _assembly(path, files):
+    """The :class:`qsma.model.io.Assembly` of ``path``, read once per configuration."""
+    from .model.io import read_assembly
     key = str(path)
     if key not in files:
         files[key] = read_assembly(path)
-    return files[key].body_mesh(cells)
+    return files[key]
+
+
+def _cell_sets(path, files) -> list:
+    """The cell sets of a mesh file (empty if it cannot be read as an assembly)."""
+    try:
+        return _assembly(path, files).cell_sets
+    except InputError:
+        return []
+
+
+def _check_whole_files(tables, base, files, where):
+    """Two bodies reading one file whole (no ``cells``) would be the same mesh twice:
+    point to ``cells``."""
+    whole = {}
+    for k, b in enumerate(tables):
+        if "cells" not in b and "part" not in b:
+            whole.setdefault(str(base / b["mesh"]), []).append(b["name"])
+    for path, names in whole.items():
+        if len(names) > 1:
+            sets = _cell_sets(Path(path), files)
+            example = f"e.g. cells = {sets[0]!r}; cell sets of the file: {sets}" if sets \
+                else "the file names no cell set: give each body its own mesh file"
+            raise InputError(f"{where}: bodies {names} all read {path} whole (no 'cells'), "
+                             f"so each would be the whole mesh; take each body out of the "
+                             f"file by its cell set with 'cells' in its [[bodies]] table "
+                             f"({example})")
 
 
 def parse_config(data, base=Path("."), where="config") -> RunConfig:
@@ -172,53 +284,171 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
     bodies = []
     files = {}
     for k, b in enumerate(data["bodies"]):
-        w = f"{where}: bodies[{k}]"
-        _check(b, "bodies", w)
-        clamps = tuple(Clamp(c["set"], tuple(c["components"]) if "components" in c else None)
-                       for c in (_check(c, "clamps", f"{w}.clamps") for c in
-                                 b.get("clamps", [])))
-        pressures = tuple(Pressure(p["set"], p["p"], p.get("load", "preload"))
-                          for p in (_check(p, "pressures", f"{w}.pressures") for p in
-                                    b.get("pressures", [])))
-        spring_tables = [_check(t, "springs", f"{w}.springs") for t in b.get("springs", [])]
+        _check(b, "bodies", f"{where}: bodies[{k}]")
         if "\x00" in b["mesh"] or not b["mesh"].strip():
-            raise InputError(f"{w}: mesh path {b['mesh']!r} is empty or contains a NUL "
-                             f"character; give the mesh file name")
+            raise InputError(f"{where}: bodies[{k}]: mesh path {b['mesh']!r} is empty or "
+                             f"contains a NUL character; give the mesh file name")
+    _check_whole_files(data["bodies"], base, files, where)
+    for k, b in enumerate(data["bodies"]):
+        w = f"{where}: bodies[{k}]"
+        tables = {key: [_check(t, key, f"{w}.{key}") for t in b.get(key, [])]
+                  for key in ("clamps", "masses", "pressures", "springs", "forces")}
+        clamps = tuple(_clamp(c, f"{w}.clamps") for c in tables["clamps"])
         try:
             mat = Material(b["E"], b["nu"], b["rho"])
-            springs = tuple(Spring(t["set"], tuple(t["stiffness"])) for t in spring_tables)
-            mesh = _body_mesh(base / b["mesh"], b.get("cells"), files)
-            bodies.append(Body(b["name"], mesh, mat, clamps, pressures, springs))
+            masses = tuple(PointMass(t["set"], t["mass"]) for t in tables["masses"])
+            springs = tuple(Spring(t["set"], tuple(t["stiffness"])) for t in tables["springs"])
+            forces = tuple(NodalForce(t["set"], tuple(t["force"]), t.get("load", "preload"))
+                           for t in tables["forces"])
+            mesh = _body_mesh(base / b["mesh"], b.get("cells"), files, b.get("part"))
+            mesh, pressures = _pressures(mesh, tables["pressures"])
+            bodies.append(Body(b["name"], mesh, mat, clamps, pressures, springs, masses,
+                               forces))
         except InputError as exc:
             raise InputError(f"{w} ({b['name']!r}): {exc}") from exc
     tip = _check(data["tip"], "tip", f"{where}: tip")
-    sets = tip["sets"]
-    if not all(isinstance(s, list) and len(s) == 2 and all(isinstance(x, str) for x in s)
-               for s in sets):
-        raise InputError(f"{where}: tip.sets must be a list of [body, set] pairs, got {sets!r}")
-    probe = Probe(tuple(tuple(s) for s in sets), tuple(tip["direction"]))
+    bodies, probe = _probe(tip, bodies, f"{where}: tip")
     name = data.get("name", "model")
+    damping = _damping(data.get("damping"), f"{where}: damping")
     if ("interface" in data) == ("interfaces" in data):
         raise InputError(f"{where}: give the contact interface as one [interface] table "
                          f"(two bodies) or as a list of [[interfaces]] tables (any number "
                          f"of bodies), exactly one of the two")
+    bolts = tuple(Bolt(**_check(t, "bolts", f"{where}: bolts[{k}]"))
+                  for k, t in enumerate(data.get("bolts", [])))
     if "interface" in data:
         itf = _check(data["interface"], "interface", f"{where}: interface")
-        model = Model(bodies=tuple(bodies), interface=_interface(itf, with_mu=False),
-                      tip=probe, mu=itf["mu"], name=name, units=units)
+        model = Model(bodies=tuple(bodies),
+                      interface=_interface(itf, f"{where}: interface", base, with_mu=False),
+                      tip=probe, mu=itf["mu"], name=name, bolts=bolts, units=units,
+                      damping=damping)
     else:
         if not data["interfaces"]:
             raise InputError(f"{where}: interfaces is empty; list the touching facet sets "
                              f"as [[interfaces]] tables")
-        itfs = tuple(_interface(_check(t, "interfaces", f"{where}: interfaces[{k}]"))
+        itfs = tuple(_interface(_check(t, "interfaces", f"{where}: interfaces[{k}]"),
+                                f"{where}: interfaces[{k}]", base)
                      for k, t in enumerate(data["interfaces"]))
         model = Model(bodies=tuple(bodies), interfaces=itfs, tip=probe, mu=itfs[0].mu,
-                      name=name, units=units)
+                      name=name, bolts=bolts, units=units, damping=damping)
+    analysis = dict(data.get("analysis", {})) if isinstance(data.get("analysis"), dict) \
+        else data.get("analysis", {})
+    modes = _modes(analysis, f"{where}: analysis")
     levels = (spec_levels(model.units) if data.get("levels") is None
               else parse_levels(data["levels"], f"{where}: levels"))
-    options = RunOptions.from_table(data.get("analysis", {}), f"{where}: analysis",
-                                    levels=levels)
-    return RunConfig(model, options)
+    options = RunOptions.from_table(analysis, f"{where}: analysis", levels=levels)
+    return RunConfig(model, options, modes)
+
+
+def config_modes(path) -> tuple | None:
+    """The ``modes`` of a configuration file's ``[analysis]`` table (None if it gives
+    none), read without its meshes: the command line chooses one run or several before
+    it loads the model."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(decode_toml(path.read_bytes(), str(path)))
+    except (OSError, tomllib.TOMLDecodeError):
+        return None                    # load_config names the problem
+    analysis = data.get("analysis")
+    return _modes(dict(analysis), f"{path}: analysis") if isinstance(analysis, dict) else None
+
+
+def _pressures(mesh, tables):
+    """``(mesh, pressures)``: a table with ``face = k`` loads face S<k> of the cells of
+    cell set ``set`` (an Abaqus ``*DLOAD, set, P<k>``), a facet set ``<set>:S<k>`` added
+    to the mesh for it."""
+    from .model.io.abaqus import element_face_facets
+    extra, pressures = {}, []
+    for t in tables:
+        name = t["set"]
+        if "face" in t:
+            name = f"{t['set']}:S{t['face']}"
+            extra[name] = element_face_facets(mesh, t["set"], t["face"])
+        pressures.append(Pressure(name, t["p"], t.get("load", "preload")))
+    return (mesh.with_sets(facet_sets=extra) if extra else mesh), tuple(pressures)
+
+
+def _probe(tip, bodies, where):
+    """``(bodies, Probe)`` from the ``[tip]`` table: ``sets`` of ``[body, set]`` pairs, or
+    ``points`` of ``[body, [x, y(, z)]]``, each the body's node nearest to the point (a
+    node set ``_tip`` is added to those bodies)."""
+    from dataclasses import replace
+    if ("sets" in tip) == ("points" in tip):
+        raise InputError(f"{where}: give either sets = [[body, set], ...] or points = "
+                         f"[[body, [x, y, z]], ...], exactly one of the two")
+    if "sets" in tip:
+        sets = tip["sets"]
+        if not all(isinstance(s, list) and len(s) == 2 and all(isinstance(x, str) for x in s)
+                   for s in sets):
+            raise InputError(f"{where}: tip.sets must be a list of [body, set] pairs, got "
+                             f"{sets!r}")
+        return bodies, Probe(tuple(tuple(s) for s in sets), tuple(tip["direction"]))
+    by_name = {b.name: b for b in bodies}
+    nodes = {}
+    for item in tip["points"]:
+        if not (isinstance(item, list) and len(item) == 2 and item[0] in by_name
+                and isinstance(item[1], list)
+                and len(item[1]) == by_name[item[0]].dim
+                and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                        for v in item[1])):
+            raise InputError(f"{where}: tip.points must be [body, [x, y(, z)]] pairs naming "
+                             f"bodies {sorted(by_name)}, got {item!r}")
+        nodes.setdefault(item[0], []).append(_nearest_node(by_name[item[0]], item[1], where))
+    bodies = [replace(b, mesh=b.mesh.with_sets(node_sets={"_tip": np.unique(nodes[b.name])}))
+              if b.name in nodes else b for b in bodies]
+    return bodies, Probe(tuple((name, "_tip") for name in nodes), tuple(tip["direction"]))
+
+
+#: A probe point farther than this fraction of its body's size from every node is a
+#: mistake (a typo, another unit), not a choice of node.
+POINT_TOLERANCE = 0.01
+
+
+def _nearest_node(body, point, where) -> int:
+    x = body.mesh.points
+    d = np.linalg.norm(x - np.asarray(point, float), axis=1)
+    k = int(np.argmin(d))
+    size = float(np.linalg.norm(x.max(axis=0) - x.min(axis=0)))
+    if d[k] > POINT_TOLERANCE * size:
+        raise InputError(f"{where}: point {point} is {d[k]:.4g} from the nearest node of body "
+                         f"{body.name!r} (at {x[k].tolist()}), more than "
+                         f"{POINT_TOLERANCE:g} of the body's size {size:.4g}: give a point "
+                         f"on the body")
+    return k
+
+
+def _clamp(table, where) -> Clamp:
+    """A clamp from its table: ``components`` counts from 0 (0 = x), ``dofs`` from 1 as
+    Abaqus and CalculiX do (1 = x); neither: every direction."""
+    if "components" in table and "dofs" in table:
+        raise InputError(f"{where}: give either components (0 = x, 1 = y, 2 = z) or dofs "
+                         f"(1 = x, 2 = y, 3 = z, as in Abaqus), not both")
+    if "dofs" in table:
+        dofs = table["dofs"]
+        if not dofs or not all(isinstance(d, int) and not isinstance(d, bool) and 1 <= d <= 3
+                               for d in dofs):
+            raise InputError(f"{where}: dofs must be a list of degrees of freedom 1, 2 or 3 "
+                             f"(1 = x, 2 = y, 3 = z, counted from 1 as in Abaqus and "
+                             f"CalculiX), got {dofs!r}")
+        return Clamp(table["set"], tuple(d - 1 for d in dofs))
+    return Clamp(table["set"], tuple(table["components"]) if "components" in table else None)
+
+
+def _modes(analysis, where):
+    """``modes`` of the ``[analysis]`` table, taken out of it (distinct integers >= 0),
+    or None."""
+    if not isinstance(analysis, dict) or "modes" not in analysis:
+        return None
+    modes = analysis.pop("modes")
+    if not (isinstance(modes, list) and modes and len(set(modes)) == len(modes)
+            and all(isinstance(k, int) and not isinstance(k, bool) and k >= 0
+                    for k in modes)):
+        raise InputError(f"{where}: modes must be a list of distinct mode indices >= 0 "
+                         f"(0 = lowest), e.g. modes = [0, 1, 2]; got {modes!r}")
+    if "mode" in analysis:
+        raise InputError(f"{where}: give either mode = K (one mode) or modes = [K1, K2, ...] "
+                         f"(one backbone each), not both")
+    return tuple(modes)
 
 
 def parse_levels(table, where="levels") -> Levels:

@@ -46,6 +46,11 @@ class InterfaceGapWarning(QSMAWarning):
     """Mortar surfaces that do not touch in the mesh were taken as touching."""
 
 
+class PartialCoverageWarning(QSMAWarning):
+    """Part of a mortar interface's slave surface faces no master facet (a hole, an
+    offset edge) and is left out of the contact."""
+
+
 class QuadraticFacetWarning(QSMAWarning):
     """An interface on serendipity quad8 facets (hexahedron20 cells): a uniform pressure
     needs the corner pairs to pull, so they open under a preload (docs/theory.md,

@@ -42,14 +42,20 @@ log = logging.getLogger("qsma")
 STATE_RTOL = 1e-7
 #: The ways a loop computation ends (:attr:`Loop.outcome`).
 LOOP_OUTCOMES = ("stabilised", "not_stabilised", "solve_failed")
-#: Factor by which the drift of the state at ``+A`` (the largest change of an interface
-#: displacement over one cycle) must shrink from cycle to cycle, over each of the last
-#: two cycles, for a loop to get cycles beyond ``max_cycles`` (at most ``max_cycles``
-#: more): a shakedown that converges geometrically. Ratcheting (a constant drift) and a
-#: cycle that alternates between two states (period two: a constant drift) do not
-#: contract. Measured: the loop of stack-2d level 4 (A = 12.55, zeta 2.7e-5, the first
-#: levels that slip) contracts by 0.55 per cycle and needs 10 cycles.
-CONTRACTION = 0.75
+#: Largest factor by which the drift of the state at ``+A`` (the largest change of an
+#: interface displacement over one cycle) may shrink from cycle to cycle, over each of
+#: the last two cycles, for a loop to get cycles beyond ``max_cycles``: a shakedown
+#: that converges geometrically. Ratcheting (a constant drift) and a cycle that
+#: alternates between two states (period two: a constant drift) do not contract.
+#: Measured: the loop of stack-2d level 4 (A = 12.55, zeta 2.7e-5, the first levels
+#: that slip) contracts by 0.55 per cycle and needs 10 cycles; a tetrahedral lap-3d
+#: (each hexahedron of the example split into six tetrahedra) at its third default
+#: level by 0.78 to 0.85 and repeats after 17 cycles.
+CONTRACTION = 0.95
+#: A contracting loop gets the cycles its contraction predicts (:func:`_cycles_needed`)
+#: as long as they total at most this many times ``max_cycles``; beyond, it stops at
+#: once, its message naming the ``max_cycles`` that would do.
+CYCLE_CEILING = 4
 #: Rounds of loop-increment refinement (each halves the increments where the pair
 #: states change and continues the history with one cycle on them; the change of D
 #: from the previous cycle is the error estimate).
@@ -197,8 +203,9 @@ def compute_loop(step, modal, amplitude, start, fractions, *, k_ref, max_cycles=
         Linear reference stiffness of the deviation (the tied ``w0^2``).
     max_cycles : int
         Cycles on the initial increments before the loop is declared not stabilised,
-        unless its drift contracts geometrically (:func:`_contracting`); then at most
-        ``2 max_cycles``.
+        unless its drift contracts geometrically (:func:`_contracting`) and the
+        cycles it then needs (:func:`_cycles_needed`) total at most
+        ``CYCLE_CEILING max_cycles``.
     rtol, atol : float
         Refine until the error estimate is ``<= rtol |D| + atol`` (at most
         ``refine_rounds`` rounds, each halving the increments where pair states change).
@@ -372,13 +379,15 @@ def _cycles(step, modal, A, start, u, k_ref, max_cycles, rtol, atol, closings=No
     changed, end)`` with ``changed[i]`` whether a pair changed state in branch interval
     ``i`` of the last cycle and ``end`` the state it ended in.
 
-    After ``max_cycles`` cycles the loop goes on, up to ``2 max_cycles``, only while it
-    visibly converges (:func:`_contracting`: the drift of the state at ``+A`` shrinks by
-    :data:`CONTRACTION` per cycle); otherwise it is not stabilised."""
+    After ``max_cycles`` cycles the loop goes on only while it visibly converges
+    (:func:`_contracting`: the drift of the state at ``+A`` shrinks by
+    :data:`CONTRACTION` or more per cycle) and the cycles its contraction predicts
+    (:func:`_cycles_needed`) total at most ``CYCLE_CEILING max_cycles``; otherwise it
+    is not stabilised, its message saying why and what to change."""
     path = cycle_path(A, u)
     state0, first, previous, drifts, n_solves = start, None, None, [], 0
-    cycle = 0
-    while cycle < max_cycles or (cycle < 2 * max_cycles and _contracting(drifts)):
+    cycle, needed = 0, None
+    while cycle < max_cycles or needed is not None and needed <= CYCLE_CEILING * max_cycles:
         cycle += 1
         out = _one_cycle(step, modal, A, state0, path, closings)
         n_solves += out.n_solves
@@ -388,31 +397,41 @@ def _cycles(step, modal, A, start, u, k_ref, max_cycles, rtol, atol, closings=No
         qs, state = out.q, out.state
         D = cycle_area(path, qs, k_ref)
         first = D if first is None else first
+        drifts.append(float(np.abs(state.d - state0.d).max(initial=0.0)))
+        # a drift contracting by r leaves a change of D of about r / (1 - r) times the
+        # last one still to come: successive cycles must agree that much closer
+        tail = _tail_factor(drifts)
         repeats = _same(state, state0, out.span) or (
-            previous is not None and abs(D - previous[1]) <= rtol * abs(D) + atol
+            previous is not None and tail * abs(D - previous[1]) <= rtol * abs(D) + atol
             and _shape_change(qs, previous[0]) <= rtol)
         if repeats:
             return Loop(A, path, qs, D, first, cycle_area_error(path, qs, k_ref), qs[0],
                         qs[len(u)], cycle, n_solves, "stabilised",
                         f"stabilised after {cycle} cycle(s)"), \
                 _changed(out.status, len(u)), state
-        drifts.append(float(np.abs(state.d - state0.d).max(initial=0.0)))
+        needed = None if previous is None or not _contracting(drifts) else \
+            cycle + _cycles_needed(drifts, tail * abs(D - previous[1]),
+                                   rtol * abs(D) + atol)
         previous, state0 = (qs, D), state
     return Loop(A, path, qs, D, first, cycle_area_error(path, qs, k_ref), qs[0], qs[len(u)],
-                cycle, n_solves, "not_stabilised", _not_stabilised(A, cycle, max_cycles)), \
+                cycle, n_solves, "not_stabilised", _not_stabilised(A, cycle, needed)), \
         _changed(out.status, len(u)), state
 
 
-def _not_stabilised(A, cycles, max_cycles):
-    """Why a loop stopped without repeating: still converging at the ceiling of
-    ``2 max_cycles``, or a drift that does not contract."""
-    if cycles >= 2 * max_cycles:
+def _not_stabilised(A, cycles, needed):
+    """Why a loop stopped without repeating, and what to change: a contraction too slow
+    for the cycles allowed (``needed``: the cycles it predicts in all), or a drift that
+    does not contract."""
+    if needed is not None:
         return (f"loop at A = {A:.6g} not stabilised after {cycles} cycles: its drift at "
-                f"+A still contracts but the cycles do not agree within the tolerance "
-                f"yet; raise max_cycles")
-    return (f"loop at A = {A:.6g} not stabilised after {cycles} cycles (the state at +A "
-            f"still changes and does not converge geometrically: ratcheting, a cycle "
-            f"alternating between two states, or a slow shakedown); raise max_cycles")
+                f"+A contracts, but too slowly for the cycles allowed: it would repeat "
+                f"after about {needed} cycles; raise max_cycles to {needed} or more "
+                f"(RunOptions / [analysis] max_cycles)")
+    return (f"loop at A = {A:.6g} not stabilised after {cycles} cycles: the state at +A "
+            f"still changes and does not converge geometrically (ratcheting, or a "
+            f"cycle alternating between two states: no steady cycle at this "
+            f"amplitude); if it is a very slow shakedown, raise max_cycles "
+            f"(RunOptions / [analysis] max_cycles)")
 
 
 def _contracting(drifts):
@@ -421,11 +440,37 @@ def _contracting(drifts):
     displacement over cycle ``i``).
 
     A drift that contracts geometrically, ``delta_{k+1} <= c delta_k``, sums to a
-    finite remaining change ``<= delta_k c / (1 - c)`` (at most ``3 delta_k`` for
-    ``c = 0.75``): the loop converges, so more cycles will meet the agreement test;
-    a ratcheting or alternating loop keeps a constant drift."""
+    finite remaining change ``<= delta_k c / (1 - c)``: the loop converges, so more
+    cycles will meet the agreement test; a ratcheting or alternating loop keeps a
+    constant drift."""
     return len(drifts) >= 3 and all(
         drifts[i] <= CONTRACTION * drifts[i - 1] for i in (-1, -2))
+
+
+def _ratio(drifts) -> float:
+    """The slower of the last two contractions of the drift, ``delta_k / delta_{k-1}``."""
+    tiny = np.finfo(float).tiny
+    return max(drifts[-1] / max(drifts[-2], tiny), drifts[-2] / max(drifts[-3], tiny))
+
+
+def _tail_factor(drifts) -> float:
+    """``r / (1 - r)`` (at least 1) for a drift contracting by ``r`` per cycle
+    (:func:`_contracting`): the change of ``D`` still to come is about that many times
+    the last one (a geometric series); 1 while no contraction is established."""
+    if not _contracting(drifts):
+        return 1.0
+    r = _ratio(drifts)
+    return max(1.0, r / (1.0 - r))
+
+
+def _cycles_needed(drifts, change, target) -> int:
+    """More cycles until ``change`` (the last change of ``D``, times the tail factor)
+    falls to ``target``, if it shrinks as the drift did over the last two cycles (the
+    slower of the two ratios r): ``ceil(log(target / change) / log r)``, at least one."""
+    r = _ratio(drifts)
+    if change <= target or r <= 0:
+        return 1
+    return max(1, int(np.ceil(np.log(target / change) / np.log(r))))
 
 
 def _same(a, b, span):
@@ -597,9 +642,10 @@ def masing_checks(alpha, q_pos, q_neg, P_pos, P_neg, P_pre, open_pos, open_neg, 
        preload on either ramp (a closing pair stiffens the joint: hardening).
     2. The pressures do not change (relative change <= :data:`PRESSURE_RTOL`): no
        normal-tangential coupling, so the friction limits are fixed.
-    3. The backbone for ``-alpha`` mirrors the one for ``+alpha``: their Masing
-       dissipations agree within ``rtol |D| + atol`` (a pre-shear left by the preload,
-       or pairs at the friction limit, make them differ).
+    3. The backbone for ``-alpha`` mirrors the one for ``+alpha``: their peak modal
+       amplitudes agree within ``rtol`` and their Masing dissipations within
+       ``rtol |D| + atol`` (a pre-shear left by the preload, or pairs at the friction
+       limit, make them differ).
     4. The secant stiffness does not rise.
 
     A level is valid only if every level up to it is (the loop of an amplitude sweeps
@@ -615,7 +661,12 @@ def masing_checks(alpha, q_pos, q_neg, P_pos, P_neg, P_pre, open_pos, open_neg, 
     d_pos = masing_estimate(alpha, q_pos, k_ref).dissipation
     d_neg = masing_estimate(alpha, -np.asarray(q_neg, float), k_ref).dissipation
     mismatch = np.abs(d_pos - d_neg) / np.maximum(np.abs(d_pos), np.finfo(float).tiny)
-    mirror_bad = np.abs(d_pos - d_neg) > rtol * np.abs(d_pos) + atol
+    # the backbones themselves, not only their dissipations: two straight backbones of
+    # different slopes (pairs at the friction limit after the preload slip one way
+    # only) both give D = 0, yet they are no mirror images
+    q_apart = np.abs(np.asarray(q_pos, float) + np.asarray(q_neg, float)) / \
+        np.maximum(np.abs(np.asarray(q_pos, float)), np.finfo(float).tiny)
+    mirror_bad = (np.abs(d_pos - d_neg) > rtol * np.abs(d_pos) + atol) | (q_apart > rtol)
     secant = alpha / np.asarray(q_pos, float)
     rising = np.concatenate([[False], secant[1:] > secant[:-1] * (1 + SECANT_RTOL)])
     linear = np.zeros(n, bool) if linear is None else np.asarray(linear, bool)
@@ -634,7 +685,9 @@ def masing_checks(alpha, q_pos, q_neg, P_pos, P_neg, P_pre, open_pos, open_neg, 
                 why = f"pressures changed by {dP[k]:.2e} of the peak {at}"
             elif mirror_bad[k]:
                 why = (f"backbones for +alpha and -alpha differ {at} "
-                       f"(Masing dissipations differ by {mismatch[k]:.2e})")
+                       + (f"(Masing dissipations differ by {mismatch[k]:.2e})"
+                          if q_apart[k] <= rtol else
+                          f"(peak modal amplitudes differ by {q_apart[k]:.2e})"))
             elif rising[k]:
                 why = f"secant stiffness rises {at}"
         valid[k] = not why

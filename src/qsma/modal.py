@@ -103,7 +103,8 @@ def _mpc_transform(model, assembled, pairing, tied):
     return general(model, assembled, MultiPairing((coupling,), (model.interface,)), tied)
 
 
-def linear_modes(model, assembled, pairing, tied=None, n_modes=6, reduced=None) -> Modes:
+def linear_modes(model, assembled, pairing, tied=None, n_modes=6, reduced=None,
+                 springs=None) -> Modes:
     """First ``n_modes`` modes with the pairs in mask ``tied`` tied (default: all).
 
     Solves ``(T^T K T - w^2 T^T M T) phi_r = 0`` by shift-invert Lanczos about 0;
@@ -118,25 +119,35 @@ def linear_modes(model, assembled, pairing, tied=None, n_modes=6, reduced=None) 
     the operator (:class:`SubstructuredInverse`); otherwise, and without it, the tied
     stiffness is factorised (:func:`_factor`), a free-free one shifted to ``-s``
     (:data:`FREE_SHIFT_RTOL`). Both give the same modes to round-off.
+
+    ``springs``, optional: (n_pairs, dim) stiffness of a compliant interface layer at
+    each tied contact point, per component of its local frame
+    (:func:`qsma.contact.layer.interface_springs`): ``inf`` ties the component, a finite
+    value joins the two sides by a spring, 0 leaves it free. Contact points tied in every
+    component are tied as without springs.
     """
     if tied is None:
         tied = np.ones(pairing.n_pairs, dtype=bool)
     tied = np.asarray(tied, dtype=bool)
     if tied.shape != (pairing.n_pairs,):
         raise InputError(f"tied mask must have {pairing.n_pairs} entries, got {tied.shape}")
+    springs = _checked_springs(springs, pairing.n_pairs, model.dim)
+    held = tied if springs is None else tied & np.all(np.isinf(springs), axis=1)
     from .rigid import assembly_free_motions
-    T = tie_transform(model, assembled, pairing, tied)
+    T = tie_transform(model, assembled, pairing, held)
     n_free = assembly_free_motions(model, assembled)
     check_n_modes(n_modes, T.shape[1])
     M = (T.T @ stacked([a.M for a in assembled]) @ T).tocsc()
     inverse = None if reduced is None else substructured_inverse(
-        model, assembled, pairing, tied, reduced, T, M)
+        model, assembled, pairing, tied, reduced, T, M, springs)
     if inverse is not None:
         return _substructured_modes(inverse, M, T, tied, n_modes, model, assembled)
     K = stacked([a.K for a in assembled])
     if getattr(model, "bolts", ()):
         from .model.bolt import bolt_stiffness
         K = K + bolt_stiffness(model)                  # the bolts locked after preload
+    if springs is not None:
+        K = K + _spring_stiffness(model, pairing, springs, held)
     K = (T.T @ K @ T).tocsc()
     k = min(n_modes + n_free, T.shape[1] - 2)
     shift = free_shift(K, M) if n_free else 0.0
@@ -150,6 +161,38 @@ def linear_modes(model, assembled, pairing, tied=None, n_modes=6, reduced=None) 
     omega = np.sqrt(np.maximum(lam, 0.0))
     omega[:n_free] = 0.0
     return Modes(omega, T @ vec, tied.copy(), n_free)
+
+
+def _checked_springs(springs, n_pairs, dim):
+    if springs is None:
+        return None
+    springs = np.asarray(springs, dtype=float)
+    if springs.shape != (n_pairs, dim) or np.any(np.isnan(springs)) or np.any(springs < 0):
+        raise InputError(f"interface springs must be {n_pairs} x {dim} stiffnesses >= 0 "
+                         f"(inf: tied), got shape {springs.shape}")
+    return springs
+
+
+def _spring_stiffness(model, pairing, springs, held):
+    """``G^T S G`` over the stacked DOFs: ``G`` the relative displacement of the contact
+    points in their local frames, ``S`` the finite springs of the points not tied in
+    every component. A point tied in some components only is refused here (the
+    substructured solve, :func:`substructured_inverse`, takes it)."""
+    from .multibody import Coupling, MultiPairing, body_order, relative_displacement_operator
+    partial = ~held & np.any(np.isinf(springs), axis=1)
+    if partial.any():
+        raise InputError(f"{int(partial.sum())} contact point(s) have an interface law "
+                         f"that is rigid in some directions and compliant in others "
+                         f"(e.g. hard normal contact with an elastic stick); the tied "
+                         f"modes of such a law need a model of two bodies and one "
+                         f"interface. Fix: give the law a compliance in every direction "
+                         f"(a normal stiffness and a tangential one)")
+    couplings = pairing.couplings if isinstance(pairing, MultiPairing) else \
+        (Coupling(pairing, *body_order(model, pairing)),)
+    nodes = [np.arange(b.mesh.n_nodes) for b in model.bodies]
+    G, _ = relative_displacement_operator(couplings, nodes, model.dim)
+    s = np.where(np.isinf(springs) | held[:, None], 0.0, springs).ravel()
+    return (G.T @ sp.diags(s) @ G).tocsr()
 
 
 def _lanczos(A, k, M, sigma, matvec, matmat):
@@ -384,7 +427,7 @@ class SubstructuredInverse:
         return x
 
 
-def substructured_inverse(model, assembled, pairing, tied, reduced, T, M):
+def substructured_inverse(model, assembled, pairing, tied, reduced, T, M, springs=None):
     """The :class:`SubstructuredInverse` of the tied assembly, or None where it does not
     apply: several interfaces (:mod:`qsma.multibody`), a ``T`` without an identity row
     per unknown, free-free rigid motions that ``T`` does not reproduce, or tied pairs
@@ -395,7 +438,7 @@ def substructured_inverse(model, assembled, pairing, tied, reduced, T, M):
     if isinstance(pairing, MultiPairing):
         return None
     rows = identity_rows(T)
-    solver = None if rows is None else tied_solver(reduced, tied)
+    solver = None if rows is None else tied_solver(reduced, tied, springs)
     if solver is None:
         return None
     inv = SubstructuredInverse(solver, rows, np.asarray(model.dof_offsets()),

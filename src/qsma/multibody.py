@@ -42,6 +42,8 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from .condense import condense_bodies, condensed_loads
+from .contact.laws import InterfaceLaw
+from .contact.layer import PairLaws
 from .errors import InputError, InterfaceGapWarning
 from .linalg import cho_solved
 
@@ -356,6 +358,21 @@ def pair_mu(model, pairing) -> np.ndarray | float:
                            for c, i in zip(pairing.couplings, pairing.interfaces)])
 
 
+def pair_laws(model, pairing):
+    """The :class:`qsma.contact.layer.PairLaws` of the contact points (each interface's
+    ``law``), or None where every interface is rigid (hard contact, rigid stick)."""
+    laws, index = [], []
+    for itf, p in interface_pairings(model, pairing):
+        law = getattr(itf, "law", None) or InterfaceLaw()
+        if law not in laws:
+            laws.append(law)
+        index.append(np.full(p.n_pairs, laws.index(law)))
+    if all(law.rigid for law in laws):
+        return None
+    return PairLaws(tuple(laws), np.concatenate(index), np.asarray(pairing.area, float),
+                    model.dim)
+
+
 def reduce_model(model, assembled, pairing, backend="auto",
                  patterns=("preload",)) -> MultiReducedModel:
     """:func:`reduce_bodies` of a model and its :class:`MultiPairing` (``patterns``:
@@ -483,13 +500,51 @@ def pair_gaps(model, pairing, rtol) -> np.ndarray | None:
     r"""Initial normal gap ``g0`` of each contact point (opening ``w = d_n + g0``): the
     mortar weighted gap :math:`g_i = D_i^{-1} \int \psi_i (x_m - x_s) \cdot n_s\,dA` of
     the undeformed surfaces, positive apart, negative where they overlap; zero at
-    node-to-node pairs and where ``|g_i|`` is within ``rtol`` of the interface size.
+    node-to-node pairs and where ``|g_i|`` is within ``rtol`` of the interface size;
+    plus the interface's own gap field (``Interface.gap``, the surfaces' shape).
     ``None`` when every gap is zero (the contact problem's default)."""
-    parts = [_significant_gaps(p, rtol) for _, p in interface_pairings(model, pairing)]
-    if all(g is None or not g.any() for g in parts):
+    parts = []
+    for itf, p in interface_pairings(model, pairing):
+        g = _significant_gaps(p, rtol)
+        if getattr(itf, "gap", None) is not None:
+            g = (0.0 if g is None else g) + shape_gaps(itf, p)
+        parts.append(g)
+    if all(g is None or not np.any(g) for g in parts):
         return None
     return np.concatenate([np.zeros(p.n_pairs) if g is None else g for g, (_, p) in
                            zip(parts, interface_pairings(model, pairing))])
+
+
+#: A gap field whose largest gap exceeds this fraction of the interface's size is
+#: refused as a unit error: surface shapes are micrometres over millimetres (the
+#: Brake-Reuss beam's lap: about 10 um over 120 mm, 1e-4), a gap of a tenth of the
+#: interface is no longer the shape of one surface.
+GAP_SIZE_MAX = 0.1
+
+
+def shape_gaps(itf, p) -> np.ndarray:
+    """The gap field of interface ``itf`` at its contact points (pairing ``p``),
+    checked: finite, one per point, and small against the interface."""
+    try:
+        g = np.asarray(itf.gap(p.x), dtype=float)
+    except InputError:
+        raise
+    except Exception as exc:                       # a user's function failed
+        raise InputError(f"interface {itf.label}: its gap function failed on the "
+                         f"contact points ({type(exc).__name__}: {exc})") from exc
+    if g.shape != (p.n_pairs,):
+        raise InputError(f"interface {itf.label}: the gap field must give one value per "
+                         f"contact point, shape ({p.n_pairs},), got {g.shape}")
+    if not np.all(np.isfinite(g)):
+        raise InputError(f"interface {itf.label}: the gap field gives "
+                         f"{int(np.count_nonzero(~np.isfinite(g)))} NaN/Inf value(s)")
+    size = float(np.linalg.norm(np.ptp(p.x, axis=0)))
+    if np.abs(g).max(initial=0.0) > GAP_SIZE_MAX * size:
+        raise InputError(f"interface {itf.label}: the gap field reaches "
+                         f"{np.abs(g).max():.3e} m on an interface {size:.3e} m across "
+                         f"(more than {GAP_SIZE_MAX:g} of it): gaps are in metres; a "
+                         f"field in micrometres needs scale = 1e-6")
+    return g
 
 
 def warn_closed_gaps(model, pairing, rtol):

@@ -52,8 +52,9 @@ class RunOptions:
         Target of the estimated integration error of each dissipation, relative to it:
         levels and loop increments are inserted until the estimate is below it.
     max_cycles : int
-        Loop cycles per amplitude before a level is declared not stabilised (up to
-        twice as many while the loop's shakedown converges geometrically, see
+        Loop cycles per amplitude before a level is declared not stabilised (more
+        while the loop's shakedown converges geometrically fast enough, up to
+        :data:`qsma.hysteresis.CYCLE_CEILING` times as many; see
         :data:`qsma.hysteresis.CONTRACTION`).
     refine_levels : bool
         Insert backbone levels where the estimate of the Masing integral exceeds

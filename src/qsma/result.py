@@ -25,6 +25,28 @@ if TYPE_CHECKING:  # types only: no import cost or cycle at run time
 #: Flags that make a level a failure (the others are information).
 FAILURE_FLAGS = ("negative_dissipation", "not_finite", "loop_failed", "loop_not_stabilised",
                  "masing_on_hardening", "stuck_not_linear", "q_not_increasing")
+#: Per failure flag, what it means and what to change (the run's message quotes it).
+FAILURE_FIXES = {
+    "negative_dissipation": "the dissipation is negative beyond the round-off of the "
+                            "contact solves: if dissipation = 'masing' was forced, use "
+                            "'auto' or 'loop'; otherwise lower tol (the contact solves "
+                            "are not accurate enough for this model: look for "
+                            "stiffnesses many decades apart)",
+    "not_finite": "a frequency or damping is not a finite number: check the units and "
+                  "material constants of the model",
+    "loop_failed": "a contact solve inside the level's loop failed (its message is in "
+                   "results.json, 'loops'): raise maxiter or loosen tol",
+    "loop_not_stabilised": "the level's loop did not repeat within max_cycles cycles: "
+                           "raise max_cycles as its message says, unless it ratchets",
+    "masing_on_hardening": "the joint stiffens there, where Masing's rules do not hold: "
+                           "use dissipation = 'auto' or 'loop' (computed loops)",
+    "stuck_not_linear": "the modal response of these levels is below the numerical "
+                        "resolution of the preload state (about 1e-9 of the preload "
+                        "displacements): raise the smallest load level, or check the "
+                        "units of the bolt load",
+    "q_not_increasing": "the modal amplitude does not grow with the load: check the "
+                        "contact solves of these levels (tol, maxiter) and the levels",
+}
 
 
 @dataclass(frozen=True, eq=False)
@@ -140,6 +162,21 @@ class QSMAResult:
         return len(self.alpha)
 
     @property
+    def zeta_structure(self):
+        """Linear damping ratio of the structure besides the joint at each level's
+        frequency (``model.damping``; zero without it)."""
+        damping = getattr(self.model, "damping", None)
+        if damping is None:
+            return np.zeros_like(np.asarray(self.zeta, dtype=float))
+        return damping.zeta(2 * np.pi * np.asarray(self.f_hz, dtype=float))
+
+    @property
+    def zeta_total(self):
+        """The joint's damping ratio plus the structure's (``zeta + zeta_structure``):
+        what a test of the assembly measures."""
+        return np.asarray(self.zeta, dtype=float) + self.zeta_structure
+
+    @property
     def iterations(self):
         return self.states.iterations
 
@@ -167,7 +204,7 @@ class QSMAResult:
 
 #: The per-level quantities, in the order of results.csv (docs/results.md has units).
 LEVEL_FIELDS = ("alpha", "tip_lin", "q", "tip", "q_neg", "asymmetry", "f_hz", "zeta",
-                "dissipation", "dissipation_error", "dissipation_method", "f_hz_masing",
+                "zeta_structure", "zeta_total", "dissipation", "dissipation_error", "dissipation_method", "f_hz_masing",
                 "zeta_masing", "dissipation_masing", "f_hz_loop", "zeta_loop",
                 "dissipation_loop", "dissipation_first_cycle", "loop_cycles", "shakedown",
                 "tip_velocity", "n_stuck", "n_slip", "n_open", "iterations", "residual",

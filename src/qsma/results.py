@@ -55,7 +55,8 @@ NAN_FLAGS = ("not_finite", "loop_failed", "loop_not_stabilised")
 #: The per-level columns that come from the frequency, the damping or the loop, and so
 #: may be NaN at a level flagged with one of :data:`NAN_FLAGS`; the backbone (alpha,
 #: q, tip, residual) and the Masing values never may.
-LOOP_DERIVED = ("f_hz", "zeta", "dissipation", "tip_velocity")
+LOOP_DERIVED = ("f_hz", "zeta", "zeta_structure", "zeta_total", "dissipation",
+                "tip_velocity")
 
 
 def _level_columns(res) -> dict:

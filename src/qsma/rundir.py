@@ -22,6 +22,17 @@ Protocol (docs/errors.md, "Result folders"), for ``--out OUT`` = ``PARENT/NAME``
 
 A reader checks a folder with :func:`verify_run_folder`. At every moment ``OUT``
 holds the previous complete run, the new complete run, or (first run killed) nothing.
+
+Every command writes through this protocol (docs/errors.md, "Result folders"): a
+result folder's manifest says which command wrote it (``kind``, :data:`KINDS`) and
+lists every file below it, sub-folders included (``qsma run --modes`` writes
+``mode-K/`` and ``qsma fit`` writes ``best/`` into its staging folder, each with a
+manifest of its own: :meth:`RunFolder.subfolder`). A parameter study fills its folder
+over time, so it is not staged: :class:`StudyFolder` locks it for the whole command,
+removes its manifest while it changes and writes it when the study is complete.
+Refused before anything is computed: a folder of another kind, files qsma did not
+write, and a folder inside another result folder (it would change that folder's
+files behind its manifest).
 """
 from __future__ import annotations
 
@@ -47,6 +58,10 @@ from .errors import InputError, OutputFolderBusy, OutputWriteError
 TMP_PREFIX = ".qsma-tmp-"
 MANIFEST = "manifest.json"
 MANIFEST_VERSION = 1
+#: What wrote a result folder (``kind`` of its manifest; none: a run) and how messages
+#: name it.
+KINDS = {"run": "qsma run", "run-modes": "qsma run --modes", "modes": "qsma modes",
+         "fit": "qsma fit", "study": "qsma sweep"}
 #: files qsma 0.1 wrote before manifests existed: a folder holding only these (and
 #: temporary files) is an old qsma result folder and may be replaced
 LEGACY_FILES = frozenset({"results.json", "results.csv", "fields.vtu", "backbone.png",
@@ -108,11 +123,26 @@ def check_out_path(out) -> Path:
     if "\x00" in text:
         raise InputError(f"output folder {text!r} contains a NUL character; "
                          f"remove it from --out")
+    if os.path.islink(text) and not os.path.exists(text):
+        raise InputError(f"output folder {text!r} is a symbolic link that leads nowhere "
+                         f"(a loop of links, or a missing target); remove the link or "
+                         f"choose another --out")
     path = Path(os.path.realpath(text))
     if path.parent == path:
         raise InputError(f"output folder {text!r} is the file-system root; a run replaces "
                          f"its folder as a whole: choose a folder of its own")
     return path
+
+
+def refuse_nested(path: Path):
+    """Refuse a result folder inside another one: its files would change that folder
+    behind its manifest (which then fails :func:`verify_run_folder`, and every later
+    run into it is refused)."""
+    for above in path.parents:
+        if (above / MANIFEST).is_file():
+            raise InputError(f"output folder {str(path)!r} lies inside {str(above)!r}, the "
+                             f"result folder of a qsma command (it holds {MANIFEST}); a "
+                             f"result folder holds one result: choose a folder outside it")
 
 
 def prepare_output_dir(out) -> Path:
@@ -146,10 +176,14 @@ class RunFolder:
     Parameters
     ----------
     out : path of the result folder (created at commit; its parent is created now)
+    kind : what the folder holds (:data:`KINDS`); a folder of another kind is refused
     """
 
-    def __init__(self, out):
+    def __init__(self, out, kind="run"):
+        if kind not in KINDS:
+            raise ValueError(f"unknown result folder kind {kind!r}; valid: {sorted(KINDS)}")
         self.path = check_out_path(out)
+        self.kind = kind
         self.run_id = f"{time.strftime('%Y%m%dT%H%M%SZ', time.gmtime())}-{uuid.uuid4().hex[:8]}"
         self.staging = _sidecar(self.path, "new", self.run_id)
         self.lock_path = _sidecar(self.path, "lock")
@@ -158,6 +192,7 @@ class RunFolder:
 
     # -- life cycle -------------------------------------------------------------------
     def __enter__(self):
+        refuse_nested(self.path)        # before a parent is created inside another one
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             with _signals_deferred():       # the lock file is never left half-taken
@@ -256,16 +291,20 @@ class RunFolder:
             shutil.rmtree(p, ignore_errors=True)
 
     def _check_replaceable(self):
-        """``out`` is replaced as a whole: refuse a folder with files qsma did not write."""
+        """``out`` is replaced as a whole: refuse a folder with files qsma did not write,
+        and one that another kind of command wrote."""
         if not self.path.exists():
             return
         if not self.path.is_dir():
             raise InputError(f"output folder {str(self.path)!r} exists and is not a folder; "
                              f"choose another --out")
         try:
-            ours = set(_read_manifest(self.path)["files"]) | {MANIFEST}
+            manifest = _read_manifest(self.path)
+            ours = {name.split("/")[0] for name in manifest["files"]} | {MANIFEST}
         except (OSError, ValueError, KeyError, TypeError):
-            ours = LEGACY_FILES
+            manifest, ours = None, LEGACY_FILES
+        if manifest is not None:
+            _check_kind(self.path, manifest, self.kind)
         foreign = sorted(p.name for p in self.path.iterdir()
                          if p.name not in ours and not p.name.startswith(TMP_PREFIX))
         if foreign:
@@ -274,6 +313,11 @@ class RunFolder:
                 f"from a qsma run (e.g. {foreign[0]!r}); a run replaces its folder as a "
                 f"whole, so choose a new or empty --out folder")
 
+    def subfolder(self, name: str, kind: str = "run") -> "SubFolder":
+        """A result folder ``name`` inside this one, written in its staging folder and
+        swapped into place with it (e.g. ``mode-0`` of ``qsma run --modes``)."""
+        return SubFolder(self, name, kind)
+
     # -- commit -------------------------------------------------------------------------
     def commit(self) -> dict:
         """Write the manifest (last), then swap the staging folder into place.
@@ -281,23 +325,8 @@ class RunFolder:
         Returns the manifest. Raises :class:`OutputWriteError` on a full device or
         another write failure; ``out`` then still holds the previous run.
         """
-        from . import __version__
         try:
-            files = {}
-            for p in sorted(self.staging.iterdir()):
-                if p.name.startswith(TMP_PREFIX):
-                    p.unlink()                  # ours: the staging folder is private
-                    continue
-                files[p.name] = _digest(p)
-            manifest = {"qsma_manifest": MANIFEST_VERSION, "run_id": self.run_id,
-                        "qsma_version": __version__, "complete": True,
-                        "written_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-                        "files": files}
-            with open(self.staging / MANIFEST, "w") as f:
-                f.write(json.dumps(manifest, indent=1) + "\n")
-                f.flush()
-                os.fsync(f.fileno())
-            _fsync_dir(self.staging)
+            manifest = _write_manifest(self.staging, self.run_id, self.kind)
             mode = (self.path.stat().st_mode & 0o7777 if self.path.is_dir()
                     else 0o777 & ~_umask_bits())
             os.chmod(self.staging, mode)
@@ -319,6 +348,165 @@ class RunFolder:
                 os.rename(self.staging, self.path)
             shutil.rmtree(old, ignore_errors=True)
         _fsync_dir(self.path.parent)
+
+
+class SubFolder:
+    """A result folder inside the staging folder of a :class:`RunFolder` (``parent``):
+    written like a run folder, its manifest written by :meth:`commit`, and moved into
+    place when the parent is. Offers what :func:`qsma.results.write_all` uses of a
+    :class:`RunFolder` (``path``, ``staging``, ``commit``)."""
+
+    def __init__(self, parent: RunFolder, name: str, kind: str = "run"):
+        if not name or "/" in name or name.startswith(".") or name == MANIFEST:
+            raise ValueError(f"a sub-folder needs a plain name, got {name!r}")
+        self.path = parent.path / name
+        self.staging = parent.staging / name
+        self.kind = kind
+        self.run_id = parent.run_id
+        self.staging.mkdir(0o755)
+
+    def commit(self) -> dict:
+        try:
+            return _write_manifest(self.staging, self.run_id, self.kind)
+        except OSError as exc:
+            raise write_error(exc, self.path) from exc
+
+
+class StudyFolder:
+    """The folder of a command that fills it over time (``qsma sweep``: case folders,
+    each a :class:`RunFolder` of its own, written as they finish; a resumed study adds
+    to it). It cannot be swapped in one step, so:
+
+    - it is locked for the whole command (as a :class:`RunFolder`: a second study on it
+      is refused, naming the owner), before anything is computed;
+    - refused if it lies inside another result folder, holds another kind of result,
+      or holds a file for which ``allowed(name)`` is false;
+    - its manifest is removed before the first file changes (:meth:`changing`:
+      :func:`verify_run_folder` then says it is not complete) and written by
+      :meth:`commit`, listing every file below it, once the study is complete.
+    """
+
+    def __init__(self, out, allowed, kind="study"):
+        self.path = check_out_path(out)
+        self.kind, self.allowed = kind, allowed
+        self.run_id = f"{time.strftime('%Y%m%dT%H%M%SZ', time.gmtime())}-{uuid.uuid4().hex[:8]}"
+        self.lock_path = _sidecar(self.path, "lock")
+        self._lock_fd = None
+
+    _lock = RunFolder._lock
+    _unlock = RunFolder._unlock
+    _unwritable = RunFolder._unwritable
+
+    def __enter__(self):
+        refuse_nested(self.path)
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            with _signals_deferred():
+                self._lock()
+        except BaseException as exc:
+            self._unlock()
+            if isinstance(exc, OSError):
+                raise self._unwritable(exc) from exc
+            raise
+        try:
+            self._check()
+            self.path.mkdir(exist_ok=True)
+        except BaseException as exc:
+            self._unlock()
+            if isinstance(exc, OSError):
+                raise self._unwritable(exc) from exc
+            raise
+        return self
+
+    def __exit__(self, *exc):
+        self._unlock()
+        return False
+
+    def _check(self):
+        if not self.path.exists():
+            return
+        if not self.path.is_dir():
+            raise InputError(f"output folder {str(self.path)!r} exists and is not a folder; "
+                             f"choose another --out")
+        try:
+            manifest = _read_manifest(self.path)
+        except (OSError, ValueError, KeyError, TypeError):
+            manifest = None
+        if manifest is not None:
+            _check_kind(self.path, manifest, self.kind)
+        foreign = sorted(p.name for p in self.path.iterdir()
+                         if p.name != MANIFEST and not p.name.startswith(".")
+                         and not self.allowed(p.name))
+        if foreign:
+            raise InputError(
+                f"output folder {str(self.path)!r} holds {len(foreign)} file(s) that are "
+                f"not from a {KINDS[self.kind]} (e.g. {foreign[0]!r}); choose a new or "
+                f"empty --out folder, or that of the same study to resume it")
+
+    def changing(self):
+        """Remove the manifest: the folder is about to change (before the first file is
+        written; a command refused after entering leaves the folder as it was)."""
+        (self.path / MANIFEST).unlink(missing_ok=True)
+
+    def commit(self) -> dict:
+        """Write the manifest of the complete folder (every file below it). Leftovers
+        of killed case runs are deleted first: the lock proves no run of this study
+        is alive."""
+        for p in self.path.iterdir():
+            if p.name.startswith(".") and (".qsma-new-" in p.name or ".qsma-old-" in p.name):
+                shutil.rmtree(p, ignore_errors=True)
+        try:
+            return _write_manifest(self.path, self.run_id, self.kind)
+        except OSError as exc:
+            raise write_error(exc, self.path) from exc
+
+
+def _check_kind(path: Path, manifest: dict, kind: str):
+    """Refuse to write a result of ``kind`` into a folder another kind of command wrote."""
+    theirs = manifest.get("kind", "run")
+    if theirs != kind:
+        raise InputError(f"output folder {str(path)!r} holds the result of "
+                         f"{KINDS.get(theirs, theirs)}, not of {KINDS[kind]}; choose another "
+                         f"--out folder (or delete that one)")
+
+
+def _tree(folder: Path) -> list:
+    """Relative POSIX paths of the files below ``folder``, sorted; the top manifest, the
+    lock files of sub-folders and temporary files left out."""
+    out = []
+    for root, dirs, files in os.walk(folder):
+        dirs.sort()
+        rel = Path(root).relative_to(folder)
+        for name in sorted(files):
+            if name.startswith(TMP_PREFIX) or (name.startswith(".") and ".qsma-lock" in name):
+                continue
+            path = (rel / name).as_posix()
+            if path != MANIFEST:
+                out.append(path)
+    return out
+
+
+def _write_manifest(folder: Path, run_id: str, kind: str) -> dict:
+    """Write ``folder``'s manifest last, after every file below it is flushed to disk:
+    run id, qsma version, kind, and each file with its size and SHA-256. Temporary files
+    left in a private staging folder are deleted."""
+    from . import __version__
+    for root, _, names in os.walk(folder):
+        for name in names:
+            if name.startswith(TMP_PREFIX):
+                os.unlink(os.path.join(root, name))
+    files = {name: _digest(folder / name) for name in _tree(folder)}
+    manifest = {"qsma_manifest": MANIFEST_VERSION, "run_id": run_id, "kind": kind,
+                "qsma_version": __version__, "complete": True,
+                "written_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+                "files": files}
+    with open(folder / MANIFEST, "w") as f:
+        f.write(json.dumps(manifest, indent=1) + "\n")
+        f.flush()
+        os.fsync(f.fileno())
+    for root, _, _ in os.walk(folder):
+        _fsync_dir(root)
+    return manifest
 
 
 @contextmanager
@@ -370,7 +558,7 @@ def verify_run_folder(out) -> dict:
                          f"(interrupted, or written by qsma < 0.2)") from None
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise InputError(f"{str(out / MANIFEST)!r} cannot be read: {exc}") from exc
-    present = {p.name for p in out.iterdir()} - {MANIFEST}
+    present = set(_tree(out))
     if present != set(listed):
         raise InputError(f"{str(out)!r}: files {sorted(present ^ set(listed))} differ from "
                          f"those of run {manifest['run_id']} in its {MANIFEST}")

@@ -132,7 +132,8 @@ def quantity_unit(quantity, units=SI, dim=3, pretty=False) -> str:
 LEVEL_QUANTITIES = {
     "alpha": "modal_force", "tip_lin": "length", "q": "modal_amplitude", "tip": "length",
     "q_neg": "modal_amplitude", "asymmetry": "dimensionless", "f_hz": "frequency",
-    "zeta": "dimensionless", "dissipation": "energy", "dissipation_error": "energy",
+    "zeta": "dimensionless", "zeta_structure": "dimensionless",
+    "zeta_total": "dimensionless", "dissipation": "energy", "dissipation_error": "energy",
     "dissipation_method": None, "f_hz_masing": "frequency", "zeta_masing": "dimensionless",
     "dissipation_masing": "energy", "f_hz_loop": "frequency", "zeta_loop": "dimensionless",
     "dissipation_loop": "energy", "dissipation_first_cycle": "energy", "loop_cycles": None,

@@ -25,12 +25,19 @@ def add_arguments(p):
 
 
 def execute(args) -> int:
-    from ..fe import assemble_body
-    from ..modal import linear_modes
-    from ..model import make_pairing
+    from contextlib import nullcontext
+    from ..rundir import RunFolder
     model, _ = load_model(args)
     if args.n_modes < 1:
         raise InputError(f"--n-modes must be >= 1, got {args.n_modes}")
+    with RunFolder(args.out, kind="modes") if args.out else nullcontext() as folder:
+        return _modes(args, model, folder)      # the folder taken before computing
+
+
+def _modes(args, model, folder) -> int:
+    from ..fe import assemble_body
+    from ..modal import linear_modes
+    from ..model import make_pairing
     pairing = make_pairing(model)
     assembled = [assemble_body(b) for b in model.bodies]
     if args.tie == "all":
@@ -40,8 +47,8 @@ def execute(args) -> int:
     else:
         tied = _closed_after_preload(model, assembled, pairing)
     modes = linear_modes(model, assembled, pairing, tied=tied, n_modes=args.n_modes)
-    if args.out:
-        _write(model, modes, args.tie, int(tied.sum()), args.out)
+    if folder is not None:
+        _write(model, modes, args.tie, int(tied.sum()), folder)
     if args.json:
         print(json.dumps({"f_hz": modes.f_hz.tolist(), "tied_pairs": int(tied.sum())}))
     else:
@@ -58,21 +65,16 @@ def _closed_after_preload(model, assembled, pairing):
     return pre.status != OPEN
 
 
-def _write(model, modes, tie, n_tied, out):
-    """modes.vtu and modes.json in folder ``out`` (created)."""
-    from pathlib import Path
+def _write(model, modes, tie, n_tied, folder):
+    """modes.vtu and modes.json into the result folder ``folder`` (an entered
+    :class:`qsma.rundir.RunFolder`), then swapped into place."""
     from ..results import atomic_write
     from ..study.modes import MODES_JSON, MODES_VTU, write_modes_vtu
-    out = Path(out)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(f"--out {str(out)!r} cannot be created ({exc.strerror}); choose "
-                         f"another folder") from None
-    write_modes_vtu(model, modes, out / MODES_VTU)
-    atomic_write(out / MODES_JSON, json.dumps(dict(
+    write_modes_vtu(model, modes, folder.staging / MODES_VTU)
+    atomic_write(folder.staging / MODES_JSON, json.dumps(dict(
         model=model.name, tie=tie, tied_pairs=n_tied, f_hz=modes.f_hz.tolist()),
         indent=1) + "\n")
+    folder.commit()
 
 
 def execute_modes(args) -> int:

@@ -6,7 +6,7 @@ import sys
 import numpy as np
 
 from ..errors import InputError
-from .common import add_amplitude_argument, add_model_arguments, load_model
+from .common import add_amplitude_argument, add_model_arguments, is_deck, load_model
 from .progress import LOG_NAME
 
 HELP = "quasi-static modal analysis: backbone, frequency and damping versus amplitude"
@@ -56,6 +56,12 @@ def add_arguments(p):
 
 def execute(args) -> int:
     from ..rundir import RunFolder
+    if args.modes is None and args.mode is None and args.config is not None \
+            and not is_deck(args.config):
+        from ..config import config_modes
+        modes = config_modes(args.config)          # [analysis] modes = [...]
+        if modes is not None:
+            args.modes = ",".join(map(str, modes))
     if args.modes is not None:
         from .modes import execute_modes
         return execute_modes(args)
@@ -161,16 +167,18 @@ def parse_levels_spec(spec: str):
 
 
 def _warn_flags(res):
-    """Name the levels whose values the physics forbids, and the hardening ones."""
-    from ..result import FAILURE_FLAGS
+    """Notes on the levels whose information flags a reader should know (the failure
+    flags, with what to change, are in the run's message)."""
     by_flag = {}
     for k, flags in enumerate(res.flags):
         for f in flags:
             by_flag.setdefault(f, []).append(k)
-    for f, ks in sorted(by_flag.items()):
-        if f in FAILURE_FLAGS:
-            print(f"qsma: warning: {f} at level(s) {ks[:12]}{' ...' if len(ks) > 12 else ''}",
-                  file=sys.stderr)
+    if "shakedown" in by_flag:
+        ks = by_flag["shakedown"]
+        print(f"qsma: note: the first loading (or first cycle) slipped where the settled "
+              f"cycle does not (shakedown) at level(s) {ks[:12]}"
+              f"{' ...' if len(ks) > 12 else ''}: q and tip are those of the first "
+              f"loading, f and zeta those of the settled cycle", file=sys.stderr)
     if "hardening" in by_flag:
         ks = by_flag["hardening"]
         print(f"qsma: note: the joint stiffens (contact closing) at level(s) {ks[:12]}"

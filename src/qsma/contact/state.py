@@ -123,6 +123,10 @@ class ContactResult:
     residual_legacy : float
         :func:`qsma.contact.residual.legacy_residual`, the measure before
         issue 17 (for comparison).
+    law_residual : float
+        For a nonlinear interface law, the consistency of its layer with the pressures
+        found (:meth:`qsma.contact.layer.Layer.law_residual`; part of ``residual``);
+        0 where the law is linear or was not evaluated.
     """
 
     d: np.ndarray
@@ -138,6 +142,7 @@ class ContactResult:
     fallback: str | None = None
     residual_force: float = 0.0
     residual_legacy: float = 0.0
+    law_residual: float = 0.0
 
     @property
     def P(self):

@@ -17,7 +17,35 @@ Sources
     7784.3 kg/m^3, the three bolt preloads 12002, 12075, 12670 N, whose origin
     the file does not state) and ``tmd-lab/tmdsimpy``
     (``examples/structures/brb_epmc.py``: the same preloads and E, simulated
-    tied-state frequencies 168.5026, 580.4082, 1177.6498 Hz).
+    tied-state frequencies 168.5026, 580.4082, 1177.6498 Hz with a flat interface and
+    180.6293, 595.2815, 1199.9013 Hz with the measured mesoscale gap, lines 590-594;
+    the linear damping ratios 0.087 % and 0.034 % of the first two bending modes
+    "taken from experiments on BRB", lines 604-615; the yield strength 331.7 MPa and
+    tangent modulus 620 MPa of the asperities, lines 218-219; and the data file
+    ``examples/structures/data/brb_surface_data.mat`` of the measured surfaces: the
+    effective asperity radius ``Re`` = 1.3649 mm, the asperity pair density
+    ``area_density`` = 1.3713e6 /m^2, the range ``z_max`` = 28.05 um of the pair gaps,
+    their measured density, and the mesoscale gap ``mesoscale_xygap``).
+
+Measured surfaces ([P]) (what qsma's default takes from them):
+
+* the asperities: radius, density and yield of [P]; the gaps of the asperity pairs
+  modelled as a Gaussian of standard deviation 3.17 um (the standard deviation of
+  [P]'s measured pair-gap density, evaluated from the data file) truncated at the
+  measured range z_max = 28.05 um (``n_sigma = z_max / (2 sigma)``). The measured
+  density has a longer tail towards the first-touching pairs than the Gaussian; at
+  the mean lap pressure (12.6 MPa) the two give the same closure within 0.05 um and
+  stick stiffnesses within 15 %;
+* the mesoscale gap of the lap (the surfaces' shape, 0 to 109 um), averaged across
+  the width (it varies across it by a few um) at x = -60, -50, ..., 60 mm: 21, 43, 62,
+  77, 89, 98, 103, 102, 95, 83, 65, 36, 6.5 um (evaluated from ``mesoscale_xygap``;
+  *assumption*: [P]'s x axis runs as qsma's, from the left beam to the right one: the
+  data file does not say which end is which);
+* the linear damping of the structure, 0.087 % (the first bending mode).
+
+With the measured surfaces the beam also carries its bolt sets (28 g each, half on
+each washer annulus) and [P]'s 0.8 g accelerometer at the tip; the flat variant keeps
+the massless bolts of the earlier model.
 
 Geometry [G] (x along the beam, y the bolt axis through the thickness, z across
 the width; origin at the centre of the joint on the interface):
@@ -47,9 +75,10 @@ Modelling choices (each an approximation named in docs/validation.md):
   contact law, which is not a Coulomb coefficient of a flat interface; 0.6 is the
   coefficient of qsma's other steel examples;
 * every bolt gets the mean of the three preloads of [P], as [P] does;
-* the bolts, nuts and washers have no mass (28 g a set by [G]'s dimensions; the
-  lap is an antinode of the first bending mode: docs/validation.md estimates the
-  effect) and the 0.8 g accelerometer of [P] is not modelled.
+* with ``surfaces="flat"`` the bolts, nuts and washers have no mass (28 g a set by
+  [G]'s dimensions; the lap is an antinode of the first bending mode:
+  docs/validation.md estimates the effect) and the 0.8 g accelerometer of [P] is not
+  modelled; the default (measured surfaces) carries both.
 """
 from __future__ import annotations
 
@@ -59,7 +88,8 @@ import math
 import numpy as np
 
 from ..errors import InputError
-from ..model import Body, Bolt, Interface, Material, Model, Probe
+from ..model import (Body, Bolt, Interface, LinearDamping, Material, Model, PointMass,
+                     Probe)
 from ..model.generate import graded_axis, structured_mesh
 from ..model.mesh import Mesh
 
@@ -79,12 +109,36 @@ BRB = dict(
     E=192.31e9, nu=0.3, rho=7784.3,       # [P] 304L
     preloads=(12002.0, 12075.0, 12670.0),  # [P] per bolt, N; every bolt gets the mean
     E_bolt=200e9,                 # assumption (steel of the tutorial's bolts [G])
+    bolt_set_mass=0.028,          # [G] bolt, nut and two washers by their dimensions, kg
+    sensor_mass=0.8e-3,           # [P] the accelerometer at the tip (main_epmc.m), kg
     mu=0.6,                       # assumption (see the module docstring)
 )
 
 #: Published comparison values, Hz: [P]'s simulated first three bending modes of the
-#: prestressed model (flat interface, tmdsimpy examples/structures/brb_epmc.py).
-BRB_PUBLISHED_HZ = dict(simulated_flat=(168.5026, 580.4082, 1177.6498))
+#: prestressed model (tmdsimpy examples/structures/brb_epmc.py, lines 590-594): flat
+#: interface, and with the measured mesoscale gap.
+BRB_PUBLISHED_HZ = dict(simulated_flat=(168.5026, 580.4082, 1177.6498),
+                        simulated_meso=(180.6293, 595.2815, 1199.9013))
+
+#: The asperities of the measured lap surfaces ([P], module docstring):
+#: :class:`qsma.contact.laws.RoughSurface` arguments, SI units.
+BRB_ROUGH = dict(
+    sigma=3.17e-6,                # std of the measured pair-gap density (evaluated)
+    radius=1.3649e-3,             # [P] Re, effective radius of an asperity pair
+    density=1.3713e6,             # [P] asperity pairs per m^2
+    E=192.31e9, nu=0.3,           # [P] 304L
+    yield_strength=331.7e6,       # [P] asperity yield strength
+    hardening=620e6,              # [P] tangent (hardening) modulus
+    n_sigma=28.048e-6 / (2 * 3.17e-6),   # [P] z_max = 28.048 um, the measured range
+)
+#: The mesoscale gap of the lap ([P] ``mesoscale_xygap`` averaged across the width),
+#: x (m) and gap (m).
+BRB_MESOSCALE_GAP = (
+    tuple(x * 1e-3 for x in range(-60, 61, 10)),
+    tuple(g * 1e-6 for g in (21, 43, 62, 77, 89, 98, 103, 102, 95, 83, 65, 36, 6.5)),
+)
+#: Linear damping ratio of the first bending mode ([P], "taken from experiments").
+BRB_DAMPING = 0.087e-2
 
 #: Elements per segment at refine 1: along the outer 300 mm, along the 120 mm lap
 #: (a multiple of 4, so that the bolt axes are grid lines), per 12.7 mm half
@@ -168,7 +222,36 @@ def _sets(mesh, left):
     return mesh.with_sets(node_sets=node_sets, facet_sets=facet_sets)
 
 
-def brb(refine: int = 1, mu: float | None = None, element: str = "C3D8I") -> Model:
+#: What :func:`brb` takes for the interface: the measured surfaces (asperities, shape,
+#: linear damping; the default) or a flat interface of hard contact with rigid stick.
+SURFACES = ("measured", "flat")
+
+
+def _with_masses(body):
+    """``body`` with the masses the beam carries: half a bolt set (head or nut, a
+    washer, half the shank) on each washer annulus, and the accelerometer on the right
+    beam's free end."""
+    s = BRB
+    masses = [PointMass(f"washer{k}", s["bolt_set_mass"] / 2)
+              for k in range(1, len(s["x_bolts"]) + 1)]
+    if body.name == "right":
+        masses.append(PointMass("end", s["sensor_mass"]))
+    return dataclasses.replace(body, masses=tuple(masses))
+
+
+def measured_interface(itf):
+    """``itf`` with the measured surfaces of [P]: the rough-surface law
+    (:data:`BRB_ROUGH`) and the mesoscale gap (:data:`BRB_MESOSCALE_GAP`)."""
+    from ..contact.laws import InterfaceLaw, RoughSurface
+    from ..model.gapfield import GapField
+    x, g = BRB_MESOSCALE_GAP
+    gap = GapField(("x",), np.array(x)[:, None], np.array(g),
+                   source="the Brake-Reuss beam's mesoscale gap")
+    return dataclasses.replace(itf, law=InterfaceLaw(RoughSurface(**BRB_ROUGH)), gap=gap)
+
+
+def brb(refine: int = 1, mu: float | None = None, element: str = "C3D8I",
+        surfaces: str = "measured") -> Model:
     r"""The Brake-Reuss beam, free-free, with its three pretensioned bolts.
 
     Two hexahedral half beams (``"left"``, x < 60 mm, and ``"right"``) meet on the
@@ -192,6 +275,12 @@ def brb(refine: int = 1, mu: float | None = None, element: str = "C3D8I") -> Mod
         ``"C3D8I"`` (default: incompatible modes, which bend correctly with two
         elements per half thickness) or ``"hexahedron"`` (trilinear, full
         integration: shear locking stiffens the coarse meshes).
+    surfaces : {"measured", "flat"}
+        ``"measured"`` (default, the project's best prediction): the lap's measured
+        surfaces of [P], their asperities as a rough-surface law
+        (:data:`BRB_ROUGH`), their shape as the initial gap (:data:`BRB_MESOSCALE_GAP`),
+        and the structure's linear damping (:data:`BRB_DAMPING`). ``"flat"``: a flat
+        interface of hard contact with rigid stick and no linear damping.
 
     Notes
     -----
@@ -202,6 +291,8 @@ def brb(refine: int = 1, mu: float | None = None, element: str = "C3D8I") -> Mod
     _check_refine(refine)
     if element not in ("C3D8I", "hexahedron"):
         raise InputError(f"element must be 'C3D8I' or 'hexahedron', got {element!r}")
+    if surfaces not in SURFACES:
+        raise InputError(f"surfaces must be one of {SURFACES}, got {surfaces!r}")
     s = BRB
     steel = Material(s["E"], s["nu"], s["rho"])
     bodies = []
@@ -214,8 +305,14 @@ def brb(refine: int = 1, mu: float | None = None, element: str = "C3D8I") -> Mod
     bolts = tuple(Bolt(f"bolt{j}", "left", f"washer{j}", "right", f"washer{j}", N0, k)
                   for j in range(1, len(s["x_bolts"]) + 1))
     suffix = "" if element == "C3D8I" else f", element={element}"
-    return Model(bodies=tuple(bodies),
-                 interface=Interface("left", "interface", "right", "interface"),
+    itf = Interface("left", "interface", "right", "interface")
+    damping = None
+    if surfaces == "measured":
+        itf, damping = measured_interface(itf), LinearDamping(ratio=BRB_DAMPING)
+        bodies = [_with_masses(b) for b in bodies]
+    else:
+        suffix += ", flat"
+    return Model(bodies=tuple(bodies), interface=itf,
                  tip=Probe(sets=(("right", "end"),), direction=(0.0, 1.0, 0.0)),
-                 mu=s["mu"] if mu is None else mu, bolts=bolts,
+                 mu=s["mu"] if mu is None else mu, bolts=bolts, damping=damping,
                  name=f"brb (refine={refine}{suffix})")

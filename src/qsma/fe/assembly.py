@@ -124,6 +124,9 @@ def assemble_body(body: Body) -> AssembledBody:
         from ..model.spring import spring_matrix
         K = (K + spring_matrix(body)).tocsr()
     M = mass_matrix(body)
+    if body.masses:                         # point masses (qsma.model.mass)
+        from ..model.mass import point_mass_matrix
+        M = (M + point_mass_matrix(body)).tocsr()
     loads = {name: body_load(body, name) for name in body.load_names()}
     fixed = body.clamped_dofs()
     free = np.setdiff1d(np.arange(body.n_dofs), fixed)
@@ -220,11 +223,15 @@ def _facet_order(cell_type):
 
 
 def body_load(body: Body, name: str) -> np.ndarray:
-    """Sum of the pressure loads of pattern ``name``."""
+    """Sum of the pressure loads and nodal forces of pattern ``name``."""
     f = np.zeros(body.n_dofs)
     for pr in body.pressures:
         if pr.load == name:
             f += pressure_load(body, pr.set, pr.p)
+    for nf in body.forces:
+        if nf.load == name:
+            nodes = np.unique(body.mesh.nodes(nf.set))
+            f.reshape(-1, body.dim)[nodes] += np.asarray(nf.force)
     return f
 
 

@@ -1,9 +1,10 @@
 """Finite element models: meshes with named sets, bodies, materials, interfaces."""
 from .mesh import Mesh, boundary_facets, CELL_TYPES
-from .body import Material, Clamp, Pressure, Body, Probe, Model
+from .body import Material, Clamp, Pressure, NodalForce, Body, Probe, Model
 from .interface import Interface, Pairing, make_pairing, pair_nodes, local_frames
 
 __all__ = ["Mesh", "boundary_facets", "CELL_TYPES", "Material", "Clamp", "Pressure",
+           "NodalForce",
            "Body", "Probe", "Model", "Interface", "Pairing", "make_pairing", "pair_nodes",
            "local_frames"]
 
@@ -12,8 +13,12 @@ from .validate import validate_mesh  # noqa: E402
 
 from .bolt import Bolt  # noqa: E402
 from .spring import Spring  # noqa: E402
+from .damping import LinearDamping  # noqa: E402
+from .gapfield import GapField, read_gap_field  # noqa: E402
+from .mass import PointMass  # noqa: E402
 
-__all__ += ["Bolt", "Spring", "read_mesh", "write_mesh", "FacetIndex", "facet_index", "validate_mesh"]
+__all__ += ["Bolt", "Spring", "PointMass", "LinearDamping", "GapField", "read_gap_field",
+            "read_mesh", "write_mesh", "FacetIndex", "facet_index", "validate_mesh"]
 
 
 def __getattr__(name):

@@ -1,14 +1,15 @@
 """Materials, boundary conditions, loads, bodies and the assembled model."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import math
 import warnings
 
 import numpy as np
 
 from ..errors import InputError, NearlyIncompressibleWarning
-from .mesh import Mesh
+from .damping import LinearDamping
+from .mesh import CELL_FACETS, Mesh
 
 #: Poisson's ratio above which the displacement elements of qsma lock. Measured with
 #: linear_modes on sandwich-2d, f0 at refine 1 against refine 4: the discretisation
@@ -87,10 +88,30 @@ class Pressure:
         object.__setattr__(self, "p", _finite(f"pressure on {self.set!r}", self.p))
 
 
+@dataclass(frozen=True)
+class NodalForce:
+    """Force ``force`` (N; N per metre of depth in 2D, one component per direction) on
+    every node of a node or facet set, as an Abaqus / CalculiX ``*CLOAD`` applies it;
+    part of the load pattern named ``load``."""
+
+    set: str
+    force: tuple
+    load: str = "preload"
+
+    def __post_init__(self):
+        f = self.force
+        if isinstance(f, (str, bytes)) or not hasattr(f, "__len__"):
+            raise InputError(f"force on {self.set!r}: force must be a list of one value "
+                             f"per direction (N), got {f!r}")
+        object.__setattr__(self, "force", tuple(_finite(f"force on {self.set!r}", v)
+                                                for v in f))
+
+
 @dataclass(frozen=True, eq=False)
 class Body:
-    """One elastic body: mesh, material, clamps, pressure loads and grounded springs
-    (:class:`qsma.model.spring.Spring`)."""
+    """One elastic body: mesh, material, clamps, pressure loads, grounded springs
+    (:class:`qsma.model.spring.Spring`), point masses
+    (:class:`qsma.model.mass.PointMass`) and nodal forces (:class:`NodalForce`)."""
 
     name: str
     mesh: Mesh
@@ -98,19 +119,27 @@ class Body:
     clamps: tuple = ()
     pressures: tuple = ()
     springs: tuple = ()
+    masses: tuple = ()
+    forces: tuple = ()
 
     def __post_init__(self):
-        object.__setattr__(self, "clamps", tuple(self.clamps))
-        object.__setattr__(self, "pressures", tuple(self.pressures))
-        object.__setattr__(self, "springs", tuple(self.springs))
+        for name in ("clamps", "pressures", "springs", "masses", "forces"):
+            object.__setattr__(self, name, tuple(getattr(self, name)))
         from .spring import check_springs
+        from .mass import check_masses
         check_springs(self)
+        check_masses(self)
         names = self.mesh.set_names()
         for c in self.clamps:
             if c.set not in names:
                 raise InputError(f"body {self.name!r}: clamp on unknown set {c.set!r}; "
                                  f"available sets: {names}")
             comps = range(self.mesh.dim) if c.components is None else c.components
+            if len(comps) == 0:
+                raise InputError(f"body {self.name!r}: the clamp on {c.set!r} holds no "
+                                 f"component (components = []); list the components to "
+                                 f"hold (0 = x, 1 = y, 2 = z), leave components out to "
+                                 f"hold all, or remove the clamp")
             if not all(isinstance(k, (int, np.integer)) and not isinstance(k, bool)
                        and 0 <= k < self.mesh.dim for k in comps):
                 raise InputError(f"body {self.name!r}: clamp components must be integers "
@@ -118,9 +147,15 @@ class Body:
                                  f"{c.components!r}")
         for p in self.pressures:
             if p.set not in self.mesh.facet_sets:
-                raise InputError(f"body {self.name!r}: pressure on unknown facet set "
-                                 f"{p.set!r}; available facet sets: "
-                                 f"{sorted(self.mesh.facet_sets)}")
+                raise InputError(f"body {self.name!r}: pressure on {p.set!r}, "
+                                 f"{_not_a_facet_set(self.mesh, p.set)}")
+        for f in self.forces:
+            if f.set not in names:
+                raise InputError(f"body {self.name!r}: force on unknown set {f.set!r}; "
+                                 f"available sets: {names}")
+            if len(f.force) != self.mesh.dim:
+                raise InputError(f"body {self.name!r}: force on {f.set!r} needs "
+                                 f"{self.mesh.dim} components, got {list(f.force)!r}")
 
     @property
     def dim(self):
@@ -140,7 +175,23 @@ class Body:
             else np.zeros(0, dtype=np.int64)
 
     def load_names(self):
-        return sorted({p.load for p in self.pressures})
+        return sorted({p.load for p in self.pressures} | {f.load for f in self.forces})
+
+
+def _not_a_facet_set(mesh, name) -> str:
+    """Why ``name`` cannot carry a pressure and what to name instead."""
+    facets = f"available facet sets: {sorted(mesh.facet_sets)}"
+    faces = ("a facet set: in an .inp file a *SURFACE, TYPE=ELEMENT of the loaded faces "
+             f"(rows 'element set, S1'..'S{len(CELL_FACETS[mesh.cell_type])}'), in a Gmsh "
+             f"file a physical group of dimension {mesh.dim - 1}")
+    if name in mesh.cell_sets:
+        return (f"which is a cell set (elements, e.g. the set of an Abaqus *DLOAD), not a "
+                f"facet set: a pressure acts on element faces. Name {faces}; {facets}")
+    if name in mesh.node_sets:
+        return (f"which is a node set, not a facet set: a pressure acts on element faces "
+                f"(loads on nodes, as an Abaqus *CLOAD, are forces: forces = [{{ set = "
+                f"{name!r}, force = [...] }}]). Name {faces}; {facets}")
+    return f"an unknown facet set; {facets}"
 
 
 @dataclass(frozen=True)
@@ -163,7 +214,9 @@ class Model:
     reported as tip deflection and used to scale load levels. ``units`` names the
     unit system every number of the model is written in (:data:`qsma.units.UNIT_SYSTEMS`:
     ``"SI"``, the default, or ``"mm-N-s-tonne"``); nothing is converted, the name
-    labels the results.
+    labels the results. ``damping``: the linear damping of the structure besides the
+    joint (:class:`qsma.model.LinearDamping`), reported beside the joint's and added to
+    it.
     """
 
     bodies: tuple
@@ -175,6 +228,7 @@ class Model:
     interfaces: tuple = ()
     bolts: tuple = ()                 # qsma.model.bolt.Bolt, pretensioned then locked
     units: str = "SI"
+    damping: "LinearDamping | None" = None   # of the structure besides the joint
 
     def __post_init__(self):
         object.__setattr__(self, "bodies", tuple(self.bodies))
@@ -204,6 +258,9 @@ class Model:
         if self.tip is not None:
             self._check_probe(self.tip)
         self._check_bolts(names)
+        if self.damping is not None and not isinstance(self.damping, LinearDamping):
+            raise InputError(f"damping must be a qsma.model.LinearDamping, got "
+                             f"{type(self.damping).__name__}")
 
     def _check_bolts(self, names):
         """Bolt ends on bodies of the model, unique bolt names."""
@@ -222,6 +279,27 @@ class Model:
     def interface_list(self) -> tuple:
         """Every interface of the model (one for ``interface``)."""
         return (self.interface,) if self.interface is not None else self.interfaces
+
+    def check_mu_reaches(self, mu, fix: str, what: str | None = None):
+        """Refuse a model-wide friction coefficient that some interface would not see:
+        one that sets a ``mu`` of its own (other than ``mu``; ``mu=None``: any value, as
+        a fit tries) keeps it. ``what`` names where the value came from (e.g.
+        ``--mu 0.1``), ``fix`` says what to change."""
+        own = [i for i in self.interface_list
+               if i.mu is not None and (mu is None or i.mu != mu)]
+        if own:
+            more = f" (and {len(own) - 1} more)" if len(own) > 1 else ""
+            what = what or f"friction coefficient mu = {mu!r}"
+            raise InputError(f"{what} sets the friction coefficient of the whole model, "
+                             f"but interface {own[0].label} sets its own mu = "
+                             f"{own[0].mu}{more}, which the model's mu does not replace. "
+                             f"Fix: {fix}")
+
+    def with_mu(self, mu, fix: str, what: str | None = None) -> "Model":
+        """The model with friction coefficient ``mu`` on every interface
+        (:meth:`check_mu_reaches` first)."""
+        self.check_mu_reaches(mu, fix, what)
+        return replace(self, mu=mu)
 
     def _check_interface(self, itf, names):
         for b in (itf.body1, itf.body2):

@@ -9,6 +9,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
+from ..contact.laws import InterfaceLaw
 from ..errors import InputError, QuadraticFacetWarning
 from .mesh import Mesh, facet_index, facet_node_weights
 
@@ -40,11 +41,19 @@ class Interface:
     slave : name of the body whose interface nodes carry the contact unknowns (mortar
         only). ``None``: the side with more interface nodes (the finer one, as mortar
         theory recommends), body 1 on a tie; if that side is not covered by the other,
-        the other side.
+        the other side, and where neither is covered, the one with the smaller share
+        uncovered.
     tol : node-to-node match tolerance (absolute, m). It can only tighten the default
         (:data:`NODE_MATCH_FRACTION` of the local element size); a larger value is
         refused: mismatched meshes are coupled by ``coupling="mortar"``, never snapped.
     mu : Coulomb friction coefficient of this interface; ``None``: the model's ``mu``.
+    law : :class:`qsma.contact.laws.InterfaceLaw` of this interface (normal and
+        tangential compliance); ``None``: hard contact with rigid stick.
+    gap : initial normal gap added at every contact point (m, positive apart, negative
+        overlapping): where the surfaces touch is an input, not an accident of the
+        mesh. A callable of the contact points' coordinates ``(n, dim) -> (n,)``, or a
+        :class:`qsma.model.gapfield.GapField` (e.g. a measured height map,
+        :func:`qsma.model.gapfield.read_gap_field`). ``None``: flat (the mesh's own gaps).
     """
 
     body1: str
@@ -55,6 +64,8 @@ class Interface:
     coupling: str = "auto"
     slave: str | None = None
     mu: float | None = None
+    law: object = None
+    gap: object = None
 
     @property
     def label(self) -> str:
@@ -67,6 +78,15 @@ class Interface:
                                     or not np.isfinite(self.mu) or self.mu < 0):
             raise InputError(f"interface {self.label}: friction coefficient mu must be a "
                              f"finite number >= 0, got {self.mu!r}")
+        if self.law is not None:
+            if not isinstance(self.law, InterfaceLaw):
+                raise InputError(f"interface {self.label}: law must be a "
+                                 f"qsma.contact.laws.InterfaceLaw, got "
+                                 f"{type(self.law).__name__}")
+        if self.gap is not None and not callable(self.gap):
+            raise InputError(f"interface {self.label}: gap must be a function of the "
+                             f"contact points' coordinates or a GapField, got "
+                             f"{type(self.gap).__name__}")
         if self.coupling not in COUPLINGS:
             raise InputError(f"interface coupling must be one of {list(COUPLINGS)}, "
                              f"got {self.coupling!r}")
@@ -375,7 +395,7 @@ def mortar_pairing(model, interface=None) -> Pairing:
         n = [len(b.mesh.nodes(s)) for _, b, s in sides]
         first = [0, 1] if n[0] >= n[1] else [1, 0]
         candidates = [first, first[::-1]]
-    error = None
+    error, best = None, None
     for s, m in candidates:
         k, sb, ss = sides[s]
         _, mb, ms = sides[m]
@@ -385,12 +405,31 @@ def mortar_pairing(model, interface=None) -> Pairing:
         except InputError as exc:
             error = error or exc
             continue
-        normals = op.normals if k == 1 else -op.normals        # from body 1 into body 2
-        nodes = (op.slave_nodes, op.master_nodes) if k == 1 else (op.master_nodes,
-                                                                  op.slave_nodes)
-        return Pairing(nodes[0], nodes[1], sb.mesh.points[op.slave_nodes].copy(),
-                       local_frames(normals), op.area, "mortar", k, op.P, op.gap)
-    raise error
+        if best is None or op.unmatched_fraction < best[0].unmatched_fraction:
+            best = (op, k, sb, ss)
+        if op.fully_covered:
+            break
+    if best is None:
+        raise error
+    op, k, sb, ss = best
+    if not op.fully_covered:
+        _warn_partial(itf, op, sb.name, ss)
+    normals = op.normals if k == 1 else -op.normals            # from body 1 into body 2
+    nodes = (op.slave_nodes, op.master_nodes) if k == 1 else (op.master_nodes,
+                                                              op.slave_nodes)
+    return Pairing(nodes[0], nodes[1], sb.mesh.points[op.slave_nodes].copy(),
+                   local_frames(normals), op.area, "mortar", k, op.P, op.gap)
+
+
+def _warn_partial(itf, op, body, name):
+    """Name the part of the slave surface that faces no master facet."""
+    from ..errors import PartialCoverageWarning
+    warnings.warn(PartialCoverageWarning(
+        f"interface {itf.label}: {100 * op.unmatched_fraction:.3g} % of the slave surface "
+        f"(body {body!r} set {name!r}: {op.unmatched_area:.4g} of its area "
+        f"{op.slave_area:.4g}) faces no master facet and is left out of the contact (the "
+        f"edges of holes or of offset surfaces meshed apart); if the two surfaces should "
+        f"cover each other, check their facet sets"), stacklevel=3)
 
 
 def _warn_quad8(itf, *bodies):

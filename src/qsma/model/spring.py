@@ -83,24 +83,30 @@ def check_springs(body) -> None:
 
 
 def spring_shares(body, spring) -> tuple:
-    """``(nodes, shares)`` of a spring's set: tributary areas of a facet set, equal
-    shares of a node set (a set that is both: its facets); shares sum to 1."""
-    if spring.set in body.mesh.facet_sets:
+    """``(nodes, shares)`` of a spring's set (:func:`set_shares`)."""
+    return set_shares(body, spring.set, "spring")
+
+
+def set_shares(body, name, what) -> tuple:
+    """``(nodes, shares)`` of set ``name`` of ``body``: tributary areas of a facet set,
+    equal shares of a node set (a set that is both: its facets); shares sum to 1.
+    ``what`` (a spring, a point mass) names the user of the set in the messages."""
+    if name in body.mesh.facet_sets:
         from .mesh import facet_node_weights
-        facets = body.mesh.facet_sets[spring.set]
+        facets = body.mesh.facet_sets[name]
         with np.errstate(invalid="ignore", divide="ignore"):   # degenerate: refused below
             w = facet_node_weights(body.mesh.points, facets, body.mesh.facet_type)
         area = np.bincount(facets.ravel(), w.ravel(), minlength=body.mesh.n_nodes)
         nodes = np.unique(facets)
         total = area[nodes].sum()
         if not (np.isfinite(total) and total > 0):
-            raise InputError(f"body {body.name!r}: spring on {spring.set!r}: the facet set "
+            raise InputError(f"body {body.name!r}: {what} on {name!r}: the facet set "
                              f"has no area (empty or degenerate facets); name a set of "
                              f"facets with an area, or a node set")
         return nodes, area[nodes] / total
-    nodes = np.unique(body.mesh.nodes(spring.set))
+    nodes = np.unique(body.mesh.nodes(name))
     if len(nodes) == 0:
-        raise InputError(f"body {body.name!r}: spring on {spring.set!r}: the set has no "
+        raise InputError(f"body {body.name!r}: {what} on {name!r}: the set has no "
                          f"nodes; name a set with nodes")
     return nodes, np.full(len(nodes), 1.0 / len(nodes))
 

@@ -34,6 +34,7 @@ the preload solve and the ramps.
 """
 from __future__ import annotations
 
+from contextlib import ExitStack
 from dataclasses import dataclass, field
 import csv
 import json
@@ -42,9 +43,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ..analysis import STUDY_MU_FIX
 from ..errors import AnalysisError, InputError
 from ..levels import Levels
 from ..options import RunOptions
+from ..rundir import RunFolder
 from .sweep import (MATERIAL_PARAMETERS, Case, _material_key, _model_with_materials,
                     _check_bodies, case_inputs, parameter_kind)
 
@@ -211,7 +214,9 @@ class _Evaluator:
         self.model, self.options, self.names = model, options, tuple(names)
         self.groups = {}
         self.nruns = 0
-        _check_bodies([Case(0, tuple((n, 1.0) for n in names))], model)
+        _check_bodies([Case(0, tuple((n, 1.0) for n in names if n != "mu"))], model)
+        if "mu" in names:
+            model.check_mu_reaches(None, STUDY_MU_FIX, what="fitting mu")
 
     def result(self, values):
         from ..analysis import prepare, run_prepared
@@ -409,12 +414,14 @@ def fit(model_or_config, measured, params, options: RunOptions | None = None, *,
         return r
 
     x0 = np.log([p0[n] for n in names])
-    sol = least_squares(fun, x0, bounds=(np.log(lo), np.log(hi)), method="trf",
-                        diff_step=DIFF_STEP, x_scale=1.0, max_nfev=max_evaluations,
-                        xtol=1e-4, ftol=1e-6)
-    fr = _summarise(sol, names, p0, lo, hi, measured, ev, history, keep)
-    if out is not None:
-        fr = write_fit(fr, out, start_prediction=keep["start"][1])
+    with ExitStack() as stack:          # the result folder taken before any evaluation
+        folder = None if out is None else stack.enter_context(RunFolder(out, kind="fit"))
+        sol = least_squares(fun, x0, bounds=(np.log(lo), np.log(hi)), method="trf",
+                            diff_step=DIFF_STEP, x_scale=1.0, max_nfev=max_evaluations,
+                            xtol=1e-4, ftol=1e-6)
+        fr = _summarise(sol, names, p0, lo, hi, measured, ev, history, keep)
+        if folder is not None:
+            fr = write_fit(fr, folder, start_prediction=keep["start"][1])
     return fr
 
 
@@ -507,12 +514,16 @@ def fit_dict(fr: FitResult) -> dict:
 
 def write_fit(fr: FitResult, out, start_prediction=None) -> FitResult:
     """Write fit.json, fit.csv (measured against fitted per amplitude), fit.png (the
-    overlay) and ``best/`` (the result folder of the fitted run) into ``out``."""
+    overlay) and ``best/`` (the result folder of the fitted run) as one result folder
+    ``out`` (a path, or an entered :class:`qsma.rundir.RunFolder` of kind ``fit``),
+    swapped into place as a whole."""
+    if not isinstance(out, RunFolder):
+        with RunFolder(out, kind="fit") as folder:
+            return write_fit(fr, folder, start_prediction)
     from dataclasses import replace
     from ..results import atomic_write, write_all
     from .plots import plot_fit
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    folder, out = out, out.staging
     paths = {"json": out / "fit.json", "csv": out / "fit.csv"}
     atomic_write(paths["json"], json.dumps(fit_dict(fr), indent=1) + "\n")
     m = fr.measured
@@ -526,8 +537,11 @@ def write_fit(fr: FitResult, out, start_prediction=None) -> FitResult:
         lines.append(",".join("" if not np.isfinite(v) else f"{v:.10g}" for v in vals))
     atomic_write(paths["csv"], "\n".join(lines) + "\n")
     paths["plot"] = plot_fit(fr, out / "fit.png", start_prediction)
-    best = write_all(fr.result, out / "best", plots=True, vtu=False)
-    paths["best"] = best["json"]
+    best = folder.subfolder("best")
+    write_all(fr.result, best.path, plots=True, vtu=False, folder=best)
+    folder.commit()
+    paths = {k: folder.path / Path(p).name for k, p in paths.items()}
+    paths["best"] = best.path / "results.json"
     return replace(fr, paths=paths)
 
 

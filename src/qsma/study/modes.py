@@ -9,6 +9,11 @@ result equals a separate ``qsma run --mode k``. The folder it writes::
     OUT/mode-0/, OUT/mode-1/, ...   result folders as qsma run writes them
     OUT/modes.json                  per mode: f0, success, message, folder
     OUT/modes.vtu                   tied mode shapes after the preload (mode_00, ...)
+
+OUT is one result folder (:class:`qsma.rundir.RunFolder`, kind ``run-modes``): locked
+and checked before anything is computed, written in a staging folder and swapped into
+place as a whole, so a mode folder of an earlier run with other modes does not stay
+behind; each ``mode-K`` has a manifest of its own.
 """
 from __future__ import annotations
 
@@ -97,12 +102,23 @@ def run_modes(model, modes, options: RunOptions | None = None, *, out=None, plot
         A mode that cannot be run (e.g. it does not move the tip) is recorded in the
         summary with its message; the others go on.
     """
-    from ..analysis import prepare, run_prepared
-    from ..results import atomic_write, write_all
+    from ..rundir import RunFolder
     modes = parse_modes(",".join(str(m) for m in modes))
     options = options or RunOptions()
     if options.n_modes is None:
         options = options.replace(n_modes=max(6, max(modes) + 1))
+    if out is None:
+        return _run_modes(model, modes, options, None, plots, vtu, progress)
+    with RunFolder(out, kind="run-modes") as folder:     # taken before computing
+        return _run_modes(model, modes, options, folder, plots, vtu, progress)
+
+
+def _run_modes(model, modes, options, folder, plots, vtu, progress) -> ModesResult:
+    """:func:`run_modes` into ``folder`` (an entered :class:`qsma.rundir.RunFolder`, or
+    None): every mode's folder and the tables are written into its staging folder and
+    swapped into place together, so no mode folder of an earlier run stays behind."""
+    from ..analysis import prepare, run_prepared
+    from ..results import atomic_write, write_all
     prepared = prepare(model, options)
     results, summary, paths = {}, [], {}
     for i, m in enumerate(modes):
@@ -116,18 +132,20 @@ def run_modes(model, modes, options: RunOptions | None = None, *, out=None, plot
         entry = dict(mode=m, f0_hz=res.f0_hz, success=bool(res.success),
                      message=res.message, folder=MODE_FOLDER.format(k=m))
         summary.append(entry)
-        if out is not None:
-            write_all(res, Path(out) / entry["folder"], plots=plots, vtu=vtu)
-            paths[entry["folder"]] = Path(out) / entry["folder"]
+        if folder is not None:
+            sub = folder.subfolder(entry["folder"])
+            write_all(res, sub.path, plots=plots, vtu=vtu, folder=sub)
+            paths[entry["folder"]] = sub.path
         if progress is not None:
             progress(i + 1, len(modes))
-    if out is not None and results:
+    if folder is not None and results:
         first = next(iter(results.values()))
-        paths["json"] = Path(out) / MODES_JSON
-        atomic_write(paths["json"], json.dumps(dict(
+        atomic_write(folder.staging / MODES_JSON, json.dumps(dict(
             model=first.model_info["name"], modes=summary,
             f_hz_tied=first.modes.f_hz.tolist()), indent=1) + "\n")
-        paths["vtu"] = write_modes_vtu(model, first.modes, Path(out) / MODES_VTU)
+        write_modes_vtu(model, first.modes, folder.staging / MODES_VTU)
+        paths["json"], paths["vtu"] = folder.path / MODES_JSON, folder.path / MODES_VTU
+        folder.commit()             # none ran: nothing to write, the folder is kept
     return ModesResult(all(e["success"] for e in summary), results, tuple(summary), paths)
 
 

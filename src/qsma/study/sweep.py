@@ -33,8 +33,8 @@ import io
 import itertools
 import json
 import logging
-import os
 from pathlib import Path
+import re
 import threading
 import time
 import warnings
@@ -44,6 +44,7 @@ import numpy as np
 from ..errors import InputError, QSMAError, SerialSweepWarning
 from ..levels import Levels
 from ..options import RunOptions
+from ..rundir import MANIFEST, StudyFolder
 
 log = logging.getLogger("qsma")
 
@@ -67,7 +68,7 @@ CASE_FILES = ("plots", "vtu", "rom", "report")
 #: fixed when the shared preparation is made.
 NOT_SWEPT = ("blas_threads", "schur_backend", "loop_workers", "parallel_ramps")
 #: Run options left out of a study's fingerprint: they change no result, so a study
-#: resumes whatever they are (and studies started before they existed still resume).
+#: resumes whatever they are.
 NOT_FINGERPRINTED = ("loop_workers", "parallel_ramps")
 
 
@@ -235,11 +236,16 @@ def _material_key(case, n_bodies, names):
 
 
 def _check_bodies(cases, model):
+    """Refuse before any case a body the model lacks and a friction coefficient the
+    model's interfaces would not see (their own mu)."""
+    from ..analysis import STUDY_MU_FIX
     names = [b.name for b in model.bodies]
     for name, _ in cases[0].params:
         base, _, body = name.partition(":")
         if base in MATERIAL_PARAMETERS and body and body not in names:
             raise InputError(f"sweep parameter {name!r}: no body {body!r}; bodies: {names}")
+    for mu in sorted({dict(c.params)["mu"] for c in cases if "mu" in dict(c.params)}):
+        model.check_mu_reaches(mu, STUDY_MU_FIX, what=f"mu = {mu:g} of the study")
 
 
 def _model_with_materials(model, key):
@@ -412,7 +418,6 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
     SweepResult
     """
     from ..config import RunConfig
-    from ..results import atomic_write
     t0 = time.perf_counter()
     if isinstance(model_or_config, RunConfig):
         model = model_or_config.model
@@ -431,11 +436,22 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
         raise InputError(f"workers must be an integer >= 0, got {workers!r}")
     cases = grid(vary)
     _check_bodies(cases, model)
-    out = _study_dir(out)
+    with StudyFolder(out, allowed=_in_study) as folder:   # locked before computing
+        return _study(folder, model, vary, options, cases, scheduler, workers, files,
+                      plots, progress, t0)
+
+
+def _study(folder, model, vary, options, cases, scheduler, workers, files, plots, progress,
+           t0) -> SweepResult:
+    """:func:`sweep` in its entered :class:`qsma.rundir.StudyFolder` (manifest written
+    when every case is done)."""
+    from ..results import atomic_write
+    out = folder.path
     study = dict(model=model.name, fingerprint=_fingerprint(model, options),
                  parameters=list(vary), n_cases=len(cases),
                  cases=[c.json_params() for c in cases])
     _check_study(out / STUDY_NAME, study)
+    folder.changing()
     atomic_write(out / STUDY_NAME, json.dumps(study, indent=1) + "\n")
 
     outcomes, todo = {}, []
@@ -472,6 +488,8 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
     paths["report"] = write_study_report(list(vary), ordered, table,
                                          {k[len("plot_"):]: v for k, v in figures.items()},
                                          out / REPORT_NAME)
+    paths["manifest"] = out / MANIFEST
+    folder.commit()
     failed = [o for o in ordered if o.status == "failed"]
     bad = [o for o in ordered if o.status != "ok"]
     message = "all cases succeeded" if not bad else (
@@ -483,20 +501,14 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
                        dict(prepare=t_prep, total=time.perf_counter() - t0))
 
 
-def _study_dir(out) -> Path:
-    """Create the study folder if needed and check that it can be written, before any
-    computation (the case folders inside it are result folders of their own)."""
-    import tempfile
-    out = Path(out)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=".qsma-study-write-check-", dir=out)
-        os.close(fd)
-        os.unlink(tmp)
-    except OSError as exc:
-        raise InputError(f"study folder {str(out)!r} cannot be written ({exc.strerror}); "
-                         f"choose another --out folder or fix its permissions") from exc
-    return out
+#: Names a study folder holds besides its manifest (``case-0003``, its done-marker and
+#: rom.json, the table, figures and report); anything else is refused as foreign.
+_STUDY_ENTRY = re.compile(r"case-\d{4,}(\.done\.json|\.rom\.json)?|study\.(json|csv|parquet)"
+                          r"|report\.html|sweep_.+\.png")
+
+
+def _in_study(name: str) -> bool:
+    return _STUDY_ENTRY.fullmatch(name) is not None
 
 
 def _check_study(path, study):
@@ -517,27 +529,14 @@ def _check_study(path, study):
 
 
 def _fingerprint(model, options) -> str:
-    """SHA-256 of what a case's results depend on besides its own parameters: every
-    body's mesh, material, clamps and loads, the interface, probe and mu, and every
-    run option (levels included)."""
+    """SHA-256 of what a case's results depend on besides its own parameters: the model
+    as a whole (:func:`qsma.model.fingerprint.fingerprint`: meshes with the contents of
+    every set, materials, clamps, loads, springs, interfaces, probe, mu, bolts) and
+    every run option that changes a result (levels included)."""
     import hashlib
+    from ..model.fingerprint import fingerprint
     h = hashlib.sha256()
-    for b in model.bodies:
-        h.update(b.name.encode())
-        h.update(np.ascontiguousarray(b.mesh.points).tobytes())
-        h.update(np.ascontiguousarray(b.mesh.cells).tobytes())
-        h.update(repr((b.mesh.cell_type, b.mesh.element, b.material, b.clamps,
-                       b.pressures)).encode())
-        if b.springs:                           # (absent: the bytes of earlier versions)
-            h.update(repr(b.springs).encode())
-        for c in b.mesh.extra_blocks:           # mixed meshes: the other cell blocks
-            h.update(np.ascontiguousarray(c.cells).tobytes())
-            h.update(repr((c.cell_type, c.element)).encode())
-    # two bodies: the bytes of earlier versions (studies still resume); several: all
-    interfaces = model.interface if model.interface is not None else model.interface_list
-    h.update(repr((interfaces, model.tip, model.mu)).encode())
-    if model.bolts:
-        h.update(repr(model.bolts).encode())
+    h.update(fingerprint(model).encode())
     h.update(repr(sorted((k, _fingerprinted(model, k, v))
                          for k, v in options.as_dict().items()
                          if k not in NOT_FINGERPRINTED)).encode())
@@ -547,10 +546,9 @@ def _fingerprint(model, options) -> str:
 
 def _fingerprinted(model, name, value):
     """The value of option ``name`` as the fingerprint holds it: ``method="auto"`` of a
-    2D model as the method it always runs (``basket``, the default of earlier versions:
-    their studies still resume). In 3D the choice depends on the number of interface
-    pairs, known only after the pairing, so ``"auto"`` stays ``"auto"``: a 3D study of
-    an earlier version resumes with ``--method basket``."""
+    2D model as the method it always runs (``basket``), so the two spellings resume each
+    other's studies. In 3D the choice depends on the number of interface pairs, known
+    only after the pairing, so ``"auto"`` stays ``"auto"``."""
     if name == "method" and value == "auto" and model.dim == 2:
         return "basket"
     return value

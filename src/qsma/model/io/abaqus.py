@@ -19,7 +19,7 @@ from ..mesh import CELL_FACETS, CELL_TYPES, Mesh, facet_index
 from ..validate import HIGHER_NODES
 from .common import (_MAX_ID, _N_NODES, _TOPO_DIM, _boundary_of_sets,
                      _cell_type_of, _check_names, _ContactPair, _Elements, _FileMesh,
-                     _IdLookup, _line_of, _number, _read_bytes, _to_mesh)
+                     _IdLookup, _line_of, _read_bytes, _to_mesh)
 
 #: Abaqus face numbering: face ``S<k>`` of an element is ``ABAQUS_FACES[type][k - 1]``
 #: (0-based local nodes), from the Abaqus element library ("face 1: 1-2-3-4,
@@ -74,6 +74,38 @@ def _abaqus_faces(cell_type: str) -> list:
     nc = CELL_TYPES[linear][1]
     return [tuple(face) + tuple(nc + i for i, g in enumerate(groups) if set(g) <= set(face))
             for face in ABAQUS_FACES[linear]]
+
+#: Characters of a coordinate field that CalculiX reads: its *NODE reader takes the first
+#: 20 characters of a field (Fortran ``f20.0``), so a longer field is cut short without a
+#: message and a field of 22 characters or more stops it ("*ERROR reading *NODE").
+CALCULIX_FIELD = 20
+#: Entries per data line that CalculiX reads (its line splitter stops at 16): an element
+#: row of more nodes continues on the next line after a trailing comma.
+CALCULIX_ENTRIES = 16
+
+def element_face_facets(mesh: Mesh, cell_set: str, face: int) -> np.ndarray:
+    """The facets (outward node rows) that are face ``S<face>`` (Abaqus numbering,
+    :data:`ABAQUS_FACES`) of the cells of ``cell_set``: what an Abaqus ``*DLOAD`` row
+    ``cell_set, P<face>, p`` loads. Every such face must be on the boundary."""
+    if mesh.is_mixed:
+        raise InputError(f"faces of cell set {cell_set!r}: a mesh of several cell types; "
+                         f"name the loaded faces as a *SURFACE instead")
+    faces = _abaqus_faces(mesh.cell_type)
+    if cell_set not in mesh.cell_sets:
+        raise InputError(f"no cell set named {cell_set!r} (an *ELSET of the cells); cell "
+                         f"sets: {sorted(mesh.cell_sets)}")
+    if not (isinstance(face, int) and 1 <= face <= len(faces)):
+        raise InputError(f"face {face!r} of cell set {cell_set!r}: {mesh.cell_type} cells "
+                         f"have faces 1..{len(faces)} (Abaqus S1..S{len(faces)})")
+    rows = mesh.cells[mesh.cell_sets[cell_set]][:, list(faces[face - 1])]
+    index = facet_index(mesh)
+    found = index.find(rows)
+    if (found < 0).any():
+        raise InputError(f"face S{face} of {int((found < 0).sum())} cell(s) of {cell_set!r} "
+                         f"is not on the boundary of the body (a pressure acts on its "
+                         f"surface): check the face number")
+    return index.rows[np.unique(found)]
+
 
 #: most ids one GENERATE row may produce
 _MAX_GENERATED = 10**8
@@ -155,6 +187,7 @@ def _inp_lines(path: Path, stack=(), where=None):
     """(file, line number, text) of the lines that are not blank or comments, with
     ``*INCLUDE`` expanded."""
     text = _read_inp_text(path, where)
+    _check_terminated(path, text)
     here = path.resolve()
     for number, raw in enumerate(text.splitlines(), start=1):
         line = raw.strip()
@@ -173,6 +206,22 @@ def _inp_lines(path: Path, stack=(), where=None):
             yield from _inp_lines(included, stack + (here,), (str(path), number))
             continue
         yield str(path), number, line
+
+
+def _check_terminated(path: Path, text: str):
+    """Refuse a file whose last line is a data line without a line end: a copy or
+    download cut off there (a set row ``1, 126, 251, 37`` would silently lose nodes).
+    A keyword or comment line without one is accepted (nothing of it can be lost)."""
+    if not text or text.endswith(("\n", "\r")):
+        return
+    lines = text.splitlines()
+    last = lines[-1].strip()
+    if last and not last.startswith("*"):
+        raise MeshFileError(f"{path}, line {len(lines)}: the file ends inside the data "
+                            f"line {last[:40]!r} (no line end after it): it looks cut off "
+                            f"(an interrupted copy or download); copy or export it again "
+                            f"(if the file is complete, end its last line with a line "
+                            f"break)")
 
 
 def _inp_cards(path: Path) -> list:
@@ -253,6 +302,7 @@ class _InpReader:
     def __init__(self, path: Path):
         self.source = str(path)
         self.node_ids, self.node_xyz, self.node_where = [], [], []
+        self.fewest_coordinates = None      # (count, where, text) of the shortest node row
         self.blocks = []
         self.sets = {"NSET": {}, "ELSET": {}}
         self.surfaces = {}          # key -> (name, [(reference, face or None, where)])
@@ -263,6 +313,7 @@ class _InpReader:
         self.friction = {}          # interaction name (upper) -> mu
         self.interaction = None     # the *SURFACE INTERACTION being defined
         self.boundaries = []        # (node set or node id, first dof, last dof, where)
+        self.load_ids = {"NSET": set(), "ELSET": set()}   # ids a *CLOAD / *DLOAD names
 
     def skips(self, card: _Card) -> bool:
         """Definitions at assembly level (reference points, connectors) are not the mesh."""
@@ -291,6 +342,7 @@ class _InpReader:
         blocks = [(b.cell_type, _TOPO_DIM[b.cell_type], self._connectivity(b, nodes),
                    _is_continuum(b.abaqus_type)) for b in self.blocks]
         vtypes = _cell_type_of(self.source, blocks, cell_type)
+        self._check_node_rows(CELL_TYPES[vtypes[0]][0])
         elements = self._element_lookup()
         index = _Elements(blocks)
         elsets = {k: self._element_indices(s, elements) for k, s in self.sets["ELSET"].items()}
@@ -315,7 +367,21 @@ class _InpReader:
                                          self.friction.get((inter or "").upper()), kind, where)
                             for slave, master, inter, kind, where in self.pairs]
         fm.boundaries = self._boundary_sets(fm, nodes, elsets, index)
+        self._load_id_sets(fm, nodes, elements)
         return fm, vtypes
+
+    def _check_node_rows(self, dim: int):
+        """Every node row gives at least ``dim`` coordinates (the cells' dimension). Abaqus
+        reads an omitted coordinate as 0, but a row short of the cells' dimension is a
+        row cut off (a truncated file) far more often than a node meant to lie on an
+        axis, and would move that node silently."""
+        if self.fewest_coordinates is None or self.fewest_coordinates[0] >= dim:
+            return
+        count, where, text = self.fewest_coordinates
+        raise _inp_error(where, f"node row {text!r} gives {count} coordinate(s), but the "
+                         f"cells are {dim}D", f"give 'node id, x, y{', z' if dim == 3 else ''}'"
+                         f" on every node line (0 written out where it is 0); a row cut "
+                         f"short means a damaged or truncated file")
 
     def _surface_name(self, name: str) -> str:
         """The defined spelling of a surface name (Abaqus names ignore case)."""
@@ -347,6 +413,19 @@ class _InpReader:
                     fm.node_sets[name] = [self._node_indices(s, nodes, elsets, index)]
             out.append((name, first, last))
         return out
+
+    def _load_id_sets(self, fm, nodes: _IdLookup, elements: _IdLookup):
+        """A node (element) that a *CLOAD (*DLOAD) row names by its id gets a node set
+        ``_N<id>`` (a cell set ``_E<id>``) of its own, so that a configuration can name
+        it (qsma.model.io.deck)."""
+        is_cell = np.concatenate([np.full(len(conn), bool(cell))
+                                  for _, _, conn, cell in fm.blocks])
+        for kind, lookup, sets, prefix in (("NSET", nodes, fm.node_sets, "_N"),
+                                           ("ELSET", elements, fm.element_sets, "_E")):
+            for ident in sorted(self.load_ids[kind]):
+                idx = lookup(np.array([ident]))
+                if idx[0] >= 0 and (kind == "NSET" or is_cell[idx[0]]):
+                    sets.setdefault(f"{prefix}{ident}", []).append(idx)
 
     def _element(self, vtype: str) -> str:
         """The one Abaqus element type (upper case) of the cells."""
@@ -490,6 +569,10 @@ def _inp_node(r: _InpReader, card: _Card):
     if bad.size:
         raise _inp_error(rows[bad[0]][0], f"node {ids[bad[0]]} has a non-finite coordinate",
                          "give finite coordinates")
+    if rows:
+        short = min(rows, key=lambda row: len(row[1]))
+        if r.fewest_coordinates is None or len(short[1]) - 1 < r.fewest_coordinates[0]:
+            r.fewest_coordinates = (len(short[1]) - 1, short[0], short[2])
     r.node_ids.append(ids)
     r.node_xyz.append(xyz)
     r.node_where += [where for where, _, _ in rows]
@@ -652,16 +735,12 @@ def _inp_scope(scope: str):
                                  "qsma reads one instance per body: read the file as an "
                                  "assembly (cells = \"<instance name>\" in the body's "
                                  "table) or write each instance to its own file")
-            for where, tokens, text in _rows(card):
-                try:
-                    moved = any(_abaqus_float(t) != 0.0 for t in tokens)
-                except ValueError:
-                    moved = True
-                if moved:
-                    raise _inp_error(where, "the instance is translated or rotated",
-                                     "read the file as an assembly (cells = \"<instance "
-                                     "name>\" in the body's table), which places instances, "
-                                     "or export the mesh in its final position")
+            from .instances import placement
+            if placement(card) is not None:
+                raise _inp_error(card.data[0][:2], "the instance is translated or rotated",
+                                 "read the file as an assembly (cells = \"<instance "
+                                 "name>\" in the body's table), which places instances, "
+                                 "or export the mesh in its final position")
         r.scope = scope
     return handler
 
@@ -712,6 +791,16 @@ def _inp_boundary(r: _InpReader, card: _Card):
             r.boundaries.append((tokens[0], first, last, where))
 
 
+def _inp_load_ids(kind: str):
+    """``*CLOAD`` (node) and ``*DLOAD`` (element) rows that name an id: remembered, the
+    rest of the load is read by :mod:`.deck`."""
+    def handler(r: _InpReader, card: _Card):
+        for _, tokens, _ in _rows(card):
+            if tokens and re.fullmatch(r"[+-]?\d{1,18}", tokens[0]):
+                r.load_ids[kind].add(int(tokens[0]))
+    return handler
+
+
 #: keyword -> handler; other keywords (materials, steps, loads, ...) are skipped
 _INP_KEYWORDS = {
     "NODE": _inp_node, "ELEMENT": _inp_element, "NSET": _inp_set("NSET"),
@@ -721,6 +810,7 @@ _INP_KEYWORDS = {
     "INSTANCE": _inp_scope("instance"), "END INSTANCE": _inp_scope("assembly"),
     "CONTACT PAIR": _inp_contact_pair, "SURFACE INTERACTION": _inp_interaction,
     "FRICTION": _inp_friction, "BOUNDARY": _inp_boundary,
+    "CLOAD": _inp_load_ids("NSET"), "DLOAD": _inp_load_ids("ELSET"),
 }
 
 
@@ -731,9 +821,10 @@ def _read_abaqus(path: Path, cell_type: str | None) -> Mesh:
 def _abaqus_file_mesh(path: Path, cell_type: str | None, assembly: bool = False):
     """``(what the file holds, its cell type)``, before it becomes a Mesh; ``assembly``:
     several parts and placed instances are made flat (:mod:`.instances`)."""
-    from .instances import flatten_instances, needs_flattening
+    from .instances import check_instances_closed, flatten_instances, needs_flattening
     reader = _InpReader(path)
     cards = _inp_cards(path)
+    check_instances_closed(cards)
     if assembly and needs_flattening(cards):
         cards = flatten_instances(cards, _Card)
     for card in cards:
@@ -771,6 +862,29 @@ def _abaqus_write_type(mesh: Mesh) -> str:
     return name
 
 
+def _inp_number(x: float) -> str:
+    """``x`` in at most :data:`CALCULIX_FIELD` characters: the shortest text that reads
+    back as the same double where it fits, else the most significant digits that fit
+    (13 or more: a relative change below 5e-14)."""
+    text, digits = repr(float(x)), 17
+    while len(text) > CALCULIX_FIELD:
+        digits -= 1
+        text = f"{float(x):.{digits}g}"
+    return text
+
+
+def _element_lines(ids: np.ndarray, cells: np.ndarray) -> list:
+    """``id, node, node, ...`` rows, 1-based; a row of more than
+    :data:`CALCULIX_ENTRIES` entries goes on over several lines, each but the last
+    ending with a comma."""
+    rows = np.column_stack([ids, cells + 1]).tolist()
+    if len(rows[0]) <= CALCULIX_ENTRIES:
+        return [", ".join(map(str, r)) for r in rows]
+    return [", ".join(map(str, r[k:k + CALCULIX_ENTRIES]))
+            + ("," if k + CALCULIX_ENTRIES < len(r) else "")
+            for r in rows for k in range(0, len(r), CALCULIX_ENTRIES)]
+
+
 def _format_abaqus(mesh: Mesh, _version=None) -> str:
     """Abaqus/CalculiX input: *NODE, *ELEMENT, *NSET, *ELSET and one *SURFACE per facet
     set, whose faces are listed through internal element sets ``_<set>_S<k>``."""
@@ -790,11 +904,10 @@ def _format_abaqus(mesh: Mesh, _version=None) -> str:
     out = ["*HEADING", f"qsma mesh: {mesh.n_nodes} nodes, {len(mesh.cells)} {etype} elements",
            "** written by qsma.model.io.write_mesh; facet sets are *SURFACE definitions over",
            "** the internal element sets _<set>_S<face> (Abaqus face numbering)", "*NODE"]
-    out += [", ".join([str(i)] + [_number(v) for v in p])
+    out += [", ".join([str(i)] + [_inp_number(v) for v in p])
             for i, p in enumerate(mesh.points.tolist(), 1)]
     out.append(f"*ELEMENT, TYPE={etype}")
-    out += [", ".join(map(str, r)) for r in
-            np.column_stack([np.arange(1, len(mesh.cells) + 1), mesh.cells + 1]).tolist()]
+    out += _element_lines(np.arange(1, len(mesh.cells) + 1), mesh.cells)
     for name, idx in mesh.node_sets.items():
         out += [f"*NSET, NSET={_inp_name(name)}", *_id_lines(idx)]
     for name, idx in mesh.cell_sets.items():

@@ -30,7 +30,7 @@ def needs_flattening(cards) -> bool:
     """Several parts or instances, or a placed instance (what read_mesh refuses)."""
     parts = sum(c.keyword == "PART" for c in cards)
     insts = [c for c in cards if c.keyword == "INSTANCE"]
-    return parts > 1 or len(insts) > 1 or any(_placement(c) is not None for c in insts)
+    return parts > 1 or len(insts) > 1 or any(placement(c) is not None for c in insts)
 
 
 def flatten_instances(cards, card_type) -> list:
@@ -63,7 +63,7 @@ def flatten_instances(cards, card_type) -> list:
                                  f"{card.params.get('PART')!r}, which no *PART defines",
                                  "define the part before the assembly")
             moved, n_nodes, n_elems = _instance(part[1], name, node_off, elem_off,
-                                                _placement(card), card_type)
+                                                placement(card), card_type)
             out += moved
             offsets[name.upper()] = (node_off, elem_off, name)
             node_off += n_nodes
@@ -84,15 +84,66 @@ def flatten_instances(cards, card_type) -> list:
     return out
 
 
-def _placement(card):
-    """``(t, a, b, angle)`` of an ``*INSTANCE`` card, or None when it is not moved."""
-    from .abaqus import _abaqus_float, _rows
-    rows = [[_abaqus_float(t) for t in tokens if t.strip()] for _, tokens, _ in _rows(card)]
-    t = np.array((rows[0] + [0.0] * 3)[:3]) if rows else np.zeros(3)
-    rot = (rows[1] + [0.0] * 7)[:7] if len(rows) > 1 else [0.0] * 7
+def check_instances_closed(cards):
+    """Refuse an ``*INSTANCE`` not closed by ``*END INSTANCE`` before the next
+    ``*INSTANCE``, ``*END ASSEMBLY``, ``*PART`` or the end of the file: the cards up to
+    there would be taken as the instance's (and dropped with it)."""
+    from .abaqus import _inp_error
+    instance = None
+    for card in list(cards) + [None]:
+        kw = None if card is None else card.keyword
+        if instance is not None and kw in (None, "INSTANCE", "END ASSEMBLY", "ASSEMBLY",
+                                           "PART", "END PART"):
+            before = "the end of the file" if card is None else \
+                f"*{card.keyword} (line {card.where[1]})"
+            raise _inp_error(instance.where, f"*INSTANCE {instance.params.get('NAME')!r} "
+                             f"has no *END INSTANCE before {before}",
+                             "close every instance with *END INSTANCE")
+        if kw == "INSTANCE":
+            instance = card
+        elif kw == "END INSTANCE":
+            instance = None
+
+
+#: Values of the data lines of an ``*INSTANCE``: the translation, then the rotation.
+_PLACEMENT_LINES = (("translation", "x, y, z", 3),
+                    ("rotation", "ax, ay, az, bx, by, bz, angle in degrees", 7))
+
+
+def placement(card):
+    """``(t, a, b, angle)`` of an ``*INSTANCE`` card, or None when it is not moved.
+    Refused: a line that is not numbers, one with more values than it holds, a third
+    line, and a rotation about an axis from a point to itself (it would be ignored)."""
+    from .abaqus import _abaqus_float, _inp_error, _rows
+    rows = []
+    for k, (where, tokens, text) in enumerate(_rows(card)):
+        if k >= len(_PLACEMENT_LINES):
+            raise _inp_error(where, f"a third data line {text!r} in *INSTANCE",
+                             "give the translation on the first line and the rotation on "
+                             "the second, nothing more")
+        what, form, most = _PLACEMENT_LINES[k]
+        try:
+            values = [_abaqus_float(t) for t in tokens if t.strip()]
+        except ValueError:
+            values = None
+        if values is None or not np.all(np.isfinite(values)):
+            raise _inp_error(where, f"cannot read the {what} line {text!r} of *INSTANCE",
+                             f"expected numbers: '{form}'")
+        if len(values) > most:
+            raise _inp_error(where, f"the {what} line {text!r} of *INSTANCE has "
+                             f"{len(values)} values, it holds at most {most}",
+                             f"give '{form}'")
+        rows.append(((values + [0.0] * most)[:most], where))
+    t = np.array(rows[0][0]) if rows else np.zeros(3)
+    rot = rows[1][0] if len(rows) > 1 else [0.0] * 7
+    a, b = np.array(rot[:3]), np.array(rot[3:6])
+    if rot[6] != 0.0 and not np.linalg.norm(b - a):
+        raise _inp_error(rows[1][1], f"the rotation of *INSTANCE by {rot[6]:g} degrees is "
+                         f"about an axis from a point to itself (a = b = {a.tolist()})",
+                         "give two distinct points a and b on the rotation axis")
     if not t.any() and rot[6] == 0.0:
         return None
-    return t, np.array(rot[:3]), np.array(rot[3:6]), rot[6]
+    return t, a, b, rot[6]
 
 
 def _place(xyz, placement):
@@ -101,7 +152,7 @@ def _place(xyz, placement):
     t, a, b, angle = placement
     x = xyz + t
     axis = b - a
-    if angle == 0.0 or not np.linalg.norm(axis):
+    if angle == 0.0:
         return x
     e = axis / np.linalg.norm(axis)
     th = np.deg2rad(angle)

@@ -1,0 +1,537 @@
+r"""A compliant interface solved as the contact problem of its Coulomb slider.
+
+Every interface law of :mod:`qsma.contact.laws` is a layer in series with a rigid
+Coulomb slider (docs/theory.md, "Interface laws"). With the layer linearised about a
+state, its deformation is ``C lam + s`` (``C`` diagonal per contact-point component:
+``1/(A k_t)`` tangential, ``1/(A k_n)`` normal, zero where the law is rigid; ``s`` the
+normal part the linearisation misses). The slider's relative displacement is
+
+.. math:: d' = d + C\lambda, \qquad
+          \lambda = K d + \lambda_w = K' d' + \lambda_w',\quad
+          K' = (K^{-1} + C)^{-1},\quad \lambda_w' = (I - K' C)\,\lambda_w ,
+
+with the slider's normal opening ``w' = d'_n + g_0 + h_0 + s`` (``h_0`` the onset of
+the law). This is again a problem ``lam = K d + lam_w`` with a rigid Coulomb law, so
+every solver, the open-pair elimination, the ramps and the loops apply to it unchanged.
+For a linear law (hard, linear penalty, elastic stick) ``s = 0`` and one solve is the
+exact answer. For a nonlinear normal law, ``s = h(P/A) - h_0 - C_n P`` depends on the
+answer's pressure: :func:`solve_layered` repeats the solve with ``s`` updated until it
+is consistent with the pressures (a chord iteration), and judges the answer by the
+slider's residual and by the law's own (:func:`law_residual`).
+
+States passed in and results handed out are physical (``d`` the relative displacement
+of the bodies); only the solves see the slider.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+import scipy.linalg as sla
+
+from ..errors import InputError
+from .problem import ContactProblem
+from .residual import EPS, ROUNDOFF, reaction_scale
+from .state import OPEN, ContactResult, ContactState, Outcome
+
+#: Chord iterations of a nonlinear normal law in one solve before it is reported as not
+#: converged (the caller may then linearise the layer again at the pressures reached).
+MAX_LAW_ITERATIONS = 30
+#: Interface stiffness against the structure's own: a layer whose stiffness per pair is
+#: below ``UNIT_RATIO_MIN`` or above ``UNIT_RATIO_MAX`` times the pair's stiffness in
+#: ``K`` is refused as a likely error of units (a factor 1e9 between N/mm^3 and N/m^3).
+#: Inside this range the layer changes the answer by 1e-8 to 1e8 of the structure's
+#: compliance, which covers every physical interface.
+UNIT_RATIO_MIN = 1e-8
+UNIT_RATIO_MAX = 1e8
+#: A nonlinear normal law is linearised at no less than this fraction of the mean
+#: pressure: its tangent vanishes at the onset (the exponential law), and a layer that
+#: soft would make ``K'`` ill-conditioned; the chord iteration takes the rest.
+LOW_PRESSURE = 1e-2
+#: The lowest floor of a secant linearisation (exact at the pressure it is taken at, so
+#: the floor must lie below the pressures whose law matters: 1e-8 of the mean).
+LOW_SECANT = 1e-8
+
+
+@dataclass(frozen=True, eq=False)
+class PairLaws:
+    """The interface law of every contact point.
+
+    Attributes
+    ----------
+    laws : distinct :class:`qsma.contact.laws.InterfaceLaw`
+    index : (n_pairs,) int, the law of each contact point
+    area : (n_pairs,) tributary area of each contact point (m^2; m per unit depth in 2D)
+    dim : 2 or 3
+    """
+
+    laws: tuple
+    index: np.ndarray
+    area: np.ndarray
+    dim: int
+
+    def __post_init__(self):
+        area = np.asarray(self.area, dtype=float)
+        if area.shape != np.shape(self.index) or not np.all(area > 0):
+            bad = int(np.count_nonzero(~(area > 0))) if area.shape == np.shape(self.index) \
+                else area.shape
+            raise InputError(f"interface law: every contact point needs a positive "
+                             f"tributary area to turn pressures into forces, got {bad} "
+                             f"without one")
+
+    @property
+    def n_pairs(self):
+        return len(self.index)
+
+    @property
+    def rigid(self) -> bool:
+        """Every law rigid: the slider is the interface (no layer)."""
+        return all(law.rigid for law in self.laws)
+
+    @property
+    def linear(self) -> bool:
+        """The layer is linear (no chord iteration)."""
+        return all(law.normal.linear for law in self.laws)
+
+    def _per_law(self, fn, out_shape=None):
+        out = np.zeros(self.n_pairs if out_shape is None else out_shape)
+        for j, law in enumerate(self.laws):
+            rows = self.index == j
+            if rows.any():
+                out[rows] = fn(law, rows)
+        return out
+
+    def onset(self):
+        """``h_0`` of each contact point (m)."""
+        return self._per_law(lambda law, rows: law.normal.onset)
+
+    def layer_deformation(self, P):
+        """Normal deformation of the layer under pair forces ``P`` (N):
+        ``h(P/A) - h_0`` (zero for hard laws and unloaded pairs)."""
+        P = np.maximum(np.asarray(P, dtype=float), 0.0)
+        return self._per_law(lambda law, rows: 0.0 if law.normal.hard else
+                             law.normal.overclosure(P[rows] / self.area[rows])
+                             - law.normal.onset)
+
+    def pair_pressure(self, h):
+        """Normal force ``A p(h)`` of each contact point at overclosure ``h`` (m); zero
+        for hard laws (no pressure-overclosure function)."""
+        h = np.asarray(h, dtype=float)
+        return self._per_law(lambda law, rows: 0.0 if law.normal.hard else
+                             self.area[rows] * law.normal.pressure(h[rows]))
+
+    def scale_compliance(self):
+        """``C`` with every pair at its law's own scale pressure (what the unit check
+        compares with the structure: independent of any state)."""
+        P = self._per_law(lambda law, rows: law.normal.scale_pressure() * self.area[rows])
+        out = self.compliance(np.zeros(self.n_pairs))
+        for j, law in enumerate(self.laws):
+            rows = self.index == j
+            if rows.any() and not law.normal.hard and not law.normal.linear:
+                out[rows, -1] = 1.0 / (self.area[rows] * law.normal.tangent_at_pressure(
+                    P[rows] / self.area[rows]))
+        return out
+
+    def graph_distance(self, P, h):
+        """How far ``(h, P)`` lies from each pair's law, in force: the smaller of the
+        pressure's miss ``|P - A p(h)|`` and the closure's ``A k |h - h(P/A)|`` (``k``
+        the law's slope there). The second measures a law with a vertical segment
+        (CalculiX's exponential jumps at its clearance), where any pressure up to the
+        jump belongs to the same closure."""
+        P = np.maximum(np.asarray(P, dtype=float), 0.0)
+        h = np.asarray(h, dtype=float)
+
+        def one(law, rows):
+            if law.normal.hard:
+                return 0.0
+            A, p = self.area[rows], P[rows] / self.area[rows]
+            force = np.abs(P[rows] - A * law.normal.pressure(h[rows]))
+            h_p = law.normal.overclosure(p)
+            k = law.normal.stiffness(h_p + np.abs(h_p) * 1e-12 + 1e-300)
+            with np.errstate(invalid="ignore"):
+                closure = np.where(P[rows] > 0, A * k * np.abs(h[rows] - h_p), np.inf)
+            return np.minimum(force, closure)
+        return self._per_law(one)
+
+    def linear_pairs(self):
+        """Pairs whose normal law is linear (hard or a constant stiffness)."""
+        return self._per_law(lambda law, rows: law.normal.linear).astype(bool)
+
+    def plastic(self):
+        """Pairs whose law deforms plastically when first loaded (its unloading is
+        stiffer: :meth:`unloading_compliance`)."""
+        return self._per_law(lambda law, rows: getattr(law.normal, "plastic",
+                                                       False)).astype(bool)
+
+    def unloading_compliance(self, P):
+        """``1/(A k_u)`` with ``k_u`` the law's unloading stiffness from pair force ``P``
+        (the loading tangent for laws without ``unloading_stiffness``)."""
+        P = np.maximum(np.asarray(P, dtype=float), 0.0)
+
+        def one(law, rows):
+            p = P[rows] / self.area[rows]
+            k = getattr(law.normal, "unloading_stiffness", law.normal.tangent_at_pressure)(p)
+            return 1.0 / (self.area[rows] * k)
+        with np.errstate(divide="ignore"):
+            return self._per_law(one)
+
+    def normal_slope(self, P):
+        """``d(layer deformation)/dP`` per pair (m/N) at pair forces ``P``: the tangent
+        compliance ``1/(A k_n)`` (zero for hard laws)."""
+        P = np.maximum(np.asarray(P, dtype=float), 0.0)
+        with np.errstate(divide="ignore"):         # a law without stiffness at p = 0
+            return self._per_law(lambda law, rows: 0.0 if law.normal.hard else
+                                 1.0 / (self.area[rows] * law.normal.tangent_at_pressure(
+                                     P[rows] / self.area[rows])))
+
+    def compliance(self, P, p_ref=None, secant=False, low=None):
+        r"""``C`` of the layer linearised at pair forces ``P`` (N), (n_pairs, dim):
+        ``1/(A k_t(p))`` tangential, ``1/(A k_n(p))`` normal with ``p = P/A``, zero where
+        the law is rigid. A nonlinear normal law at a pair without pressure is
+        linearised at no less than :data:`LOW_PRESSURE` times ``p_ref`` (the mean
+        pressure of the loaded pairs, else the law's own scale): the tangent of a law at
+        zero pressure may vanish, and a soft chord keeps the iteration contracting.
+        ``secant``: the normal compliance is the secant from the onset,
+        ``(h(p) - h_0) / (A p)``, instead of the tangent. ``low``: another floor than
+        :data:`LOW_PRESSURE`."""
+        P = np.maximum(np.asarray(P, dtype=float), 0.0)
+        p = P / self.area
+        loaded = p > 0
+        if p_ref is None:
+            p_ref = float(p[loaded].mean()) if loaded.any() else None
+        out = np.zeros((self.n_pairs, self.dim))
+        for j, law in enumerate(self.laws):
+            rows = self.index == j
+            if not rows.any():
+                continue
+            pj = p[rows]
+            if not law.normal.hard:
+                ref = p_ref if p_ref is not None else law.normal.scale_pressure()
+                floor = LOW_PRESSURE if low is None else low
+                at = pj if law.normal.linear else np.maximum(pj, floor * ref)
+                if secant and not law.normal.linear:
+                    out[rows, -1] = ((law.normal.overclosure(at) - law.normal.onset)
+                                     / (self.area[rows] * at))
+                else:
+                    out[rows, -1] = 1.0 / (self.area[rows]
+                                           * law.normal.tangent_at_pressure(at))
+            if not law.tangential.rigid:
+                # a stick stiffness that grows with the pressure (rough surfaces) is taken
+                # at the same floor: an unloaded pair carries no shear either way
+                ref = p_ref if p_ref is not None else law.normal.scale_pressure()
+                at = np.maximum(pj, LOW_PRESSURE * ref) if ref else pj
+                out[rows, :-1] = (1.0 / (self.area[rows]
+                                         * law.tangential.stiffness(at)))[:, None]
+        if not np.all(np.isfinite(out)):
+            raise InputError("interface law: the layer has an infinite compliance (a "
+                             "normal law whose stiffness vanishes at every pressure); give "
+                             "a law that stiffens when pressed")
+        return out
+
+
+def series_stiffness(K, c):
+    r"""``K' = (K^{-1} + diag(c))^{-1}`` for a symmetric positive definite ``K`` and
+    ``c >= 0``, exactly symmetric: on the components ``J`` with ``c > 0``, with
+    ``S = diag(sqrt(c_J))`` and ``B = I + S K_JJ S = L L^T``,
+
+    .. math:: K' = K - Y^T Y,\qquad Y = L^{-1} S K_{J,:}
+
+    (Woodbury). Components with ``c = 0`` keep their rigid coupling; ``K`` itself is
+    returned when no component is compliant."""
+    c = np.asarray(c, dtype=float).ravel()
+    J = np.flatnonzero(c > 0)
+    if not len(J):
+        return K
+    s = np.sqrt(c[J])
+    B = K[np.ix_(J, J)] * s[:, None] * s[None, :]
+    B[np.diag_indices_from(B)] += 1.0
+    L = sla.cholesky(B, lower=True, overwrite_a=True, check_finite=False)
+    Y = sla.solve_triangular(L, s[:, None] * K[J, :], lower=True, overwrite_b=True,
+                             check_finite=False)
+    out = K - Y.T @ Y
+    return 0.5 * (out + out.T)
+
+
+def check_units(laws: PairLaws, K, c):
+    """Refuse a layer whose stiffness per pair is off the structure's by more than
+    :data:`UNIT_RATIO_MIN` / :data:`UNIT_RATIO_MAX` (a unit error, not a joint)."""
+    diag = np.abs(np.diag(K)).reshape(laws.n_pairs, laws.dim)
+    c = np.asarray(c).reshape(laws.n_pairs, laws.dim)
+    with np.errstate(divide="ignore"):
+        ratio = np.where(c > 0, 1.0 / (c * diag), np.nan)
+    if not np.any(np.isfinite(ratio)):
+        return
+    lo, hi = np.nanmin(ratio), np.nanmax(ratio)
+    if lo < UNIT_RATIO_MIN or hi > UNIT_RATIO_MAX:
+        what = "soft" if lo < UNIT_RATIO_MIN else "stiff"
+        r = lo if lo < UNIT_RATIO_MIN else hi
+        raise InputError(
+            f"interface law: the layer is {r:.1e} times as stiff as the structure at a "
+            f"contact point (accepted: {UNIT_RATIO_MIN:g} to {UNIT_RATIO_MAX:g}); that is "
+            f"a unit error, not a joint: stiffnesses are per unit area (Pa/m = N/m^3 in "
+            f"SI; 1 N/mm^3 = 1e9 N/m^3) and pressures in Pa. Fix the law's values, or "
+            f"use normal = \"hard\" / tangential = \"rigid\" for a {what} limit")
+
+
+class Layer:
+    r"""The slider's contact problem of an interface with its laws linearised at a state.
+
+    ``Layer.identity(problem)``: the rigid interface (no layer, no conversion).
+
+    Attributes
+    ----------
+    problem : :class:`ContactProblem` of the slider (``K'``, gaps ``g_0 + h_0``)
+    c : (n_pairs, dim) compliance of the linearised layer (zeros: rigid)
+    laws : :class:`PairLaws` or None
+    physical : the :class:`ContactProblem` of the bodies (``K``, gaps ``g_0``)
+    """
+
+    def __init__(self, physical, laws=None, P_ref=None, p_ref=None, frozen=False,
+                 secant=False, low=None):
+        self.physical, self.laws = physical, laws
+        n, dim = physical.n_pairs, physical.dim
+        self.s_fixed = np.zeros(n)
+        if laws is None or laws.rigid:
+            self.c = np.zeros((n, dim))
+            self.problem = physical
+            self.laws = None
+            self.frozen = self.curved = np.zeros(n, bool)
+            return
+        P_ref = np.zeros(n) if P_ref is None else np.maximum(np.asarray(P_ref, float), 0.0)
+        self.c = laws.compliance(P_ref, p_ref, secant=secant, low=low)
+        check_units(laws, physical.K, laws.scale_compliance())
+        self.frozen = laws.plastic() & (P_ref > 0) if frozen else np.zeros(n, bool)
+        if self.frozen.any():
+            # elastic unloading about the state reached: the tangent of the unloading
+            # curve, through the layer's deformation at that state
+            f = self.frozen
+            self.c[f, -1] = laws.unloading_compliance(P_ref)[f]
+            self.s_fixed[f] = laws.layer_deformation(P_ref)[f] - self.c[f, -1] * P_ref[f]
+        self.curved = ~laws.linear_pairs() & ~self.frozen
+        K = series_stiffness(physical.K, self.c.ravel())
+        self.problem = ContactProblem.derived(K, physical.mu, physical.gap0 + laws.onset(),
+                                              dim)
+        self._welded = {}
+
+    @classmethod
+    def identity(cls, problem):
+        return cls(problem)
+
+    def relinearised(self, P):
+        """This layer linearised again at pair forces ``P``, its frozen pairs kept as
+        they are."""
+        new = Layer(self.physical, self.laws, P_ref=P)
+        if self.frozen.any():
+            f = self.frozen
+            new.c[f] = self.c[f]
+            new.s_fixed[f] = self.s_fixed[f]
+            new.frozen, new.curved = f.copy(), new.curved & ~f
+            K = series_stiffness(self.physical.K, new.c.ravel())
+            new.problem = ContactProblem.derived(K, self.physical.mu, self.problem.gap0,
+                                                 self.problem.dim)
+        return new
+
+    @property
+    def rigid(self) -> bool:
+        return self.laws is None
+
+    @property
+    def nonlinear(self) -> bool:
+        """Some pair follows a nonlinear law that is not frozen: the chord iterates."""
+        return self.laws is not None and bool(self.curved.any())
+
+    def welded_basis(self, W):
+        """``W' = (I - K' C) W``, the welded force basis of the slider (cached by ``W``)."""
+        if self.rigid:
+            return W
+        hit = self._welded.get("W")
+        if hit is None or hit[0] is not W:
+            Wp = W - self.problem.K @ (self.c.reshape(-1, 1) * W)
+            hit = (W, Wp)
+            self._welded["W"] = hit
+        return hit[1]
+
+    def shift(self, P):
+        """``s(P)``, the normal deformation of the layer its linearisation misses: the
+        fixed deformation of a frozen pair, the nonlinear remainder of a curved one,
+        zero elsewhere."""
+        s = self.s_fixed.copy()
+        if self.nonlinear:
+            c = self.curved
+            Pc = np.maximum(np.asarray(P, dtype=float)[c], 0.0)
+            s[c] = self.laws.layer_deformation(np.asarray(P, float))[c] - self.c[c, -1] * Pc
+        return s
+
+    def to_slider(self, state, s=None):
+        """A physical state as the slider's (``d' = d + C lam``, plus the shift ``s`` on
+        the normal components)."""
+        if state is None or self.rigid:
+            return state
+        d = state.d + self.c * state.lam
+        if s is not None:
+            d = d.copy()
+            d[:, -1] += s
+        return ContactState(d, state.lam, state.status)
+
+    def to_physical(self, res, s=None):
+        """A slider result as the bodies' (``d = d' - s - C lam``)."""
+        if self.rigid:
+            return res
+        d = res.d - self.c * res.lam
+        if s is not None:
+            d[:, -1] -= s
+        return replace(res, d=d, state=ContactState(d, res.lam, res.status))
+
+    def law_residual(self, res):
+        """The law's own residual of a physical result: ``max_i |P_i - A_i p(h_i)| / F``
+        with ``h_i = -w_i`` the overclosure of the bodies, ``F = max|lam|``: the force by
+        which the pressure misses the pressure-overclosure law, dimensionless like
+        :func:`qsma.contact.residual` (hard pairs: 0, the slider's residual covers them)."""
+        if not self.nonlinear:
+            return 0.0
+        P = res.lam[:, -1]
+        h = -(res.d[:, -1] + self.physical.gap0)
+        miss = np.where(self.curved, self.laws.graph_distance(P, h), 0.0)
+        # round-off of h: the sum of the terms it is computed from, eps each
+        terms = (np.abs(res.d[:, -1]) + np.abs(self.physical.gap0)
+                 + np.abs(self.c[:, -1] * P) + np.abs(self.laws.layer_deformation(P)))
+        slope = self.laws.normal_slope(P)
+        allowance = ROUNDOFF * EPS * terms / np.where(slope > 0, slope, np.inf)
+        return float(np.max(np.maximum(miss - allowance, 0.0), initial=0.0)
+                     / reaction_scale(res.lam))
+
+    @property
+    def flexibility(self):
+        """``K'^{-1}``, the slider's flexibility (built on first use, ``O(n^3)``): its
+        block on the closed pairs inverts to their stiffness with the open pairs free
+        (no force), what the chord's Newton step needs."""
+        F = self.__dict__.get("_flexibility")
+        if F is None:
+            F = sla.cho_solve(sla.cho_factor(self.problem.K, lower=True, check_finite=False),
+                              np.eye(self.problem.size), check_finite=False)
+            self._flexibility = F
+        return F
+
+    def _closed_stiffness(self, closed):
+        """The normal-normal block of the slider stiffness of the pairs ``closed`` with
+        the others free (cached for the last set)."""
+        key = closed.tobytes()
+        hit = self.__dict__.get("_closed")
+        if hit is None or hit[0] != key:
+            dim = self.problem.dim
+            rows = (np.flatnonzero(closed)[:, None] * dim + np.arange(dim)).ravel()
+            S = np.linalg.inv(self.flexibility[np.ix_(rows, rows)])
+            n = np.arange(int(closed.sum())) * dim + dim - 1
+            hit = (key, S[np.ix_(n, n)])
+            self._closed = hit
+        return hit[1]
+
+    def shift_step(self, lam, s):
+        r"""The shift after one Newton step on ``s - s(P(s)) = 0`` over the pairs in
+        contact, their contact states held: ``dP/ds = -S_nn`` (the closed pairs' normal
+        stiffness with the open ones free), so
+
+        .. math:: (I + R' S_{nn})\,\Delta s = s(P) - s,\qquad R' = \mathrm{diag}\,
+                  \frac{d s}{dP};
+
+        zero at pairs without pressure."""
+        P = lam[:, -1]
+        closed = P > 0
+        out = np.where(self.curved, 0.0, self.s_fixed)
+        moving = (closed & self.curved)[closed]          # the curved ones of the closed
+        if not moving.any():
+            return out
+        slope = (self.laws.normal_slope(P) - self.c[:, -1])[closed][moving]  # d s / dP
+        J = slope[:, None] * self._closed_stiffness(closed)[np.ix_(moving, moving)]
+        J[np.diag_indices_from(J)] += 1.0
+        at = np.flatnonzero(closed)[moving]
+        out[at] = s[at] + np.linalg.solve(J, (self.shift(P) - s)[at])
+        return out
+
+
+class Anderson:
+    """Anderson acceleration of a fixed-point iteration ``x <- g(x)`` (depth ``m``): the
+    next iterate combines the last ``m`` steps so that the combined residual
+    ``g(x) - x`` is smallest in least squares (type II). Restarted when ``key``
+    changes (for a contact problem: the pairs in contact, whose change makes another
+    map)."""
+
+    def __init__(self, m=5):
+        self.m, self.X, self.F, self.key = m, [], [], None
+
+    def __call__(self, x, g, key=None):
+        f = g - x
+        if key != self.key:
+            self.X, self.F, self.key = [], [], key
+        self.X.append(x)
+        self.F.append(f)
+        if len(self.X) > self.m + 1:
+            self.X.pop(0)
+            self.F.pop(0)
+        if len(self.X) < 2:
+            return g
+        dX = np.diff(np.array(self.X), axis=0).T
+        dF = np.diff(np.array(self.F), axis=0).T
+        gamma = np.linalg.lstsq(dF, f, rcond=None)[0]
+        return g - (dX + dF) @ gamma
+
+
+def interface_springs(layer, closed):
+    """Stiffness of the layer at each closed contact point, (n_pairs, dim) in the local
+    frames: ``1/C`` where compliant, ``inf`` where rigid, 0 at open points; None for a
+    rigid interface (its closed points are tied)."""
+    if layer is None or not isinstance(layer, Layer) or layer.rigid:
+        return None
+    closed = np.asarray(closed, dtype=bool)[:, None]
+    with np.errstate(divide="ignore"):
+        k = np.where(layer.c > 0, 1.0 / np.where(layer.c > 0, layer.c, 1.0), np.inf)
+    return np.where(closed, k, 0.0)
+
+
+def solve_layered(layer, solve_once, lam_w, state, guess=None, tol=1e-10,
+                  max_iterations=MAX_LAW_ITERATIONS):
+    r"""Solve one level of a layered interface; returns the physical result.
+
+    ``solve_once(lam_w, state, guess)`` solves the slider problem (``layer.problem``)
+    for a welded force and a state and guess in slider coordinates (the caller's
+    choice of method and zone). ``lam_w``: the slider's welded force ``W' a``;
+    ``state``, ``guess``: physical states (``None``: the reference).
+
+    Linear layer: one solve. Nonlinear: the shift ``s`` starts from the pressures of
+    ``guess`` (else ``state``) and is updated by :meth:`Layer.shift_update` until the
+    law's residual meets ``tol``; a shift enters the solve as a displacement of the
+    normal components, ``d'' = d' + s``, whose welded force is ``lam_w - K' s``.
+    """
+    if not layer.nonlinear and not layer.frozen.any():
+        res = solve_once(lam_w, layer.to_slider(state), layer.to_slider(guess))
+        return layer.to_physical(res)
+    K = layer.problem.K
+    nidx = layer.problem.normal_index
+    start = guess if guess is not None else state
+    s = layer.shift(np.zeros(layer.problem.n_pairs) if start is None else start.lam[:, -1])
+    ref = state if state is not None else ContactState.reference(layer.physical)
+    nit, res, law = 0, None, np.inf
+    for it in range(max_iterations):
+        on = np.flatnonzero(s)
+        shifted = lam_w - (K[:, nidx[on]] @ s[on]).reshape(lam_w.shape) if len(on) \
+            else lam_w
+        res = solve_once(shifted, layer.to_slider(ref, s),
+                         layer.to_slider(guess, s) if guess is not None else None)
+        nit += res.nit
+        out = layer.to_physical(res, s)
+        if not res.success:
+            return _with(out, nit=nit)
+        law = layer.law_residual(out)
+        if law <= tol or not layer.nonlinear:
+            return _with(out, nit=nit, residual=max(res.residual, law), law_residual=law)
+        guess = out.state
+        s = layer.shift_step(res.lam, s)
+    return _with(out, nit=nit, success=False, outcome=Outcome.NOT_CONVERGED,
+                 residual=max(res.residual, law), law_residual=law,
+                 message=f"the interface law's pressure-overclosure iteration did not "
+                         f"converge in {max_iterations} solves (law residual "
+                         f"{law:.2e} > {tol:.1e})")
+
+
+def _with(res, **changes):
+    return replace(res, **changes)
