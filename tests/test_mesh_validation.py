@@ -11,8 +11,8 @@ from qsma.errors import InputError, MeshFileError
 from qsma.model.generate import structured_mesh
 from qsma.model.io import read_mesh
 from qsma.model.mesh import Mesh
-from qsma.model.validate import (DEGENERATE_SCALED_JACOBIAN, MeshQualityWarning,
 from qsma.examples import example_dir
+from qsma.model.validate import (DEGENERATE_SCALED_JACOBIAN, MeshQualityWarning,
                                  scaled_jacobians, validate_mesh)
 
 DATA = Path(__file__).parent / "data"
