@@ -187,8 +187,8 @@ def test_rerun_replaces_every_file(tmp_path):
     assert main(["run", *QUICK, "--out", str(out)]) == 0
     assert (out / "backbone.png").exists()
     assert main(["run", *QUICK, "--no-plots", "--out", str(out)]) == 0
-    assert sorted(p.name for p in out.iterdir()) == ["manifest.json", "results.csv",
-                                                      "results.json"]
+    assert sorted(p.name for p in out.iterdir()) == ["manifest.json", "qsma.log",
+                                                      "results.csv", "results.json"]
     verify_run_folder(out)
 
 

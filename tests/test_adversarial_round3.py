@@ -333,8 +333,8 @@ def test_no_command_writes_into_or_over_a_finished_run(finished_run, tmp_path, c
     err = capsys.readouterr().err
     assert "lies inside" in err or "holds the result of qsma run" in err, err
     assert verify_run_folder(out)["run_id"] == run_id
-    assert sorted(p.name for p in out.iterdir()) == ["manifest.json", "results.csv",
-                                                     "results.json"]
+    assert sorted(p.name for p in out.iterdir()) == ["manifest.json", "qsma.log",
+                                                     "results.csv", "results.json"]
 
 
 def test_every_command_leaves_a_locked_checked_manifest(tmp_path, capsys):

@@ -231,7 +231,7 @@ def test_killed_run_leaves_no_partial_results(tmp_path):
     assert main(["run", "--example", "sandwich-2d", "--out", str(out), "--quiet",
                  "--no-plots", "--no-vtu"]) == 0
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
-    assert set(verify_run_folder(out)["files"]) == {"results.json", "results.csv"}
+    assert set(verify_run_folder(out)["files"]) == {"results.json", "results.csv", "qsma.log"}
 
 
 def test_sigterm_cleans_up(tmp_path):

@@ -677,7 +677,9 @@ def inp_error(tmp_path, text, name="bad.inp") -> str:
     (QUAD_GRID.replace("1, 0, 0\n", "1, zero, 0\n"), 2, "node row"),
     ("1, 2, 3\n*NODE\n", 1, "before any keyword"),
     (CAE_STYLE.replace("*End Assembly", "*Instance, name=B2, part=Beam\n*End Assembly"), 35,
-     "second *INSTANCE"),
+     "no *END INSTANCE"),
+    (CAE_STYLE.replace("*End Assembly", "*Instance, name=B2, part=Beam\n*End Instance\n"
+                                        "*End Assembly"), 35, "second *INSTANCE"),
     (CAE_STYLE.replace("*Instance, name=Beam-1, part=Beam", "*Instance, name=Beam-1, part=Beam"
                        "\n 1., 0., 0."), 22, "translated"),
 ])

@@ -433,7 +433,10 @@ def _preload_solve(layer, reduced, method, opts, zone):
     of the mean pressure. (A tangent linearisation started from the undeformed state
     shifts the unloaded pairs apart and can end in another contact set; the secant is
     exact where it is taken.) Returns ``(result, layer)``."""
-    with warnings.catch_warnings():       # a failure here is an AnalysisError of preload()
+    if not layer.nonlinear:
+        pre, _ = _solve(layer, reduced, 0.0, None, method, opts, "preload", zone)
+        return pre, layer
+    with warnings.catch_warnings():       # attempts; a failure is preload()'s AnalysisError
         warnings.simplefilter("ignore", ContactConvergenceWarning)
         return _preload_attempts(layer, reduced, method, opts, zone)
 

@@ -438,11 +438,11 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
     _check_bodies(cases, model)
     with StudyFolder(out, allowed=_in_study) as folder:   # locked before computing
         return _study(folder, model, vary, options, cases, scheduler, workers, files,
-                      plots, progress, t0)
+                      plots, progress, t0, amplitude)
 
 
 def _study(folder, model, vary, options, cases, scheduler, workers, files, plots, progress,
-           t0) -> SweepResult:
+           t0, amplitude=None) -> SweepResult:
     """:func:`sweep` in its entered :class:`qsma.rundir.StudyFolder` (manifest written
     when every case is done)."""
     from ..results import atomic_write
