@@ -3,7 +3,7 @@ friction x preload grid of sandwich-3d on 1 and 2 Dask workers.
 
 Usage: python benchmarks/bench_sweep.py [--repeat 3] [--n 10] [--levels 51]
            [--example sandwich-2d|sandwich-3d] [--refine 1] [--preload 0]
-           [--workers 2 [2 ...]] [--ways separate,serial,dask]
+           [--workers 2 [2 ...]] [--ways separate,serial,forked,dask]
 
 The cases: ``--n`` values of mu evenly spaced from 0.2 to 0.8, times ``--preload``
 values of the preload scale from 0.5 to 1.5 when it is given (the 4 x 5 grid of
@@ -13,12 +13,14 @@ unless --levels says otherwise. Ways of computing the same cases (``--ways``):
 - ``separate``: ``qsma.run`` once per case in this process (a user scripting runs);
 - ``serial``: ``qsma.sweep(..., scheduler="serial")``: assembly and condensation
   once, preload once per case, tied modes once per closed set, cases in order;
+- ``forked``: the same on ``--workers`` processes forked from this one (``qsma sweep
+  --workers N``, the default): the preparation is inherited, nothing is pickled;
 - ``dask``: the same on a fresh ``LocalCluster`` of each ``--workers`` count (its
-  start-up included, as a user pays it).
+  start-up included, as a user pays it; ``scheduler="dask"``).
 
 The ways are interleaved in each repeat (so a change of machine load hits all of
 them) and the medians are printed: wall seconds, CPU seconds of the cases (this
-process's for the separate runs and a serial sweep; for a Dask sweep the sum of the
+process's for the separate runs and a serial sweep; for a forked or Dask sweep the sum of the
 cases' CPU seconds on the workers, from their done-markers, which leaves out the
 cluster start-up and what a worker does when the shared preparation arrives), and
 the CPU seconds of every process (this one and all its children once they have
@@ -55,7 +57,7 @@ def main():
     ap.add_argument("--workers", type=int, nargs="+", default=[2])
     ap.add_argument("--example", default="sandwich-2d", choices=sorted(EXAMPLES))
     ap.add_argument("--refine", type=int, default=1)
-    ap.add_argument("--ways", default="separate,serial,dask")
+    ap.add_argument("--ways", default="separate,serial,forked,dask")
     args = ap.parse_args()
     model = EXAMPLES[args.example](args.refine)
     vary = {"mu": np.linspace(0.2, 0.8, args.n).tolist()}
@@ -86,9 +88,13 @@ def main():
         ways["separate runs"] = separate
     if "serial" in chosen:
         ways["serial sweep"] = lambda: study(scheduler="serial")
+    if "forked" in chosen:
+        for w in args.workers:
+            ways[f"forked sweep, {w} worker(s)"] = lambda w=w: study(workers=w)
     if "dask" in chosen:
         for w in args.workers:
-            ways[f"dask sweep, {w} worker(s)"] = lambda w=w: study(workers=w)
+            ways[f"dask sweep, {w} worker(s)"] = lambda w=w: study(workers=w,
+                                                                   scheduler="dask")
     res = qsma.run(model, opts)
     t = res.timings_s
     shared = t["model"] + t["assembly"] + t["condensation"] + t["modal"]
@@ -106,7 +112,7 @@ def main():
             worker_cpu = fn()
             wall[name].append(time.perf_counter() - w0)
             own = time.process_time() - c0
-            cpu[name].append(worker_cpu if name.startswith("dask") else own)
+            cpu[name].append(worker_cpu if name.startswith(("dask", "forked")) else own)
             total[name].append(own + children_cpu() - a0)
     first = next(iter(ways))
     ref_w, ref_c = statistics.median(wall[first]), statistics.median(cpu[first])

@@ -26,8 +26,9 @@ from qsma.errors import InputError, OutputFolderBusy
 from qsma.examples import sandwich_2d
 from qsma.levels import Levels
 from qsma.rundir import RunFolder, verify_run_folder
+from qsma.examples import example_dir
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+EXAMPLES = example_dir()        # the example files shipped with qsma
 SRC = str(Path(qsma.__file__).resolve().parents[1])
 #: a short run (--no-vtu, 5 levels): about 1.5 s per subprocess on an idle machine
 QUICK = ["--example", "sandwich-2d", "--levels", "tip:log:1e-6:1e-3:5", "--no-vtu",

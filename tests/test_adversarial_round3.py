@@ -18,10 +18,11 @@ from qsma.errors import AnalysisError, InputError
 from qsma.examples import stack_2d
 from qsma.model import Pressure
 from qsma.rundir import verify_run_folder
+from qsma.examples import example_dir
 
 from helpers import STACK_INTERFACES, stack_toml
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+EXAMPLES = example_dir()        # the example files shipped with qsma
 STACK_LEVELS = qsma.Levels.log("tip", 1e-6, 1e-4, 3)
 
 
@@ -80,7 +81,7 @@ def test_a_model_wide_mu_is_refused_where_the_interfaces_set_their_own(
 
 
 def _example_config(folder):
-    """examples/sandwich-2d.toml and its meshes copied to ``folder`` (levels and the
+    """The example sandwich-2d.toml and its meshes copied to ``folder`` (levels and the
     direct loop trimmed for speed); returns the configuration's path."""
     import shutil
     for name in ("sandwich-2d.toml", "sandwich-2d-bottom.inp", "sandwich-2d-top.msh"):

@@ -109,7 +109,8 @@ def test_locking_warning_is_printed(tmp_path, capsys):
     bodies of equal material)."""
     import shutil
     from pathlib import Path
-    examples = Path(__file__).resolve().parents[1] / "examples"
+    from qsma.examples import example_dir
+    examples = example_dir()
     for name in ("sandwich-2d-bottom.inp", "sandwich-2d-top.msh"):
         shutil.copy(examples / name, tmp_path / name)
     text = (examples / "sandwich-2d.toml").read_text().replace("nu = 0.285", "nu = 0.49")

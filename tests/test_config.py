@@ -15,8 +15,9 @@ from qsma.config import load_config, parse_config
 from qsma.errors import InputError, QSMAError
 from qsma.examples import sandwich_2d
 from qsma.levels import Levels
+from qsma.examples import example_dir
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+EXAMPLES = example_dir()        # the example files shipped with qsma
 TOML = EXAMPLES / "sandwich-2d.toml"
 
 
@@ -129,7 +130,8 @@ def test_cli_runs_the_toml_example(tmp_path):
 
 
 def test_example_script_runs(tmp_path):
-    proc = subprocess.run([sys.executable, str(EXAMPLES / "run_sandwich.py"),
+    script = Path(__file__).resolve().parents[1] / "examples" / "run_sandwich.py"
+    proc = subprocess.run([sys.executable, str(script),
                            str(tmp_path / "api")], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     assert "f0 =" in proc.stdout and (tmp_path / "api" / "results.json").exists()

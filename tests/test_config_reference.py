@@ -12,6 +12,7 @@ import pytest
 from qsma.config import SCHEMA, parse_config, tomllib
 from qsma.model import Interface, Pressure
 from qsma.options import RunOptions
+from qsma.examples import example_dir
 
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "config.md"
@@ -89,10 +90,10 @@ def test_literal_defaults_are_the_readers():
     assert doc["top"]["name"][1] == '`"model"`'
     assert doc["pressures"]["load"][1] == f'`"{Pressure("s", 1.0).load}"`'
     assert doc["interface"]["coupling"][1] == f'`"{Interface("a", "s", "b", "t").coupling}"`'
-    model = parse_config(_example(), base=ROOT / "examples").model
+    model = parse_config(_example(), base=example_dir()).model
     data = _example()
     data.pop("name")
-    assert parse_config(data, base=ROOT / "examples").model.name == "model"
+    assert parse_config(data, base=example_dir()).model.name == "model"
     assert model.name != "model"
 
 
@@ -105,7 +106,7 @@ def _example() -> dict:
 def test_the_complete_example_is_read():
     """The example file uses every table and builds the model it describes."""
     data = _example()
-    cfg = parse_config(data, base=ROOT / "examples")
+    cfg = parse_config(data, base=example_dir())
     used = {"top"} | {k for k in data if isinstance(data[k], (dict, list))}
     for b in data["bodies"]:
         used |= {k for k in b if isinstance(b[k], list)}

@@ -334,9 +334,9 @@ def test_tied_modes_equal_the_separate_computation(sandwich):
 
 def test_sweep_ships_the_shared_factor_once():
     """A shipped preparation refactorises body 1 only; body 2 solves through it."""
-    from qsma.study.sweep import RefactorisedEE, ShippedPreparation
+    from qsma.condense import RefactorisedEE
     prep = prepare(sandwich_2d(1))
-    back = pickle.loads(pickle.dumps(ShippedPreparation(prep)))
+    back = pickle.loads(pickle.dumps(prep))
     b1, b2 = back.reduced.bodies
     assert isinstance(b1.solve_EE, RefactorisedEE)
     assert isinstance(b2.solve_EE, MappedSolver) and b2.solve_EE.base is b1.solve_EE

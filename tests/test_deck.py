@@ -284,7 +284,8 @@ def test_probe_options_are_checked(tmp_path, capsys):
         read_deck(path, tip_node=99999)
     with pytest.raises(qsma.errors.InputError, match="--tip-direction needs 2 numbers"):
         read_deck(path, tip_direction=[0.0, 0.0, 1.0])
-    toml = Path(__file__).resolve().parents[1] / "examples" / "sandwich-2d.toml"
+    from qsma.examples import example_file
+    toml = example_file("sandwich-2d.toml")
     assert main(["run", str(toml), "--tip-node", "3", "--out", str(tmp_path / "o")]) == 2
     assert "apply to .inp decks" in capsys.readouterr().err
     assert main(["init", str(toml)]) == 2

@@ -325,7 +325,8 @@ def test_continue_exits_zero_with_warning(starved_solver, tmp_path, capsys):
 
 
 def test_refine_with_config_is_rejected(tmp_path, capsys):
-    toml = Path(__file__).resolve().parents[1] / "examples" / "sandwich-2d.toml"
+    from qsma.examples import example_file
+    toml = example_file("sandwich-2d.toml")
     assert main(["run", str(toml), "--refine", "2", "--out", str(tmp_path)]) == 2
     assert "--refine applies to --example" in capsys.readouterr().err
 

@@ -11,11 +11,12 @@ from qsma.errors import InputError, MeshFileError
 from qsma.model.generate import structured_mesh
 from qsma.model.io import read_mesh
 from qsma.model.mesh import Mesh
+from qsma.examples import example_dir
 from qsma.model.validate import (DEGENERATE_SCALED_JACOBIAN, MeshQualityWarning,
                                  scaled_jacobians, validate_mesh)
 
 DATA = Path(__file__).parent / "data"
-EXAMPLES = Path(__file__).parent.parent / "examples"
+EXAMPLES = example_dir()        # the example files shipped with qsma
 
 
 def unit_square_quads():

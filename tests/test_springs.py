@@ -16,6 +16,7 @@ from qsma.fe import assemble_body
 from qsma.model import Body, Material, Pressure, Spring
 from qsma.model.generate import structured_mesh
 from qsma.model.spring import spring_matrix, spring_shares
+from qsma.examples import example_dir
 
 STEEL = Material(200e9, 0.3, 7850.0)
 
@@ -114,7 +115,7 @@ def test_a_set_without_nodes_or_area_is_refused_by_name():
         Body("block", mesh, STEEL, springs=(Spring("flat", (1.0, 1.0)),))
 
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+EXAMPLES = example_dir()        # the example files shipped with qsma
 
 
 def test_toml_springs():

@@ -16,7 +16,8 @@ from qsma.errors import InputError
 from qsma.examples import sandwich_2d
 from qsma.model import Material, Pressure
 from qsma.study import grid, parse_values, read_table, sweep
-from qsma.study.sweep import RefactorisedEE, ShippedPreparation, done_path
+from qsma.condense import RefactorisedEE
+from qsma.study.sweep import done_path
 
 #: 5 levels over the spec's range of linear tied tip deflection (1 um .. 1 mm): small
 #: enough for a test, wide enough to cross from stuck to gross slip on sandwich-2d.
@@ -148,12 +149,22 @@ def test_prepared_survives_pickling_with_its_preload_scale(model):
     assert_close(back.reduced.W, prep.reduced.W, 1e-12)
 
 
-def test_shipped_preparation_arrives_condensed_and_runs_as_the_original(model):
-    """What Dask workers receive: the condensed model as computed (bit for bit, not
-    condensed again), each body's K_EE factorised only when a solve asks for it, and a
-    case run from it equal to the same case run from the original preparation."""
+def test_shipped_preparation_arrives_condensed_and_runs_as_the_original(model, monkeypatch):
+    """What Dask workers receive (and pass on to one another): the condensed model as
+    computed (bit for bit, never condensed again, however often it is pickled), each
+    body's K_EE factorised only when a solve asks for it, and a case run from it equal
+    to the same case run from the original preparation."""
+    import qsma.analysis
     prep = prepare(model, OPTIONS)
-    back = pickle.loads(pickle.dumps(ShippedPreparation(prep)))
+
+    def condensing(*args, **kwargs):
+        raise AssertionError("condensed again")
+
+    monkeypatch.setattr(qsma.analysis, "_condense", condensing)
+    monkeypatch.setattr(qsma.analysis, "reduce_two_bodies", condensing)
+    back = pickle.loads(pickle.dumps(prep))
+    again = pickle.loads(pickle.dumps(back.with_mu(0.4)))        # worker to worker
+    assert again.model.mu == 0.4 and np.array_equal(again.reduced.K, prep.reduced.K)
     assert type(back) is type(prep) and back.cache == {}
     for name in ("K", "W"):
         assert np.array_equal(getattr(back.reduced, name), getattr(prep.reduced, name))
@@ -180,7 +191,7 @@ def test_refactorised_K_EE_solves_as_the_condensation_factor(example):
     operator to round-off: measured 1e-14 to 2e-13 relative)."""
     from qsma.examples import EXAMPLES
     prep = prepare(EXAMPLES[example](), OPTIONS)
-    back = pickle.loads(pickle.dumps(ShippedPreparation(prep)))
+    back = pickle.loads(pickle.dumps(prep))
     rng = np.random.default_rng(7)
     for b0, b1 in zip(prep.reduced.bodies, back.reduced.bodies):
         x = rng.standard_normal((b1.solve_EE.n, 2))

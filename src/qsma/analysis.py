@@ -20,7 +20,7 @@ import numpy as np
 
 from ._forked import ChildFailed, ForkedCall, fork_refusal, second_core_refusal
 from ._threads import CONTACT_BLAS_THREADS, blas_threads as threads_limited, threads_for
-from .condense import reduce_two_bodies
+from .condense import reduce_two_bodies, refactorised_bodies
 from .contact import DEFAULT_TOL, ContactProblem, ContactState, OPEN, SLIPPING, STUCK
 from .contact import solve as contact_solve
 from .contact.laws import InterfaceLaw
@@ -189,8 +189,8 @@ class Prepared:
     so scaling the 'preload' pattern by :math:`s` scales its columns of
     :math:`F_c` and of the welded contact force :math:`W` by :math:`s`. The tied modes
     depend only on the pairs closed by the preload: they are cached by that mask.
-    Pickling keeps the model, pairing and assembled matrices; the factorisations of
-    the condensation are remade once where the object is unpickled (a Dask worker).
+    Pickled (to a Dask worker, or from one worker to another) it keeps the condensed
+    model as computed, nothing is condensed again: see :meth:`__reduce__`.
 
     Attributes
     ----------
@@ -212,10 +212,18 @@ class Prepared:
     cache: dict = None
 
     def __reduce__(self):
-        base = replace(self, model=_scaled_preload(self.model, 1 / self.preload_scale),
-                       preload_scale=1.0) if self.preload_scale != 1.0 else self
-        return (_unpickle_prepared, (base.model, base.pairing, base.assembled,
-                                     base.schur_backend, self.model.mu, self.preload_scale))
+        r"""The model, pairing and assembled bodies with the condensed model as
+        computed here (``K``, ``W``, the condensed loads and functionals, the factor of
+        the welded pair, each body's ``Kc``); each body's sparse factor of
+        :math:`K_{EE}` (not picklable) becomes a
+        :class:`qsma.condense.RefactorisedEE`, which factorises :math:`K_{EE}` of the
+        shipped assembled body when a solve first asks for it. A process receiving it
+        (again) thus does one sparse factorisation per body, never the condensation;
+        the cache (preload solves, tied modes) stays behind."""
+        reduced = replace(self.reduced, bodies=refactorised_bodies(self.reduced.bodies,
+                                                                   self.assembled))
+        return (Prepared, (self.model, self.pairing, self.assembled, reduced,
+                           self.preload_scale, self.schur_backend, self.timings_s, {}))
 
     def with_mu(self, mu) -> "Prepared":
         """The same preparation for friction coefficient ``mu`` (nothing recomputed).
@@ -287,16 +295,6 @@ def _scaled_preload(model, factor):
     bolts = tuple(replace(b, pretension=b.pretension * factor)
                   for b in getattr(model, "bolts", ()))      # part of 'preload' too
     return replace(model, bodies=bodies, bolts=bolts)
-
-
-def _unpickle_prepared(model, pairing, assembled, schur_backend, mu, scale):
-    clock = _Timer()
-    with threads_limited(threads_for(pairing.n_pairs * model.dim)):  # as prepare(): the
-        reduced = _condense(model, assembled, pairing, schur_backend, clock)  # same bits
-    base = Prepared(model, pairing, assembled, reduced, 1.0, schur_backend, clock.t, {})
-    if mu != model.mu:
-        base = base.with_mu(mu)
-    return base.with_preload_scale(scale) if scale != 1.0 else base
 
 
 def prepare(model, options: RunOptions | None = None, *, assembled=None) -> Prepared:

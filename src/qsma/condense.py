@@ -19,12 +19,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 import logging
+import threading
 import time
 
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
+from .congruence import MappedSolver
 from .errors import InputError
 from .linalg import cho_solved, mirror_triangle, schur_complement, symmetrised
 
@@ -638,3 +640,66 @@ def _released_interface(rm, d, Fc, a=None):
     us = P @ um + rm.sigma * d
     return (us, um) if s == 0 else (um, us)
 
+
+# -- a condensed model sent to another process ----------------------------------------
+
+def refactorised_bodies(bodies, assembled) -> tuple:
+    """The condensed bodies with each own ``K_EE`` factor replaced by a
+    :class:`RefactorisedEE`; a body that solves through a congruent body's factor
+    (:class:`qsma.congruence.MappedSolver`) keeps doing so, through that body's
+    ``RefactorisedEE`` (one object, pickled once: one factorisation per worker)."""
+    by_name = {a.body.name: a for a in assembled}
+    own = {b.name: RefactorisedEE(by_name[b.name], b.E, _backend_of(b.solve_EE))
+           for b in bodies if not isinstance(b.solve_EE, MappedSolver)}
+    return tuple(replace(b, solve_EE=replace(b.solve_EE, base=own[b.solve_EE.base_name])
+                         if isinstance(b.solve_EE, MappedSolver) else own[b.name])
+                 for b in bodies)
+
+
+def _backend_of(solver) -> str:
+    """The factorisation backend of a ``K_EE`` solver (``"auto"`` if it does not say)."""
+    return getattr(solver, "backend", "auto")
+
+
+class RefactorisedEE:
+    r"""``x = K_EE^{-1} b`` of one body, factorised on first use.
+
+    ``K_EE = K[E][:, E]`` with ``K`` the assembled stiffness of ``assembled`` and ``E``
+    the body's non-interface free DOFs (:attr:`qsma.condense.CondensedBody.E`), the
+    block whose factor the condensation used. The factorisation is
+    :func:`qsma.linalg.spd_solver` with the condensation's ``backend`` where it names
+    one it knows (its fill-reducing ordering may differ from the condensation's, so
+    solves agree with the original factor to round-off, not bit for bit). Accepts
+    ``b`` of shape ``(n_E,)`` or ``(n_E, k)``.
+    """
+
+    def __init__(self, assembled, E, backend="auto"):
+        self.assembled, self.E, self.backend = assembled, np.asarray(E), backend
+        self._solve = None
+        self._lock = threading.Lock()
+
+    @property
+    def n(self) -> int:
+        return len(self.E)
+
+    @property
+    def factorised(self) -> bool:
+        return self._solve is not None
+
+    def __call__(self, b):
+        from .linalg import ee_rhs, spd_solver
+        b = ee_rhs(b, self.n)
+        if b.size == 0:
+            return b.copy()
+        with self._lock:
+            if self._solve is None:
+                K = self.assembled.K.tocsr()
+                self._solve = spd_solver(K[self.E][:, self.E], backend=self.backend)
+        return self._solve(b)
+
+    def __reduce__(self):                 # shipped again (e.g. spilled): refactorised
+        return (RefactorisedEE, (self.assembled, self.E, self.backend))
+
+    def __repr__(self):
+        return (f"RefactorisedEE(n={self.n}, backend={self.backend!r}, "
+                f"factorised={self.factorised})")

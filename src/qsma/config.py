@@ -275,8 +275,9 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
     Examples
     --------
     >>> import tomllib
-    >>> cfg = parse_config(tomllib.loads(open("examples/sandwich-2d.toml").read()),
-    ...                    base=Path("examples"))                     # doctest: +SKIP
+    >>> from qsma.examples import example_file
+    >>> path = example_file("sandwich-2d.toml")
+    >>> cfg = parse_config(tomllib.loads(path.read_text()), base=path.parent)
     """
     _check(data, "", where)
     units = data.get("units", "SI")

@@ -64,3 +64,8 @@ class NearlyIncompressibleWarning(QSMAWarning):
 class UnitSystemWarning(QSMAWarning):
     """A model's numbers look like another unit system than the one it declares
     (:func:`qsma.units.check_model_units`)."""
+
+
+class SerialSweepWarning(QSMAWarning):
+    """A study asked for a local Dask cluster runs its cases one after the other: the
+    optional ``distributed`` package (extra ``sweep``) is not installed."""

@@ -1,5 +1,5 @@
-"""Command line: ``qsma run``, ``modes``, ``sweep``, ``fit`` and ``init``. The only place
-that prints.
+"""Command line: ``qsma run``, ``modes``, ``sweep``, ``fit``, ``init`` and ``examples``.
+The only place that prints.
 
 Exit codes: 0 success, 1 analysis failed (or results could not be written), 2 bad
 input (including an output folder in use by another run), 130 interrupted
@@ -18,14 +18,16 @@ import warnings
 
 from ..errors import (AnalysisError, ContactConvergenceWarning, InputError, QSMAError,
                       QSMAWarning)
-from . import fit as _fit, init as _init, modes as _modes, run as _run, sweep as _sweep
+from . import examples as _examples, fit as _fit, init as _init, modes as _modes, \
+    run as _run, sweep as _sweep
 from .progress import LOG_LEVELS, LogSetup
 
 EXIT_OK, EXIT_FAILED, EXIT_INPUT = 0, 1, 2
 #: 128 + SIGINT, the shell convention for a command stopped by Ctrl-C; also used for
 #: SIGTERM so that scripts see one code for "interrupted"
 EXIT_INTERRUPTED = 130
-SUBCOMMANDS = {"run": _run, "modes": _modes, "sweep": _sweep, "fit": _fit, "init": _init}
+SUBCOMMANDS = {"run": _run, "modes": _modes, "sweep": _sweep, "fit": _fit, "init": _init,
+               "examples": _examples}
 
 
 def build_parser():

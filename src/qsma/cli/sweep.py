@@ -20,12 +20,14 @@ def add_arguments(p):
     p.add_argument("--out", required=True, help="study folder (created; resumed if it "
                                                 "holds this study)")
     p.add_argument("--workers", type=int, default=None,
-                   help="processes of the local Dask cluster (default 2, at most the "
-                        "usable cores); 0 runs the "
+                   help="processes that run the cases (default 2, at most the usable "
+                        "cores), forked from this one (where it may not fork: a local "
+                        "Dask cluster); 0 runs the "
                         "cases one after the other in this process")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="Dask scheduler to run on, e.g. tcp://host:8786 (its workers "
-                        "must see --out)")
+                        "must see --out), or 'dask' for a local Dask cluster of "
+                        "--workers processes")
     p.add_argument("--levels", metavar="SPEC", help="load levels of every case "
                                                     "(as qsma run --levels)")
     p.add_argument("--mode", type=int, help="mode index of every case")

@@ -47,7 +47,7 @@ DEGENERATE_SCALED_JACOBIAN = 1e-6
 #: Below this scaled Jacobian (an angle of 0.57 degrees between edges) a cell is accepted
 #: with a MeshQualityWarning. The meshes we ship and test have q >= 0.38 (Gmsh tetrahedra
 #: of tests/data/gmsh_box_v41.msh; triangles 0.69, the sandwich quads 1.0); a node of
-#: examples/sandwich-2d-top.msh moved 0.3 m off the free surface by one damaged digit
+#: the example sandwich-2d-top.msh moved 0.3 m off the free surface by one damaged digit
 #: gives q = 0.0026 and no other sign of damage.
 POOR_SCALED_JACOBIAN = 0.01
 
@@ -230,7 +230,7 @@ def validate_mesh(mesh: Mesh, *, source: str | None = None, node_ids=None,
     Nodes no cell uses are refused rather than warned about: every node of a mesh gets
     degrees of freedom in the assembly, and one without a cell has neither stiffness nor
     mass, so the stiffness matrix is singular (with one such node added to
-    ``examples/sandwich-2d-bottom.inp``, ``qsma run`` stopped with an internal error in
+    the example ``sandwich-2d-bottom.inp``, ``qsma run`` stopped with an internal error in
     the assembly). Dropping them silently would renumber the nodes and could empty a
     node set that names them.
     """

@@ -14,9 +14,11 @@ sweep reuses"):
 - material constants ``E``, ``nu``, ``rho`` (of all bodies, or of one as
   ``E:bottom``): the changed body is re-assembled, both are condensed again.
 
-Cases run on Dask (:mod:`distributed`): a :class:`distributed.LocalCluster` of
-processes by default, any scheduler by address, or serially in this process
-(``scheduler="serial"``). Each case writes a folder as ``qsma run`` does
+Cases run as tasks: by default on processes forked from this one, which inherit
+the preparations (nothing pickled, nothing condensed or factorised again); on Dask
+(:mod:`distributed`): a :class:`distributed.LocalCluster` (``scheduler="dask"``, or
+where this process may not fork), any scheduler by address; or serially in this
+process (``scheduler="serial"``). Each case writes a folder as ``qsma run`` does
 (:func:`qsma.results.write_all`) and then a done-marker; a study started again in the
 same folder skips the cases whose marker exists. A failing case is recorded with its
 message and the others go on. The study table (:data:`TABLE_NAME`) has a row per case
@@ -35,10 +37,11 @@ from pathlib import Path
 import re
 import threading
 import time
+import warnings
 
 import numpy as np
 
-from ..errors import InputError, QSMAError
+from ..errors import InputError, QSMAError, SerialSweepWarning
 from ..levels import Levels
 from ..options import RunOptions
 from ..rundir import MANIFEST, StudyFolder
@@ -432,12 +435,15 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
         Options of every case (a config's options when ``None``).
     out : path
         Study folder: :data:`STUDY_NAME`, :data:`TABLE_NAME`, figures, one folder per case.
-    scheduler : None, "serial", str or distributed.Client
-        ``None``: a local cluster of ``workers`` processes; ``"serial"`` (or
-        ``workers=0``): in this process, in order; an address (``tcp://host:8786``)
-        or a client: that scheduler (the workers must see ``out``).
-    workers : int, optional
-        Processes of the local cluster, at most the usable cores (default
+    scheduler : None, "serial", "dask", str or distributed.Client
+        ``None``: ``workers`` processes forked from this one (where it may not fork:
+        a local Dask cluster, or without Dask the cases in this process with a
+        :class:`qsma.errors.SerialSweepWarning`); ``"serial"`` (or ``workers=0``): in
+        this process, in order; ``"dask"``: a local Dask cluster of ``workers``
+        processes; an address (``tcp://host:8786``) or a client: that scheduler (the
+        workers must see ``out``).
+    workers : int
+        Processes of the local pool or cluster, at most the usable cores (default
         :data:`DEFAULT_WORKERS`, or the cores if fewer).
     files : iterable of {"plots", "vtu", "rom", "report"}
         Per-case files besides results.json and results.csv (rom: :mod:`qsma.rom`,
@@ -513,8 +519,7 @@ def _study(folder, model, vary, options, cases, scheduler, workers, files, plots
     t_prep = time.perf_counter() - t_prep
     names = [b.name for b in model.bodies]
     key_of = lambda c: _material_key(c, len(model.bodies), names)
-    serial = scheduler == "serial" or (scheduler is None and workers == 0)
-    run = _run_serial if serial else _run_dask
+    run = _runner(scheduler, workers, len(todo))
     for outcome in (run(groups, key_of, todo, options, out, files, scheduler, workers)
                     if todo else ()):
         outcomes[outcome.index] = outcome
@@ -599,104 +604,108 @@ def _fingerprinted(model, name, value):
     return value
 
 
-# ------------------------------------------------- shipping a preparation to workers
-
-@dataclass(frozen=True, eq=False)
-class ShippedPreparation:
-    r"""A :class:`qsma.analysis.Prepared` sent to Dask workers with its condensed model.
-
-    A ``Prepared`` pickled on its own keeps the model, pairing and assembled bodies
-    and condenses again where it is unpickled (its factorisations cannot be pickled):
-    every worker then repeated the Schur complements and the two-body combination of
-    the preparation. Pickled through this wrapper it keeps the condensed model as
-    computed here (``K``, ``W``, the condensed loads and functionals, the factor of
-    the welded pair, each body's ``Kc``), and each body's factorised
-    :math:`K_{EE}^{-1}` is replaced by :class:`RefactorisedEE`, which factorises
-    :math:`K_{EE}` of the shipped assembled body the first time a solve is asked for
-    (the tied modes, the modal load, the fields) and keeps the factor. A worker thus
-    does one sparse factorisation per body instead of the whole condensation, and
-    every number it starts from is the one the study computed.
-
-    Unpickling gives the ``Prepared`` itself (with an empty cache).
-    """
-
-    prepared: object
-
-    def __reduce__(self):
-        p = self.prepared
-        bodies = _refactorised_bodies(p.reduced.bodies, p.assembled)
-        return (_arrived, (p.model, p.pairing, p.assembled,
-                           replace(p.reduced, bodies=bodies), p.preload_scale,
-                           p.schur_backend, p.timings_s))
+def distributed_available() -> bool:
+    """Whether Dask's ``distributed`` (the extra ``sweep``) can be imported."""
+    import importlib.util
+    try:
+        return importlib.util.find_spec("distributed") is not None
+    except (ImportError, ValueError):       # a module set to None in sys.modules
+        return False
 
 
-def _refactorised_bodies(bodies, assembled) -> tuple:
-    """The condensed bodies with each own ``K_EE`` factor replaced by a
-    :class:`RefactorisedEE`; a body that solves through a congruent body's factor
-    (:class:`qsma.congruence.MappedSolver`) keeps doing so, through that body's
-    ``RefactorisedEE`` (one object, pickled once: one factorisation per worker)."""
-    from ..congruence import MappedSolver
-    by_name = {a.body.name: a for a in assembled}
-    own = {b.name: RefactorisedEE(by_name[b.name], b.E, _backend_of(b.solve_EE))
-           for b in bodies if not isinstance(b.solve_EE, MappedSolver)}
-    return tuple(replace(b, solve_EE=replace(b.solve_EE, base=own[b.solve_EE.base_name])
-                         if isinstance(b.solve_EE, MappedSolver) else own[b.name])
-                 for b in bodies)
+def _runner(scheduler, workers, n_todo):
+    """How the cases run (module docstring): in this process (``"serial"``, or no
+    scheduler and ``workers == 0``); on ``workers`` processes forked from this one (no
+    scheduler: :func:`_run_forked`), or where this process may not fork on a local
+    Dask cluster, or without Dask in this process with a
+    :class:`qsma.errors.SerialSweepWarning`; on Dask (``"dask"``: a local cluster, an
+    address or a client: :func:`_run_dask`)."""
+    from .._forked import fork_refusal
+    if scheduler == "serial" or (scheduler is None and workers == 0) or n_todo == 0:
+        return _run_serial
+    if scheduler is not None:
+        return _run_dask
+    why_not = fork_refusal()
+    if why_not is None:
+        return _run_forked
+    if distributed_available():
+        log.info("cases on a local Dask cluster, not on forked processes: %s", why_not)
+        return _run_dask
+    warnings.warn(f"the {n_todo} case(s) run one after the other in this process: it "
+                  f"may not fork workers ({why_not}) and the 'distributed' package is not "
+                  f"installed (for a local cluster of {workers} workers: pip install "
+                  f"'qsma[sweep]')", SerialSweepWarning, stacklevel=3)
+    return _run_serial
 
 
-def _backend_of(solver) -> str:
-    """The factorisation backend of a ``K_EE`` solver (``"auto"`` if it does not say)."""
-    return getattr(solver, "backend", "auto")
+#: The job of the forked case workers: set before the fork, inherited by the workers
+#: (with the preparations it refers to), never pickled.
+_CASE_JOB = None
 
 
-def _arrived(model, pairing, assembled, reduced, preload_scale, schur_backend, timings):
-    from ..analysis import Prepared
-    return Prepared(model, pairing, assembled, reduced, preload_scale, schur_backend,
-                    timings, {})
+def _call_case(i):
+    """``_CASE_JOB(i)`` and the warnings it raised, for this process to raise again."""
+    from .._forked import recorded_warnings
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        out = _CASE_JOB(i)
+    return i, out, recorded_warnings(seen)
 
 
-class RefactorisedEE:
-    r"""``x = K_EE^{-1} b`` of one body, factorised on first use.
+#: Run options of a case on a forked worker: the worker is one of ``workers`` processes
+#: that share the cores, so it forks no loop workers nor a second ramp of its own (the
+#: results are the same bits either way, docs/performance.md).
+FORKED_CASE_OPTIONS = dict(loop_workers=1, parallel_ramps=False)
 
-    ``K_EE = K[E][:, E]`` with ``K`` the assembled stiffness of ``assembled`` and ``E``
-    the body's non-interface free DOFs (:attr:`qsma.condense.CondensedBody.E`), the
-    block whose factor the condensation used. The factorisation is
-    :func:`qsma.linalg.spd_solver` with the condensation's ``backend`` where it names
-    one it knows (its fill-reducing ordering may differ from the condensation's, so
-    solves agree with the original factor to round-off, not bit for bit). Accepts
-    ``b`` of shape ``(n_E,)`` or ``(n_E, k)``.
-    """
 
-    def __init__(self, assembled, E, backend="auto"):
-        self.assembled, self.E, self.backend = assembled, np.asarray(E), backend
-        self._solve = None
-        self._lock = threading.Lock()
-
-    @property
-    def n(self) -> int:
-        return len(self.E)
-
-    @property
-    def factorised(self) -> bool:
-        return self._solve is not None
-
-    def __call__(self, b):
-        from ..linalg import ee_rhs, spd_solver
-        b = ee_rhs(b, self.n)
-        if b.size == 0:
-            return b.copy()
-        with self._lock:
-            if self._solve is None:
-                K = self.assembled.K.tocsr()
-                self._solve = spd_solver(K[self.E][:, self.E], backend=self.backend)
-        return self._solve(b)
-
-    def __reduce__(self):                 # shipped again (e.g. spilled): refactorised
-        return (RefactorisedEE, (self.assembled, self.E, self.backend))
-
-    def __repr__(self):
-        return (f"RefactorisedEE(n={self.n}, backend={self.backend!r}, "
-                f"factorised={self.factorised})")
+def _run_forked(groups, key_of, todo, options, out, files, scheduler, workers):
+    """Cases as tasks of ``workers`` processes forked from this one. The preparations
+    reach the workers by the fork itself, with everything this process computed
+    (condensed model, factorisations, cached preload solves and tied modes): nothing
+    is pickled but a case's index and its outcome, nothing is condensed or factorised
+    again, and the pool starts in milliseconds where a Dask cluster takes seconds. A
+    worker that dies (killed, out of memory) breaks the pool: the cases not finished
+    are given to a new pool once; if that breaks too, they are recorded as failed."""
+    global _CASE_JOB
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures.process import BrokenProcessPool
+    from .._forked import default_signals, quiet_fork, raise_again
+    opts = options.replace(**FORKED_CASE_OPTIONS)
+    _CASE_JOB = lambda i: run_case(groups[key_of(todo[i])], todo[i], opts,
+                                   out / todo[i].name, files)
+    pending = list(range(len(todo)))
+    try:
+        for attempt in range(2):
+            with quiet_fork():
+                pool = ProcessPoolExecutor(min(workers, len(pending)),
+                                           mp_context=multiprocessing.get_context("fork"),
+                                           initializer=default_signals)
+            broken = None
+            try:
+                futures = [pool.submit(_call_case, i) for i in pending]
+                for fut in as_completed(futures):
+                    try:
+                        i, outcome, raised = fut.result()
+                    except BrokenProcessPool as exc:
+                        broken = exc
+                        continue
+                    raise_again(raised)
+                    pending.remove(i)
+                    yield outcome
+            finally:
+                pool.shutdown(wait=True, cancel_futures=True)
+            if broken is None or not pending:
+                return
+            log.warning("a case worker died (%s): %d case(s) given to a new pool",
+                        broken, len(pending))
+        for i in pending:
+            c = todo[i]
+            yield CaseOutcome(c.index, c.as_dict(), "failed",
+                              f"worker error: the worker process died twice ({broken})",
+                              float("nan"), str(out / c.name))
+    finally:
+        _CASE_JOB = None
 
 
 def _most_levels(vary, options) -> int:
@@ -751,8 +760,9 @@ def _run_serial(groups, key_of, todo, options, out, files, scheduler, workers):
 
 def _run_dask(groups, key_of, todo, options, out, files, scheduler, workers):
     """Cases as Dask tasks; each group's preparation is scattered once to every
-    worker with its condensed model (:class:`ShippedPreparation`: no condensation on
-    the workers, one ``K_EE`` factorisation per body and worker when first needed)."""
+    worker with its condensed model (:meth:`qsma.analysis.Prepared.__reduce__`: no
+    condensation on the workers, one ``K_EE`` factorisation per body and worker when
+    first needed)."""
     try:
         from distributed import Client, LocalCluster, as_completed
     except ImportError as exc:      # dask is the optional extra 'sweep'
@@ -760,7 +770,7 @@ def _run_dask(groups, key_of, todo, options, out, files, scheduler, workers):
                          f"pip install 'qsma[sweep]', or run the cases one after the "
                          f"other with scheduler='serial' (--workers 0)") from None
     cluster = None
-    if scheduler is None:
+    if scheduler in (None, "dask"):
         try:
             cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
                                    processes=True, dashboard_address=None,
@@ -780,7 +790,7 @@ def _run_dask(groups, key_of, todo, options, out, files, scheduler, workers):
     else:
         client = scheduler
     try:
-        shared = {k: client.scatter(ShippedPreparation(p), broadcast=True, hash=False)
+        shared = {k: client.scatter(p, broadcast=True, hash=False)
                   for k, p in groups.items()}
         futures = {client.submit(run_case, shared[key_of(c)], c, options, out / c.name,
                                  files, pure=False): c for c in todo}
