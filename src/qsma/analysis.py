@@ -403,27 +403,23 @@ def preload(model, assembled, pairing, *, method="auto", opts=None, schur_backen
 
 
 #: Secant iterations of the preload of a nonlinear interface law (:func:`_preload_solve`),
-#: the chord iterations of its first attempt and of each tangent attempt, and the law
+#: the chord iterations of its first attempt (from the rigid preload's pressures: a
+#: mild law converges there, a strongly nonlinear one does not, and each failed chord
+#: costs a Newton step on the closed pairs) and of each tangent attempt, and the law
 #: residual of a secant iterate from which the tangent is tried.
 PRELOAD_SECANTS = 100
+PRELOAD_FIRST_CHORDS = 3
 PRELOAD_CHORDS = 8
 PRELOAD_SWITCH = 1e-3
-
-
-def _rigid_pressures(layer, reduced, method, opts, zone):
-    """Pair forces of the rigid interface's preload (where the secants start)."""
-    rigid, _ = _solve(layer.physical, reduced, 0.0, None, method, opts, "preload", zone)
-    return np.maximum(rigid.P, 0.0)
 
 
 def _first_layer(problem, laws, reduced, method, opts, zone):
     """The layer the preload starts from: a nonlinear law linearised at the pressures of
     the rigid interface's preload (a linear one needs no pressures)."""
-    layer = Layer(problem, laws)
-    if not layer.nonlinear:
-        return layer
+    if laws is None or laws.linear:
+        return Layer(problem, laws)
     rigid, _ = _solve(problem, reduced, 0.0, None, method, opts, "preload", zone)
-    return Layer(problem, laws, P_ref=rigid.P) if rigid.success else layer
+    return Layer(problem, laws, P_ref=rigid.P if rigid.success else None)
 
 
 def _preload_solve(layer, reduced, method, opts, zone):
@@ -449,10 +445,10 @@ def _preload_solve(layer, reduced, method, opts, zone):
 
 def _preload_attempts(layer, reduced, method, opts, zone):
     pre, _ = _solve(layer, reduced, 0.0, None, method, opts, "preload", zone,
-                    law_iterations=PRELOAD_CHORDS)
+                    law_iterations=PRELOAD_FIRST_CHORDS)
     if pre.success or not pre.law_residual:
         return pre, layer
-    P = _rigid_pressures(layer, reduced, method, opts, zone)
+    P = layer.P_ref                              # the rigid preload's (_first_layer)
     accelerate, low, best = Anderson(), LOW_PRESSURE, np.inf
     for _ in range(PRELOAD_SECANTS):
         secant = Layer(layer.physical, layer.laws, P_ref=P, secant=True, low=low)

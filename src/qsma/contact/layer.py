@@ -170,8 +170,9 @@ class PairLaws:
             # weighs at least what it costs in force on either (the slope alone vanishes
             # where a law starts with zero stiffness)
             slope = np.maximum(k[idx], A * law.normal.stiffness(h_p))
+            off = np.abs(h[idx] - h_p)
             with np.errstate(invalid="ignore"):
-                closure = np.where(P[idx] > 0, slope * np.abs(h[idx] - h_p), np.inf)
+                closure = np.where(P[idx] > 0, np.where(off > 0, slope * off, 0.0), np.inf)
             out[sub] = np.minimum(force, closure)
             return out
         return self._per_law(one)
@@ -311,6 +312,7 @@ class Layer:
     c : (n_pairs, dim) compliance of the linearised layer (zeros: rigid)
     laws : :class:`PairLaws` or None
     physical : the :class:`ContactProblem` of the bodies (``K``, gaps ``g_0``)
+    P_ref : (n_pairs,) the pair forces it is linearised at
     """
 
     def __init__(self, physical, laws=None, P_ref=None, p_ref=None, frozen=False,
@@ -318,6 +320,7 @@ class Layer:
         self.physical, self.laws = physical, laws
         n, dim = physical.n_pairs, physical.dim
         self.s_fixed = np.zeros(n)
+        self.P_ref = np.zeros(n)
         if laws is None or laws.rigid:
             self.c = np.zeros((n, dim))
             self.problem = physical
@@ -325,6 +328,7 @@ class Layer:
             self.frozen = self.curved = np.zeros(n, bool)
             return
         P_ref = np.zeros(n) if P_ref is None else np.maximum(np.asarray(P_ref, float), 0.0)
+        self.P_ref = P_ref
         self.c = laws.compliance(P_ref, p_ref, secant=secant, low=low)
         check_units(laws, physical.K, laws.scale_compliance())
         self.frozen = ~laws.linear_pairs() if frozen else np.zeros(n, bool)
