@@ -427,7 +427,9 @@ def _preload_solve(layer, reduced, method, opts, zone):
     converge from the rigid preload's linearisation, secant iterations: the layer
     linearised by its secants at the pressures ``P`` (exact there), one solve, ``P``
     the new pressures (Anderson-accelerated, :class:`qsma.contact.layer.Anderson`;
-    :data:`PRELOAD_SECANTS` at most). Pairs below a floor pressure are linearised at
+    :data:`PRELOAD_SECANTS` at most; each secant layer after the first by a low-rank
+    update of its normal compliance, the tangential one kept from the first, which the
+    tangent's chord then makes exact). Pairs below a floor pressure are linearised at
     the floor, lowered tenfold each time the law's residual stalls, from
     :data:`qsma.contact.layer.LOW_PRESSURE` to :data:`qsma.contact.layer.LOW_SECANT`
     of the mean pressure. Once the law's residual is below :data:`PRELOAD_SWITCH`, the
@@ -449,14 +451,18 @@ def _preload_attempts(layer, reduced, method, opts, zone):
     if pre.success or not pre.law_residual:
         return pre, layer
     P = layer.P_ref                              # the rigid preload's (_first_layer)
-    accelerate, low, best = Anderson(), LOW_PRESSURE, np.inf
+    accelerate, low, best, secant = Anderson(), LOW_PRESSURE, np.inf, None
     for _ in range(PRELOAD_SECANTS):
-        secant = Layer(layer.physical, layer.laws, P_ref=P, secant=True, low=low)
+        if secant is None:
+            secant = Layer(layer.physical, layer.laws, P_ref=P, secant=True, low=low)
+        else:                                      # only the normal compliance changes
+            secant = secant.with_normal_compliance(
+                layer.laws.compliance(P, secant=True, low=low)[:, -1])
         res, _ = _solve(secant, reduced, 0.0, None, method, opts, "preload", zone,
                         law_iterations=1)
-        if res.success or not res.law_residual:   # converged, or the contact solve failed
+        if not res.success and not res.law_residual:   # the contact solve itself failed
             return res, secant
-        if res.law_residual < PRELOAD_SWITCH:
+        if res.success or res.law_residual < PRELOAD_SWITCH:
             # close enough for the tangent: its chord from this state, on the whole
             # interface (a zone solve would start from the undeformed state)
             tangent = Layer(layer.physical, layer.laws, P_ref=res.P)
