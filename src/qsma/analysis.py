@@ -452,6 +452,7 @@ def _preload_attempts(layer, reduced, method, opts, zone):
         return pre, layer
     P = layer.P_ref                              # the rigid preload's (_first_layer)
     accelerate, low, best, secant = Anderson(), LOW_PRESSURE, np.inf, None
+    tried = PRELOAD_SWITCH * 10.0        # the tangent again only a decade closer
     for _ in range(PRELOAD_SECANTS):
         if secant is None:
             secant = Layer(layer.physical, layer.laws, P_ref=P, secant=True, low=low)
@@ -462,9 +463,10 @@ def _preload_attempts(layer, reduced, method, opts, zone):
                         law_iterations=1)
         if not res.success and not res.law_residual:   # the contact solve itself failed
             return res, secant
-        if res.success or res.law_residual < PRELOAD_SWITCH:
+        if res.success or res.law_residual < 0.1 * tried:
             # close enough for the tangent: its chord from this state, on the whole
             # interface (a zone solve would start from the undeformed state)
+            tried = res.law_residual
             tangent = Layer(layer.physical, layer.laws, P_ref=res.P)
             done, _ = _solve(tangent, reduced, 0.0, None, method, opts, "preload", None,
                              guess=res.state, law_iterations=PRELOAD_CHORDS)
