@@ -376,3 +376,23 @@ def test_closings_of_a_refined_cycle_come_from_the_next_coarse_point():
     # reloading: -1 -> coarse 0 (open), 0 -> 0, 1 -> A (closed), A -> A
     assert got == [[False, True], [False, True], [True, False], [True, False],
                    [False, True], [False, True], [True, False], [True, False]]
+
+
+@pytest.mark.parametrize("rtol, rounds", [(1e-12, 3), (0.5, 1)])
+def test_a_loop_counts_its_refinement_cycles(rtol, rounds):
+    """``refinement_cycles`` is the number of refinement rounds solved (each one cycle
+    back to +A): all three at a tolerance no round meets, one where the first round
+    settles the loop. Every cycle ends at +A, so the solves at +A count the cycles."""
+    A = 1600.0
+    problem, lam_w = _problem()
+    inner = _stepper(problem, lam_w)
+    loads = []
+
+    def step(alpha, state):
+        loads.append(alpha)
+        return inner(alpha, state)
+    _, res = _ramp(problem, lam_w, [A])
+    loop = compute_loop(step, _modal, A, res[-1].state, np.linspace(0, 1, 6)[1:],
+                        k_ref=kt, rtol=rtol, refine_rounds=3)
+    assert loop.success and loop.refinement_cycles == rounds
+    assert loads.count(A) == loop.n_cycles + loop.refinement_cycles

@@ -48,7 +48,8 @@ from .pretension import lock
 from .rigid import ANCHOR_ROUNDS, anchored, elastic_probe, held_by_joint, support_share
 from .units import check_model_units
 from .result import (FAILURE_FIXES, FAILURE_FLAGS, LEVEL_FIELDS,  # noqa: F401
-                     DirectLoop, LevelStates, QSMAResult, load_factors as _load_factors)
+                     DirectLoop, LevelCosts, LevelStates, QSMAResult,
+                     load_factors as _load_factors)
 
 log = logging.getLogger("qsma")
 
@@ -699,7 +700,25 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
                     backbone_points=int(pos.n), loop_solves=int(hyst["n_solves"]),
                     negative_ramp_levels=int(neg.n)),
         timings_s=timings, resources=_resources.snapshot(), direct_loop=loop,
-        gross_slip_level=gross[0] if gross else None)
+        gross_slip_level=gross[0] if gross else None,
+        level_costs=_level_costs(grid[user], pos.work, neg.work, hyst["loops"]))
+
+
+def _level_costs(levels, pos_work, neg_work, loops) -> LevelCosts:
+    """:class:`LevelCosts` of the user's ``levels`` from the ramps' tallies
+    (:class:`_Tally`) and the loops (level index -> :class:`qsma.hysteresis.Loop`)."""
+    n = len(levels)
+    solves, seconds = np.zeros(n, int), np.zeros(n)
+    for work in (pos_work, neg_work):
+        if work is not None:
+            k, t = work.per_level(levels)
+            solves += k
+            seconds += t
+    loop = lambda get, dtype: np.array([get(loops[k]) if k in loops else 0
+                                        for k in range(n)], dtype=dtype)
+    return LevelCosts(solves, seconds, loop(lambda lp: lp.n_solves, int),
+                      loop(lambda lp: lp.n_cycles + lp.refinement_cycles, int),
+                      loop(lambda lp: lp.seconds, float))
 
 
 def _law_info(model):
@@ -842,6 +861,7 @@ class _RampOut:
     success: bool
     message: str
     failed_at: int | None
+    work: "_Tally | None" = None
 
     @property
     def n(self):
@@ -852,12 +872,14 @@ class _RampOut:
 
 
 def _ramp(solver, alpha, start, keep_going, progress, where="load level", response=None,
-          prefix=None, guesses=None):
+          prefix=None, guesses=None, work=None):
     """Monotonic ramp through ``alpha`` from ``start``; ``prefix`` (a :class:`_RampOut`
     and its length) reuses levels already solved on the same path; ``guesses`` maps a
     level to a state to start its iteration from (the same level solved on a coarser
     grid: the path differs, so the level is solved again, but from near its answer),
-    handed to a :class:`_Solver` as its ``guess``."""
+    handed to a :class:`_Solver` as its ``guess``. ``work``: the :class:`_Tally` each
+    solve is counted in (a new one if None), returned as the ramp's ``work``."""
+    work = _Tally() if work is None else work
     rows = {k: [] for k in ("d", "lam", "status", "residual", "nit", "ok", "q", "tip")}
     fallback, success, message, failed = [], True, "all levels converged", None
     state, first = start, 0
@@ -872,8 +894,10 @@ def _ramp(solver, alpha, start, keep_going, progress, where="load level", respon
         a = alpha[k]
         if guesses is not None:
             solver.guess = guesses.get(float(a))      # read (and cleared) by the solve
+        started = time.perf_counter()
         res = solver(a, state, f"{where} {k} (alpha={a:.4g})",
                      _expected_closing(solver.problem, alpha, k, rows))
+        work.add(a, time.perf_counter() - started)
         if not res.success:
             success = False
             failed = k if failed is None else failed
@@ -899,7 +923,30 @@ def _ramp(solver, alpha, start, keep_going, progress, where="load level", respon
                     arr["status"].reshape(n, len(start.status)).astype(int),
                     arr["residual"].astype(float), arr["nit"].astype(int),
                     arr["ok"].astype(bool), arr["q"].astype(float),
-                    arr["tip"].astype(float), fallback, success, message, failed)
+                    arr["tip"].astype(float), fallback, success, message, failed, work)
+
+
+class _Tally:
+    """The contact solves of a ramp, by the modal force of each: its level's share of
+    the run's work (:func:`_level_costs`); a refinement round's re-solves count again."""
+
+    def __init__(self):
+        self.alpha, self.seconds = [], []
+
+    def add(self, alpha, seconds):
+        self.alpha.append(abs(float(alpha)))
+        self.seconds.append(float(seconds))
+
+    def per_level(self, levels):
+        """``(solves, seconds)`` per level of the increasing ``levels``: each solve
+        counts at the first level at or above its ``|alpha|`` (the interval it refines
+        or reaches the level through); solves beyond the last level are not counted."""
+        at = np.searchsorted(np.asarray(levels, float), self.alpha, side="left")
+        inside = at < len(levels)
+        solves = np.bincount(at[inside], minlength=len(levels))
+        seconds = np.bincount(at[inside], np.asarray(self.seconds)[inside],
+                              minlength=len(levels))
+        return solves.astype(int), seconds.astype(float)
 
 
 def _expected_closing(problem, alpha, k, rows):
@@ -982,6 +1029,7 @@ def _refined_backbone(solver, alpha, pre, opts, report, response, k_ref, last_ro
     report.task("levels", len(alpha))
     tick = lambda k, n: report.advance("levels", min(k, len(alpha)), len(alpha))
     out = _ramp(solver, grid, pre.state, opts.continue_on_failure, tick, response=response)
+    work = out.work
     rounds = LEVEL_REFINE_ROUNDS if opts.refine_levels and out.success else 0
     for r in range(rounds):
         new = _insert_levels(grid, out, k_ref, opts.dissipation_rtol, pre.status)
@@ -996,7 +1044,7 @@ def _refined_backbone(solver, alpha, pre, opts, report, response, k_ref, last_ro
                       lambda k, n: report.advance("refinement", k, n), response=response,
                       prefix=(out, first),
                       guesses={float(grid[j]): out.state(j) for j in range(first, out.n)
-                               if out.ok[j]})
+                               if out.ok[j]}, work=work)
         if not trial.success:          # keep the converged coarser grid
             break
         grid, out = new, trial
@@ -1082,10 +1130,12 @@ def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref, report
         solver.zone = _loop_zone(zone, pos.status[:g + 1], neg_status[:g + 1])
         step = lambda a, s, closing=None: solver(a, s, f"loop at A={A:.4g} (alpha={a:.4g})",
                                                  closing)
-        return compute_loop(step, response.q, A, pos.state(g), u, k_ref=k_ref,
-                            max_cycles=opts.max_cycles, rtol=opts.dissipation_rtol,
-                            atol=ZETA_ZERO * 2 * np.pi * A * abs(pos.q[g]),
-                            expect_closing=True)
+        started = time.perf_counter()
+        lp = compute_loop(step, response.q, A, pos.state(g), u, k_ref=k_ref,
+                          max_cycles=opts.max_cycles, rtol=opts.dissipation_rtol,
+                          atol=ZETA_ZERO * 2 * np.pi * A * abs(pos.q[g]),
+                          expect_closing=True)
+        return replace(lp, seconds=time.perf_counter() - started)
 
     report = report or Progress()
     report.task("loops", len(todo))
@@ -1093,8 +1143,9 @@ def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref, report
     for i, lp in zip(todo, map_loops(level_loop, todo, opts.loop_worker_count, done)):
         out["loops"][i] = lp
         out["n_solves"] += lp.n_solves
-        log.info("level %d: loop at A=%.4g, %s, %d solves, D=%.4g +- %.1g", i,
-                 lp.amplitude, lp.message, lp.n_solves, lp.dissipation, lp.error)
+        log.info("level %d: loop at A=%.4g, %s, %d solves in %d cycles, %.2f s, "
+                 "D=%.4g +- %.1g", i, lp.amplitude, lp.message, lp.n_solves,
+                 lp.n_cycles + lp.refinement_cycles, lp.seconds, lp.dissipation, lp.error)
         out["cycles"][i] = lp.n_cycles
         if lp.success:
             out["f_hz_loop"][i] = lp.omega / (2 * np.pi)

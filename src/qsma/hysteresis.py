@@ -90,6 +90,11 @@ class Loop:
         ``D`` of the cycle that repeated on the initial increments (NaN when
         ``refine_rounds = 0`` or when no cycle repeated): the reference of
         :attr:`shakedown`, on the same increments as ``first_dissipation``.
+    refinement_cycles : int
+        Cycles solved on refined increments (one per refinement round).
+    seconds : float
+        Wall-clock seconds the loop took in the process that computed it (NaN where
+        not measured).
     outcome : str
         One of :data:`LOOP_OUTCOMES`: ``"stabilised"`` (the answer), ``"not_stabilised"``
         (no cycle repeated within ``max_cycles``), ``"solve_failed"`` (a contact solve
@@ -110,6 +115,8 @@ class Loop:
     outcome: str
     message: str
     coarse_dissipation: float = float("nan")
+    refinement_cycles: int = 0
+    seconds: float = float("nan")
 
     @property
     def success(self) -> bool:
@@ -244,12 +251,14 @@ def compute_loop(step, modal, amplitude, start, fractions, *, k_ref, max_cycles=
     stabilised = loop
     if changed.any():
         loop = replace(loop, error=np.inf)     # no path estimate yet: refine once
+    rounds = 0
     for _ in range(refine_rounds):
         if loop.error <= rtol * abs(loop.dissipation) + atol:
             break
         u, coarse = _refined(u, changed), u
         loop, changed, end = _refinement_cycle(step, modal, loop, end, u, coarse, k_ref,
                                                rtol, closings)
+        rounds += 1
         if not loop.success:
             break
     if loop.success and loop.error > rtol * abs(loop.dissipation) + atol:
@@ -257,7 +266,7 @@ def compute_loop(step, modal, amplitude, start, fractions, *, k_ref, max_cycles=
                        f"above the tolerance after {refine_rounds} refinement rounds "
                        "(the last cycle is not known to have settled)")
     return replace(loop, first_dissipation=stabilised.first_dissipation,
-                   n_cycles=stabilised.n_cycles,
+                   n_cycles=stabilised.n_cycles, refinement_cycles=rounds,
                    coarse_dissipation=stabilised.dissipation)
 
 
