@@ -319,6 +319,17 @@ def test_loop_workers_must_be_a_sane_process_count(bad):
         RunOptions(loop_workers=bad)
 
 
+@pytest.mark.parametrize("bad", ["", "  ", 8786])
+def test_a_loop_scheduler_is_an_address(bad):
+    with pytest.raises(InputError, match="loop_scheduler must be the address"):
+        RunOptions(loop_scheduler=bad)
+
+
+def test_loop_workers_and_a_loop_scheduler_are_one_or_the_other():
+    with pytest.raises(InputError, match="give one of the two"):
+        RunOptions(loop_workers=2, loop_scheduler="tcp://host:8786")
+
+
 def test_each_solve_of_a_loop_is_told_the_pairs_closed_there_a_cycle_before():
     """``expect_closing``: from the second cycle on, every solve gets the pairs closed at
     the same point of the cycle before (a refined cycle's new point: those of the

@@ -33,7 +33,7 @@ from .errors import (AnalysisError, ContactConvergenceWarning, InputError,
                      InterfaceGapWarning, QSMAWarning)
 from .fe import assemble_body
 from .hysteresis import (SECANT_RTOL, compute_loop, map_loops, masing_checks,
-                         masing_estimate)
+                         masing_estimate, scheduler_client)
 from .masing import loop_area
 from .levels import spec_levels
 from .modal import linear_modes, probe_vector
@@ -574,6 +574,8 @@ def _contact_threads(opts):
 
 def _run(model, pairing, opts, progress, clock, prepared=None):
     report = clock.report = reporter(progress)
+    if opts.loop_scheduler is not None:    # a wrong address is told before the ramps
+        scheduler_client(opts.loop_scheduler).close()
     order = body_order(model, pairing)
     sopts = opts.solver_options
     if prepared is None:
@@ -623,7 +625,7 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
 
         with clock.stage("hysteresis"), threads_limited(contact_limit):
             hyst = _hysteresis(solver, response, grid[:pos.n], user, pos, neg, pre, opts,
-                               k_ref, report)
+                               k_ref, report, contact_limit)
     finally:
         if prepared is None:        # the problem dies with this run: free its zones now,
             release_zones(problem)  # not at the next collection of the cycle collector
@@ -1076,8 +1078,10 @@ def _insert_levels(grid, out, k_ref, rtol, pre_status):
     return np.union1d(grid, 0.5 * (lo + grid[:n])[pick])
 
 
-def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref, report=None):
-    """Masing estimates, checks and loops at the user's levels (see module docstring)."""
+def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref, report=None,
+                threads=None):
+    """Masing estimates, checks and loops at the user's levels (see module docstring);
+    ``threads``: the BLAS thread limit of the loops' contact solves."""
     n_ok, n = len(user), pos.n
     est = masing_estimate(grid, pos.q, k_ref)
     nn = min(n, neg.n)
@@ -1119,28 +1123,15 @@ def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref, report
                reason=reason[user], loops={}, n_solves=0,
                no_slip=_no_rubbing(solver.problem.mu, pos.status, neg_status, nn)[user],
                linear=linear[user])
-    linear_end = _linear_end(pos, pre)
-    zone = solver.zone          # every loop starts from the ramps' zone: its bits do
-    todo = np.flatnonzero(out["use_loop"])   # not depend on the loops solved before it
-
-    def level_loop(i):
-        g = user[i]
-        A = grid[g]
-        u = _loop_fractions(grid, g, linear_end, opts.loop_steps)
-        solver.zone = _loop_zone(zone, pos.status[:g + 1], neg_status[:g + 1])
-        step = lambda a, s, closing=None: solver(a, s, f"loop at A={A:.4g} (alpha={a:.4g})",
-                                                 closing)
-        started = time.perf_counter()
-        lp = compute_loop(step, response.q, A, pos.state(g), u, k_ref=k_ref,
-                          max_cycles=opts.max_cycles, rtol=opts.dissipation_rtol,
-                          atol=ZETA_ZERO * 2 * np.pi * A * abs(pos.q[g]),
-                          expect_closing=True)
-        return replace(lp, seconds=time.perf_counter() - started)
-
+    todo = np.flatnonzero(out["use_loop"])
+    job = _LevelLoops(solver.layer, _InterfaceLoads.of(solver.reduced), solver.method,
+                      solver.opts, solver.zone, response, grid, user, pos, neg_status,
+                      _linear_end(pos, pre), opts, k_ref, threads)
     report = report or Progress()
     report.task("loops", len(todo))
     done = lambda j: report.advance("loops", j, len(todo))
-    for i, lp in zip(todo, map_loops(level_loop, todo, opts.loop_worker_count, done)):
+    loops = map_loops(job, todo, opts.loop_worker_count, done, opts.loop_scheduler)
+    for i, lp in zip(todo, loops):
         out["loops"][i] = lp
         out["n_solves"] += lp.n_solves
         log.info("level %d: loop at A=%.4g, %s, %d solves in %d cycles, %.2f s, "
@@ -1155,8 +1146,81 @@ def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref, report
             out["first"][i] = lp.first_dissipation
             out["shakedown"][i] = lp.shakedown or _first_loading_differs(
                 lp, pos.q[user[i]], q_neg[user[i]], opts.dissipation_rtol)
-    solver.zone = zone
     return out
+
+
+@dataclass(frozen=True, eq=False)
+class _InterfaceLoads:
+    """What the contact solves of a run read of its reduced model: the welded force per
+    load pattern (``W``, ``patterns``) and the regularising spring of bodies held only
+    by the joint with their names (:func:`qsma.rigid.held_by_joint`). Small enough to
+    ship to another process, where the bodies' factorisations could not go."""
+
+    W: np.ndarray
+    patterns: tuple
+    ghost: object
+    bodies: tuple
+
+    @classmethod
+    def of(cls, reduced):
+        bodies = tuple(_HeldBody(b.name, getattr(b, "rigid", None))
+                       for b in getattr(reduced, "bodies", ()))
+        return cls(reduced.W, tuple(reduced.patterns), getattr(reduced, "ghost", None),
+                   bodies)
+
+
+@dataclass(frozen=True)
+class _HeldBody:
+    """A body's name and its rigid motions free of clamps (None: clamped)."""
+
+    name: str
+    rigid: object
+
+
+@dataclass(frozen=True, eq=False)
+class _LevelLoops:
+    """The loop of a level given the backbones: a job of
+    :func:`qsma.hysteresis.map_loops`, called with the level's index.
+
+    Holds everything a loop reads: the interface's contact problem (in ``layer``),
+    the ramps' contact zone with its eliminations, the backbone states and the options;
+    not the bodies or their factorisations, so that it can be shipped to the workers of
+    a Dask scheduler as it is (pickled; nothing is condensed again there). Every loop
+    starts from a solver of its own on the ramps' zone and layer, so that its bits do
+    not depend on the loops solved before it, nor on the process solving it.
+    """
+
+    layer: object
+    loads: _InterfaceLoads
+    method: str
+    solver_options: dict
+    zone: object
+    response: object
+    grid: np.ndarray
+    user: np.ndarray
+    pos: object
+    neg_status: np.ndarray
+    linear_end: int
+    opts: RunOptions
+    k_ref: float
+    threads: object
+
+    def __call__(self, i):
+        g = self.user[i]
+        A = self.grid[g]
+        u = _loop_fractions(self.grid, g, self.linear_end, self.opts.loop_steps)
+        zone = _loop_zone(self.zone, self.pos.status[:g + 1], self.neg_status[:g + 1])
+        solver = _Solver(self.layer, self.loads, self.method, self.solver_options, zone)
+        step = lambda a, s, closing=None: solver(a, s, f"loop at A={A:.4g} (alpha={a:.4g})",
+                                                 closing)
+        started = time.perf_counter()
+        with threads_limited(self.threads):
+            lp = compute_loop(step, self.response.q, A, self.pos.state(g), u,
+                              k_ref=self.k_ref, max_cycles=self.opts.max_cycles,
+                              rtol=self.opts.dissipation_rtol,
+                              atol=ZETA_ZERO * 2 * np.pi * A * abs(self.pos.q[g]),
+                              expect_closing=True)
+        return replace(lp, seconds=time.perf_counter() - started)
 
 
 def _no_rubbing(mu, pos_status, neg_status, n_neg) -> np.ndarray:

@@ -12,7 +12,7 @@ from .progress import LOG_NAME
 HELP = "quasi-static modal analysis: backbone, frequency and damping versus amplitude"
 #: RunOptions fields that have a command-line flag of the same name.
 CLI_OPTIONS = ("mode", "method", "tol", "maxiter", "dissipation", "direct_loop",
-               "continue_on_failure", "loop_workers")
+               "continue_on_failure", "loop_workers", "loop_scheduler")
 
 
 def add_arguments(p):
@@ -40,8 +40,12 @@ def add_arguments(p):
                         "stabilised loop elsewhere (auto, the default), or one of them at "
                         "every level")
     p.add_argument("--loop-workers", type=int, metavar="N",
-                   help="processes that compute the loops (default: 2 on Linux with two "
-                        "usable cores, else 1; same results for any N)")
+                   help="processes that compute the loops (default: one per usable core "
+                        "on Linux, else 1; same results for any N)")
+    p.add_argument("--scheduler", dest="loop_scheduler", metavar="ADDRESS",
+                   help="Dask scheduler whose workers compute the loops, e.g. "
+                        "tcp://host:8786 (the interface problem is sent to each worker "
+                        "once; same results as local workers)")
     p.add_argument("--direct-loop", action="store_true", default=None,
                    help="also compute the hysteresis loop directly (check of Masing)")
     p.add_argument("--continue", dest="continue_on_failure", action="store_true",
