@@ -27,8 +27,8 @@ from .contact.laws import InterfaceLaw
 from .contact.layer import (LOW_PRESSURE, LOW_SECANT, MAX_LAW_ITERATIONS, Anderson, Layer,
                             interface_springs, solve_layered)
 from .contact.registry import chosen_method, method_for
-from .contact.zone import (expected_closing, release_zones, solve_in_zone, solve_preload,
-                           zone_from_state)
+from .contact.zone import (ContactZone, expected_closing, release_zones, solve_in_zone,
+                           solve_preload, zone_from_state)
 from .errors import (AnalysisError, ContactConvergenceWarning, InputError,
                      InterfaceGapWarning, QSMAWarning)
 from .fe import assemble_body
@@ -1125,7 +1125,8 @@ def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref, report
                linear=linear[user])
     todo = np.flatnonzero(out["use_loop"])
     job = _LevelLoops(solver.layer, _InterfaceLoads.of(solver.reduced), solver.method,
-                      solver.opts, solver.zone, response, grid, user, pos, neg_status,
+                      solver.opts, _outermost(solver.zone), response, grid, user, pos,
+                      neg_status,
                       _linear_end(pos, pre), opts, k_ref, threads)
     report = report or Progress()
     report.task("loops", len(todo))
@@ -1272,6 +1273,15 @@ def _with_closed(zone, status):
         return zone
     outside = np.any(np.asarray(status) != OPEN, axis=0) & ~zone.keep
     return zone.grown(outside) if outside.any() else zone
+
+
+def _outermost(zone):
+    """``zone`` reduced to its outermost elimination, all the loops carve theirs from
+    (:func:`_loop_zone`): what a loop needs of it, and no more to ship."""
+    if zone is None or isinstance(zone, str):
+        return zone
+    outer = zone.steps[0]
+    return ContactZone(zone.full, outer.keep, (outer,))
 
 
 def _loop_zone(zone, *statuses):
