@@ -197,3 +197,15 @@ def test_lap_joint_meshed_apart_runs_through_the_mortar_coupling(tmp_path):
     assert np.all(apart.zeta >= -1e-8)
     paths = write_all(apart, tmp_path)
     assert {"json", "csv", "vtu"} <= set(paths)
+
+
+def test_max_cycles_from_the_command_line_and_the_fix_it_names(tmp_path, capsys):
+    """--max-cycles reaches the run (results.json options); a loop it stops names the
+    option to change, with its flag."""
+    code = main(["run", "--example", "lap-2d", "--out", str(tmp_path), "--no-vtu",
+                 "--no-plots", "--levels", "tip:log:1e-4:1e-3:2", "--dissipation", "loop",
+                 "--max-cycles", "1"])
+    err = capsys.readouterr().err
+    data = json.loads((tmp_path / "results.json").read_text())
+    assert data["options"]["max_cycles"] == 1
+    assert code == 1 and "loop_not_stabilised" in err and "--max-cycles" in err

@@ -437,12 +437,12 @@ def _not_stabilised(A, cycles, needed):
         return (f"loop at A = {A:.6g} not stabilised after {cycles} cycles: its drift at "
                 f"+A contracts, but too slowly for the cycles allowed: it would repeat "
                 f"after about {needed} cycles; raise max_cycles to {needed} or more "
-                f"(RunOptions / [analysis] max_cycles)")
+                f"(qsma run --max-cycles, [analysis] max_cycles)")
     return (f"loop at A = {A:.6g} not stabilised after {cycles} cycles: the state at +A "
             f"still changes and does not converge geometrically (ratcheting, or a "
             f"cycle alternating between two states: no steady cycle at this "
             f"amplitude); if it is a very slow shakedown, raise max_cycles "
-            f"(RunOptions / [analysis] max_cycles)")
+            f"(qsma run --max-cycles, [analysis] max_cycles)")
 
 
 def _contracting(drifts):

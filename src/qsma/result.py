@@ -34,10 +34,12 @@ FAILURE_FIXES = {
                             "stiffnesses many decades apart)",
     "not_finite": "a frequency or damping is not a finite number: check the units and "
                   "material constants of the model",
-    "loop_failed": "a contact solve inside the level's loop failed (its message is in "
-                   "results.json, 'loops'): raise maxiter or loosen tol",
+    "loop_failed": "a contact solve inside the level's loop failed (the first such "
+                   "loop's message follows; every loop's is in qsma.log): raise maxiter "
+                   "or loosen tol",
     "loop_not_stabilised": "the level's loop did not repeat within max_cycles cycles: "
-                           "raise max_cycles as its message says, unless it ratchets",
+                           "raise max_cycles (qsma run --max-cycles, [analysis] "
+                           "max_cycles) as its message says, unless it ratchets",
     "masing_on_hardening": "the joint stiffens there, where Masing's rules do not hold: "
                            "use dissipation = 'auto' or 'loop' (computed loops)",
     "stuck_not_linear": "the modal response of these levels is below the numerical "

@@ -12,7 +12,7 @@ from .progress import LOG_NAME
 HELP = "quasi-static modal analysis: backbone, frequency and damping versus amplitude"
 #: RunOptions fields that have a command-line flag of the same name.
 CLI_OPTIONS = ("mode", "method", "tol", "maxiter", "dissipation", "direct_loop",
-               "continue_on_failure", "loop_workers", "loop_scheduler")
+               "continue_on_failure", "loop_workers", "loop_scheduler", "max_cycles")
 
 
 def add_arguments(p):
@@ -39,6 +39,10 @@ def add_arguments(p):
                    help="dissipation per cycle: Masing's rules where verified and the "
                         "stabilised loop elsewhere (auto, the default), or one of them at "
                         "every level")
+    p.add_argument("--max-cycles", type=int, metavar="N",
+                   help="loop cycles per amplitude before a level is declared not "
+                        "stabilised (default 8; a shakedown that visibly converges gets "
+                        "up to 4 times as many)")
     p.add_argument("--loop-workers", type=int, metavar="N",
                    help="processes that compute the loops (default: one per usable core "
                         "on Linux, else 1; same results for any N)")
