@@ -79,8 +79,8 @@ class LevelCosts:
         wall-clock seconds they took.
     loop_solves, loop_cycles, loop_seconds : (n_levels,) arrays
         The level's computed loop (zero where Masing's rules were used): its contact
-        solves, its cycles (those on the initial increments plus one per refinement
-        round) and its wall-clock seconds.
+        solves, its cycles (those on the initial increments plus those of its
+        refinement rounds) and its wall-clock seconds.
 
     Seconds are those of the process that did the work: the -alpha ramp and the
     loops may run on other processes at the same time, so the seconds can add up to
