@@ -8,10 +8,12 @@ Three tables (docs/performance.md, "Loops on 3D lap joints"):
     one repeated, the solves they took, the solves of the refinement rounds and the
     final increments per branch.
 ``parallel``
-    ``--repeat`` runs of each case with ``loop_workers = 1`` and ``2``, alternating;
-    the median of the hysteresis stage and the ratio, the median CPU seconds of the
-    whole run (workers included: what the second process adds), and whether every
-    per-level value and every loop point has the same bits.
+    ``--repeat`` runs of each case with the loops in the process, on ``--workers``
+    forked processes and on a local Dask cluster of ``--workers`` processes
+    (``loop_scheduler``), alternating; the median of the hysteresis stage and the
+    speed-up, the median CPU seconds of the run in this process and its children (a
+    Dask worker's CPU is not counted there), and whether every per-level value and
+    every loop point has the same bits as in one process.
 ``methods``
     ``--repeat`` runs of each case with every method of ``--methods`` (one loop worker,
     alternating); the median of the hysteresis and the contact stages, the ratio to the
@@ -26,7 +28,8 @@ Three tables (docs/performance.md, "Loops on 3D lap joints"):
     also in units of its estimate.
 
     python benchmarks/bench_loops.py profile --cases lap-3d:1
-    python benchmarks/bench_loops.py parallel --cases lap-2d:1 --repeat 3
+    python benchmarks/bench_loops.py parallel --cases lap-3d:1 --repeat 2 \
+        --dissipation loop --workers 2
     python benchmarks/bench_loops.py methods --cases lap-3d:1 brb:1 --repeat 2 \
         --levels tip:log:1e-4:1e-3:2 --dissipation loop
     python benchmarks/bench_loops.py interpolation --cases lap-2d:1 lap-3d:1 brb:1
@@ -95,27 +98,41 @@ def _initial_steps(r, k):
 
 
 def parallel(args):
-    _header("case", "loops", "loop solves", "hysteresis, 1 process [s]",
-            "hysteresis, 2 processes [s]", "ratio", "CPU of the run, 1 / 2 processes [s]",
-            "same bits")
-    for case in args.cases:
-        times, cpus = {1: [], 2: []}, {1: [], 2: []}
-        same = True
-        for _ in range(args.repeat):
-            runs = {}
-            for workers in (1, 2):
-                cpu = cpu_with_children_s()
-                runs[workers] = _run(case, args.levels, dissipation=args.dissipation,
-                                     loop_workers=workers)
-                cpus[workers].append(cpu_with_children_s() - cpu)
-                times[workers].append(runs[workers].timings_s["hysteresis"])
-            same &= _same_bits(runs[1], runs[2])
-        med = {w: statistics.median(t) for w, t in times.items()}
-        cpu = {w: statistics.median(t) for w, t in cpus.items()}
-        r = runs[1]
-        print(f"| {case} | {len(r.loops)} | {r.solver['loop_solves']} | {med[1]:.2f} | "
-              f"{med[2]:.2f} | {med[1] / med[2]:.2f} | {cpu[1]:.1f} / {cpu[2]:.1f} | "
-              f"{'yes' if same else 'NO'} |", flush=True)
+    """Each case with the loops in this process, on ``--workers`` forked processes and
+    on the workers of a local Dask cluster of as many processes, alternating."""
+    import logging
+    from distributed import LocalCluster
+    n = args.workers
+    sides = {"1 process": dict(loop_workers=1), f"{n} processes": dict(loop_workers=n)}
+    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                           dashboard_address=":0", silence_logs=logging.ERROR)
+    sides[f"Dask, {n} workers"] = dict(loop_scheduler=cluster.scheduler_address)
+    _header("case", "loops", "loop solves", "loops on", "hysteresis [s]", "speed-up",
+            "CPU of this process and its children [s]", "same bits as 1 process")
+    try:
+        for case in args.cases:
+            times = {s: [] for s in sides}
+            cpus = {s: [] for s in sides}
+            same = {s: True for s in sides}
+            for _ in range(args.repeat):
+                runs = {}
+                for side, kw in sides.items():
+                    cpu = cpu_with_children_s()
+                    runs[side] = _run(case, args.levels, dissipation=args.dissipation, **kw)
+                    cpus[side].append(cpu_with_children_s() - cpu)
+                    times[side].append(runs[side].timings_s["hysteresis"])
+                first = runs["1 process"]
+                for side in sides:
+                    same[side] &= _same_bits(first, runs[side])
+            t1 = statistics.median(times["1 process"])
+            for side in sides:
+                t = statistics.median(times[side])
+                print(f"| {case} | {len(first.loops)} | {first.solver['loop_solves']} | "
+                      f"{side} | {t:.2f} | {t1 / t:.2f} | "
+                      f"{statistics.median(cpus[side]):.1f} | "
+                      f"{'yes' if same[side] else 'NO'} |", flush=True)
+    finally:
+        cluster.close()
 
 
 def methods(args):
@@ -262,6 +279,8 @@ def main(argv=None):
     p.add_argument("--levels", help="levels spec (default: the 51 default levels)")
     p.add_argument("--dissipation", default="auto", choices=["auto", "loop"])
     p.add_argument("--repeat", type=int, default=3)
+    p.add_argument("--workers", type=int, default=2,
+                   help="processes of the parallel table (forked, and Dask workers)")
     p.add_argument("--methods", nargs="+", default=["basket", "active_set"],
                    help="contact methods of the methods table")
     p.add_argument("--rtols", type=float, nargs="+", default=[5e-3, 2e-2, 5e-2])

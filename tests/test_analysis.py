@@ -314,3 +314,45 @@ def test_loops_told_the_pairs_closed_a_cycle_before_give_the_same_loops(monkeypa
     np.testing.assert_allclose(told.zeta, plain.zeta, rtol=1e-9)
     np.testing.assert_allclose(told.f_hz, plain.f_hz, rtol=1e-12)
     assert n_told < calls[0]
+
+
+def test_level_costs_count_every_solve_of_the_run_at_its_level(monkeypatch, tmp_path):
+    """The solves and seconds per level (results.json ``level_costs``) against a count
+    of every contact solve of the run: each +alpha and -alpha ramp solve (refinement
+    rounds included) at the first user level at or above its |alpha|, each loop solve
+    at its loop's level; the seconds of the loops within the hysteresis stage (one
+    process), and per loop its cycles (those on the initial increments and one per
+    refinement round)."""
+    import json
+    import qsma.analysis as analysis
+    from qsma.examples import lap_2d
+    from qsma.results import write_json
+    calls = []
+    inner = analysis._Solver.__call__
+
+    def counted(self, alpha, state, where, closing=None):
+        calls.append((abs(alpha), where.startswith("loop at")))
+        return inner(self, alpha, state, where, closing)
+    monkeypatch.setattr(analysis._Solver, "__call__", counted)
+    res = qsma.run(lap_2d(1), levels=Levels.log("tip", 1e-5, 1e-3, 4),
+                   parallel_ramps=False, loop_workers=1)
+    assert res.success and res.loops
+    costs = res.level_costs
+    ramp = np.array([a for a, in_loop in calls if not in_loop])
+    at = np.searchsorted(res.alpha, ramp * (1 - 1e-12), side="left")
+    assert np.array_equal(costs.ramp_solves, np.bincount(at, minlength=res.n_levels))
+    assert np.all(costs.ramp_solves >= 2)          # every level on both ramps
+    assert costs.ramp_solves.sum() > 2 * res.n_levels       # the refined grid
+    assert costs.loop_solves.sum() == sum(in_loop for _, in_loop in calls) \
+        == res.solver["loop_solves"]
+    for k in range(res.n_levels):
+        lp = res.loops.get(k)
+        assert costs.loop_solves[k] == (0 if lp is None else lp.n_solves)
+        assert costs.loop_cycles[k] == (0 if lp is None else
+                                        lp.n_cycles + lp.refinement_cycles)
+        assert (costs.loop_seconds[k] > 0) == (lp is not None)
+    assert costs.loop_seconds.sum() <= res.timings_s["hysteresis"]
+    assert 0 < costs.ramp_seconds.sum() <= res.timings_s["contact"]
+    write_json(res, tmp_path / "results.json")
+    written = json.loads((tmp_path / "results.json").read_text())["level_costs"]
+    assert written == costs.as_dict() and len(written["loop_cycles"]) == res.n_levels

@@ -143,16 +143,18 @@ def test_cancel_stops_a_running_child():
     assert not call._process.is_alive()
 
 
-def test_loops_use_two_workers_by_default_where_two_cores_are_usable(monkeypatch):
+def test_loops_use_every_usable_core_by_default(monkeypatch):
+    import qsma._threads as threads
     assert RunOptions(loop_workers=3).loop_worker_count == 3
     monkeypatch.setattr(_forked.sys, "platform", "darwin")
     monkeypatch.setattr(_forked, "usable_cores", lambda: 8)
+    monkeypatch.setattr(threads, "usable_cores", lambda: 8)
     assert RunOptions().loop_worker_count == 1          # forks by default on Linux only
     monkeypatch.setattr(_forked.sys, "platform", "linux")
-    monkeypatch.setattr(_forked, "usable_cores", lambda: 1)
-    assert RunOptions().loop_worker_count == 1
-    monkeypatch.setattr(_forked, "usable_cores", lambda: 8)
-    assert RunOptions().loop_worker_count == 2
+    for cores in (1, 2, 8):
+        monkeypatch.setattr(_forked, "usable_cores", lambda: cores)
+        monkeypatch.setattr(threads, "usable_cores", lambda: cores)
+        assert RunOptions().loop_worker_count == cores
 
 
 def test_a_child_ends_when_its_parent_is_killed(tmp_path):

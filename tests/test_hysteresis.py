@@ -319,6 +319,17 @@ def test_loop_workers_must_be_a_sane_process_count(bad):
         RunOptions(loop_workers=bad)
 
 
+@pytest.mark.parametrize("bad", ["", "  ", 8786])
+def test_a_loop_scheduler_is_an_address(bad):
+    with pytest.raises(InputError, match="loop_scheduler must be the address"):
+        RunOptions(loop_scheduler=bad)
+
+
+def test_loop_workers_and_a_loop_scheduler_are_one_or_the_other():
+    with pytest.raises(InputError, match="give one of the two"):
+        RunOptions(loop_workers=2, loop_scheduler="tcp://host:8786")
+
+
 def test_each_solve_of_a_loop_is_told_the_pairs_closed_there_a_cycle_before():
     """``expect_closing``: from the second cycle on, every solve gets the pairs closed at
     the same point of the cycle before (a refined cycle's new point: those of the
@@ -376,3 +387,82 @@ def test_closings_of_a_refined_cycle_come_from_the_next_coarse_point():
     # reloading: -1 -> coarse 0 (open), 0 -> 0, 1 -> A (closed), A -> A
     assert got == [[False, True], [False, True], [True, False], [True, False],
                    [False, True], [False, True], [True, False], [True, False]]
+
+
+@pytest.mark.parametrize("rtol, rounds", [(1e-12, 3), (0.5, 1)])
+def test_a_loop_counts_its_refinement_cycles(rtol, rounds):
+    """``refinement_cycles`` counts the cycles of the refinement rounds: one per round
+    here (the Jenkins element with its stop settles at once), all three rounds at a
+    tolerance no round meets, one where the first round settles the loop. Every cycle
+    ends at +A, so the solves at +A count the cycles."""
+    A = 1600.0
+    problem, lam_w = _problem()
+    inner = _stepper(problem, lam_w)
+    loads = []
+
+    def step(alpha, state):
+        loads.append(alpha)
+        return inner(alpha, state)
+    _, res = _ramp(problem, lam_w, [A])
+    loop = compute_loop(step, _modal, A, res[-1].state, np.linspace(0, 1, 6)[1:],
+                        k_ref=kt, rtol=rtol, refine_rounds=3)
+    assert loop.success and loop.refinement_cycles == rounds
+    assert loads.count(A) == loop.n_cycles + loop.refinement_cycles
+
+
+def _slow_shakedown(r, a, w_star=1e-3, k0=1e6):
+    """A loop whose cycles settle geometrically: the width of the unloading branch
+    after cycle k is ``w_k = w* (1 - a r^k)`` (the drift at +A shrinks by ``r`` per
+    cycle), ``q = alpha / k0 + w (1 - alpha^2 / A^2)`` down, ``alpha / k0`` up, so that
+    D is proportional to ``w``: ``D_k = D* (1 - a r^k)``. Returns ``(step, modal,
+    start, D*)`` for :func:`compute_loop` at A = 1."""
+    from types import SimpleNamespace
+    calls = {"n": 0, "w": w_star * (1 - a)}
+    n_branch = 16
+    status = np.zeros(1, int)
+
+    def result(w, down):
+        d = np.array([[w, float(down)]])
+        state = SimpleNamespace(d=d, lam=np.zeros_like(d), status=status)
+        return SimpleNamespace(success=True, state=state, d=d, status=status,
+                               message="", residual=0.0)
+
+    def step(alpha, state):
+        k = calls["n"] % (2 * n_branch)
+        calls["n"] += 1
+        if k == 0:                       # the first solve of a cycle: the next width
+            calls["w"] = w_star + r * (calls["w"] - w_star)
+        return result(calls["w"], k < n_branch - 1)
+
+    def modal(d, alpha):
+        return alpha / k0 + d[0, 0] * d[0, 1] * (1 - alpha ** 2)
+    fractions = np.linspace(0, 1, n_branch + 1)[1:]
+    path = np.concatenate([[1.0], 1 - 2 * fractions, 2 * fractions - 1])
+    q_star = [modal(np.array([[w_star, 1.0 if 0 < k < n_branch else 0.0]]), a)
+              for k, a in enumerate(path)]
+    return step, modal, result(calls["w"], False).state, cycle_area(path, q_star, k0)
+
+
+def test_a_slow_shakedown_is_not_taken_for_settled_after_two_agreeing_cycles():
+    """Cycles that agree to 0.4 % after two cycles but settle 2 % further on (r = 0.85,
+    as the tetrahedral lap joint's loop at its highest levels): the loop goes on until
+    what the contraction leaves to come is within the tolerance, and its error covers
+    the distance to the settled cycle."""
+    step, modal, start, D_star = _slow_shakedown(r=0.85, a=0.03)
+    loop = compute_loop(step, modal, 1.0, start, np.linspace(0, 1, 17)[1:], k_ref=1e6,
+                        refine_rounds=0)
+    assert loop.success and loop.n_cycles > 8           # beyond max_cycles: contracting
+    assert abs(loop.dissipation - D_star) <= loop.error * (1 + 1e-9)
+    assert abs(loop.dissipation / D_star - 1) <= 5e-3 * (1 + 1e-9)
+    # two cycles agree within the tolerance: what used to be accepted
+    D1, D2 = (1 - 0.03 * 0.85), (1 - 0.03 * 0.85 ** 2)
+    assert abs(D2 - D1) <= 5e-3 * D2 and 1 - D2 > 0.02
+
+
+def test_the_path_error_still_to_come_after_a_refinement_round():
+    from qsma.hysteresis import _path_error
+    assert _path_error(1.0, None) == 1.0                 # first round: the change
+    assert _path_error(0.5, 1.0) == 0.5                  # halved: first order
+    assert _path_error(0.2, 1.0) == 0.2
+    assert _path_error(0.8, 1.0) == pytest.approx(3.2)   # slower: 0.8 x 0.8 / 0.2
+    assert _path_error(1.5, 1.0) == 1.5 and _path_error(0.5, 0.4) == 0.5

@@ -70,6 +70,11 @@ def test_loops_on_two_processes_give_the_serial_results_bit_for_bit():
     a = qsma.run(lap_2d(1), levels=levels, dissipation="loop", loop_workers=1)
     b = qsma.run(lap_2d(1), levels=levels, dissipation="loop", loop_workers=2)
     assert a.success and b.success and len(a.loops) == 4
+    _assert_same_bits(a, b)
+
+
+def _assert_same_bits(a, b):
+    """Every per-level value and every loop point of ``a`` and ``b`` the same bits."""
     for name in LEVEL_FIELDS:
         x, y = getattr(a, name), getattr(b, name)
         if isinstance(x, np.ndarray) and x.dtype.kind == "f":
@@ -79,6 +84,50 @@ def test_loops_on_two_processes_give_the_serial_results_bit_for_bit():
     for k, lp in a.loops.items():
         assert np.array_equal(lp.q, b.loops[k].q) and lp.n_solves == b.loops[k].n_solves
     assert a.solver["loop_solves"] == b.solver["loop_solves"]
+
+
+def test_loops_on_a_dask_cluster_give_the_results_of_this_process_bit_for_bit():
+    """loop_scheduler: the loops of a 3D joint (zones narrowed and bordered, active_set)
+    computed on the two workers of a local Dask cluster, from the interface problem and
+    backbone states shipped to them (no condensation there), have the bits of the loops
+    computed in this process."""
+    distributed = pytest.importorskip("distributed")
+    import logging
+    from qsma import analysis
+    prepared = analysis.prepare(lap_3d(1))
+    options = dict(levels=Levels.log("tip", 3e-5, 1e-4, 2), dissipation="loop")
+    here = analysis.run_prepared(prepared, loop_workers=1, **options)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=":0",
+                                  silence_logs=logging.ERROR) as cluster:
+        there = analysis.run_prepared(prepared, loop_scheduler=cluster.scheduler_address,
+                                      **options)
+    assert here.success and len(here.loops) == 2 and there.options.loop_workers is None
+    _assert_same_bits(here, there)
+    assert np.all(there.level_costs.loop_seconds > 0)
+
+
+def test_an_unreachable_loop_scheduler_is_named_with_the_fix(tmp_path, capsys, monkeypatch):
+    """Before the ramps: a wrong address costs no computing."""
+    pytest.importorskip("distributed")
+    import qsma.hysteresis
+    from qsma.errors import InputError
+    from qsma.progress import Progress
+    monkeypatch.setattr(qsma.hysteresis, "SCHEDULER_TIMEOUT", "2s")
+    stages = []
+
+    class Stages(Progress):
+        def stage(self, name):
+            stages.append(name)
+    with pytest.raises(InputError, match="cannot reach the Dask scheduler"):
+        qsma.run(lap_2d(1), levels=Levels.log("tip", 1e-4, 1e-3, 2),
+                 loop_scheduler="tcp://127.0.0.1:9", progress=Stages())
+    assert "contact" not in stages
+    code = main(["run", "--example", "lap-2d", "--out", str(tmp_path / "o"), "-q",
+                 "--no-plots", "--no-vtu", "--levels", "tip:log:1e-4:1e-3:2",
+                 "--dissipation", "loop", "--scheduler", "tcp://127.0.0.1:9"])
+    err = capsys.readouterr().err
+    assert code == 2 and "cannot reach the Dask scheduler" in err and "tcp://127.0.0.1:9" in err
 
 
 def _triangles(body):
@@ -148,3 +197,15 @@ def test_lap_joint_meshed_apart_runs_through_the_mortar_coupling(tmp_path):
     assert np.all(apart.zeta >= -1e-8)
     paths = write_all(apart, tmp_path)
     assert {"json", "csv", "vtu"} <= set(paths)
+
+
+def test_max_cycles_from_the_command_line_and_the_fix_it_names(tmp_path, capsys):
+    """--max-cycles reaches the run (results.json options); a loop it stops names the
+    option to change, with its flag."""
+    code = main(["run", "--example", "lap-2d", "--out", str(tmp_path), "--no-vtu",
+                 "--no-plots", "--levels", "tip:log:1e-4:1e-3:2", "--dissipation", "loop",
+                 "--max-cycles", "1"])
+    err = capsys.readouterr().err
+    data = json.loads((tmp_path / "results.json").read_text())
+    assert data["options"]["max_cycles"] == 1
+    assert code == 1 and "loop_not_stabilised" in err and "--max-cycles" in err

@@ -392,7 +392,18 @@ def test_the_fingerprint_ignores_loop_workers_only():
     model = sandwich_2d()
     base = _fingerprint(model, RunOptions())
     assert _fingerprint(model, RunOptions(loop_workers=2)) == base
+    assert _fingerprint(model, RunOptions(loop_scheduler="tcp://host:8786")) == base
     assert _fingerprint(model, RunOptions(dissipation_rtol=1e-3)) != base
+
+
+def test_a_case_computes_its_loops_itself_whatever_the_loop_scheduler():
+    """The study's workers are its parallel part: a case on one of them that handed its
+    loops to the same scheduler could wait for workers that all wait for loops."""
+    from qsma.options import RunOptions
+    from qsma.study.sweep import case_inputs
+    _, opts = case_inputs(object(), {"mode": 1},
+                          RunOptions(loop_scheduler="tcp://host:8786"))
+    assert opts.loop_scheduler is None and opts.mode == 1
 
 
 def test_the_fingerprint_of_auto_is_the_method_it_runs_in_2d():

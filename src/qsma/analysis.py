@@ -27,13 +27,13 @@ from .contact.laws import InterfaceLaw
 from .contact.layer import (LOW_PRESSURE, LOW_SECANT, MAX_LAW_ITERATIONS, Anderson, Layer,
                             interface_springs, solve_layered)
 from .contact.registry import chosen_method, method_for
-from .contact.zone import (expected_closing, release_zones, solve_in_zone, solve_preload,
-                           zone_from_state)
+from .contact.zone import (ContactZone, expected_closing, release_zones, solve_in_zone,
+                           solve_preload, zone_from_state)
 from .errors import (AnalysisError, ContactConvergenceWarning, InputError,
                      InterfaceGapWarning, QSMAWarning)
 from .fe import assemble_body
 from .hysteresis import (SECANT_RTOL, compute_loop, map_loops, masing_checks,
-                         masing_estimate)
+                         masing_estimate, scheduler_client)
 from .masing import loop_area
 from .levels import spec_levels
 from .modal import linear_modes, probe_vector
@@ -48,7 +48,8 @@ from .pretension import lock
 from .rigid import ANCHOR_ROUNDS, anchored, elastic_probe, held_by_joint, support_share
 from .units import check_model_units
 from .result import (FAILURE_FIXES, FAILURE_FLAGS, LEVEL_FIELDS,  # noqa: F401
-                     DirectLoop, LevelStates, QSMAResult, load_factors as _load_factors)
+                     DirectLoop, LevelCosts, LevelStates, QSMAResult,
+                     load_factors as _load_factors)
 
 log = logging.getLogger("qsma")
 
@@ -590,6 +591,8 @@ def _contact_threads(opts):
 
 def _run(model, pairing, opts, progress, clock, prepared=None):
     report = clock.report = reporter(progress)
+    if opts.loop_scheduler is not None:    # a wrong address is told before the ramps
+        scheduler_client(opts.loop_scheduler).close()
     order = body_order(model, pairing)
     sopts = opts.solver_options
     if prepared is None:
@@ -639,7 +642,7 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
 
         with clock.stage("hysteresis"), threads_limited(contact_limit):
             hyst = _hysteresis(solver, response, grid[:pos.n], user, pos, neg, pre, opts,
-                               k_ref, report)
+                               k_ref, report, contact_limit)
     finally:
         if prepared is None:        # the problem dies with this run: free its zones now,
             release_zones(problem)  # not at the next collection of the cycle collector
@@ -716,7 +719,25 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
                     backbone_points=int(pos.n), loop_solves=int(hyst["n_solves"]),
                     negative_ramp_levels=int(neg.n)),
         timings_s=timings, resources=_resources.snapshot(), direct_loop=loop,
-        gross_slip_level=gross[0] if gross else None)
+        gross_slip_level=gross[0] if gross else None,
+        level_costs=_level_costs(grid[user], pos.work, neg.work, hyst["loops"]))
+
+
+def _level_costs(levels, pos_work, neg_work, loops) -> LevelCosts:
+    """:class:`LevelCosts` of the user's ``levels`` from the ramps' tallies
+    (:class:`_Tally`) and the loops (level index -> :class:`qsma.hysteresis.Loop`)."""
+    n = len(levels)
+    solves, seconds = np.zeros(n, int), np.zeros(n)
+    for work in (pos_work, neg_work):
+        if work is not None:
+            k, t = work.per_level(levels)
+            solves += k
+            seconds += t
+    loop = lambda get, dtype: np.array([get(loops[k]) if k in loops else 0
+                                        for k in range(n)], dtype=dtype)
+    return LevelCosts(solves, seconds, loop(lambda lp: lp.n_solves, int),
+                      loop(lambda lp: lp.n_cycles + lp.refinement_cycles, int),
+                      loop(lambda lp: lp.seconds, float))
 
 
 def _law_info(model):
@@ -859,6 +880,7 @@ class _RampOut:
     success: bool
     message: str
     failed_at: int | None
+    work: "_Tally | None" = None
 
     @property
     def n(self):
@@ -869,12 +891,14 @@ class _RampOut:
 
 
 def _ramp(solver, alpha, start, keep_going, progress, where="load level", response=None,
-          prefix=None, guesses=None):
+          prefix=None, guesses=None, work=None):
     """Monotonic ramp through ``alpha`` from ``start``; ``prefix`` (a :class:`_RampOut`
     and its length) reuses levels already solved on the same path; ``guesses`` maps a
     level to a state to start its iteration from (the same level solved on a coarser
     grid: the path differs, so the level is solved again, but from near its answer),
-    handed to a :class:`_Solver` as its ``guess``."""
+    handed to a :class:`_Solver` as its ``guess``. ``work``: the :class:`_Tally` each
+    solve is counted in (a new one if None), returned as the ramp's ``work``."""
+    work = _Tally() if work is None else work
     rows = {k: [] for k in ("d", "lam", "status", "residual", "nit", "ok", "q", "tip")}
     fallback, success, message, failed = [], True, "all levels converged", None
     state, first = start, 0
@@ -889,8 +913,10 @@ def _ramp(solver, alpha, start, keep_going, progress, where="load level", respon
         a = alpha[k]
         if guesses is not None:
             solver.guess = guesses.get(float(a))      # read (and cleared) by the solve
+        started = time.perf_counter()
         res = solver(a, state, f"{where} {k} (alpha={a:.4g})",
                      _expected_closing(solver.problem, alpha, k, rows))
+        work.add(a, time.perf_counter() - started)
         if not res.success:
             success = False
             failed = k if failed is None else failed
@@ -916,7 +942,30 @@ def _ramp(solver, alpha, start, keep_going, progress, where="load level", respon
                     arr["status"].reshape(n, len(start.status)).astype(int),
                     arr["residual"].astype(float), arr["nit"].astype(int),
                     arr["ok"].astype(bool), arr["q"].astype(float),
-                    arr["tip"].astype(float), fallback, success, message, failed)
+                    arr["tip"].astype(float), fallback, success, message, failed, work)
+
+
+class _Tally:
+    """The contact solves of a ramp, by the modal force of each: its level's share of
+    the run's work (:func:`_level_costs`); a refinement round's re-solves count again."""
+
+    def __init__(self):
+        self.alpha, self.seconds = [], []
+
+    def add(self, alpha, seconds):
+        self.alpha.append(abs(float(alpha)))
+        self.seconds.append(float(seconds))
+
+    def per_level(self, levels):
+        """``(solves, seconds)`` per level of the increasing ``levels``: each solve
+        counts at the first level at or above its ``|alpha|`` (the interval it refines
+        or reaches the level through); solves beyond the last level are not counted."""
+        at = np.searchsorted(np.asarray(levels, float), self.alpha, side="left")
+        inside = at < len(levels)
+        solves = np.bincount(at[inside], minlength=len(levels))
+        seconds = np.bincount(at[inside], np.asarray(self.seconds)[inside],
+                              minlength=len(levels))
+        return solves.astype(int), seconds.astype(float)
 
 
 def _expected_closing(problem, alpha, k, rows):
@@ -999,6 +1048,7 @@ def _refined_backbone(solver, alpha, pre, opts, report, response, k_ref, last_ro
     report.task("levels", len(alpha))
     tick = lambda k, n: report.advance("levels", min(k, len(alpha)), len(alpha))
     out = _ramp(solver, grid, pre.state, opts.continue_on_failure, tick, response=response)
+    work = out.work
     rounds = LEVEL_REFINE_ROUNDS if opts.refine_levels and out.success else 0
     for r in range(rounds):
         new = _insert_levels(grid, out, k_ref, opts.dissipation_rtol, pre.status)
@@ -1013,7 +1063,7 @@ def _refined_backbone(solver, alpha, pre, opts, report, response, k_ref, last_ro
                       lambda k, n: report.advance("refinement", k, n), response=response,
                       prefix=(out, first),
                       guesses={float(grid[j]): out.state(j) for j in range(first, out.n)
-                               if out.ok[j]})
+                               if out.ok[j]}, work=work)
         if not trial.success:          # keep the converged coarser grid
             break
         grid, out = new, trial
@@ -1045,8 +1095,10 @@ def _insert_levels(grid, out, k_ref, rtol, pre_status):
     return np.union1d(grid, 0.5 * (lo + grid[:n])[pick])
 
 
-def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref, report=None):
-    """Masing estimates, checks and loops at the user's levels (see module docstring)."""
+def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref, report=None,
+                threads=None):
+    """Masing estimates, checks and loops at the user's levels (see module docstring);
+    ``threads``: the BLAS thread limit of the loops' contact solves."""
     n_ok, n = len(user), pos.n
     est = masing_estimate(grid, pos.q, k_ref)
     nn = min(n, neg.n)
@@ -1088,30 +1140,21 @@ def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref, report
                reason=reason[user], loops={}, n_solves=0,
                no_slip=_no_rubbing(solver.problem.mu, pos.status, neg_status, nn)[user],
                linear=linear[user])
-    linear_end = _linear_end(pos, pre)
-    zone = solver.zone          # every loop starts from the ramps' zone: its bits do
-    todo = np.flatnonzero(out["use_loop"])   # not depend on the loops solved before it
-
-    def level_loop(i):
-        g = user[i]
-        A = grid[g]
-        u = _loop_fractions(grid, g, linear_end, opts.loop_steps)
-        solver.zone = _loop_zone(zone, pos.status[:g + 1], neg_status[:g + 1])
-        step = lambda a, s, closing=None: solver(a, s, f"loop at A={A:.4g} (alpha={a:.4g})",
-                                                 closing)
-        return compute_loop(step, response.q, A, pos.state(g), u, k_ref=k_ref,
-                            max_cycles=opts.max_cycles, rtol=opts.dissipation_rtol,
-                            atol=ZETA_ZERO * 2 * np.pi * A * abs(pos.q[g]),
-                            expect_closing=True)
-
+    todo = np.flatnonzero(out["use_loop"])
+    job = _LevelLoops(solver.layer, _InterfaceLoads.of(solver.reduced), solver.method,
+                      solver.opts, _outermost(solver.zone), response, grid, user, pos,
+                      neg_status,
+                      _linear_end(pos, pre), opts, k_ref, threads)
     report = report or Progress()
     report.task("loops", len(todo))
     done = lambda j: report.advance("loops", j, len(todo))
-    for i, lp in zip(todo, map_loops(level_loop, todo, opts.loop_worker_count, done)):
+    loops = map_loops(job, todo, opts.loop_worker_count, done, opts.loop_scheduler)
+    for i, lp in zip(todo, loops):
         out["loops"][i] = lp
         out["n_solves"] += lp.n_solves
-        log.info("level %d: loop at A=%.4g, %s, %d solves, D=%.4g +- %.1g", i,
-                 lp.amplitude, lp.message, lp.n_solves, lp.dissipation, lp.error)
+        log.info("level %d: loop at A=%.4g, %s, %d solves in %d cycles, %.2f s, "
+                 "D=%.4g +- %.1g", i, lp.amplitude, lp.message, lp.n_solves,
+                 lp.n_cycles + lp.refinement_cycles, lp.seconds, lp.dissipation, lp.error)
         out["cycles"][i] = lp.n_cycles
         if lp.success:
             out["f_hz_loop"][i] = lp.omega / (2 * np.pi)
@@ -1121,8 +1164,81 @@ def _hysteresis(solver, response, grid, user, pos, neg, pre, opts, k_ref, report
             out["first"][i] = lp.first_dissipation
             out["shakedown"][i] = lp.shakedown or _first_loading_differs(
                 lp, pos.q[user[i]], q_neg[user[i]], opts.dissipation_rtol)
-    solver.zone = zone
     return out
+
+
+@dataclass(frozen=True, eq=False)
+class _InterfaceLoads:
+    """What the contact solves of a run read of its reduced model: the welded force per
+    load pattern (``W``, ``patterns``) and the regularising spring of bodies held only
+    by the joint with their names (:func:`qsma.rigid.held_by_joint`). Small enough to
+    ship to another process, where the bodies' factorisations could not go."""
+
+    W: np.ndarray
+    patterns: tuple
+    ghost: object
+    bodies: tuple
+
+    @classmethod
+    def of(cls, reduced):
+        bodies = tuple(_HeldBody(b.name, getattr(b, "rigid", None))
+                       for b in getattr(reduced, "bodies", ()))
+        return cls(reduced.W, tuple(reduced.patterns), getattr(reduced, "ghost", None),
+                   bodies)
+
+
+@dataclass(frozen=True)
+class _HeldBody:
+    """A body's name and its rigid motions free of clamps (None: clamped)."""
+
+    name: str
+    rigid: object
+
+
+@dataclass(frozen=True, eq=False)
+class _LevelLoops:
+    """The loop of a level given the backbones: a job of
+    :func:`qsma.hysteresis.map_loops`, called with the level's index.
+
+    Holds everything a loop reads: the interface's contact problem (in ``layer``),
+    the ramps' contact zone with its eliminations, the backbone states and the options;
+    not the bodies or their factorisations, so that it can be shipped to the workers of
+    a Dask scheduler as it is (pickled; nothing is condensed again there). Every loop
+    starts from a solver of its own on the ramps' zone and layer, so that its bits do
+    not depend on the loops solved before it, nor on the process solving it.
+    """
+
+    layer: object
+    loads: _InterfaceLoads
+    method: str
+    solver_options: dict
+    zone: object
+    response: object
+    grid: np.ndarray
+    user: np.ndarray
+    pos: object
+    neg_status: np.ndarray
+    linear_end: int
+    opts: RunOptions
+    k_ref: float
+    threads: object
+
+    def __call__(self, i):
+        g = self.user[i]
+        A = self.grid[g]
+        u = _loop_fractions(self.grid, g, self.linear_end, self.opts.loop_steps)
+        zone = _loop_zone(self.zone, self.pos.status[:g + 1], self.neg_status[:g + 1])
+        solver = _Solver(self.layer, self.loads, self.method, self.solver_options, zone)
+        step = lambda a, s, closing=None: solver(a, s, f"loop at A={A:.4g} (alpha={a:.4g})",
+                                                 closing)
+        started = time.perf_counter()
+        with threads_limited(self.threads):
+            lp = compute_loop(step, self.response.q, A, self.pos.state(g), u,
+                              k_ref=self.k_ref, max_cycles=self.opts.max_cycles,
+                              rtol=self.opts.dissipation_rtol,
+                              atol=ZETA_ZERO * 2 * np.pi * A * abs(self.pos.q[g]),
+                              expect_closing=True)
+        return replace(lp, seconds=time.perf_counter() - started)
 
 
 def _no_rubbing(mu, pos_status, neg_status, n_neg) -> np.ndarray:
@@ -1174,6 +1290,15 @@ def _with_closed(zone, status):
         return zone
     outside = np.any(np.asarray(status) != OPEN, axis=0) & ~zone.keep
     return zone.grown(outside) if outside.any() else zone
+
+
+def _outermost(zone):
+    """``zone`` reduced to its outermost elimination, all the loops carve theirs from
+    (:func:`_loop_zone`): what a loop needs of it, and no more to ship."""
+    if zone is None or isinstance(zone, str):
+        return zone
+    outer = zone.steps[0]
+    return ContactZone(zone.full, outer.keep, (outer,))
 
 
 def _loop_zone(zone, *statuses):

@@ -26,6 +26,8 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 import logging
 import multiprocessing
+import queue
+import time
 import warnings
 
 import numpy as np
@@ -57,9 +59,15 @@ CONTRACTION = 0.95
 #: once, its message naming the ``max_cycles`` that would do.
 CYCLE_CEILING = 4
 #: Rounds of loop-increment refinement (each halves the increments where the pair
-#: states change and continues the history with one cycle on them; the change of D
-#: from the previous cycle is the error estimate).
+#: states change and continues the history with cycles on them until they settle; the
+#: change of D from the previous round is the estimate of the path error).
 REFINE_ROUNDS = 3
+#: A refinement round of a loop whose drift contracted by this factor or faster on the
+#: coarser increments is one cycle: what its transient leaves, at most ``r / (1 - r)
+#: <= 1`` times the change of D the round makes, is within the path error estimated
+#: from that change. Slower loops settle each round as on the initial increments
+#: (the tetrahedral lap joint's highest levels: r = 0.6 to 0.85).
+ONE_CYCLE_CONTRACTION = 0.5
 
 
 @dataclass(frozen=True, eq=False)
@@ -82,14 +90,20 @@ class Loop:
     q_top, q_bottom : float
         ``q`` at ``+A`` and ``-A`` of the stabilised cycle.
     n_cycles : int
-        Cycles on the initial increments until one repeated (each refinement round
-        then adds one cycle on its refined increments).
+        Cycles on the initial increments until they settled (the refinement rounds'
+        are :attr:`refinement_cycles`).
     n_solves : int
         Contact solves spent (all refinement rounds included).
     coarse_dissipation : float
         ``D`` of the cycle that repeated on the initial increments (NaN when
         ``refine_rounds = 0`` or when no cycle repeated): the reference of
         :attr:`shakedown`, on the same increments as ``first_dissipation``.
+    refinement_cycles : int
+        Cycles solved on refined increments (one or more per refinement round, until
+        they settle).
+    seconds : float
+        Wall-clock seconds the loop took in the process that computed it (NaN where
+        not measured).
     outcome : str
         One of :data:`LOOP_OUTCOMES`: ``"stabilised"`` (the answer), ``"not_stabilised"``
         (no cycle repeated within ``max_cycles``), ``"solve_failed"`` (a contact solve
@@ -110,6 +124,8 @@ class Loop:
     outcome: str
     message: str
     coarse_dissipation: float = float("nan")
+    refinement_cycles: int = 0
+    seconds: float = float("nan")
 
     @property
     def success(self) -> bool:
@@ -218,77 +234,121 @@ def compute_loop(step, modal, amplitude, start, fractions, *, k_ref, max_cycles=
 
     Notes
     -----
-    The error of a computed loop has two parts: the quadrature of the enclosed area
-    on the computed points, and the path error of solving each increment in one step
-    (a pair that sticks and slips again within an increment, and a stabilised cycle
-    that depends on the history it was reached by). The cycles first run on the
-    initial increments from ``start`` until one repeats (:func:`_cycles`). Each
-    refinement round then halves the increments where a pair changed state and
-    continues with **one** more cycle on them, from the state the previous cycle
-    ended in (the history goes on; it is not solved again from ``start``). The
-    round's cycle is accepted as the stabilised one when it agrees with the previous
-    cycle as two cycles of :func:`_cycles` must (the dissipation within ``rtol |D| +
-    atol``, the shape of ``q`` at the points both cycles share within ``rtol`` of its
-    range): the change of ``D`` bounds together the path error of the coarser
-    increments and what is left of the transient. The estimate is the larger of that
-    change and the quadrature estimate :func:`cycle_area_error` of the last cycle;
-    with ``refine_rounds = 0`` only the quadrature estimate is available.
+    The error of a computed loop has three parts: the quadrature of the enclosed area
+    on the computed points, the transient still to come (the cycles settle
+    geometrically), and the path error of solving each increment in one step (a pair
+    that sticks and slips again within an increment, and a settled cycle that depends
+    on the history it was reached by). The cycles first run on the initial increments
+    from ``start`` until they settle (:func:`_cycles`). Each refinement round then
+    halves the increments where a pair changed state and continues the history on
+    them, from the state the previous cycle ended in (it is not solved again from
+    ``start``), until they settle again (:func:`_refinement_round`). The change of
+    ``D`` between the settled cycles of two rounds estimates the path error
+    (:func:`_path_error`). The estimate is the largest of the three; with
+    ``refine_rounds = 0`` only the quadrature estimate and the transient are.
     """
     u = np.unique(np.clip(np.asarray(fractions, dtype=float), 0.0, 1.0))
     u = np.union1d(u[u > 0], [1.0])
     closings = _Closings() if expect_closing else None
-    loop, changed, end = _cycles(step, modal, amplitude, start, u, k_ref, max_cycles,
-                                 rtol, atol, closings)
+    loop, changed, end, ratio = _cycles(step, modal, amplitude, start, u, k_ref,
+                                        max_cycles, rtol, atol, closings)
     if not loop.success or refine_rounds == 0:
         return loop
     stabilised = loop
     if changed.any():
         loop = replace(loop, error=np.inf)     # no path estimate yet: refine once
+    cycles, rounds, change = 0, 0, None
     for _ in range(refine_rounds):
         if loop.error <= rtol * abs(loop.dissipation) + atol:
             break
         u, coarse = _refined(u, changed), u
-        loop, changed, end = _refinement_cycle(step, modal, loop, end, u, coarse, k_ref,
-                                               rtol, closings)
+        refined, changed, end, n, change = _refinement_round(
+            step, modal, loop, end, u, coarse, k_ref, max_cycles, rtol, atol, closings,
+            ratio, change)
+        cycles, rounds = cycles + n, rounds + 1
+        if refined.outcome == "not_stabilised":      # honest: keep the settled round
+            loop = replace(loop, n_solves=refined.n_solves, message=loop.message
+                           + f"; the cycles on {len(u)} increments per branch did not "
+                           f"settle within max_cycles")
+            break
+        loop = refined
         if not loop.success:
             break
     if loop.success and loop.error > rtol * abs(loop.dissipation) + atol:
         loop = replace(loop, message=loop.message + f"; error estimate {loop.error:.3g} "
-                       f"above the tolerance after {refine_rounds} refinement rounds "
-                       "(the last cycle is not known to have settled)")
+                       f"above the tolerance after {rounds} refinement round(s)")
     return replace(loop, first_dissipation=stabilised.first_dissipation,
-                   n_cycles=stabilised.n_cycles,
+                   n_cycles=stabilised.n_cycles, refinement_cycles=cycles,
                    coarse_dissipation=stabilised.dissipation)
 
 
-def _refinement_cycle(step, modal, previous, state0, u, coarse, k_ref, rtol, closings=None):
-    """One cycle on the refined increments ``u`` from ``state0`` (where ``previous``,
-    on the increments ``coarse``, a subset of ``u``, ended): ``(Loop, changed, end
-    state)``; its error is the larger of the quadrature estimate and the change from
-    ``previous`` (the change of the shape of ``q`` at the shared points, relative to
-    its range, counted as the same relative change of ``D`` when it exceeds
-    ``rtol``)."""
+def _refinement_round(step, modal, previous, state0, u, coarse, k_ref, max_cycles, rtol,
+                      atol, closings, known, last_change=None):
+    """The cycles on the refined increments ``u`` from ``state0`` (where ``previous``,
+    settled on the increments ``coarse``, a subset of ``u``, ended), until they settle
+    as those of :func:`_cycles` (``known``: the contraction of the drift measured there):
+    ``(Loop, changed, end state, cycles, change)``.
+
+    ``change`` is the path error of the coarser increments: the change of ``D`` from
+    ``previous``, the settled cycles of both compared (the change of the shape of ``q``
+    at the shared points, relative to its range, counted as the same relative change
+    of ``D`` when it exceeds ``rtol``). The error of the round is the largest of the
+    quadrature estimate, what is left of the transient and of the path error still to
+    come: the change itself where it shrank by half or more from ``last_change`` (the
+    previous round's; first order), ``rho / (1 - rho)`` times it where it shrank by
+    ``rho`` more slowly, and the larger of the two where it did not shrink."""
     A = previous.amplitude
-    path = cycle_path(A, u)
-    out = _one_cycle(step, modal, A, state0, path, closings)
-    n_solves = previous.n_solves + out.n_solves
-    if out.failure is not None:
-        return _failed(A, path[:len(out.q)], out.q, previous.first_dissipation,
-                       previous.n_cycles, n_solves, out.failure), None, None
-    qs = out.q
-    D = cycle_area(path, qs, k_ref)
+    if known is not None and known <= ONE_CYCLE_CONTRACTION:
+        loop, changed, end = _single_cycle(step, modal, A, state0, u, k_ref, closings)
+    else:
+        loop, changed, end, _ = _cycles(step, modal, A, state0, u, k_ref, max_cycles,
+                                        rtol, atol, closings, known)
+    n_solves = previous.n_solves + loop.n_solves
+    if not loop.success:
+        return replace(loop, first_dissipation=previous.first_dissipation,
+                       n_solves=n_solves), changed, end, loop.n_cycles, None
+    qs, D = loop.q, loop.dissipation
     at = np.searchsorted(u, coarse)            # the coarse points are among the new ones
     shared = np.concatenate([[0], 1 + at, 1 + len(u) + at])
     shape = _shape_change(qs[shared], previous.q)
     change = abs(D - previous.dissipation)
     if shape > rtol:
         change = max(change, shape * abs(D))
-    error = max(cycle_area_error(path, qs, k_ref), change)
-    loop = Loop(A, path, qs, D, previous.first_dissipation, error, qs[0], qs[len(u)],
-                previous.n_cycles, n_solves, "stabilised",
-                previous.message.split(";")[0]
-                + f"; increments refined ({len(u)} per branch)")
-    return loop, _changed(out.status, len(u)), out.state
+    return replace(loop, first_dissipation=previous.first_dissipation,
+                   error=max(loop.error, _path_error(change, last_change)),
+                   n_cycles=previous.n_cycles, n_solves=n_solves,
+                   message=previous.message.split(";")[0]
+                   + f"; increments refined ({len(u)} per branch)"), \
+        changed, end, loop.n_cycles, change
+
+
+def _single_cycle(step, modal, A, state0, u, k_ref, closings):
+    """One cycle on ``u`` from ``state0``, taken as settled: ``(Loop, changed, end)``."""
+    path = cycle_path(A, u)
+    out = _one_cycle(step, modal, A, state0, path, closings)
+    if out.failure is not None:
+        return _failed(A, path[:len(out.q)], out.q, None, 1, out.n_solves,
+                       out.failure), None, None
+    qs = out.q
+    return Loop(A, path, qs, cycle_area(path, qs, k_ref), float("nan"),
+                cycle_area_error(path, qs, k_ref), qs[0], qs[len(u)], 1, out.n_solves,
+                "stabilised", "stabilised after 1 cycle(s)"), \
+        _changed(out.status, len(u)), out.state
+
+
+def _path_error(change, last_change):
+    """What is left of the path error after a round whose settled cycle changed ``D``
+    by ``change``, the round before by ``last_change`` (None: the first round). Halving
+    the increments halves the error of a first-order path, so the last change bounds
+    what is left when the changes shrink by half or faster; a slower ratio ``rho``
+    leaves ``rho / (1 - rho)`` times the last change (a geometric series); changes
+    that did not shrink say only that the error is at least the larger one."""
+    if last_change is None or last_change <= 0.0:
+        return change
+    rho = change / last_change
+    if rho >= 1.0:
+        return max(change, last_change)
+    return change * max(1.0, rho / (1.0 - rho))
 
 
 def _shape_change(q, q_previous):
@@ -372,12 +432,23 @@ def _one_cycle(step, modal, A, state0, path, closings=None):
     return _Cycle(np.array(qs), status, state, span, len(path) - 1, None)
 
 
-def _cycles(step, modal, A, start, u, k_ref, max_cycles, rtol, atol, closings=None):
+def _cycles(step, modal, A, start, u, k_ref, max_cycles, rtol, atol, closings=None,
+            known=None):
     """Cycles from ``start`` until one ends in the state it started from (it repeats
-    exactly), or two successive cycles agree: dissipation within ``rtol |D| + atol`` and
-    the shape of ``q`` (about its mean) within ``rtol`` of its range. ``(Loop,
-    changed, end)`` with ``changed[i]`` whether a pair changed state in branch interval
-    ``i`` of the last cycle and ``end`` the state it ended in.
+    exactly), or the cycles have settled: two successive cycles agree, the dissipation
+    within ``rtol |D| + atol`` once multiplied by what a geometric contraction of the
+    drift at ``+A`` still has to come (:func:`_remainder_factor`: ``r / (1 - r)`` times
+    the last change), and the shape of ``q`` (about its mean) within ``rtol`` of its
+    range. The contraction ``r`` is measured over the last three cycles, or over two
+    with ``known`` (the one measured on coarser increments of the same loop): until
+    then no agreement is taken for settled, since a drift that has shrunk once may
+    still add up to many times the last change (the tetrahedral lap joint at A = 4561
+    agrees to 0.2 % after two cycles and settles 2 % further on, r = 0.85).
+    ``(Loop, changed, end, ratio)`` with ``changed[i]`` whether a pair changed state in
+    branch interval ``i`` of the last cycle, ``end`` the state it ended in and
+    ``ratio`` the contraction measured (0 for an exact repeat, None if unknown). The
+    loop's error is the larger of the quadrature estimate and what is left of the
+    transient.
 
     After ``max_cycles`` cycles the loop goes on only while it visibly converges
     (:func:`_contracting`: the drift of the state at ``+A`` shrinks by
@@ -393,29 +464,32 @@ def _cycles(step, modal, A, start, u, k_ref, max_cycles, rtol, atol, closings=No
         n_solves += out.n_solves
         if out.failure is not None:
             return _failed(A, path[:len(out.q)], out.q, first, cycle, n_solves,
-                           out.failure.replace(":", f", cycle {cycle}:", 1)), None, None
+                           out.failure.replace(":", f", cycle {cycle}:", 1)), \
+                None, None, None
         qs, state = out.q, out.state
         D = cycle_area(path, qs, k_ref)
         first = D if first is None else first
         drifts.append(float(np.abs(state.d - state0.d).max(initial=0.0)))
-        # a drift contracting by r leaves a change of D of about r / (1 - r) times the
-        # last one still to come: successive cycles must agree that much closer
-        tail = _tail_factor(drifts)
-        repeats = _same(state, state0, out.span) or (
-            previous is not None and tail * abs(D - previous[1]) <= rtol * abs(D) + atol
-            and _shape_change(qs, previous[0]) <= rtol)
-        if repeats:
-            return Loop(A, path, qs, D, first, cycle_area_error(path, qs, k_ref), qs[0],
-                        qs[len(u)], cycle, n_solves, "stabilised",
-                        f"stabilised after {cycle} cycle(s)"), \
-                _changed(out.status, len(u)), state
+        tol = rtol * abs(D) + atol
+        remainder = None
+        if _same(state, state0, out.span):
+            remainder, ratio = 0.0, 0.0
+        elif previous is not None and _shape_change(qs, previous[0]) <= rtol:
+            factor = _remainder_factor(drifts, known)
+            if factor is not None and factor * abs(D - previous[1]) <= tol:
+                remainder, ratio = factor * abs(D - previous[1]), _measured(drifts, known)
+        if remainder is not None:
+            error = max(cycle_area_error(path, qs, k_ref), remainder)
+            return Loop(A, path, qs, D, first, error, qs[0], qs[len(u)], cycle, n_solves,
+                        "stabilised", f"stabilised after {cycle} cycle(s)"), \
+                _changed(out.status, len(u)), state, ratio
         needed = None if previous is None or not _contracting(drifts) else \
-            cycle + _cycles_needed(drifts, tail * abs(D - previous[1]),
-                                   rtol * abs(D) + atol)
+            cycle + _cycles_needed(drifts, _tail_factor(drifts) * abs(D - previous[1]),
+                                   tol)
         previous, state0 = (qs, D), state
     return Loop(A, path, qs, D, first, cycle_area_error(path, qs, k_ref), qs[0], qs[len(u)],
                 cycle, n_solves, "not_stabilised", _not_stabilised(A, cycle, needed, drifts)), \
-        _changed(out.status, len(u)), state
+        _changed(out.status, len(u)), state, None
 
 
 def _not_stabilised(A, cycles, needed, drifts=()):
@@ -426,14 +500,14 @@ def _not_stabilised(A, cycles, needed, drifts=()):
         return (f"loop at A = {A:.6g} not stabilised after {cycles} cycles: its drift at "
                 f"+A contracts, but too slowly for the cycles allowed: it would repeat "
                 f"after about {needed} cycles; raise max_cycles to {needed} or more "
-                f"(RunOptions / [analysis] max_cycles)")
+                f"(qsma run --max-cycles, [analysis] max_cycles)")
     ratio = (f" (its drift changed by a factor {_ratio(drifts):.3g} per cycle, slower "
              f"than {CONTRACTION:g})" if len(drifts) >= 3 else "")
     return (f"loop at A = {A:.6g} not stabilised after {cycles} cycles: the state at +A "
             f"still changes and does not converge geometrically{ratio}: ratcheting, or a "
             f"cycle alternating between two states (no steady cycle at this "
             f"amplitude); if it is a very slow shakedown, raise max_cycles "
-            f"(RunOptions / [analysis] max_cycles)")
+            f"(qsma run --max-cycles, [analysis] max_cycles)")
 
 
 def _contracting(drifts):
@@ -463,6 +537,28 @@ def _tail_factor(drifts) -> float:
         return 1.0
     r = _ratio(drifts)
     return max(1.0, r / (1.0 - r))
+
+
+def _remainder_factor(drifts, known=None):
+    """``r / (1 - r)`` (at least 1) for the contraction ``r`` of the drift, the factor
+    from the last change of ``D`` to what is still to come; None while ``r`` is not
+    known to be below 1. ``r`` is the slower of the last two ratios of successive
+    drifts (three cycles), or with ``known`` (the contraction measured on coarser
+    increments of the same loop) the slower of it and the last ratio (two cycles)."""
+    r = _measured(drifts, known)
+    if r is None or r >= 1.0:
+        return None
+    return max(1.0, r / (1.0 - r))
+
+
+def _measured(drifts, known=None):
+    """The contraction of the drift as :func:`_remainder_factor` measures it, or None."""
+    tiny = np.finfo(float).tiny
+    if len(drifts) >= 3:
+        return _ratio(drifts)
+    if len(drifts) == 2 and known is not None:
+        return max(known, drifts[-1] / max(drifts[-2], tiny))
+    return None
 
 
 def _cycles_needed(drifts, change, target) -> int:
@@ -498,66 +594,141 @@ def _failed(A, path, qs, first, cycle, n_solves, message):
 
 # -- Loops on several processes --------------------------------------------------------
 
+#: How long a run waits for its loop scheduler to answer (:func:`scheduler_client`),
+#: as the sweep waits for its own.
+SCHEDULER_TIMEOUT = "20s"
 #: The job of the worker processes of :func:`map_loops` (inherited at the fork).
 _JOB = None
 
 
 def _call_job(i):
     """``_JOB(i)`` and the warnings it raised, for the parent to raise again."""
-    with warnings.catch_warnings(record=True) as seen:
-        warnings.simplefilter("always")
-        out = _JOB(i)
-    return out, recorded_warnings(seen)
+    return _call_shipped(_JOB, i)
 
 
-def map_loops(job, indices, workers=1, done=None) -> list:
-    """``[job(i) for i in indices]``, on ``workers`` processes when ``workers > 1``;
-    ``done(j)``, if given, after the first ``j`` results are in (for progress).
+def map_loops(job, indices, workers=1, done=None, scheduler=None) -> list:
+    """``[job(i) for i in indices]``, on ``workers`` processes when ``workers > 1``, or
+    on the workers of the Dask scheduler at the address ``scheduler``; ``done(j)``, if
+    given, after ``j`` results are in (for progress).
 
     The levels' loops are independent given the backbone: each starts from the
     backbone state at its amplitude, on the ramps' contact zone, so the loop of a level
     is the same sequence of floating-point operations in whichever process solves it,
     and the results are those of the serial path bit for bit (``tests/test_lap.py``,
-    ``tests/test_hysteresis.py``).
-    The workers are forked from this process, so ``job`` (a closure over the contact
+    ``tests/test_hysteresis.py``; on a Dask worker, as long as it runs the same numpy
+    and BLAS). The largest amplitudes, whose loops take the most solves, are handed out
+    first.
+
+    Local workers are forked from this process, so ``job`` (a closure over the contact
     problem and the backbone states) is inherited, not pickled; only the level index
     goes to a worker and its :class:`Loop` comes back, with the warnings it raised
-    (raised again here, in the order of ``indices``). The largest amplitudes, whose
-    loops take the most solves, are handed out first. The loops run in this process
+    (raised again here, in the order of ``indices``). The loops run in this process
     instead where forking is not possible or not safe
     (:func:`qsma._forked.fork_refusal`: Windows, a daemonic sweep worker, a thread
-    other than the main one). An exception, or a
-    signal handled here, stops the workers at once (their loops are abandoned).
+    other than the main one). An exception, or a signal handled here, stops the workers
+    at once (their loops are abandoned).
+
+    With ``scheduler``, ``job`` is pickled and sent once to every worker of the
+    scheduler (:func:`_dask_map`), then each index as a task.
     """
-    global _JOB
     indices = [int(i) for i in indices]
+    done = done or (lambda j: None)
+    if scheduler is not None and indices:
+        return _dask_map(job, indices, scheduler, done)
     workers = min(int(workers), len(indices))
     why_not = fork_refusal() if workers > 1 else None
     if why_not is not None:
         log.info("loops computed in this process, not on %d workers: %s", workers, why_not)
-    done = done or (lambda j: None)
     if workers <= 1 or why_not is not None:
         out = []
         for i in indices:
             out.append(job(i))
             done(len(out))
         return out
+    return _forked_map(job, indices, workers, done)
+
+
+def _forked_map(job, indices, workers, done):
+    """:func:`map_loops` on ``workers`` forked processes."""
+    global _JOB
     _JOB = job
     with quiet_fork():
         pool = multiprocessing.get_context("fork").Pool(workers, initializer=default_signals)
     try:
-        pending = {i: pool.apply_async(_call_job, (i,)) for i in reversed(indices)}
-        out = []
-        for i in indices:
-            result, raised = pending[i].get()
-            raise_again(raised)
-            out.append(result)
-            done(len(out))
-        return out
+        arrived = queue.SimpleQueue()        # (index, raised, result) as each one ends
+        for i in indices[::-1]:
+            pool.apply_async(_call_job, (i,),
+                             callback=lambda out, i=i: arrived.put((i, False, out)),
+                             error_callback=lambda exc, i=i: arrived.put((i, True, exc)))
+        return _collected((arrived.get() for _ in indices), indices, done)
     finally:
         pool.terminate()        # idle workers at the end; running ones on an exception
         pool.join()
         _JOB = None
+
+
+def _collected(arrivals, indices, done):
+    """The results of ``indices`` from ``arrivals``, ``(index, raised, outcome)`` in
+    the order the loops end (``outcome``: ``(Loop, warnings)``, or the exception it
+    raised, raised here at once); ``done`` counts them as they come in, the warnings
+    are raised again in the order of ``indices``."""
+    got = {}
+    for i, raised, outcome in arrivals:
+        if raised:
+            raise outcome
+        got[i] = outcome
+        done(len(got))
+    for i in indices:
+        raise_again(got[i][1])
+    return [got[i][0] for i in indices]
+
+
+def _dask_map(job, indices, scheduler, done):
+    """:func:`map_loops` on the workers of the Dask scheduler at ``scheduler`` (an
+    address such as ``tcp://host:8786``): ``job`` is scattered to every worker once
+    (its contact problem and eliminations travel as they are: nothing is condensed
+    there), then one task per index, the largest amplitudes first."""
+    from distributed import as_completed
+    client = scheduler_client(scheduler)
+    try:
+        started = time.perf_counter()
+        shipped = client.scatter(job, broadcast=True, hash=False)
+        log.info("loops: the interface problem sent to %d Dask worker(s) in %.2f s",
+                 len(client.scheduler_info()["workers"]), time.perf_counter() - started)
+        order = indices[::-1]
+        futures = {client.submit(_call_shipped, shipped, i, pure=False,
+                                 priority=len(order) - n): i for n, i in enumerate(order)}
+        arrivals = ((futures[f], False, f.result()) for f in as_completed(futures))
+        return _collected(arrivals, indices, done)
+    finally:
+        client.close()
+
+
+def scheduler_client(address):
+    """A ``distributed.Client`` of the Dask scheduler at ``address``; an
+    :class:`qsma.errors.InputError` naming the fix if ``distributed`` is missing or
+    nothing answers there. A run checks its ``loop_scheduler`` so before its ramps."""
+    from .errors import InputError
+    try:
+        from distributed import Client
+    except ImportError as exc:      # dask is the optional extra 'sweep'
+        raise InputError(f"loops on a Dask scheduler need the 'distributed' package "
+                         f"({exc}): pip install 'qsma[sweep]', or drop the loop "
+                         f"scheduler") from None
+    try:
+        return Client(address, timeout=SCHEDULER_TIMEOUT)
+    except OSError as exc:
+        raise InputError(f"cannot reach the Dask scheduler at {address!r}: {exc}; start "
+                         f"one (dask scheduler) or drop --scheduler") from None
+
+
+def _call_shipped(job, i):
+    """``job(i)`` and the warnings it raised, for the caller to raise again (on a
+    forked or a Dask worker)."""
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        out = job(i)
+    return out, recorded_warnings(seen)
 
 
 # -- Masing ---------------------------------------------------------------------------

@@ -82,11 +82,17 @@ class RunOptions:
         exactly (a pair that would close joins the zone).
     loop_workers : int or None
         Processes that compute the levels' loops (1: in this process; ``None``, the
-        default: two on Linux where this process may use two cores or more, see
+        default: one per core this process may use, on Linux, see
         :attr:`loop_worker_count`). The loops of the levels are independent given the
         backbone; the results are the same bits for any count
         (:func:`qsma.hysteresis.map_loops`; forked workers, Linux and macOS; elsewhere
         the loops run in this process).
+    loop_scheduler : str or None
+        Address of a Dask scheduler (``tcp://host:8786``) whose workers compute the
+        loops instead of local processes: the interface's contact problem and the
+        backbone states are sent to each worker once (nothing is condensed there), then
+        each level's loop is a task. The same bits as in this process where the workers
+        run the same numpy and BLAS.
     parallel_ramps : bool
         Solve the -alpha ramp on a second process (forked, on Linux) while the
         last refinement round of the +alpha ramp runs in this one; the results are the
@@ -110,6 +116,7 @@ class RunOptions:
     blas_threads: typing.Any = "auto"
     eliminate_open: bool = True
     loop_workers: int | None = None
+    loop_scheduler: str | None = None
     parallel_ramps: bool = True
 
     def __post_init__(self):
@@ -138,6 +145,14 @@ class RunOptions:
         _integer("loop_steps", self.loop_steps, minimum=2, maximum=MAX_LOOP_STEPS)
         if self.loop_workers is not None:
             _integer("loop_workers", self.loop_workers, minimum=1, maximum=MAX_LOOP_WORKERS)
+        if self.loop_scheduler is not None:
+            if not isinstance(self.loop_scheduler, str) or not self.loop_scheduler.strip():
+                raise InputError(f"loop_scheduler must be the address of a Dask scheduler "
+                                 f"(e.g. 'tcp://host:8786'), got {self.loop_scheduler!r}")
+            if self.loop_workers is not None:
+                raise InputError("loop_workers sets the local processes of the loops; with "
+                                 "loop_scheduler the scheduler's workers compute them: "
+                                 "give one of the two")
         if self.n_modes is not None:
             _integer("n_modes", self.n_modes, minimum=1)
         for name in ("refine_levels", "direct_loop", "continue_on_failure", "eliminate_open",
@@ -152,13 +167,14 @@ class RunOptions:
 
     @property
     def loop_worker_count(self) -> int:
-        """``loop_workers``, or for ``None`` two processes on Linux where this one may
-        use two cores or more (one elsewhere): the machines qsma is measured on have
-        two (:func:`qsma._forked.second_core_refusal`)."""
+        """``loop_workers``, or for ``None`` one process per core this one may use
+        (:func:`qsma._threads.usable_cores`), on Linux (one elsewhere:
+        :func:`qsma._forked.second_core_refusal`)."""
         if self.loop_workers is not None:
             return int(self.loop_workers)
         from ._forked import second_core_refusal
-        return 1 if second_core_refusal() else 2
+        from ._threads import usable_cores
+        return 1 if second_core_refusal() else min(usable_cores(), MAX_LOOP_WORKERS)
 
     @property
     def solver_options(self) -> dict:

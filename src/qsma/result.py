@@ -6,7 +6,7 @@ live in :mod:`qsma.results`; this module holds data only.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -34,10 +34,12 @@ FAILURE_FIXES = {
                             "stiffnesses many decades apart)",
     "not_finite": "a frequency or damping is not a finite number: check the units and "
                   "material constants of the model",
-    "loop_failed": "a contact solve inside the level's loop failed (its message is in "
-                   "results.json, 'loops'): raise maxiter or loosen tol",
+    "loop_failed": "a contact solve inside the level's loop failed (the first such "
+                   "loop's message follows; every loop's is in qsma.log): raise maxiter "
+                   "or loosen tol",
     "loop_not_stabilised": "the level's loop did not repeat within max_cycles cycles: "
-                           "raise max_cycles as its message says, unless it ratchets",
+                           "raise max_cycles (qsma run --max-cycles, [analysis] "
+                           "max_cycles) as its message says, unless it ratchets",
     "masing_on_hardening": "the joint stiffens there, where Masing's rules do not hold: "
                            "use dissipation = 'auto' or 'loop' (computed loops)",
     "stuck_not_linear": "the modal response of these levels is below the numerical "
@@ -62,6 +64,38 @@ class LevelStates:
     def state(self, k) -> ContactState:
         """The contact state of level ``k`` (the history the next level starts from)."""
         return ContactState(self.d[k], self.lam[k], self.status[k])
+
+
+@dataclass(frozen=True, eq=False)
+class LevelCosts:
+    """Where a run's contact work went, per level of the user's grid.
+
+    Attributes
+    ----------
+    ramp_solves, ramp_seconds : (n_levels,) arrays
+        Contact solves of both ramps whose modal force lies in the level's interval
+        (above the level before it, up to the level), the +alpha ramp's refinement
+        rounds included (a level solved again on a finer grid counts again), and the
+        wall-clock seconds they took.
+    loop_solves, loop_cycles, loop_seconds : (n_levels,) arrays
+        The level's computed loop (zero where Masing's rules were used): its contact
+        solves, its cycles (those on the initial increments plus those of its
+        refinement rounds) and its wall-clock seconds.
+
+    Seconds are those of the process that did the work: the -alpha ramp and the
+    loops may run on other processes at the same time, so the seconds can add up to
+    more than the wall time of their stages (``timings_s``).
+    """
+
+    ramp_solves: np.ndarray
+    ramp_seconds: np.ndarray
+    loop_solves: np.ndarray
+    loop_cycles: np.ndarray
+    loop_seconds: np.ndarray
+
+    def as_dict(self) -> dict:
+        """Per-level lists by field name (results.json ``level_costs``)."""
+        return {f.name: np.asarray(getattr(self, f.name)).tolist() for f in fields(self)}
 
 
 @dataclass(frozen=True, eq=False)
@@ -145,6 +179,8 @@ class QSMAResult:
     #: initial gaps, quad8 interface facets), each once
     warnings: tuple[str, ...] = ()
     gross_slip_level: int | None = None
+    #: contact solves, loop cycles and seconds per level (:class:`LevelCosts`)
+    level_costs: LevelCosts | None = None
     version: str = __version__
 
     @property

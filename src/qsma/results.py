@@ -93,7 +93,8 @@ def results_dict(res) -> dict:
         ``units`` of every quantity (:func:`qsma.units.units_block`), the model
         summary, the analysed mode (``f0_hz = omega0 / 2 pi``), the preload solve, the
         per-level columns :data:`qsma.result.LEVEL_FIELDS` (NaN of optional fields as
-        ``None``), timings, solver statistics and the options of the run. Every field,
+        ``None``), timings, the solves, cycles and seconds per level
+        (:class:`qsma.result.LevelCosts`), solver statistics and the options of the run. Every field,
         its unit and its meaning: docs/results.md.
 
     Raises
@@ -124,6 +125,7 @@ def results_dict(res) -> dict:
         "levels": _level_columns(res),
         "gross_slip_level": res.gross_slip_level,
         "timings_s": res.timings_s,
+        "level_costs": None if res.level_costs is None else res.level_costs.as_dict(),
         "resources": res.resources or {},
         "warnings": list(res.warnings),
         "solver": res.solver,

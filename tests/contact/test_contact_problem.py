@@ -237,3 +237,22 @@ def test_abs_product_in_single_precision_is_a_faithful_size(scale_K, scale_d):
     small = ContactProblem(A[:8, :8] @ A[:8, :8].T + np.eye(8), 0.5)    # double below
     np.testing.assert_allclose(small.abs_product(x[:8]), np.abs(small.K) @ np.abs(x[:8]),
                                rtol=8 * 2.0 ** -52)          # summation order only
+
+
+def test_a_pickled_problem_leaves_its_caches_behind():
+    """A problem sent to another process (the loops on a Dask scheduler) carries its
+    fields, not what was cached on it: |K|, the single-precision copy, the last zone
+    elimination, each as large as K. The unpickled problem rebuilds |K| alike."""
+    import pickle
+    from qsma.contact.zone import ContactZone
+    rng = np.random.default_rng(3)
+    A = rng.standard_normal((60, 60))
+    problem = ContactProblem(A @ A.T + 60 * np.eye(60), 0.3, dim=3)
+    expected = problem.abs_K.copy()
+    ContactZone.build(problem, np.arange(20) < 12)
+    assert {"_abs_K", "_zone_outer"} <= set(problem.__dict__)
+    back = pickle.loads(pickle.dumps(problem))
+    assert not [k for k in back.__dict__ if k.startswith("_")]
+    assert len(pickle.dumps(problem)) < 1.5 * problem.K.nbytes
+    assert np.array_equal(back.K, problem.K) and np.array_equal(back.mu, problem.mu)
+    assert back.kappa == problem.kappa and np.array_equal(back.abs_K, expected)

@@ -12,7 +12,7 @@ from .progress import LOG_NAME
 HELP = "quasi-static modal analysis: backbone, frequency and damping versus amplitude"
 #: RunOptions fields that have a command-line flag of the same name.
 CLI_OPTIONS = ("mode", "method", "tol", "maxiter", "dissipation", "direct_loop",
-               "continue_on_failure", "loop_workers")
+               "continue_on_failure", "loop_workers", "loop_scheduler", "max_cycles")
 
 
 def add_arguments(p):
@@ -39,9 +39,17 @@ def add_arguments(p):
                    help="dissipation per cycle: Masing's rules where verified and the "
                         "stabilised loop elsewhere (auto, the default), or one of them at "
                         "every level")
+    p.add_argument("--max-cycles", type=int, metavar="N",
+                   help="loop cycles per amplitude before a level is declared not "
+                        "stabilised (default 8; a shakedown that visibly converges gets "
+                        "up to 4 times as many)")
     p.add_argument("--loop-workers", type=int, metavar="N",
-                   help="processes that compute the loops (default: 2 on Linux with two "
-                        "usable cores, else 1; same results for any N)")
+                   help="processes that compute the loops (default: one per usable core "
+                        "on Linux, else 1; same results for any N)")
+    p.add_argument("--scheduler", dest="loop_scheduler", metavar="ADDRESS",
+                   help="Dask scheduler whose workers compute the loops, e.g. "
+                        "tcp://host:8786 (the interface problem is sent to each worker "
+                        "once; same results as local workers)")
     p.add_argument("--direct-loop", action="store_true", default=None,
                    help="also compute the hysteresis loop directly (check of Masing)")
     p.add_argument("--continue", dest="continue_on_failure", action="store_true",
@@ -203,6 +211,18 @@ def _with_progress(args, log, call):
                 log.console_handler.console = None
 
 
+def _loop_costs(costs) -> str:
+    """``": N loop solves, T s; the costliest at level k (n solves in c cycles, t s)"``
+    of :class:`qsma.result.LevelCosts`, or "" without loops."""
+    if costs is None or not np.any(costs.loop_solves):
+        return ""
+    k = int(np.argmax(costs.loop_seconds))
+    return (f": {int(np.sum(costs.loop_solves))} loop solves, "
+            f"{float(np.sum(costs.loop_seconds)):.1f} s; the costliest at level {k} "
+            f"({costs.loop_solves[k]} solves in {costs.loop_cycles[k]} cycles, "
+            f"{costs.loop_seconds[k]:.1f} s)")
+
+
 def _summary(res, paths, verbose):
     info = res.model_info
     u = res.units
@@ -214,15 +234,18 @@ def _summary(res, paths, verbose):
           f"solver {res.solver['method']}")
     n_loop = int(np.sum(res.dissipation_method == "loop"))
     print(f"dissipation: {res.n_levels - n_loop} level(s) by Masing's rules, {n_loop} by "
-          f"computed loops ({res.options.dissipation})")
+          f"computed loops ({res.options.dissipation}){_loop_costs(res.level_costs)}")
     if verbose:
         tip = f"tip [{u.length}]"
         print(f"{'k':>3} {'alpha':>11} {tip:>10} {'f [Hz]':>9} {'zeta':>10} "
-              f"{'stuck':>5} {'slip':>5} {'open':>5} {'it':>4}")
+              f"{'stuck':>5} {'slip':>5} {'open':>5} {'it':>4} {'solves':>6} {'s':>7}")
+        c = res.level_costs
         for k in range(res.n_levels):
             print(f"{k:3d} {res.alpha[k]:11.4e} {res.tip[k]:10.3e} {res.f_hz[k]:9.3f} "
                   f"{res.zeta[k]:10.3e} {res.n_stuck[k]:5d} {res.n_slip[k]:5d} "
-                  f"{res.n_open[k]:5d} {res.iterations[k]:4d}")
+                  f"{res.n_open[k]:5d} {res.iterations[k]:4d} "
+                  f"{c.ramp_solves[k] + c.loop_solves[k]:6d} "
+                  f"{c.ramp_seconds[k] + c.loop_seconds[k]:7.2f}")
     if res.n_levels:
         print(f"last level: f = {res.f_hz[-1]:.3f} Hz, zeta = {res.zeta[-1]:.4e}, "
               f"tip = {res.tip[-1]:.3e} {u.length}")

@@ -188,6 +188,13 @@ class ContactProblem:
         new.__dict__["_abs_K"] = cache["abs_K"]       # shared by every solve of the ramp
         return new
 
+    def __getstate__(self):
+        """Pickled without what is cached on the problem (``|K|``, rescaled copies, the
+        last contact-zone elimination: each as large as ``K``), rebuilt where needed:
+        a problem shipped to another process (the loops on a Dask scheduler) weighs
+        its fields only."""
+        return {k: v for k, v in self.__dict__.items() if not k.startswith("_")}
+
     @property
     def size(self):
         """Number of unknowns, ``n_pairs * dim``."""

@@ -72,14 +72,15 @@ CASE_BYTES, LEVEL_BYTES = 4096, 2048
 #: Share of the free memory (:func:`qsma._resources.free_memory`) a study's cases may
 #: take; where the system does not say, :data:`MAX_CASES_UNKNOWN_MEMORY` cases.
 CASES_MEMORY_SHARE, MAX_CASES_UNKNOWN_MEMORY = 0.5, 100_000
-#: Run options a sweep does not vary: the BLAS thread count, the loop workers and the
-#: parallel ramps do not change results (a sweep's workers compute their loops and
-#: ramps themselves: a daemonic process may not fork), the condensation backend is
-#: fixed when the shared preparation is made.
-NOT_SWEPT = ("blas_threads", "schur_backend", "loop_workers", "parallel_ramps")
+#: Run options a sweep does not vary: the BLAS thread count, the loop workers, the
+#: loop scheduler and the parallel ramps do not change results (a sweep's workers
+#: compute their loops and ramps themselves: a daemonic process may not fork), the
+#: condensation backend is fixed when the shared preparation is made.
+NOT_SWEPT = ("blas_threads", "schur_backend", "loop_workers", "loop_scheduler",
+             "parallel_ramps")
 #: Run options left out of a study's fingerprint: they change no result, so a study
 #: resumes whatever they are.
-NOT_FINGERPRINTED = ("loop_workers", "parallel_ramps")
+NOT_FINGERPRINTED = ("loop_workers", "loop_scheduler", "parallel_ramps")
 
 
 @dataclass(frozen=True)
@@ -377,14 +378,18 @@ def _free_cycles(n_contact_dofs):
 
 def case_inputs(prepared, params: dict, options: RunOptions):
     """``(prepared, options)`` of a case: its friction coefficient and preload scale
-    applied to its group's preparation (nothing recomputed), its run options set."""
+    applied to its group's preparation (nothing recomputed), its run options set. The
+    case computes its loops itself (no ``loop_scheduler``): the study's workers are the
+    parallel part, and a case waiting on a worker for loops that wait for a worker
+    could hold them all."""
     p = prepared
     if "mu" in params:
         p = p.with_mu(params["mu"])
     if "preload" in params:
         p = p.with_preload_scale(params["preload"])
-    opts = options.replace(**{k: v for k, v in params.items()
-                              if parameter_kind(k) == "option"})
+    opts = replace(options.replace(**{k: v for k, v in params.items()
+                                      if parameter_kind(k) == "option"}),
+                   loop_scheduler=None)
     return p, opts
 
 
