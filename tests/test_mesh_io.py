@@ -800,20 +800,22 @@ def test_damaged_files_raise_only_mesh_file_errors(tmp_path, which, data):
                                                           np.linspace(0, 2, 3))])
 def test_facet_index_finds_boundary_facets_in_any_node_order(make):
     """One facet index per mesh: rows = boundary_facets, owner cell and local face agree
-    with CELL_FACETS, find() ignores node order and answers -1 for internal facets."""
-    from qsma.model.mesh import CELL_FACETS, facet_index
+    with the cell type's facets, find() ignores node order and answers -1 for internal
+    facets."""
+    from qsma.mesh.celltypes import CELL_TYPES
+    from qsma.model.mesh import facet_index
     m = make()
     index = facet_index(m)
     assert facet_index(m) is index                                # built once
     np.testing.assert_array_equal(index.rows, boundary_facets(m))
-    local = np.array(CELL_FACETS[m.cell_type])
+    local = np.array(CELL_TYPES[m.cell_type].facets)
     np.testing.assert_array_equal(index.rows, m.cells[index.cell[:, None],
                                                       local[index.local_face]])
     rng = np.random.default_rng(0)
     shuffled = rng.permuted(index.rows, axis=1)
     order = rng.permutation(len(index.rows))
     np.testing.assert_array_equal(index.find(shuffled[order]), order)
-    every = np.concatenate([m.cells[:, list(f)] for f in CELL_FACETS[m.cell_type]])
+    every = np.concatenate([m.cells[:, list(f)] for f in CELL_TYPES[m.cell_type].facets])
     internal = every[index.find(every) < 0]
     assert len(internal) == len(every) - len(index.rows)          # all the others
     assert len(internal) > 0 and (index.find(internal) == -1).all()

@@ -73,12 +73,12 @@ def test_mixed_mesh_blocks_facets_and_sets():
     ("quad", "quad", "two cell blocks"),
 ])
 def test_unsupported_mixes_are_refused(first, other, words):
-    from qsma.model.mesh import CELL_TYPES
-    dim, nv = CELL_TYPES[first][:2]
+    from qsma.mesh.celltypes import CELL_TYPES
+    dim, nv = CELL_TYPES[first].dim, CELL_TYPES[first].n_nodes
     pts = np.random.default_rng(0).random((30, dim))
     cells = np.arange(nv)[None, :]
     with pytest.raises(InputError, match=words):
-        mixed_mesh(pts, [(first, cells), (other, np.arange(CELL_TYPES[other][1])[None, :])])
+        mixed_mesh(pts, [(first, cells), (other, np.arange(CELL_TYPES[other].n_nodes)[None, :])])
 
 
 # ---------------------------------------------------------------- assembly

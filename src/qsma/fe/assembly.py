@@ -19,7 +19,8 @@ from skfem.helpers import ddot, div, dot, sym_grad
 
 from ..errors import InputError
 from ..model import Body, Mesh
-from ..model.mesh import FACET_CORNERS, facet_index
+from ..mesh.celltypes import TYPES
+from ..model.mesh import facet_index
 from . import batched
 from .elements import block_dofs, fe_space, scatter_matrix
 from .formulation import Formulation, MixedFormulation, resolve_formulations
@@ -175,7 +176,7 @@ def _facet_pressure(mesh: Mesh, rows: np.ndarray, p: float, what: str) -> np.nda
     """:func:`pressure_load` on facets ``rows`` of a single-type mesh."""
     space = fe_space(mesh)
     n_dofs = mesh.dim * mesh.n_nodes
-    ncorner = FACET_CORNERS[mesh.facet_type]
+    ncorner = TYPES[mesh.facet_type].corners
     vertex_of = np.full(mesh.n_nodes, -1, dtype=np.int64)
     vertex_of[space.vertex_node] = np.arange(len(space.vertex_node))
     corners = vertex_of[rows[:, :ncorner]]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
+from ..mesh.celltypes import CELL_TYPES, reference_nodes
 from .mesh import Mesh
 
 
@@ -12,22 +13,6 @@ def graded_axis(*segments):
     """Concatenate ``(start, stop, n_elements)`` segments into one sorted coordinate axis."""
     parts = [np.linspace(a, b, n + 1) for a, b, n in segments]
     return np.concatenate([parts[0]] + [p[1:] for p in parts[1:]])
-
-
-#: grid offsets (0, 1, 2 per axis: start, middle, end of the cell) of the local nodes
-#: of quadratic cells in meshio / VTK order; serendipity cells are the first 8 / 20
-QUADRATIC_OFFSETS = {
-    "quad9": [(0, 0), (2, 0), (2, 2), (0, 2), (1, 0), (2, 1), (1, 2), (0, 1), (1, 1)],
-    "hexahedron27": [
-        (0, 0, 0), (2, 0, 0), (2, 2, 0), (0, 2, 0), (0, 0, 2), (2, 0, 2), (2, 2, 2),
-        (0, 2, 2),                                                  # corners
-        (1, 0, 0), (2, 1, 0), (1, 2, 0), (0, 1, 0), (1, 0, 2), (2, 1, 2), (1, 2, 2),
-        (0, 1, 2), (0, 0, 1), (2, 0, 1), (2, 2, 1), (0, 2, 1),      # edge midsides
-        (0, 1, 1), (2, 1, 1), (1, 0, 1), (1, 2, 1), (1, 1, 0), (1, 1, 2),  # face centres
-        (1, 1, 1)],                                                 # body centre
-}
-QUADRATIC_OFFSETS["quad8"] = QUADRATIC_OFFSETS["quad9"][:8]
-QUADRATIC_OFFSETS["hexahedron20"] = QUADRATIC_OFFSETS["hexahedron27"][:20]
 
 
 def structured_mesh(*axes, cell_type=None) -> Mesh:
@@ -69,9 +54,13 @@ def structured_mesh(*axes, cell_type=None) -> Mesh:
 
 
 def _quadratic_structured(axes, cell_type) -> Mesh:
-    offsets = QUADRATIC_OFFSETS.get(cell_type)
-    if offsets is None or len(offsets[0]) != len(axes):
+    ct = CELL_TYPES.get(cell_type)
+    if ct is None or ct.linear not in ("quad", "hexahedron") or ct.is_linear \
+            or ct.dim != len(axes):
         raise ValueError(f"no {len(axes)}D structured mesh of {cell_type!r} cells")
+    # grid offsets (0, 1, 2 per axis: start, middle, end of the cell) of the local
+    # nodes: the reference coordinates in [-1, 1], shifted
+    offsets = (reference_nodes(cell_type) + 1).astype(int).tolist()
     fine = []
     for a in axes:
         a = np.asarray(a, dtype=float)

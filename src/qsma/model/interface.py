@@ -11,6 +11,7 @@ from scipy.spatial import cKDTree
 
 from ..contact.laws import InterfaceLaw
 from ..errors import InputError, QuadraticFacetWarning
+from ..mesh.celltypes import CELL_TYPES, TYPES
 from .mesh import Mesh, facet_index, facet_node_weights
 
 #: Node-to-node pairing: two nodes are the same point when they are closer than this
@@ -249,11 +250,10 @@ def node_match(mesh1, set1, mesh2, set2, tol=None) -> _Match:
 def facet_normals(mesh: Mesh, facets: np.ndarray) -> np.ndarray:
     """Unit outward normals of boundary facets, scaled by their area (length in 2D).
 
-    Computed from the corner nodes (the first ``FACET_CORNERS`` of each row): exact for
+    Computed from the corner nodes (the first nodes of each row): exact for
     straight / flat facets, the chord (flat) approximation of curved quadratic ones.
     """
-    from .mesh import FACET_CORNERS
-    p = mesh.points[facets[:, :FACET_CORNERS[mesh.facet_type]]]
+    p = mesh.points[facets[:, :TYPES[mesh.facet_type].corners]]
     if mesh.dim == 2:
         t = p[:, 1] - p[:, 0]
         nrm = np.stack([t[:, 1], -t[:, 0]], axis=1)
@@ -285,10 +285,9 @@ def _owner_centroids(mesh, facets):
 
 def _owner_centroids_by_lookup(mesh, facets):
     """Centroid of a cell holding each facet (the last one listed for an internal facet)."""
-    from .mesh import CELL_FACETS
     owner, cent = {}, []
     for b in mesh.cell_blocks:                      # mixed meshes: every cell block
-        local, nc, start = CELL_FACETS[b.cell_type], len(b.cells), len(cent)
+        local, nc, start = CELL_TYPES[b.cell_type].facets, len(b.cells), len(cent)
         allf = np.sort(np.concatenate([b.cells[:, list(f)] for f in local]), axis=1)
         owner.update({tuple(k): start + c % nc for c, k in enumerate(allf.tolist())})
         cent.extend(mesh.points[b.cells].mean(axis=1))

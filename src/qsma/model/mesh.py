@@ -7,27 +7,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
+from ..mesh.celltypes import CELL_TYPES, TYPES, cell_type as _cell_type, reference_nodes
 
-#: cell type -> (spatial dimension, nodes per cell, facet cell type); meshio names and
-#: node orders (VTK): corner nodes first, then edge midside nodes, face and body centres
-CELL_TYPES = {
-    "triangle": (2, 3, "line"),
-    "quad": (2, 4, "line"),
-    "tetra": (3, 4, "triangle"),
-    "hexahedron": (3, 8, "quad"),
-    "triangle6": (2, 6, "line3"),
-    "quad8": (2, 8, "line3"),
-    "quad9": (2, 9, "line3"),
-    "tetra10": (3, 10, "triangle6"),
-    "hexahedron20": (3, 20, "quad8"),
-    "hexahedron27": (3, 27, "quad9"),
-}
-#: facet cell type -> nodes per facet
-FACET_TYPES = {"line": 2, "triangle": 3, "quad": 4,
-               "line3": 3, "triangle6": 6, "quad8": 8, "quad9": 9}
-#: facet cell type -> corner nodes per facet (the first nodes of a facet row)
-FACET_CORNERS = {"line": 2, "triangle": 3, "quad": 4,
-                 "line3": 2, "triangle6": 3, "quad8": 4, "quad9": 4}
+#: derived from the cell type records, for code that reads these tables: cell type ->
+#: facet nodes; facet type -> nodes; facet type -> corner nodes; cell type -> local nodes
+#: of each facet
+FACET_TYPES = {name: t.n_nodes for name, t in TYPES.items() if 1 <= t.dim <= 2}
+FACET_CORNERS = {name: t.corners for name, t in TYPES.items() if 1 <= t.dim <= 2}
+CELL_FACETS = {name: [tuple(f) for f in t.facets] for name, t in CELL_TYPES.items()}
 
 
 @dataclass(frozen=True, eq=False)
@@ -58,7 +45,7 @@ class Mesh:
     ----------
     points : (n_nodes, dim) float array
     cells : (n_cells, nodes_per_cell) int array, meshio node ordering
-    cell_type : one of ``CELL_TYPES`` (meshio names)
+    cell_type : a key of ``CELL_TYPES`` (meshio names, :mod:`qsma.mesh.celltypes`)
     node_sets : name -> sorted unique node indices
     facet_sets : name -> (n_facets, nodes_per_facet) node indices of boundary facets
     cell_sets : name -> cell indices
@@ -84,10 +71,8 @@ class Mesh:
     extra_blocks: tuple = ()
 
     def __post_init__(self):
-        if self.cell_type not in CELL_TYPES:
-            raise InputError(f"unsupported cell type {self.cell_type!r}; "
-                             f"expected one of {sorted(CELL_TYPES)}")
-        dim, nv, ftype = CELL_TYPES[self.cell_type]
+        ct = _cell_type(self.cell_type)
+        dim, nv = ct.dim, ct.n_nodes
         points = np.ascontiguousarray(self.points, dtype=float)
         cells = np.ascontiguousarray(self.cells, dtype=np.int64)
         if points.ndim != 2 or points.shape[1] != dim:
@@ -108,7 +93,7 @@ class Mesh:
                      for k, v in self.node_sets.items()}
         facet_sets = {}
         for k, v in self.facet_sets.items():
-            f = np.asarray(v, dtype=np.int64).reshape(-1, FACET_TYPES[ftype])
+            f = np.asarray(v, dtype=np.int64).reshape(-1, ct.nodes_per_facet)
             _index_array(f.ravel(), len(points), f"facet set {k!r}")
             facet_sets[k] = f
         extra = tuple(_check_block(b, self.cell_type, len(points)) for b in self.extra_blocks)
@@ -124,7 +109,7 @@ class Mesh:
 
     @property
     def dim(self) -> int:
-        return CELL_TYPES[self.cell_type][0]
+        return CELL_TYPES[self.cell_type].dim
 
     @property
     def is_mixed(self) -> bool:
@@ -154,7 +139,7 @@ class Mesh:
 
     @property
     def facet_type(self) -> str:
-        return CELL_TYPES[self.cell_type][2]
+        return CELL_TYPES[self.cell_type].facet_type
 
     @property
     def n_nodes(self) -> int:
@@ -214,9 +199,7 @@ def _check_block(block, first_type, n_points) -> CellBlock:
     if not isinstance(block, CellBlock):
         raise InputError(f"extra_blocks must hold CellBlock objects, got {block!r}")
     ct = block.cell_type
-    if ct not in CELL_TYPES:
-        raise InputError(f"unsupported cell type {ct!r}; expected one of {sorted(CELL_TYPES)}")
-    ftype, first_ftype = CELL_TYPES[ct][2], CELL_TYPES[first_type][2]
+    ftype, first_ftype = _cell_type(ct).facet_type, CELL_TYPES[first_type].facet_type
     if ftype != first_ftype or first_ftype not in MIXABLE:
         raise InputError(
             f"{first_type} and {ct} cells cannot be mixed in one body: a mixed mesh must "
@@ -226,7 +209,7 @@ def _check_block(block, first_type, n_points) -> CellBlock:
             f"with one of these combinations or with a single cell type")
     if ct == first_type:
         raise InputError(f"two cell blocks of type {ct}: put them in one block")
-    nv = CELL_TYPES[ct][1]
+    nv = CELL_TYPES[ct].n_nodes
     cells = np.ascontiguousarray(block.cells, dtype=np.int64)
     if cells.ndim != 2 or cells.shape[1] != nv:
         raise InputError(f"{ct} cells must have shape (n, {nv}), got {cells.shape}")
@@ -258,38 +241,10 @@ def _index_array(values, bound, what, unique=False):
     return np.unique(a) if unique else a
 
 
-#: local node lists of the facets of each cell type (meshio / VTK node order), corner
-#: nodes first (counter-clockwise seen from outside in 3D), then the facet's midside
-#: nodes in the facet type's own order (line3: ends then middle; triangle6 / quad8:
-#: midside of corner edge (0, 1), (1, 2), ...; quad9: then the face centre)
-CELL_FACETS = {
-    "triangle": [(0, 1), (1, 2), (2, 0)],
-    "quad": [(0, 1), (1, 2), (2, 3), (3, 0)],
-    "tetra": [(0, 2, 1), (0, 1, 3), (1, 2, 3), (0, 3, 2)],
-    "hexahedron": [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4),
-                   (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7)],
-    "triangle6": [(0, 1, 3), (1, 2, 4), (2, 0, 5)],
-    "quad8": [(0, 1, 4), (1, 2, 5), (2, 3, 6), (3, 0, 7)],
-    "quad9": [(0, 1, 4), (1, 2, 5), (2, 3, 6), (3, 0, 7)],
-    # tetra10 edges: 4 (0,1), 5 (1,2), 6 (0,2), 7 (0,3), 8 (1,3), 9 (2,3)
-    "tetra10": [(0, 2, 1, 6, 5, 4), (0, 1, 3, 4, 8, 7), (1, 2, 3, 5, 9, 8),
-                (0, 3, 2, 7, 9, 6)],
-    # hexahedron20 edges: 8 (0,1), 9 (1,2), 10 (2,3), 11 (3,0), 12 (4,5), 13 (5,6),
-    # 14 (6,7), 15 (7,4), 16 (0,4), 17 (1,5), 18 (2,6), 19 (3,7)
-    "hexahedron20": [(0, 3, 2, 1, 11, 10, 9, 8), (4, 5, 6, 7, 12, 13, 14, 15),
-                     (0, 1, 5, 4, 8, 17, 12, 16), (1, 2, 6, 5, 9, 18, 13, 17),
-                     (2, 3, 7, 6, 10, 19, 14, 18), (3, 0, 4, 7, 11, 16, 15, 19)],
-    # hexahedron27 face centres: 20 (x-), 21 (x+), 22 (y-), 23 (y+), 24 (z-), 25 (z+)
-    "hexahedron27": [(0, 3, 2, 1, 11, 10, 9, 8, 24), (4, 5, 6, 7, 12, 13, 14, 15, 25),
-                     (0, 1, 5, 4, 8, 17, 12, 16, 22), (1, 2, 6, 5, 9, 18, 13, 17, 21),
-                     (2, 3, 7, 6, 10, 19, 14, 18, 23), (3, 0, 4, 7, 11, 16, 15, 19, 20)],
-}
-
-
 def boundary_facets(mesh: Mesh) -> np.ndarray:
     """All boundary facets (facets that belong to exactly one cell), outward oriented.
 
-    A copy of ``facet_index(mesh).rows``: the local facets of ``CELL_FACETS`` of every
+    A copy of ``facet_index(mesh).rows``: the local facets (``CellType.facets``) of every
     cell, local facet by local facet, kept where no other cell has the same nodes.
     """
     return facet_index(mesh).rows.copy()
@@ -306,11 +261,11 @@ class FacetIndex:
     ----------
     rows : (n_boundary, nodes_per_facet) int array, read-only
         Node indices of each boundary facet in the outward orientation of
-        ``CELL_FACETS`` (the rows of :func:`boundary_facets`, same order).
+        ``CellType.facets`` (the rows of :func:`boundary_facets`, same order).
     cell : (n_boundary,) int array, read-only
         The one cell each boundary facet belongs to (counting every cell block).
     local_face : (n_boundary,) int array, read-only
-        Position of the facet in ``CELL_FACETS`` of its cell's type (mixed meshes:
+        Position of the facet in the ``facets`` of its cell's type (mixed meshes:
         the type of the cell's block).
     """
 
@@ -348,7 +303,7 @@ _FACET_INDEX_CACHE = weakref.WeakKeyDictionary()
 def facet_index(mesh: Mesh) -> FacetIndex:
     """The :class:`FacetIndex` of ``mesh``, built on first use and cached per mesh.
 
-    A facet is a boundary facet when exactly one cell has a local facet (``CELL_FACETS``)
+    A facet is a boundary facet when exactly one cell has a local facet (``CellType.facets``)
     with the same set of nodes. Meshes are immutable (frozen, read-only arrays), so the
     index stays valid for the life of the mesh.
     """
@@ -363,7 +318,7 @@ def _build_facet_index(mesh: Mesh) -> FacetIndex:
     every, cell, face, start = [], [], [], 0
     for b in mesh.cell_blocks:          # mixed meshes: one facet type for every block
         n = len(b.cells)
-        local = CELL_FACETS[b.cell_type]
+        local = CELL_TYPES[b.cell_type].facets
         every += [b.cells[:, list(f)] for f in local]
         cell += [start + np.arange(n)] * len(local)
         face += [np.full(n, k, dtype=np.int64) for k in range(len(local))]
@@ -400,23 +355,6 @@ def unique_rows(rows: np.ndarray):
 # --------------------------------------------------------------------------------------
 # tributary weights of facet nodes
 
-#: facet type -> (reference node coordinates, monomial exponents of its shape functions,
-#: reference shape "line" / "tri" / "quad"); node order as in ``CELL_FACETS``
-_FACET_REFERENCE = {
-    "line": ([(-1,), (1,)], [(0,), (1,)], "line"),
-    "line3": ([(-1,), (1,), (0,)], [(0,), (1,), (2,)], "line"),
-    "triangle": ([(0, 0), (1, 0), (0, 1)], [(0, 0), (1, 0), (0, 1)], "tri"),
-    "triangle6": ([(0, 0), (1, 0), (0, 1), (0.5, 0), (0.5, 0.5), (0, 0.5)],
-                  [(0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2)], "tri"),
-    "quad": ([(-1, -1), (1, -1), (1, 1), (-1, 1)], [(0, 0), (1, 0), (0, 1), (1, 1)], "quad"),
-    "quad8": ([(-1, -1), (1, -1), (1, 1), (-1, 1), (0, -1), (1, 0), (0, 1), (-1, 0)],
-              [(0, 0), (1, 0), (0, 1), (1, 1), (2, 0), (0, 2), (2, 1), (1, 2)], "quad"),
-    "quad9": ([(-1, -1), (1, -1), (1, 1), (-1, 1), (0, -1), (1, 0), (0, 1), (-1, 0), (0, 0)],
-              [(0, 0), (1, 0), (0, 1), (1, 1), (2, 0), (0, 2), (2, 1), (1, 2), (2, 2)],
-              "quad"),
-}
-
-
 def _facet_quadrature(shape):
     """Points and weights on the reference facet: 4-point Gauss per direction; the
     triangle by the collapsed (Duffy) square, exact to degree 7."""
@@ -435,8 +373,8 @@ def _facet_quadrature(shape):
 def _facet_shape_functions(facet_type):
     """Shape function values ``(n_qp, n_nodes)`` and reference gradients ``(n_qp,
     n_nodes, facet_dim)`` at the quadrature points, with the quadrature weights."""
-    nodes, exps, shape = _FACET_REFERENCE[facet_type]
-    nodes, exps = np.asarray(nodes, float), np.asarray(exps)
+    ft = TYPES[facet_type]
+    nodes, exps, shape = reference_nodes(facet_type), np.asarray(ft.basis), ft.linear
     V = np.prod(nodes[:, None, :] ** exps[None, :, :], axis=2)          # (node, monomial)
     C = np.linalg.inv(V)                                                 # N = m(x) @ C
     x, w = _facet_quadrature(shape)

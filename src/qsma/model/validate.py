@@ -31,6 +31,7 @@ from scipy.sparse import csr_matrix
 from scipy.spatial import cKDTree
 
 from ..errors import InputError, MeshFileError
+from ..mesh.celltypes import CELL_TYPES, reference_nodes
 from .mesh import Mesh
 
 __all__ = ["validate_mesh", "scaled_jacobians", "HIGHER_NODES", "MeshQualityWarning",
@@ -64,54 +65,10 @@ class MeshQualityWarning(UserWarning):
     """A mesh has valid but very badly shaped cells (see ``POOR_SCALED_JACOBIAN``)."""
 
 
-# --------------------------------------------------------------------------------------
-# reference cells (meshio / VTK node order)
-
-#: corner coordinates of the linear reference cells
-_CORNERS = {
-    "triangle": [(0, 0), (1, 0), (0, 1)],
-    "quad": [(-1, -1), (1, -1), (1, 1), (-1, 1)],
-    "tetra": [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)],
-    "hexahedron": [(-1, -1, -1), (1, -1, -1), (1, 1, -1), (-1, 1, -1),
-                   (-1, -1, 1), (1, -1, 1), (1, 1, 1), (-1, 1, 1)],
-}
-_QUAD_EDGES = [(0, 1), (1, 2), (2, 3), (3, 0)]
-_HEX_EDGES = [(0, 1), (1, 2), (2, 3), (3, 0), (4, 5), (5, 6), (6, 7), (7, 4),
-              (0, 4), (1, 5), (2, 6), (3, 7)]
-#: VTK face-centre order of the 27-node hexahedron: x-, x+, y-, y+, z-, z+, then the centre
-_HEX_FACES = [(0, 3, 7, 4), (1, 2, 6, 5), (0, 1, 5, 4), (3, 2, 6, 7), (0, 1, 2, 3),
-              (4, 5, 6, 7), tuple(range(8))]
-#: cell type -> (linear type of its corners, corner groups whose mean is each further node),
-#: in meshio/VTK node order (the readers derive their permutations from it)
-#: (VTK: "vtkQuadraticTriangle", "vtkQuadraticQuad", "vtkBiQuadraticQuad",
-#: "vtkQuadraticTetra", "vtkQuadraticHexahedron", "vtkTriQuadraticHexahedron")
-HIGHER_NODES = _NODES = {
-    "triangle": ("triangle", []), "quad": ("quad", []), "tetra": ("tetra", []),
-    "hexahedron": ("hexahedron", []),
-    "triangle6": ("triangle", [(0, 1), (1, 2), (2, 0)]),
-    "quad8": ("quad", _QUAD_EDGES),
-    "quad9": ("quad", _QUAD_EDGES + [(0, 1, 2, 3)]),
-    "tetra10": ("tetra", [(0, 1), (1, 2), (2, 0), (0, 3), (1, 3), (2, 3)]),
-    "hexahedron20": ("hexahedron", _HEX_EDGES),
-    "hexahedron27": ("hexahedron", _HEX_EDGES + _HEX_FACES),
-}
-_P2 = {2: [(0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2)],
-       3: [e for e in itertools.product(range(3), repeat=3) if sum(e) <= 2]}
-#: cell type -> exponents of the monomials spanning its shape functions; the serendipity
-#: cells (quad8, hexahedron20) take the monomials of degree <= 2 in each coordinate with
-#: at most one squared coordinate (x^2 y z yes, x^2 y^2 no): 8 and 20 of them
-_BASIS = {
-    "triangle": [(0, 0), (1, 0), (0, 1)],
-    "quad": [(0, 0), (1, 0), (0, 1), (1, 1)],
-    "tetra": [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)],
-    "hexahedron": list(itertools.product(range(2), repeat=3)),
-    "triangle6": _P2[2],
-    "quad8": [e for e in itertools.product(range(3), repeat=2) if e.count(2) <= 1],
-    "quad9": list(itertools.product(range(3), repeat=2)),
-    "tetra10": _P2[3],
-    "hexahedron20": [e for e in itertools.product(range(3), repeat=3) if e.count(2) <= 1],
-    "hexahedron27": list(itertools.product(range(3), repeat=3)),
-}
+#: derived from the cell type records, for code that reads the table: cell type ->
+#: (linear type of its corners, corner groups whose mean is each further node)
+HIGHER_NODES = {name: (t.linear, [tuple(g) for g in t.higher_nodes])
+                for name, t in CELL_TYPES.items()}
 #: Gauss points of the reference cells: 2 (linear) or 3 (quadratic) points per direction
 #: on [-1, 1]; triangle 3 points (1/6, 1/6), (2/3, 1/6), (1/6, 2/3) and tetrahedron
 #: 4 points (a, a, a), (b, a, a), ... with a = (5 - sqrt 5) / 20, b = (5 + 3 sqrt 5) / 20
@@ -125,19 +82,15 @@ _SIMPLEX_POINTS = {2: [(1 / 6, 1 / 6), (2 / 3, 1 / 6), (1 / 6, 2 / 3)],
 def _reference(cell_type: str):
     """Reference node coordinates (n, d) and shape-function gradients at the check
     points (p, n, d) of a cell type, or None for a type without a table here."""
-    if cell_type not in _NODES:
+    ct = CELL_TYPES.get(cell_type)
+    if ct is None:
         return None
-    linear, groups = _NODES[cell_type]
-    corners = np.array(_CORNERS[linear], dtype=float)
-    nodes = np.vstack([corners] + [corners[list(g)].mean(axis=0) for g in groups])
-    exps = np.array(_BASIS[cell_type])
-    if exps.shape[0] != len(nodes):
-        raise AssertionError(f"{cell_type}: {len(exps)} monomials for {len(nodes)} nodes")
+    nodes, exps = reference_nodes(cell_type), np.array(ct.basis)
     d = nodes.shape[1]
-    if linear in ("triangle", "tetra"):
+    if ct.linear in ("triangle", "tetra"):
         gauss = np.array(_SIMPLEX_POINTS[d])
     else:
-        g = [-3 ** -0.5, 3 ** -0.5] if not groups else [-0.6 ** 0.5, 0.0, 0.6 ** 0.5]
+        g = [-3 ** -0.5, 3 ** -0.5] if ct.is_linear else [-0.6 ** 0.5, 0.0, 0.6 ** 0.5]
         gauss = np.array(list(itertools.product(g, repeat=d)))
     points = np.vstack([nodes, gauss])
     # N_a(x) = sum_m C[m, a] x^e_m with V C = I, V[a, m] = nodes[a]^e_m
@@ -170,7 +123,7 @@ def scaled_jacobians(mesh: Mesh) -> np.ndarray | None:
     if ref is None:
         return None
     _, grads = ref
-    nc = len(_CORNERS[_NODES[mesh.cell_type][0]])
+    nc = CELL_TYPES[mesh.cell_type].corners
     out = np.empty((len(mesh.cells), grads.shape[0]))
     for start in range(0, len(mesh.cells), _CHUNK):
         x = mesh.points[mesh.cells[start:start + _CHUNK]]              # (e, n, d)
@@ -313,7 +266,7 @@ def _check_coincident(mesh, where, error, node_ids):
         diagonal = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
         spans = []
         for b in mesh.cell_blocks:
-            nc = len(_CORNERS[_NODES[b.cell_type][0]]) if b.cell_type in _NODES else 2
+            nc = CELL_TYPES[b.cell_type].corners
             spans.append(np.linalg.norm(points[b.cells[:, 1:nc]] - points[b.cells[:, :1]],
                                         axis=2).ravel())          # corner 0 to the others
         spans = np.concatenate(spans)

@@ -15,66 +15,23 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import InputError, MeshFileError
-from ..mesh import CELL_FACETS, CELL_TYPES, Mesh, facet_index
-from ..validate import HIGHER_NODES
-from .common import (_MAX_ID, _N_NODES, _TOPO_DIM, _boundary_of_sets,
+from ...mesh.celltypes import CELL_TYPES, TYPES, abaqus_element_types, abaqus_faces
+from ..mesh import Mesh, facet_index
+from .common import (_MAX_ID, _boundary_of_sets,
                      _cell_type_of, _check_names, _ContactPair, _Elements, _FileMesh,
                      _IdLookup, _line_of, _read_bytes, _to_mesh)
 
-#: Abaqus face numbering: face ``S<k>`` of an element is ``ABAQUS_FACES[type][k - 1]``
-#: (0-based local nodes), from the Abaqus element library ("face 1: 1-2-3-4,
-#: face 2: 5-8-7-6, face 3: 1-5-6-2, ..." for C3D8; "1-2-3, 1-4-2, 2-4-3, 3-4-1" for C3D4;
-#: edges 1-2, 2-3, 3-4, 4-1 for CPE4). Linear Abaqus and meshio node orders coincide.
-ABAQUS_FACES = {
-    "triangle": [(0, 1), (1, 2), (2, 0)],
-    "quad": [(0, 1), (1, 2), (2, 3), (3, 0)],
-    "tetra": [(0, 1, 2), (0, 3, 1), (1, 3, 2), (2, 3, 0)],
-    "hexahedron": [(0, 1, 2, 3), (4, 7, 6, 5), (0, 4, 5, 1), (1, 5, 6, 2), (2, 6, 7, 3),
-                   (3, 7, 4, 0)],
-}
-
-#: Abaqus/CalculiX element types read, without the letters R, I, H, T that mark reduced
-#: integration, incompatible modes, hybrid and coupled temperature variants (so C3D8R,
-#: CPE4I, CPS4R, ... are read too). Continuum elements are the cells of a mesh; shell,
-#: membrane, rigid, surface, truss and beam elements only ever carry sets (facets, nodes).
-ABAQUS_ELEMENT_TYPES = {
-    "C3D8": "hexahedron", "C3D4": "tetra",
-    "CPE4": "quad", "CPS4": "quad", "CAX4": "quad", "CPEG4": "quad",
-    "CPE3": "triangle", "CPS3": "triangle", "CAX3": "triangle", "CPEG3": "triangle",
-    "S4": "quad", "M3D4": "quad", "R3D4": "quad", "SFM3D4": "quad",
-    "S3": "triangle", "M3D3": "triangle", "R3D3": "triangle", "SFM3D3": "triangle",
-    "T2D2": "line", "T3D2": "line", "B21": "line", "B31": "line", "R2D2": "line",
-    # quadratic: Abaqus lists corners, then mid-edge nodes in meshio/VTK order
-    # (C3D20: 9-12 bottom edges 1-2..4-1, 13-16 top edges, 17-20 edges 1-5..4-8;
-    # C3D10: 5-10 on edges 1-2, 2-3, 3-1, 1-4, 2-4, 3-4), so no reordering
-    "C3D20": "hexahedron20", "C3D10": "tetra10", "C3D10M": "tetra10",
-    "CPE8": "quad8", "CPS8": "quad8", "CAX8": "quad8",
-    "CPE6": "triangle6", "CPS6": "triangle6", "CAX6": "triangle6",
-    "S8": "quad8", "M3D8": "quad8", "SFM3D8": "quad8", "M3D9": "quad9",
-    "S6": "triangle6", "M3D6": "triangle6", "SFM3D6": "triangle6",
-    "T2D3": "line3", "T3D3": "line3", "B22": "line3", "B32": "line3",
-}
+#: derived from the cell type records (:mod:`qsma.mesh.celltypes`), for code that reads
+#: these tables: Abaqus faces of the linear types; Abaqus/CalculiX element names read
+#: (without the letters R, I, H, T of their variants) -> meshio type
+ABAQUS_FACES = {name: [tuple(f) for f in t.abaqus_faces] for name, t in TYPES.items()
+                if t.abaqus_faces}
+ABAQUS_ELEMENT_TYPES = abaqus_element_types()
 #: element types refused with a reason of their own
 _ABAQUS_REFUSED = {
     "C3D27": "its optional face and centre nodes (21-27) have no node order qsma has "
              "checked; use C3D20",
 }
-#: element type written to .inp files when the mesh names none (plane strain in 2D)
-_ABAQUS_WRITE_TYPE = {"quad": "CPE4", "triangle": "CPE3", "hexahedron": "C3D8", "tetra": "C3D4",
-                      "quad8": "CPE8", "triangle6": "CPE6", "hexahedron20": "C3D20",
-                      "tetra10": "C3D10"}
-
-
-def _abaqus_faces(cell_type: str) -> list:
-    """Local nodes of face ``S<k>`` (entry k - 1): the corners of ``ABAQUS_FACES`` of the
-    linear type, then the cell's further nodes that lie on that face (``HIGHER_NODES``)."""
-    if cell_type in ABAQUS_FACES:
-        return ABAQUS_FACES[cell_type]
-    linear, groups = HIGHER_NODES[cell_type]
-    nc = CELL_TYPES[linear][1]
-    return [tuple(face) + tuple(nc + i for i, g in enumerate(groups) if set(g) <= set(face))
-            for face in ABAQUS_FACES[linear]]
-
 #: Characters of a coordinate field that CalculiX reads: its *NODE reader takes the first
 #: 20 characters of a field (Fortran ``f20.0``), so a longer field is cut short without a
 #: message and a field of 22 characters or more stops it ("*ERROR reading *NODE").
@@ -83,14 +40,16 @@ CALCULIX_FIELD = 20
 #: row of more nodes continues on the next line after a trailing comma.
 CALCULIX_ENTRIES = 16
 
+
 def element_face_facets(mesh: Mesh, cell_set: str, face: int) -> np.ndarray:
     """The facets (outward node rows) that are face ``S<face>`` (Abaqus numbering,
-    :data:`ABAQUS_FACES`) of the cells of ``cell_set``: what an Abaqus ``*DLOAD`` row
-    ``cell_set, P<face>, p`` loads. Every such face must be on the boundary."""
+    :func:`~qsma.mesh.celltypes.abaqus_faces`) of the cells of ``cell_set``: what an
+    Abaqus ``*DLOAD`` row ``cell_set, P<face>, p`` loads. Every such face must be on the
+    boundary."""
     if mesh.is_mixed:
         raise InputError(f"faces of cell set {cell_set!r}: a mesh of several cell types; "
                          f"name the loaded faces as a *SURFACE instead")
-    faces = _abaqus_faces(mesh.cell_type)
+    faces = abaqus_faces(mesh.cell_type)
     if cell_set not in mesh.cell_sets:
         raise InputError(f"no cell set named {cell_set!r} (an *ELSET of the cells); cell "
                          f"sets: {sorted(mesh.cell_sets)}")
@@ -339,10 +298,10 @@ class _InpReader:
         """What the file holds (nodes in id order), and its cell type."""
         node_ids, xyz = self._nodes()
         nodes = _IdLookup(node_ids)
-        blocks = [(b.cell_type, _TOPO_DIM[b.cell_type], self._connectivity(b, nodes),
+        blocks = [(b.cell_type, TYPES[b.cell_type].dim, self._connectivity(b, nodes),
                    _is_continuum(b.abaqus_type)) for b in self.blocks]
         vtypes = _cell_type_of(self.source, blocks, cell_type)
-        self._check_node_rows(CELL_TYPES[vtypes[0]][0])
+        self._check_node_rows(CELL_TYPES[vtypes[0]].dim)
         elements = self._element_lookup()
         index = _Elements(blocks)
         elsets = {k: self._element_indices(s, elements) for k, s in self.sets["ELSET"].items()}
@@ -528,7 +487,7 @@ class _InpReader:
                 continue
             for b, rows_b in by_block:
                 vtype = fm.blocks[b][0]
-                faces = _abaqus_faces(vtype)
+                faces = abaqus_faces(vtype)
                 m = re.fullmatch(r"S(\d)", face.upper())
                 if m is None or not 1 <= int(m.group(1)) <= len(faces):
                     raise _inp_error(where, f"face {face!r} does not exist on {vtype} "
@@ -614,7 +573,7 @@ def _inp_element(r: _InpReader, card: _Card):
         raise _inp_error(card.where, f"unknown or unsupported element type {etype!r}",
                          f"qsma reads the linear types {', '.join(ABAQUS_ELEMENT_TYPES)} "
                          f"(with R/I/H/T variants); convert the mesh to one of them")
-    nv = _N_NODES[cell_type]
+    nv = TYPES[cell_type].n_nodes
     rows, starts, texts = [], [], []
     pending, start = [], None
     for where, tokens, text in _rows(card):
@@ -847,18 +806,18 @@ def _id_lines(ids: np.ndarray) -> list:
 def _abaqus_write_type(mesh: Mesh) -> str:
     """The element type written: ``mesh.element`` when it is an Abaqus continuum type of
     the mesh's cell type, else the plane-strain / full-integration default."""
-    if mesh.cell_type not in _ABAQUS_WRITE_TYPE:
+    default = CELL_TYPES[mesh.cell_type].abaqus_write
+    if default is None:
         raise InputError(f"{mesh.cell_type} cells cannot be written to an .inp file (Abaqus "
                          f"and CalculiX have no such continuum element we have checked); "
                          f"write a .msh file instead")
     if mesh.element is None:
-        return _ABAQUS_WRITE_TYPE[mesh.cell_type]
+        return default
     name = mesh.element.upper()
     if not (_is_continuum(name) and _abaqus_cell_type(name) == mesh.cell_type):
         raise InputError(f"mesh.element = {mesh.element!r} is not an Abaqus continuum "
                          f"element type of {mesh.cell_type} cells; set element=None (writes "
-                         f"{_ABAQUS_WRITE_TYPE[mesh.cell_type]}) or a matching type such as "
-                         f"{_ABAQUS_WRITE_TYPE[mesh.cell_type]}R")
+                         f"{default}) or a matching type such as {default}R")
     return name
 
 
@@ -898,9 +857,9 @@ def _format_abaqus(mesh: Mesh, _version=None) -> str:
     boundary = facet_index(mesh)
     on_boundary = _boundary_of_sets(mesh, boundary)
     etype = _abaqus_write_type(mesh)
-    # local facet of CELL_FACETS -> Abaqus face number
-    face_number = [1 + [sorted(f) for f in _abaqus_faces(mesh.cell_type)].index(sorted(local))
-                   for local in CELL_FACETS[mesh.cell_type]]
+    # local facet of the cell type's facets -> Abaqus face number
+    face_number = [1 + [sorted(f) for f in abaqus_faces(mesh.cell_type)].index(sorted(local))
+                   for local in CELL_TYPES[mesh.cell_type].facets]
     out = ["*HEADING", f"qsma mesh: {mesh.n_nodes} nodes, {len(mesh.cells)} {etype} elements",
            "** written by qsma.model.io.write_mesh; facet sets are *SURFACE definitions over",
            "** the internal element sets _<set>_S<face> (Abaqus face numbering)", "*NODE"]

@@ -18,17 +18,9 @@ import numpy as np
 
 from ...errors import InputError, MeshFileError
 from ..validate import validate_mesh
-from ..mesh import (CELL_FACETS, CELL_TYPES, FACET_TYPES, MIXABLE, CellBlock, FacetIndex,
-                    Mesh, facet_index, mixed_mesh, unique_rows)
-
-_SET_ELEMENT_DIM = {"vertex": 0, "line": 1, "triangle": 2, "quad": 2,
-                    "line3": 1, "triangle6": 2, "quad8": 2, "quad9": 2}
-#: topological dimension and nodes of the linear types
-_TOPO_DIM = {**_SET_ELEMENT_DIM, "tetra": 3, "hexahedron": 3, "tetra10": 3,
-             "hexahedron20": 3, "hexahedron27": 3}
-_N_NODES = {"vertex": 1, "line": 2, "triangle": 3, "quad": 4, "tetra": 4, "hexahedron": 8,
-            "line3": 3, "triangle6": 6, "quad8": 8, "quad9": 9, "tetra10": 10,
-            "hexahedron20": 20, "hexahedron27": 27}
+from ...mesh.celltypes import CELL_TYPES, TYPES
+from ..mesh import (MIXABLE, CellBlock, FacetIndex, Mesh, facet_index, mixed_mesh,
+                    unique_rows)
 
 _MAX_ID = 2**62
 
@@ -125,14 +117,14 @@ def _cell_type_of(source: str, blocks: list, requested: str | None) -> tuple:
                                 f"reads meshes of {', '.join(sorted(CELL_TYPES))}; convert "
                                 f"the mesh to them (e.g. Gmsh: Mesh.ElementOrder = 1, "
                                 f"Mesh.RecombineAll = 1 for hexahedra)")
-    facet_types = {CELL_TYPES[t][2] for t in top}
+    facet_types = {CELL_TYPES[t].facet_type for t in top}
     if len(top) > 1 and (len(facet_types) > 1 or not facet_types <= set(MIXABLE)):
         raise MeshFileError(f"{source}: the file holds {dim}D cells of types "
                             f"{', '.join(top)}, a mix qsma does not support; mixed meshes "
                             f"may be 2D {MIXABLE['line']} or {MIXABLE['line3']} (one facet "
                             f"type). Mesh with a single cell type (e.g. all {top[0]}) or "
                             f"one of these mixes")
-    other = sorted(t for t in types if t not in top and t not in _SET_ELEMENT_DIM)
+    other = sorted(t for t in types if t not in top and not _set_element(t))
     if other:
         raise MeshFileError(f"{source}: {', '.join(other)} elements are not supported beside "
                             f"the {' and '.join(top)} cells; remove them or use linear "
@@ -143,13 +135,19 @@ def _cell_type_of(source: str, blocks: list, requested: str | None) -> tuple:
     return tuple(top)
 
 
+def _set_element(name: str) -> bool:
+    """Whether elements of type ``name`` can only carry sets here: vertices, lines and
+    surface elements (they are cells only of a mesh of their own dimension)."""
+    return name in TYPES and TYPES[name].dim <= 2
+
+
 def _first_appearance(values: np.ndarray) -> np.ndarray:
     _, first = np.unique(values, return_index=True)
     return values[np.sort(first)]
 
 
 def _plane_points(source: str, points: np.ndarray, vtype: str) -> np.ndarray:
-    if CELL_TYPES[vtype][0] == 3:
+    if CELL_TYPES[vtype].dim == 3:
         return points
     scale = max(1.0, float(np.abs(points[:, :2]).max(initial=0.0)))
     z = np.abs(points[:, 2]).max(initial=0.0)
@@ -164,7 +162,7 @@ def _to_mesh(fm: _FileMesh, vtypes: tuple) -> Mesh:
     block per type), sets split by element dimension, facets matched to boundary
     facets."""
     src = fm.source
-    dim = CELL_TYPES[vtypes[0]][0]
+    dim = CELL_TYPES[vtypes[0]].dim
     elements = _Elements(fm.blocks)
     element_cell = np.full(elements.offsets[-1], -1, dtype=np.int64)
     cell_blocks, ids, start = [], [], 0
@@ -215,7 +213,7 @@ def _to_mesh(fm: _FileMesh, vtypes: tuple) -> Mesh:
         on = np.isin(boundary.cell, cells_in)
         facet_rows.setdefault(name, []).append(boundary.rows[on])
 
-    nf = FACET_TYPES[bare.facet_type]
+    nf = TYPES[bare.facet_type].n_nodes
     facet_sets = {name: _match_facets(src, name, _joined(parts, (0, nf)), boundary,
                                       fm.labels, bare)
                   for name, parts in facet_rows.items()}
@@ -246,7 +244,7 @@ def _joined(parts: list, empty_shape: tuple) -> np.ndarray:
 def _match_facets(src, name, rows, boundary: FacetIndex, labels, mesh: Mesh) -> np.ndarray:
     """The boundary facets (outward orientation) of the facet rows of set ``name``."""
     if len(rows) == 0:
-        return np.zeros((0, len(CELL_FACETS[mesh.cell_type][0])), dtype=np.int64)
+        return np.zeros((0, CELL_TYPES[mesh.cell_type].nodes_per_facet), dtype=np.int64)
     found = boundary.find(rows)
     missing = np.flatnonzero(found < 0)
     if missing.size:

@@ -935,8 +935,8 @@ class _DeckReader:
         return {"points": [[body, point]], "direction": direction}, self._levels(levels)
 
     def _dim(self):
-        from ..mesh import CELL_TYPES
-        return CELL_TYPES[self.asm.cell_types[0]][0]
+        from ...mesh.celltypes import CELL_TYPES
+        return CELL_TYPES[self.asm.cell_types[0]].dim
 
     def _node_point(self, node_id):
         """``(body, coordinates)`` of the deck's node ``node_id``."""

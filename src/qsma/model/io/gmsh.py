@@ -17,43 +17,30 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import InputError, MeshFileError
-from ..mesh import CELL_TYPES, Mesh, facet_index
-from ..validate import HIGHER_NODES
+from ...mesh.celltypes import CELL_TYPES, TYPES
+from ..mesh import Mesh, facet_index
 from .common import (_MAX_ID, _boundary_of_sets, _cell_type_of, _check_names,
                      _FileMesh, _IdLookup, _line_of, _number, _read_bytes, _to_mesh)
 
+#: Gmsh element types of no qsma cell type (wedges, pyramids): known here so that files
+#: holding them are parsed and the message refusing them names them
+_GMSH_OTHER = {6: ("wedge", 6, 3), 7: ("pyramid", 5, 3), 13: ("wedge18", 18, 3),
+               14: ("pyramid14", 14, 3), 18: ("wedge15", 15, 3), 19: ("pyramid13", 13, 3)}
 #: Gmsh element type number -> (meshio name, nodes per element, topological dimension)
-_GMSH_TYPES = {
-    1: ("line", 2, 1), 2: ("triangle", 3, 2), 3: ("quad", 4, 2), 4: ("tetra", 4, 3),
-    5: ("hexahedron", 8, 3), 6: ("wedge", 6, 3), 7: ("pyramid", 5, 3), 8: ("line3", 3, 1),
-    9: ("triangle6", 6, 2), 10: ("quad9", 9, 2), 11: ("tetra10", 10, 3),
-    12: ("hexahedron27", 27, 3), 13: ("wedge18", 18, 3), 14: ("pyramid14", 14, 3),
-    15: ("vertex", 1, 0), 16: ("quad8", 8, 2), 17: ("hexahedron20", 20, 3),
-    18: ("wedge15", 15, 3), 19: ("pyramid13", 13, 3),
-}
-_GMSH_TYPE_NUMBER = {name: number for number, (name, _, _) in _GMSH_TYPES.items()}
-#: Gmsh order of the nodes after the corners, as the corners each is the mean of (Gmsh
-#: reference manual, "Node ordering"); the other quadratic types (line3, triangle6,
-#: quad8, quad9) list their nodes as meshio/VTK does
-_GMSH_HIGHER_NODES = {
-    "tetra10": [(0, 1), (1, 2), (2, 0), (3, 0), (3, 2), (3, 1)],
-    "hexahedron20": [(0, 1), (0, 3), (0, 4), (1, 2), (1, 5), (2, 3), (2, 6), (3, 7),
-                     (4, 5), (4, 7), (5, 6), (6, 7)],
-}
-_GMSH_HIGHER_NODES["hexahedron27"] = _GMSH_HIGHER_NODES["hexahedron20"] + [
-    (0, 3, 2, 1), (0, 1, 5, 4), (0, 4, 7, 3), (1, 2, 6, 5), (2, 3, 7, 6), (4, 5, 6, 7),
-    tuple(range(8))]
+_GMSH_TYPES = {**{t.gmsh: (t.name, t.n_nodes, t.dim) for t in TYPES.values()},
+               **_GMSH_OTHER}
+_GMSH_DIM = {name: dim for name, _, dim in _GMSH_TYPES.values()}
 
 
 def _gmsh_to_meshio(cell_type: str):
     """Column order taking Gmsh rows of ``cell_type`` to meshio order (None: the same),
     derived by matching the corner groups of each node in both orders."""
-    if cell_type not in _GMSH_HIGHER_NODES:
+    t = TYPES.get(cell_type)
+    if t is None or t.gmsh_higher_nodes is None:
         return None
-    linear, groups = HIGHER_NODES[cell_type]
-    nc = CELL_TYPES[linear][1]
-    gmsh = [frozenset(g) for g in _GMSH_HIGHER_NODES[cell_type]]
-    return np.array(list(range(nc)) + [nc + gmsh.index(frozenset(g)) for g in groups])
+    nc = t.corners
+    gmsh = [frozenset(g) for g in t.gmsh_higher_nodes]
+    return np.array(list(range(nc)) + [nc + gmsh.index(frozenset(g)) for g in t.higher_nodes])
 
 #: Gmsh file versions write_mesh can produce
 GMSH_VERSIONS = ("4.1", "2.2")
@@ -80,7 +67,7 @@ def _gmsh_file_mesh(path: Path, cell_type: str | None):
         raise MeshFileError(f"{src}: Gmsh format version {version} is not supported; save "
                             f"the mesh as version 4.1 or 2.2 (Gmsh: Mesh.MshFileVersion)")
     vtypes = _cell_type_of(src, fm.blocks, cell_type)
-    dim = CELL_TYPES[vtypes[0]][0]
+    dim = CELL_TYPES[vtypes[0]].dim
     kinds = {dim: "cell", dim - 1: "facet"}
     for name, gdim in dims.items():
         if name not in fm.element_sets:
@@ -301,7 +288,7 @@ class _Gmsh4:
                                     f"not in $Nodes; the file is damaged")
             order = _gmsh_to_meshio(etype)
             conn = conn if order is None else conn[:, order]
-            blocks.append((etype, _GMSH_TYPES[_GMSH_TYPE_NUMBER[etype]][2], conn, True))
+            blocks.append((etype, _GMSH_DIM[etype], conn, True))
             element_ids.append(ids)
             for group in self.entity_groups.get((dim, entity), ()):
                 name = self.names.get((dim, group), str(group))
@@ -572,14 +559,14 @@ def _gmsh_blocks(mesh: Mesh):
             runs.append([g, i, i + 1])
     order = _gmsh_to_meshio(mesh.cell_type)
     cells = mesh.cells if order is None else mesh.cells[:, np.argsort(order)]
-    blocks = [(d, k, _GMSH_TYPE_NUMBER[mesh.cell_type], cells[a:b], g)
+    blocks = [(d, k, TYPES[mesh.cell_type].gmsh, cells[a:b], g)
               for k, (g, a, b) in enumerate(runs, start=1)]
     by_groups = {}
     for i, g in facet_groups.items():
         by_groups.setdefault(tuple(g), []).append(i)
-    blocks += [(d - 1, k, _GMSH_TYPE_NUMBER[mesh.facet_type], boundary.rows[members], g)
+    blocks += [(d - 1, k, TYPES[mesh.facet_type].gmsh, boundary.rows[members], g)
                for k, (g, members) in enumerate(by_groups.items(), start=1)]
-    blocks += [(0, k, 15, np.array([[node]]), tuple(g))
+    blocks += [(0, k, TYPES["vertex"].gmsh, np.array([[node]]), tuple(g))
                for k, (node, g) in enumerate(sorted(node_groups.items()), start=1)]
     return groups, blocks
 

@@ -21,7 +21,7 @@ import re
 
 import numpy as np
 
-from .common import _N_NODES
+from ...mesh.celltypes import TYPES
 
 _INT = re.compile(r"[+-]?\d{1,18}")
 
@@ -184,7 +184,7 @@ def _instance(cards, name, node_off, elem_off, placement, card_type):
             out.append(card_type("NODE", params, c.where, data))
         elif c.keyword == "ELEMENT":
             cell = _abaqus_cell_type(str(c.params.get("TYPE", "")))
-            nv = _N_NODES.get(cell, 0)
+            nv = TYPES[cell].n_nodes if cell in TYPES else 0
             data, k = [], 0
             for where, tokens, _ in _rows(c):
                 moved = []
