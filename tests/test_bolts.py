@@ -214,7 +214,7 @@ def _three_plates(bolt_stiffness=1e11):
 
 def test_bolt_on_the_several_interface_path_equals_the_two_body_path():
     """The bolted lap-2d given as a list of one interface goes through the
-    several-interface condensation (qsma.multibody): the same preload and damping
+    several-interface condensation (qsma.reduction.multibody): the same preload and damping
     curve as the two-body path (measured 7.7e-12 of the largest contact force,
     zeta 5e-14, f 4e-13)."""
     m = lap_2d_bolted(1, mu=0.1)

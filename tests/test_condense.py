@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 import scipy.sparse.linalg as spla
 
-from qsma.condense import reduce_two_bodies
+from qsma.reduction.two_bodies import reduce_two_bodies
 from qsma.examples import sandwich_2d
 from qsma.fe import assemble_body
 from qsma.modal import linear_modes, stacked, tie_transform
@@ -207,7 +207,7 @@ def test_cholesky_combination_equals_the_direct_formula(ratio):
     """K = Kc_1 (Kc_1 + Kc_2)^-1 Kc_2 written as Kc - Y^T Y agrees with the direct
     product to round-off, also for bodies of very different stiffness."""
     import scipy.linalg as sla
-    from qsma.condense import minus_gram
+    from qsma.reduction.two_bodies import minus_gram
     rng = np.random.default_rng(4)
     Kc1, Kc2 = _random_spd(60, 1.0, rng), _random_spd(60, ratio, rng)
     S_cho = sla.cho_factor(Kc1 + Kc2)
@@ -240,7 +240,7 @@ def test_tied_solver_equals_the_sparse_solve_of_the_tied_assembly(setup, fractio
     pair tied and with 40 % of them (the rest free). Measured: 1.6e-10 of the largest
     displacement with every pair tied, 3.2e-10 with 26 of 65 tied: round-off of the
     two solvers (sparse direct against condensed) on this stiffness."""
-    from qsma.condense import tied_solver
+    from qsma.reduction.two_bodies import tied_solver
     m, A, p, red = setup
     rng = np.random.default_rng(7)
     tied = rng.random(p.n_pairs) < fraction

@@ -9,7 +9,7 @@ import pytest
 import scipy.sparse.linalg as spla
 
 import qsma
-import qsma.rigid as rigid
+import qsma.reduction.rigid as rigid
 from qsma.errors import InputError
 from qsma.examples import lap_2d_cantilever, lap_2d_free
 from qsma.fe import assemble_body

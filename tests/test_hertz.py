@@ -15,7 +15,7 @@ size of the blocks through the load-approach relation.
 import numpy as np
 import pytest
 
-from qsma.condense import reduce_two_bodies
+from qsma.reduction.two_bodies import reduce_two_bodies
 from qsma.contact import ContactProblem, residual, solve
 from qsma.fe import assemble_body
 from qsma.model import Body, Clamp, Interface, Material, Model, make_pairing

@@ -144,7 +144,7 @@ def test_substructured_inverse_solves_the_tied_stiffness(name):
     """``(T^T K T) x = b`` to round-off for a random load (with the bolt stiffness;
     free-free: for a self-equilibrated load, up to a rigid motion)."""
     from qsma.model.bolt import bolt_stiffness
-    from qsma.rigid import assembly_motions
+    from qsma.reduction.rigid import assembly_motions
     p, reduced, closed = _preloaded(name)
     args = (p.model, p.assembled, p.pairing)
     T = tie_transform(*args, closed)
@@ -261,7 +261,7 @@ def test_block_shift_invert_finds_every_symmetry_class_from_a_rigid_start():
     the wrong "8 lowest" modes (the one at lambda = 3.19 was missing, 17 % error) as
     converged. The start gets a random part: the eight lowest are found (reference:
     ARPACK shift-invert from its own random start)."""
-    from qsma.condense import rigid_body_modes
+    from qsma.reduction.rigid import rigid_body_modes
     from qsma.model.body import Body, Material
     from qsma.model.generate import structured_mesh
     mesh = structured_mesh(np.linspace(-1, 1, 17), np.linspace(-0.15, 0.15, 5),

@@ -10,7 +10,7 @@ import pytest
 import scipy.sparse.linalg as spla
 
 import qsma
-from qsma.condense import reduce_two_bodies
+from qsma.reduction.two_bodies import reduce_two_bodies
 from qsma.contact import ContactProblem, solve as contact_solve
 from qsma.errors import InputError
 from qsma.examples import sandwich_2d

@@ -15,6 +15,14 @@ import scipy.sparse.linalg as spla
 
 from ._resources import free_memory
 from .errors import AnalysisError, InputError
+from .model.bolt import bolt_stiffness, bolt_vectors
+from .reduction import multibody
+from .reduction.multibody import Coupling, MultiPairing, body_order, \
+    relative_displacement_operator
+from .reduction.rigid import (assembly_free_motions, assembly_motions, rigid_body_modes,
+                              rigid_modes_message)
+from .reduction.schur import spd_solver
+from .reduction.two_bodies import tied_solver
 
 #: Most modes one eigen solve may ask for. ARPACK keeps 2k+1 Lanczos vectors and
 #: orthogonalises against them; measured on sandwich-2d (4500 DOFs, 2-core machine,
@@ -62,10 +70,9 @@ def tie_transform(model, assembled, pairing, tied) -> sp.csr_matrix:
     """``T`` with ``x_all = T x_reduced``: Dirichlet DOFs dropped, tied body-2 DOFs mapped
     onto their body-1 partners (node-to-node) or tied slave DOFs onto the projection of
     the master DOFs (mortar, :func:`_mpc_transform`); several interfaces:
-    :func:`qsma.multibody.tie_transform`."""
-    from .multibody import MultiPairing, tie_transform as multi_tie_transform
+    :func:`qsma.reduction.multibody.tie_transform`."""
     if isinstance(pairing, MultiPairing):
-        return multi_tie_transform(model, assembled, pairing, tied)
+        return multibody.tie_transform(model, assembled, pairing, tied)
     if pairing.projection is not None:
         return _mpc_transform(model, assembled, pairing, tied)
     off = model.dof_offsets()
@@ -96,10 +103,10 @@ def _mpc_transform(model, assembled, pairing, tied):
     """``T`` for a mortar pairing: the rows of the tied slave DOFs (component c of slave
     node i) are ``sum_k P_ik e_(master k, c)``; the slave DOFs leave the unknowns, and so
     do the Dirichlet DOFs (a clamped master DOF contributes zero). The one-interface
-    case of :func:`qsma.multibody.tie_transform`."""
-    from .multibody import Coupling, MultiPairing, body_order, tie_transform as general
+    case of :func:`qsma.reduction.multibody.tie_transform`."""
     coupling = Coupling(pairing, *body_order(model, pairing))
-    return general(model, assembled, MultiPairing((coupling,), (model.interface,)), tied)
+    return multibody.tie_transform(model, assembled,
+                                   MultiPairing((coupling,), (model.interface,)), tied)
 
 
 def linear_modes(model, assembled, pairing, tied=None, n_modes=6, reduced=None,
@@ -108,10 +115,10 @@ def linear_modes(model, assembled, pairing, tied=None, n_modes=6, reduced=None,
 
     Solves ``(T^T K T - w^2 T^T M T) phi_r = 0`` by shift-invert Lanczos about 0;
     shapes are mass-normalised (``phi^T M phi = 1``). An assembly that no clamp holds
-    (free-free, :func:`qsma.rigid.assembly_free_motions` motions free) has its rigid
+    (free-free, :func:`qsma.reduction.rigid.assembly_free_motions` motions free) has its rigid
     modes first (``Modes.n_rigid``) and ``n_modes`` elastic modes follow them.
 
-    ``reduced``: the condensed two-body model of the run (:mod:`qsma.condense`, bolts
+    ``reduced``: the condensed two-body model of the run (:mod:`qsma.reduction.two_bodies`, bolts
     locked or not). Where given and it covers the case (:func:`substructured_inverse`),
     ``(T^T K T)^-1`` is applied through its per-body ``K_EE`` factors and the dense
     interface matrices, and a free-free assembly's rigid motions are projected out of
@@ -132,7 +139,6 @@ def linear_modes(model, assembled, pairing, tied=None, n_modes=6, reduced=None,
         raise InputError(f"tied mask must have {pairing.n_pairs} entries, got {tied.shape}")
     springs = _checked_springs(springs, pairing.n_pairs, model.dim)
     held = tied if springs is None else tied & np.all(np.isinf(springs), axis=1)
-    from .rigid import assembly_free_motions
     T = tie_transform(model, assembled, pairing, held)
     n_free = assembly_free_motions(model, assembled)
     check_n_modes(n_modes, T.shape[1])
@@ -143,7 +149,6 @@ def linear_modes(model, assembled, pairing, tied=None, n_modes=6, reduced=None,
         return _substructured_modes(inverse, M, T, tied, n_modes, model, assembled)
     K = stacked([a.K for a in assembled])
     if getattr(model, "bolts", ()):
-        from .model.bolt import bolt_stiffness
         K = K + bolt_stiffness(model)                  # the bolts locked after preload
     if springs is not None:
         K = K + _spring_stiffness(model, pairing, springs, held)
@@ -177,7 +182,6 @@ def _spring_stiffness(model, pairing, springs, held):
     points in their local frames, ``S`` the finite springs of the points not tied in
     every component. A point tied in some components only is refused here (the
     substructured solve, :func:`substructured_inverse`, takes it)."""
-    from .multibody import Coupling, MultiPairing, body_order, relative_displacement_operator
     partial = ~held & np.any(np.isinf(springs), axis=1)
     if partial.any():
         raise InputError(f"{int(partial.sum())} contact point(s) have an interface law "
@@ -231,7 +235,6 @@ def _check_free_rigid(lam, model, assembled, T, vec, n_free):
     parts = [nonrigid_part(model, assembled, T @ vec[:, j]) for j in range(len(lam))]
     rigid = int(np.sum(np.array(parts) < RIGID_TOL))
     if rigid > n_free or not all(p < RIGID_TOL for p in parts[:n_free]):
-        from .rigid import rigid_modes_message
         j = n_free if rigid > n_free else int(np.argmax(parts[:n_free]))
         full = T @ vec[:, j]
         off = model.dof_offsets()
@@ -264,10 +267,9 @@ def check_n_modes(n_modes, n_free=None):
 
 
 def _factor(K, model, assembled, T):
-    """Factorised tied stiffness (:func:`qsma.linalg.spd_solver`: PARDISO if installed,
+    """Factorised tied stiffness (:func:`qsma.reduction.schur.spd_solver`: PARDISO if installed,
     else SuperLU on the METIS nested-dissection ordering, or on SuperLU's MMD where
     pymetis is missing)."""
-    from .linalg import spd_solver
     try:
         return spd_solver(K)
     except InputError as exc:
@@ -299,7 +301,6 @@ def _check_rigid(lam, model, assembled, T, vec):
 def nonrigid_part(model, assembled, u) -> float:
     """``|u - P u| / |u|`` with ``P u`` the best rigid motion of each body (least
     squares over the body's translations and rotations)."""
-    from .condense import rigid_body_modes
     off = model.dof_offsets()
     rest = 0.0
     for k, a in enumerate(assembled):
@@ -346,7 +347,7 @@ class SubstructuredInverse:
     r"""``x = (T^T K T)^{-1} b`` on the unknowns of :func:`tie_transform` without
     factorising the tied stiffness: the load ``f`` with ``f[rows] = b`` (elsewhere 0)
     satisfies ``T^T f = b`` (row ``rows[j]`` of ``T`` is ``e_j``), the static solve
-    with the pairs tied is done by :class:`qsma.condense.TiedSolver` (per-body
+    with the pairs tied is done by :class:`qsma.reduction.two_bodies.TiedSolver` (per-body
     ``K_EE`` factors, dense interface algebra) and ``x = u[rows]`` (``u = T x``).
 
     Locked bolts add ``B k B^T`` (``B = T^T c``, one column per bolt) to the tied
@@ -363,7 +364,7 @@ class SubstructuredInverse:
 
     Attributes
     ----------
-    solver : :class:`qsma.condense.TiedSolver` of the closed pairs
+    solver : :class:`qsma.reduction.two_bodies.TiedSolver` of the closed pairs
     rows : per unknown, the row of ``T`` (stacked DOF) that is that unknown
     offsets, order : ``model.dof_offsets()`` and the model indices of the interface's
         body 1 and body 2
@@ -412,12 +413,9 @@ class SubstructuredInverse:
 
 def substructured_inverse(model, assembled, pairing, tied, reduced, T, M, springs=None):
     """The :class:`SubstructuredInverse` of the tied assembly, or None where it does not
-    apply: several interfaces (:mod:`qsma.multibody`), a ``T`` without an identity row
+    apply: several interfaces (:mod:`qsma.reduction.multibody`), a ``T`` without an identity row
     per unknown, free-free rigid motions that ``T`` does not reproduce, or tied pairs
     that do not hold the bodies together (the full factorisation then reports it)."""
-    from .condense import tied_solver
-    from .multibody import MultiPairing, body_order
-    from .rigid import assembly_motions
     if isinstance(pairing, MultiPairing):
         return None
     rows = identity_rows(T)
@@ -434,7 +432,6 @@ def substructured_inverse(model, assembled, pairing, tied, reduced, T, M, spring
         MZ = M @ Z
         inv = replace(inv, Z=Z, MZ=MZ, gram=Z.T @ MZ)
     if getattr(model, "bolts", ()):
-        from .model.bolt import bolt_vectors
         B = np.column_stack([T.T @ np.concatenate(bolt_vectors(model, b))
                              for b in model.bolts])
         Y = inv.unbolted(B)
@@ -460,7 +457,6 @@ def identity_rows(T) -> np.ndarray | None:
 def _rigid_fields(model, assembled):
     """Translations then rotations of every body (each about its own centroid) over
     the stacked DOFs, one column per kind of motion: a smooth start block."""
-    from .condense import rigid_body_modes
     return np.vstack([rigid_body_modes(a.body.mesh.points) for a in assembled])
 
 

@@ -318,9 +318,9 @@ def make_pairing(model, interface=None) -> Pairing:
     """The contact points of ``interface`` (default: ``model.interface``): node pairs or
     the mortar coupling (``Interface.coupling``), with their local frames. A model of
     several interfaces (and no ``interface`` given): every one of them, as a
-    :class:`qsma.multibody.MultiPairing`."""
+    :class:`qsma.reduction.multibody.MultiPairing`."""
     if interface is None and model.interface is None:
-        from ..multibody import multi_pairing
+        from ..reduction.multibody import multi_pairing
         return multi_pairing(model)
     itf = model.interface if interface is None else interface
     b1, b2 = model.body(itf.body1), model.body(itf.body2)

@@ -18,7 +18,7 @@ to the body's stiffness matrix, a diagonal term (``e_{i,c}`` the unit vector of 
 
 The springs are part of the stiffness everywhere (preload, condensation, tied
 modes, recovery). A direction with ``k_c > 0`` counts as held in the check of
-rigid-body freedom (:func:`qsma.rigid.free_motions`), so a body on springs is no
+rigid-body freedom (:func:`qsma.reduction.rigid.free_motions`), so a body on springs is no
 longer held "only by the joint"; the limit ``k -> 0`` of such a body is the body held
 only by the joint (tests/test_springs.py).
 """
