@@ -45,7 +45,7 @@ from qsma.examples import sandwich_2d
 from qsma.fe import assemble_body
 from qsma.reduction.schur import AUTO_ORDER, available_backends, schur_complement
 from qsma.model import Body, Clamp, Material, make_pairing
-from qsma.model.generate import graded_axis, structured_mesh
+from qsma.mesh.generate import graded_axis, structured_mesh
 
 L, H, LC, WIDTH = 0.2032, 0.00635, 0.0508, 0.0254
 

@@ -72,7 +72,7 @@ def test_modal_projection_equals_phi_M_x_of_recovered_field(setup):
 def _two_hex_beams():
     """A small 3D sandwich: two clamped hexahedral beams, pressure on a patch."""
     from qsma.model import Body, Clamp, Interface, Material, Model, Pressure
-    from qsma.model.generate import structured_mesh
+    from qsma.mesh.generate import structured_mesh
     xs, zs = np.linspace(0, 0.1, 21), np.linspace(0, 0.02, 5)
     steel = Material(200e9, 0.3, 7800.0)
     bodies = []
@@ -98,7 +98,7 @@ def _mortar(model, refine_top=None, slave=None):
     body's grid so that its interface nodes do not match the bottom's."""
     import dataclasses
     if refine_top is not None:
-        from qsma.model.generate import structured_mesh
+        from qsma.mesh.generate import structured_mesh
         top = model.bodies[1]
         old = top.mesh
         lo, hi = old.points.min(axis=0), old.points.max(axis=0)
@@ -261,7 +261,7 @@ def test_body_with_nothing_inside_to_condense_is_refused_by_name():
     from qsma.analysis import prepare
     from qsma.errors import InputError
     from qsma.model import Body, Clamp, Interface, Material, Model
-    from qsma.model.generate import structured_mesh
+    from qsma.mesh.generate import structured_mesh
     bodies = []
     for name, z0, clamp, face in (("lower", 0.0, "bottom", "top"),
                                   ("upper", 1.0, "top", "bottom")):

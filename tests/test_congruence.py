@@ -24,9 +24,9 @@ from qsma.errors import InputError
 from qsma.examples import lap_2d, sandwich_2d
 from qsma.fe import assemble_body
 from qsma.model import Body, Clamp, Material, make_pairing
-from qsma.model.generate import box_nodes, structured_mesh
+from qsma.mesh.generate import box_nodes, structured_mesh
 from qsma.modal import linear_modes
-from qsma.reduction.multibody import body_order
+from qsma.model.pairing import body_order
 
 
 def _rel(a, b):
@@ -351,7 +351,8 @@ def test_several_interfaces_share_the_factor_of_congruent_plates():
     the stacked reduced model equals the one of three separate condensations."""
     import qsma.reduction.condensation as condensation
     from qsma.examples import stack_2d
-    from qsma.reduction.multibody import multi_pairing, reduce_model
+    from qsma.model.pairing import multi_pairing
+    from qsma.reduction.multibody import reduce_model
     model = stack_2d(1)
     pairing = multi_pairing(model)
     asm = [assemble_body(b) for b in model.bodies]

@@ -15,7 +15,7 @@ from qsma.examples import sandwich_2d
 from qsma.fe import assemble_body
 from qsma.levels import Levels
 from qsma.model import write_mesh
-from qsma.model.io.deck import read_deck
+from qsma.deck import read_deck
 from helpers import bodies_in_one_mesh
 
 #: the sandwich-2d bolt pressure (Pa) and the lap deck's friction
@@ -192,7 +192,7 @@ def test_cload_and_dload_faces_are_the_preload(tmp_path):
     model = parse_config(deck.config, base=tmp_path).model
     bottom = model.bodies[0]
     bolt = bottom.mesh.facet_sets["bottom_bolt"]
-    from qsma.model.mesh import facet_index
+    from qsma.mesh.mesh import facet_index
     index = facet_index(bottom.mesh)
     rows = index.find(bolt)
     cells = np.unique(index.cell[rows])

@@ -54,7 +54,7 @@ def test_model_translated_by_one_km_gives_same_operators_and_frequency(make, off
 
 # ---------------------------------------------------------------- quadratic cells
 from qsma.model import Body, Clamp, Material, Mesh, Pressure, boundary_facets  # noqa: E402
-from qsma.model.generate import structured_mesh  # noqa: E402
+from qsma.mesh.generate import structured_mesh
 from helpers import check_patch, distorted_3d, distorted_patch  # noqa: E402
 
 STEEL = Material(200e9, 0.285, 7800.0)
@@ -420,7 +420,7 @@ def test_boundary_facets_and_normals_of_quadratic_cells(cell_type):
     """Boundary of the unit square / cube: facets of the right type (corner nodes first,
     midside nodes at the middle of the corner edges), outward normals summing to zero,
     areas to the perimeter (4) / surface (6), each normal along an axis."""
-    from qsma.model.interface import facet_normals
+    from qsma.mesh.facets import facet_normals
     from qsma.mesh.celltypes import TYPES
     mesh = _quadratic_patch(cell_type)
     bf = boundary_facets(mesh)
@@ -599,7 +599,7 @@ def test_tributary_weights_of_facets_are_positive_hrz_shares(facet_type, shares)
     -1/12 : 1/3) and 1/19 : 16/57 on triangle6 (consistent: 0 : 1/3). Checked on a
     stretched, translated facet (shares are relative to its area)."""
     from qsma.mesh.celltypes import TYPES, reference_nodes
-    from qsma.model.mesh import facet_node_weights
+    from qsma.mesh.facets import facet_node_weights
     ref = reference_nodes(facet_type)
     scale = {"line": 2.0, "triangle": 0.5, "quad": 4.0}[TYPES[facet_type].linear]
     pts = np.column_stack([ref, np.zeros((len(ref), 2 - ref.shape[1] + 1))])

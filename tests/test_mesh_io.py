@@ -13,9 +13,9 @@ from skfem import MeshTet
 
 from qsma.errors import InputError, MeshFileError
 from qsma.examples import sandwich_2d
-from qsma.model.generate import structured_mesh
-from qsma.model.io import MESH_FORMATS, read_mesh, write_mesh
-from qsma.model.mesh import Mesh, boundary_facets
+from qsma.mesh.generate import structured_mesh
+from qsma.mesh.io import MESH_FORMATS, read_mesh, write_mesh
+from qsma.mesh.mesh import Mesh, boundary_facets
 from helpers import QUAD_GRID
 
 DATA = Path(__file__).parent / "data"
@@ -259,7 +259,7 @@ def test_inp_fields_fit_calculix(tmp_path, cell_type):
     """Coordinates are written in at most 20 characters (CalculiX reads no more of a
     field) to 13 significant digits or more; lines hold at most 16 entries (a C3D20 row
     of 21 continues on the next line)."""
-    from qsma.model.io.abaqus import CALCULIX_ENTRIES, CALCULIX_FIELD
+    from qsma.mesh.io.abaqus import CALCULIX_ENTRIES, CALCULIX_FIELD
     mesh = full_digit_mesh(cell_type)
     path = write_mesh(tmp_path / "m.inp", mesh)
     lines = path.read_text().splitlines()
@@ -803,7 +803,7 @@ def test_facet_index_finds_boundary_facets_in_any_node_order(make):
     with the cell type's facets, find() ignores node order and answers -1 for internal
     facets."""
     from qsma.mesh.celltypes import CELL_TYPES
-    from qsma.model.mesh import facet_index
+    from qsma.mesh.mesh import facet_index
     m = make()
     index = facet_index(m)
     assert facet_index(m) is index                                # built once
@@ -882,7 +882,7 @@ def test_quadratic_files_read_in_meshio_node_order(name, cell_type, element, tmp
     """Straight-edged Gmsh meshes (tests/data/make_quadratic_fixtures.py): in meshio order
     every further node is the mean of its corners; Gmsh's own Abaqus export gives the
     same cells; round trips keep cells and facet sets."""
-    from qsma.model.validate import scaled_jacobians
+    from qsma.mesh.validate import scaled_jacobians
     m = read_mesh(DATA / name)
     assert (m.cell_type, m.element) == (cell_type, element)
     nc, groups = VTK_HIGHER[cell_type]

@@ -11,9 +11,9 @@ from qsma.examples import sandwich_2d
 from qsma.fe import assemble_body, pressure_load
 from qsma.modal import linear_modes
 from qsma.model import Body, Clamp, Material, Mesh, Pressure, make_pairing
-from qsma.model.generate import structured_mesh
-from qsma.model.io import read_mesh, write_mesh
-from qsma.model.mesh import CellBlock, boundary_facets, mixed_mesh
+from qsma.mesh.generate import structured_mesh
+from qsma.mesh.io import read_mesh, write_mesh
+from qsma.mesh.mesh import CellBlock, boundary_facets, mixed_mesh
 from helpers import QUAD_GRID, check_patch, distorted_patch
 
 STEEL = Material(200e9, 0.285, 7800.0)

@@ -15,8 +15,8 @@ from qsma.reduction.two_bodies import combine
 from qsma.model import Body, Clamp, Interface, Material, Mesh, Model
 from qsma.model.coupling import (_pieces_3d, _shoelace, clip_polygons,
                                  mortar_operator)
-from qsma.model.generate import structured_mesh
-from qsma.model.interface import facet_normals
+from qsma.mesh.generate import structured_mesh
+from qsma.mesh.facets import facet_normals
 
 STEEL = Material(200e9, 0.3, 7800.0)
 

@@ -15,8 +15,8 @@ from qsma.errors import InputError
 from qsma.fe import assemble_body
 from qsma.reduction.schur import schur_complement
 from qsma.model import Body, Clamp, Material
-from qsma.model.generate import structured_mesh
-from qsma.model.io import read_mesh
+from qsma.mesh.generate import structured_mesh
+from qsma.mesh.io import read_mesh
 
 # pymetis is a dependency everywhere but on Windows, where it has no wheel: skip only
 # there, so that a broken install elsewhere fails here instead of skipping the backend

@@ -14,7 +14,7 @@ from qsma.errors import InputError
 from qsma.examples import lap_2d, lap_2d_cantilever
 from qsma.fe import assemble_body
 from qsma.model import Body, Material, Pressure, Spring
-from qsma.model.generate import structured_mesh
+from qsma.mesh.generate import structured_mesh
 from qsma.model.spring import spring_matrix, spring_shares
 from qsma.examples import example_dir
 

@@ -15,10 +15,10 @@ import scipy.sparse.linalg as spla
 
 from ._resources import free_memory
 from .errors import AnalysisError, InputError
-from .model.bolt import bolt_stiffness, bolt_vectors
+from .fe.bolts import bolt_stiffness, bolt_vectors
+from .model.pairing import Coupling, MultiPairing, body_order
 from .reduction import multibody
-from .reduction.multibody import Coupling, MultiPairing, body_order, \
-    relative_displacement_operator
+from .reduction.multibody import relative_displacement_operator
 from .reduction.rigid import (assembly_free_motions, assembly_motions, rigid_body_modes,
                               rigid_modes_message)
 from .reduction.schur import spd_solver

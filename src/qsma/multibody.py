@@ -3,4 +3,5 @@ a DeprecationWarning."""
 from ._infra.deprecation import forward
 
 forward(__name__,
-        'qsma.reduction.multibody')
+        'qsma.reduction.multibody',
+        'qsma.model.pairing')

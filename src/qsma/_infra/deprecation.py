@@ -34,6 +34,8 @@ def forward(old: str, *new: str, names: dict | None = None) -> None:
     own = module.__dict__
 
     def __getattr__(name):
+        if name.startswith("__"):        # import machinery asking (__path__, __spec__...)
+            raise AttributeError(f"module {old!r} has no attribute {name!r}")
         target = names.get(name)
         places = [target] if target is not None else list(new)
         for place in places:

@@ -30,15 +30,10 @@ import functools
 import numpy as np
 import skfem
 
+from .._infra.deprecation import forward
 from ..errors import InputError
 from ..mesh.celltypes import CELL_TYPES
 from .cache import per_mesh
-
-#: derived from the cell type records (:mod:`qsma.mesh.celltypes`), for code that reads
-#: the table: cell type -> (scikit-fem mesh class, scalar element class, quadrature order)
-SKFEM_ELEMENTS = {name: (getattr(skfem, t.skfem[0]), getattr(skfem, t.skfem[1]), t.skfem[2])
-                  for name, t in CELL_TYPES.items()}
-
 
 def local_origin(points: np.ndarray) -> np.ndarray:
     """Lower corner of the bounding box of ``points``: the origin of the assembly
@@ -228,3 +223,9 @@ def scatter_matrix(A, dofs: np.ndarray, n_dofs: int):
     import scipy.sparse as sp
     A = A.tocoo()
     return sp.csr_matrix((A.data, (dofs[A.row], dofs[A.col])), shape=(n_dofs, n_dofs))
+
+
+# The table of scikit-fem elements became the ``skfem`` of each cell type record
+# (:mod:`qsma.mesh.celltypes`); the old name keeps working for one release, with a
+# DeprecationWarning.
+forward(__name__, names={"SKFEM_ELEMENTS": "qsma.mesh._legacy"})

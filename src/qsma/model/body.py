@@ -10,7 +10,7 @@ import numpy as np
 from ..errors import InputError, NearlyIncompressibleWarning
 from .damping import LinearDamping
 from ..mesh.celltypes import CELL_TYPES
-from .mesh import Mesh
+from ..mesh.mesh import Mesh
 
 #: Poisson's ratio above which the displacement elements of qsma lock. Measured with
 #: linear_modes on sandwich-2d, f0 at refine 1 against refine 4: the discretisation

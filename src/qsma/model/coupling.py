@@ -45,6 +45,7 @@ from scipy.spatial import cKDTree
 
 from ..errors import InputError
 from ..mesh.celltypes import TYPES
+from ..mesh.facets import facet_normals
 
 #: Gauss-Legendre points per direction: 4 points integrate degree 7 on a segment and,
 #: collapsed onto a triangle (Duffy), total degree 6 exactly; the integrands of a flat
@@ -148,7 +149,6 @@ def mortar_operator(slave_mesh, slave_facets, master_mesh, master_facets,
 
 
 def _outward(mesh, facets):
-    from .interface import facet_normals
     return facet_normals(mesh, facets)
 
 
