@@ -404,7 +404,8 @@ def test_rigid_mode_check_is_kinematic():
     mode is not."""
     from qsma.reduction.rigid import rigid_body_modes
     from qsma.fe import assemble_body
-    from qsma.modal import RIGID_TOL, _check_rigid, nonrigid_part, tie_transform
+    from qsma.modal import RIGID_TOL, nonrigid_part, tie_transform
+    from qsma.modal.tied import _check_rigid
     from qsma.model import make_pairing
     m = _replace_body(sandwich_2d(1), 1, clamps=())
     p = make_pairing(m)

@@ -189,7 +189,7 @@ import scipy.sparse as sp  # noqa: E402
 import scipy.sparse.linalg as spla  # noqa: E402
 import scipy.linalg as sla  # noqa: E402
 
-from qsma import modal  # noqa: E402
+from qsma.modal import eigen as modal  # noqa: E402
 
 
 def _chain(n):
@@ -297,7 +297,7 @@ def test_shift_invert_basis_is_written_in_place_and_restarts_as_products():
     writes the block in place (no copy of the whole basis), a restart keeps
     ``[Q, MQ, W, MW] Y`` and the next block ``W_last - Q (MQ^T W_last)``, as the
     products of the basis it was made from."""
-    from qsma.modal import _Basis
+    from qsma.modal.eigen import _Basis
     rng = np.random.default_rng(11)
     n = 40
     blocks = [[rng.standard_normal((n, 3)) for _ in range(4)] for _ in range(2)]

@@ -31,7 +31,8 @@ comments, for the user to decide.
 
 One concern per module: :mod:`.records` (what a deck holds, the keywords read, named or
 refused), :mod:`.reader` (:func:`read_deck`), :mod:`.loads` (supports and loads),
-:mod:`.toml` (:func:`deck_toml`).
+:mod:`.probe` (the probe and levels a deck does not give), :mod:`.toml`
+(:func:`deck_toml`).
 """
 from .records import (DEFAULT_LEVELS, LAW_NOTES, Deck, DeckInterface, DeckNote,
                       SurfaceInteraction, law_table)

@@ -213,7 +213,7 @@ def fe_space(mesh) -> FESpace:
 
 
 def block_dofs(nodes: np.ndarray, dim: int) -> np.ndarray:
-    """Mesh DOFs of the DOFs of a cell block (:meth:`qsma.model.Mesh.block_meshes`):
+    """Mesh DOFs of the DOFs of a cell block (:meth:`qsma.mesh.Mesh.block_meshes`):
     block DOF ``dim * i + c`` is mesh DOF ``dim * nodes[i] + c``."""
     return (dim * np.asarray(nodes, dtype=np.int64)[:, None] + np.arange(dim)).ravel()
 

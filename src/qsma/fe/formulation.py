@@ -76,7 +76,7 @@ class Formulation:
 @dataclass(frozen=True)
 class MixedFormulation:
     """The formulations of the cell blocks of a mixed mesh (one per block, in the
-    order of :attr:`qsma.model.Mesh.cell_blocks`), all of one kinematics.
+    order of :attr:`qsma.mesh.Mesh.cell_blocks`), all of one kinematics.
 
     Attributes
     ----------

@@ -373,7 +373,7 @@ def _warn_partial(itf, op, body, name):
         f"(body {body!r} set {name!r}: {op.unmatched_area:.4g} of its area "
         f"{op.slave_area:.4g}) faces no master facet and is left out of the contact (the "
         f"edges of holes or of offset surfaces meshed apart); if the two surfaces should "
-        f"cover each other, check their facet sets"), stacklevel=3)
+        f"cover each other, check their facet sets"), stacklevel=4)
 
 
 def _warn_quad8(itf, *bodies):
@@ -385,7 +385,8 @@ def _warn_quad8(itf, *bodies):
             f"interface {itf.label}: body {on[0]!r} meets it with quad8 facets "
             f"(hexahedron20 cells); the corner pairs of such facets open under a uniform "
             f"pressure and the midside pairs carry the load. Prefer hexahedron27 or "
-            f"incompatible-mode hexahedra (C3D8I) at contact surfaces"), stacklevel=3)
+            f"incompatible-mode hexahedra (C3D8I) at contact surfaces"),
+        stacklevel=4)                        # the caller of make_pairing
 
 
 def _check_boundary(mesh, facets, body, name):

@@ -11,7 +11,7 @@ to the body's stiffness matrix, a diagonal term (``e_{i,c}`` the unit vector of 
 ``dim i + c``). A rigid translation ``t`` of the set is resisted by the force
 ``-k_c t_c``: the spring's stiffness is the set's. The shares are
 
-* a facet set: the tributary areas (:func:`qsma.model.mesh.facet_node_weights`,
+* a facet set: the tributary areas (:func:`qsma.mesh.facets.facet_node_weights`,
   the consistent shares ``int N_i dA`` of linear facets) divided by the set's area
   ``A``: the springs act as an elastic foundation of stiffness ``k_c / A`` per area;
 * a node set: equal shares ``1 / n``.
