@@ -21,7 +21,7 @@ import time
 
 
 def _box(n, cell_type=None):
-    from qsma.model.generate import structured_mesh
+    from qsma.mesh.generate import structured_mesh
     import numpy as np
     xs = np.linspace(0.0, 1.0, n + 1)
     return structured_mesh(xs, xs, xs, cell_type=cell_type)
@@ -47,7 +47,7 @@ def _delaunay_tets(n):
 
 def _quads(nx, ny):
     import numpy as np
-    from qsma.model.generate import structured_mesh
+    from qsma.mesh.generate import structured_mesh
     return structured_mesh(np.linspace(0, 2.0, nx + 1), np.linspace(0, 1.0, ny + 1))
 
 
@@ -55,7 +55,7 @@ def _incompatible_box(n):
     """A box of n x (n - 1) x n hexahedra with incompatible modes (C3D8I)."""
     import dataclasses
     import numpy as np
-    from qsma.model.generate import structured_mesh
+    from qsma.mesh.generate import structured_mesh
     xs = np.linspace(0.0, 1.0, n + 1)
     return dataclasses.replace(structured_mesh(xs, xs[:n], xs), element="C3D8I")
 

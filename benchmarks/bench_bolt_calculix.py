@@ -41,7 +41,7 @@ from qsma.analysis import _Timer, prepare
 from qsma.contact.state import OPEN, SLIPPING
 from qsma.examples.bolted import stack_3d_bolted
 from qsma.fe import assemble_body
-from qsma.model.bolt import washer_weights
+from qsma.fe.bolts import washer_weights
 from qsma.options import RunOptions
 
 #: Local node numbers (0-based, meshio / CalculiX C3D8 order) of the faces S1..S6.

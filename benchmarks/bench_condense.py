@@ -18,7 +18,7 @@ OpenBLAS threads on this machine: the setting before the solves were limited to 
 alternating (each timed call after an untimed one of the same setting, so that every
 setting finds the factor in cache), medians of wall and CPU over ``--repeat`` rounds,
 and whether the two thread counts give the same bits. Up to 11 columns the solver
-does not split (``qsma.linalg.SOLVE_MIN_COLUMNS``): those rows are the control.
+does not split (``qsma.reduction.schur.SOLVE_MIN_COLUMNS``): those rows are the control.
 
 ``--memory R`` condenses the two bodies of sandwich-3d at refine R
 (``reduce_two_bodies``) and prints the resident memory sampled every 20 ms, the
@@ -30,7 +30,7 @@ tree, the factorisation with the Schur update, and the rest.
 
 ``--combine N ...`` times only the dense two-body combination on random SPD
 matrices of size N: the direct ``Kc1 (Kc1 + Kc2)^-1 Kc2`` (Cholesky solve and
-product) against ``qsma.condense.minus_gram`` (``Kc1 - Y^T Y``, trsm + syrk), both
+product) against ``qsma.reduction.two_bodies.minus_gram`` (``Kc1 - Y^T Y``, trsm + syrk), both
 after the same Cholesky factorisation, median CPU and wall seconds over
 ``--repeat`` runs and the relative difference of the results.
 """
@@ -41,7 +41,7 @@ import time
 import numpy as np
 import scipy.linalg as sla
 
-from qsma.condense import minus_gram, reduce_two_bodies
+from qsma.reduction.two_bodies import minus_gram, reduce_two_bodies
 from qsma.examples import sandwich_2d
 from qsma.fe import assemble_body
 from qsma.model import make_pairing
@@ -97,9 +97,9 @@ def measure_solves(refine, repeat, widths=(2, 6, 12, 24)):
     ``--solves`` table."""
     import os
     from threadpoolctl import threadpool_limits
-    from qsma.condense import condense_body
+    from qsma.reduction.condensation import condense_body
     from qsma.examples import sandwich_3d
-    from qsma.linalg import nested_dissection
+    from qsma.reduction.schur import nested_dissection
     import scipy.sparse.linalg as spla
     model = sandwich_3d(refine)
     a = assemble_body(model.bodies[0])
@@ -137,9 +137,11 @@ def measure_solves(refine, repeat, widths=(2, 6, 12, 24)):
 def measure_memory(refine, backend="auto"):
     """``(peaks per step in MiB, process peak in MiB, seconds)`` of condensing the
     two bodies of sandwich-3d at ``refine`` (steps named by wrapping functions of
-    qsma.linalg and qsma.multifrontal)."""
+    the metis_superlu and multifrontal backends)."""
     import threading
-    from qsma import _resources, linalg, multifrontal
+    from qsma import _resources
+    from qsma.reduction.schur import metis_superlu as linalg
+    from qsma.reduction.schur import multifrontal
     from qsma.examples import sandwich_3d
     model = sandwich_3d(refine)
     A = [assemble_body(b) for b in model.bodies]

@@ -25,10 +25,10 @@ from pathlib import Path
 import numpy as np
 
 from qsma.contact import METHODS, solve
-from qsma.contact.external import read_fclib_global, read_siconos_dat, stiffness_form
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests" / "contact"))
+from external_problems import read_fclib_global, read_siconos_dat, stiffness_form  # noqa: E402
 from test_contact_corpus import INDEPENDENT_TOL, MAX_ASYMMETRY, delassus_residual  # noqa: E402
 
 

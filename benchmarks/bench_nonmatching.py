@@ -18,7 +18,7 @@ import numpy as np
 import qsma
 from qsma.examples import sandwich_2d
 from qsma.examples.sandwich import SANDWICH_2D
-from qsma.model.generate import graded_axis, structured_mesh
+from qsma.mesh.generate import graded_axis, structured_mesh
 
 LEVELS = (30, 40, 45, 50)
 

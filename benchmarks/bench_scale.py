@@ -12,7 +12,7 @@ BLAS runs on both cores, and the honest measure on a shared machine where the wa
 waits for other jobs), and the peak resident memory during the stage (Linux ``VmHWM``,
 reset at the start of each stage; qsma._resources), and the resident memory left at
 the end of each stage, beside the MB of the dense interface matrices the result holds
-and the number of K_EE factorisations (congruent bodies share one, qsma.congruence).
+and the number of K_EE factorisations (congruent bodies share one, qsma.reduction.congruence).
 The table gives the medians over
 the repeats and the process peak. The last table fits ``cost ~ n^p`` by least squares
 in log-log over the refinements, once against the number of DOFs and once against the
@@ -97,7 +97,7 @@ def _interface_mb(reduced):
 
 def _factors(reduced):
     """Number of distinct K_EE factorisations the bodies use (congruent bodies share
-    one, qsma.congruence)."""
+    one, qsma.reduction.congruence)."""
     rm = getattr(reduced, "base", reduced)
     return len({id(getattr(b.solve_EE, "base", b.solve_EE)) for b in rm.bodies})
 

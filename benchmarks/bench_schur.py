@@ -1,4 +1,4 @@
-"""Time and peak memory of every available Schur complement backend (qsma.linalg).
+"""Time and peak memory of every available Schur complement backend (qsma.reduction.schur).
 
 Usage: python benchmarks/bench_schur.py [--cases 2d-1 2d-2 2d-4 2d-8 3d-1 3d-2]
                                         [--repeat 3] [--backends ...] [--max-seconds 60]
@@ -31,8 +31,8 @@ a shared machine reaches them alike.
 ``--solve-split`` factorises each case once with the ``multifrontal`` backend and
 times its ``K_EE`` solve of 12, 16 and 24 random columns two ways, alternating: one
 call on all the columns (what the backend does) and the columns split between two
-Python threads (:func:`qsma.linalg.solved_by_columns` with ``threads=2``, what it did
-before), both with one BLAS thread; medians of ``--repeat`` calls each. The factor's
+Python threads (:func:`qsma.reduction.schur.solved_by_columns` with ``threads=2``),
+both with one BLAS thread; medians of ``--repeat`` calls each. The factor's
 loop over the fronts holds the GIL between BLAS calls, so the split can only lose.
 """
 import argparse
@@ -43,9 +43,9 @@ import numpy as np
 
 from qsma.examples import sandwich_2d
 from qsma.fe import assemble_body
-from qsma.linalg import AUTO_ORDER, available_backends, schur_complement
+from qsma.reduction.schur import AUTO_ORDER, available_backends, schur_complement
 from qsma.model import Body, Clamp, Material, make_pairing
-from qsma.model.generate import graded_axis, structured_mesh
+from qsma.mesh.generate import graded_axis, structured_mesh
 
 L, H, LC, WIDTH = 0.2032, 0.00635, 0.0508, 0.0254
 
@@ -147,8 +147,8 @@ def main_stages(args):
 
 def main_solve_split(args):
     import scipy.sparse as sp
-    from qsma import multifrontal
-    from qsma.linalg import solved_by_columns
+    from qsma.reduction.schur import multifrontal
+    from qsma.reduction.schur import solved_by_columns
     print("| case | columns | one call [ms] | two threads [ms] | two threads / one call |")
     print("|---|---|---|---|---|")
     rng = np.random.default_rng(0)

@@ -6,7 +6,7 @@ import scipy.sparse.linalg as spla
 from qsma.fe import assemble_body, stress_at_nodes
 from qsma.examples import stack_2d
 from qsma.model import Body, Material, Mesh, boundary_facets, write_mesh
-from qsma.model.generate import structured_mesh
+from qsma.mesh.generate import structured_mesh
 
 STEEL = Material(200e9, 0.285, 7800.0)
 

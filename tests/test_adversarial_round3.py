@@ -447,7 +447,7 @@ def test_an_instance_placement_that_cannot_be_meant_is_refused(tmp_path, placeme
     """Each was an internal error ('a, b, c') or silently taken (the first three of five
     values; a rotation about no axis ignored)."""
     from qsma.errors import MeshFileError
-    from qsma.model.io import read_assembly
+    from qsma.mesh.io import read_assembly
     path = tmp_path / "deck.inp"
     path.write_text(PART_DECK.format(placement=placement))
     with pytest.raises(MeshFileError, match=match):
@@ -458,7 +458,7 @@ def test_an_instance_without_its_end_is_refused(tmp_path):
     """Without *END INSTANCE, every card up to the end of the assembly was taken as the
     instance's and dropped with it."""
     from qsma.errors import MeshFileError
-    from qsma.model.io import read_assembly
+    from qsma.mesh.io import read_assembly
     text = PART_DECK.format(placement="0., 1., 0.\n").replace(
         "*Instance, name=Lower, part=Beam\n*End Instance\n", "*Instance, name=Lower, "
         "part=Beam\n")

@@ -11,7 +11,7 @@ from qsma.examples import STACK_2D, sandwich_2d, stack_2d
 from qsma.fe import assemble_body
 from qsma.modal import linear_modes
 from qsma.model import make_pairing
-from qsma.model.io import read_assembly
+from qsma.mesh.io import read_assembly
 from helpers import (STACK_INTERFACES, body_toml as _body_toml, one_file as _one_file,
                      stack_toml as _stack_toml)
 
@@ -150,7 +150,7 @@ def test_conforming_bodies_in_one_file_are_split_and_tied_back(tmp_path):
 
 
 def _whole_block(nx=8, ny=2, L=0.1, h=0.01):
-    from qsma.model.generate import structured_mesh
+    from qsma.mesh.generate import structured_mesh
     m = structured_mesh(np.linspace(0, L, nx + 1), np.linspace(0, 2 * h, 2 * ny + 1))
     return m.with_sets(node_sets={"CLAMP": np.flatnonzero(m.points[:, 0] < 1e-12)})
 
@@ -198,7 +198,7 @@ def _two_cubes_deck(path):
     flat deck: a node-based slave surface on the lower block's top, an element-based
     master surface on the upper block's bottom, a *CONTACT PAIR whose names differ in
     case from their definitions, a friction coefficient and a clamp."""
-    from qsma.model.generate import structured_mesh
+    from qsma.mesh.generate import structured_mesh
     from qsma.model import Body, Material
     steel = Material(200e9, 0.3, 7800.0)
     bodies = []

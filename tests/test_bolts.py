@@ -12,7 +12,7 @@ from qsma.analysis import _Timer, prepare
 from qsma.errors import InputError
 from qsma.examples.bolted import BOLT_2D, lap_2d_bolted
 from qsma.model import Bolt
-from qsma.model.bolt import bolt_vectors
+from qsma.fe.bolts import bolt_vectors
 from qsma.options import RunOptions
 from qsma.result import load_factors
 
@@ -186,7 +186,7 @@ def _three_plates(bolt_stiffness=1e11):
     clamped at x = 0, the middle one at x = 60 mm; the interfaces span x = 4 to 56 mm
     (off the clamped ends)."""
     from qsma.model import Body, Clamp, Interface, Material, Model, Probe
-    from qsma.model.generate import structured_mesh
+    from qsma.mesh.generate import structured_mesh
     steel = Material(200e9, 0.3, 7850.0)
     eps = 1e-9
     bodies = []
@@ -214,7 +214,7 @@ def _three_plates(bolt_stiffness=1e11):
 
 def test_bolt_on_the_several_interface_path_equals_the_two_body_path():
     """The bolted lap-2d given as a list of one interface goes through the
-    several-interface condensation (qsma.multibody): the same preload and damping
+    several-interface condensation (qsma.reduction.multibody): the same preload and damping
     curve as the two-body path (measured 7.7e-12 of the largest contact force,
     zeta 5e-14, f 4e-13)."""
     m = lap_2d_bolted(1, mu=0.1)
@@ -277,7 +277,7 @@ def test_stack_preload_satisfies_the_contact_conditions_of_the_full_model():
     from qsma.contact.state import OPEN
     from qsma.examples.bolted import STACK_3D, stack_3d_bolted
     from qsma.fe import assemble_body
-    from qsma.model.bolt import bolt_loads
+    from qsma.fe.bolts import bolt_loads
     model = stack_3d_bolted(1)
     p, _, pre = _preload(model)
     pr = p.pairing

@@ -62,7 +62,7 @@ def test_geometry_and_mass_of_the_published_beam():
 def test_washers_are_the_annuli_around_the_three_bolt_axes():
     """Each washer set is centred on its bolt axis (x = -30, 0, 30 mm, z = 12.7 mm)
     and lies in the annulus 11/32 in to 11/16 in [G] on the outer face."""
-    from qsma.model.bolt import washer_weights
+    from qsma.fe.bolts import washer_weights
     for body, y_out in zip(brb(2).bodies, (-0.0127, 0.0127)):
         for k, xb in enumerate(BRB["x_bolts"]):
             nodes, w, normal, centroid = washer_weights(body, f"washer{k + 1}")

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 import scipy.sparse.linalg as spla
 
-from qsma.condense import reduce_two_bodies
+from qsma.reduction.two_bodies import reduce_two_bodies
 from qsma.examples import sandwich_2d
 from qsma.fe import assemble_body
 from qsma.modal import linear_modes, stacked, tie_transform
@@ -72,7 +72,7 @@ def test_modal_projection_equals_phi_M_x_of_recovered_field(setup):
 def _two_hex_beams():
     """A small 3D sandwich: two clamped hexahedral beams, pressure on a patch."""
     from qsma.model import Body, Clamp, Interface, Material, Model, Pressure
-    from qsma.model.generate import structured_mesh
+    from qsma.mesh.generate import structured_mesh
     xs, zs = np.linspace(0, 0.1, 21), np.linspace(0, 0.02, 5)
     steel = Material(200e9, 0.3, 7800.0)
     bodies = []
@@ -98,7 +98,7 @@ def _mortar(model, refine_top=None, slave=None):
     body's grid so that its interface nodes do not match the bottom's."""
     import dataclasses
     if refine_top is not None:
-        from qsma.model.generate import structured_mesh
+        from qsma.mesh.generate import structured_mesh
         top = model.bodies[1]
         old = top.mesh
         lo, hi = old.points.min(axis=0), old.points.max(axis=0)
@@ -207,7 +207,7 @@ def test_cholesky_combination_equals_the_direct_formula(ratio):
     """K = Kc_1 (Kc_1 + Kc_2)^-1 Kc_2 written as Kc - Y^T Y agrees with the direct
     product to round-off, also for bodies of very different stiffness."""
     import scipy.linalg as sla
-    from qsma.condense import minus_gram
+    from qsma.reduction.two_bodies import minus_gram
     rng = np.random.default_rng(4)
     Kc1, Kc2 = _random_spd(60, 1.0, rng), _random_spd(60, ratio, rng)
     S_cho = sla.cho_factor(Kc1 + Kc2)
@@ -240,7 +240,7 @@ def test_tied_solver_equals_the_sparse_solve_of_the_tied_assembly(setup, fractio
     pair tied and with 40 % of them (the rest free). Measured: 1.6e-10 of the largest
     displacement with every pair tied, 3.2e-10 with 26 of 65 tied: round-off of the
     two solvers (sparse direct against condensed) on this stiffness."""
-    from qsma.condense import tied_solver
+    from qsma.reduction.two_bodies import tied_solver
     m, A, p, red = setup
     rng = np.random.default_rng(7)
     tied = rng.random(p.n_pairs) < fraction
@@ -261,7 +261,7 @@ def test_body_with_nothing_inside_to_condense_is_refused_by_name():
     from qsma.analysis import prepare
     from qsma.errors import InputError
     from qsma.model import Body, Clamp, Interface, Material, Model
-    from qsma.model.generate import structured_mesh
+    from qsma.mesh.generate import structured_mesh
     bodies = []
     for name, z0, clamp, face in (("lower", 0.0, "bottom", "top"),
                                   ("upper", 1.0, "top", "bottom")):

@@ -1,4 +1,5 @@
-"""Congruent bodies share one factorisation (qsma.congruence, condense.congruent_body).
+"""Congruent bodies share one factorisation (qsma.reduction.congruence,
+condensation.congruent_body).
 
 Detection: the two beams of sandwich-2d (mirror in the interface plane), the two
 plates of lap-2d (one turned 180 degrees), the same pairs in a rotated global frame
@@ -15,16 +16,17 @@ import numpy as np
 import pytest
 
 from qsma.analysis import prepare
-from qsma.condense import condense_body, congruent_body, reduce_two_bodies, tied_solver
-from qsma.congruence import (CongruentMatrix, MappedSolver, find_congruence,
-                             solved_together)
+from qsma.reduction.condensation import condense_body, congruent_body
+from qsma.reduction.two_bodies import reduce_two_bodies, tied_solver
+from qsma.reduction.congruence import (CongruentMatrix, MappedSolver, find_congruence,
+                                       solved_together)
 from qsma.errors import InputError
 from qsma.examples import lap_2d, sandwich_2d
 from qsma.fe import assemble_body
 from qsma.model import Body, Clamp, Material, make_pairing
-from qsma.model.generate import box_nodes, structured_mesh
+from qsma.mesh.generate import box_nodes, structured_mesh
 from qsma.modal import linear_modes
-from qsma.multibody import body_order
+from qsma.model.pairing import body_order
 
 
 def _rel(a, b):
@@ -232,13 +234,13 @@ def sandwich():
     model = sandwich_2d(1)
     asm, pairing = _parts(model)
     shared = reduce_two_bodies(*asm, pairing)
-    import qsma.congruence as congruence
-    saved = congruence.find_congruence
-    congruence.find_congruence = lambda *args: None
+    import qsma.reduction.condensation as condensation
+    saved = condensation.find_congruence
+    condensation.find_congruence = lambda *args: None
     try:
         separate = reduce_two_bodies(*asm, pairing)
     finally:
-        congruence.find_congruence = saved
+        condensation.find_congruence = saved
     return model, asm, pairing, shared, separate
 
 
@@ -334,7 +336,7 @@ def test_tied_modes_equal_the_separate_computation(sandwich):
 
 def test_sweep_ships_the_shared_factor_once():
     """A shipped preparation refactorises body 1 only; body 2 solves through it."""
-    from qsma.condense import RefactorisedEE
+    from qsma.reduction.condensation import RefactorisedEE
     prep = prepare(sandwich_2d(1))
     back = pickle.loads(pickle.dumps(prep))
     b1, b2 = back.reduced.bodies
@@ -347,19 +349,20 @@ def test_sweep_ships_the_shared_factor_once():
 def test_several_interfaces_share_the_factor_of_congruent_plates():
     """stack-2d: the top plate is the bottom one mirrored (the middle one differs);
     the stacked reduced model equals the one of three separate condensations."""
-    import qsma.congruence as congruence
+    import qsma.reduction.condensation as condensation
     from qsma.examples import stack_2d
-    from qsma.multibody import multi_pairing, reduce_model
+    from qsma.model.pairing import multi_pairing
+    from qsma.reduction.multibody import reduce_model
     model = stack_2d(1)
     pairing = multi_pairing(model)
     asm = [assemble_body(b) for b in model.bodies]
     shared = reduce_model(model, asm, pairing)
-    saved = congruence.find_congruence
-    congruence.find_congruence = lambda *args: None
+    saved = condensation.find_congruence
+    condensation.find_congruence = lambda *args: None
     try:
         separate = reduce_model(model, asm, pairing)
     finally:
-        congruence.find_congruence = saved
+        condensation.find_congruence = saved
     kinds = [type(b.solve_EE).__name__ for b in shared.bodies]
     assert kinds == ["EESolver", "EESolver", "MappedSolver"]
     assert shared.bodies[2].solve_EE.base is shared.bodies[0].solve_EE

@@ -15,7 +15,7 @@ from qsma.examples import sandwich_2d
 from qsma.fe import assemble_body
 from qsma.levels import Levels
 from qsma.model import write_mesh
-from qsma.model.io.deck import read_deck
+from qsma.deck import read_deck
 from helpers import bodies_in_one_mesh
 
 #: the sandwich-2d bolt pressure (Pa) and the lap deck's friction
@@ -192,15 +192,15 @@ def test_cload_and_dload_faces_are_the_preload(tmp_path):
     model = parse_config(deck.config, base=tmp_path).model
     bottom = model.bodies[0]
     bolt = bottom.mesh.facet_sets["bottom_bolt"]
-    from qsma.model.mesh import facet_index
+    from qsma.mesh.mesh import facet_index
     index = facet_index(bottom.mesh)
     rows = index.find(bolt)
     cells = np.unique(index.cell[rows])
     faces = np.unique(index.local_face[rows])
     assert len(faces) == 1
-    from qsma.model.io.abaqus import ABAQUS_FACES, CELL_FACETS
-    local = sorted(CELL_FACETS["quad"][faces[0]])
-    face = 1 + [sorted(f) for f in ABAQUS_FACES["quad"]].index(local)
+    from qsma.mesh.celltypes import CELL_TYPES
+    local = sorted(CELL_TYPES["quad"].facets[faces[0]])
+    face = 1 + [sorted(f) for f in CELL_TYPES["quad"].abaqus_faces].index(local)
     ids = ", ".join(str(int(i) + 1) for i in cells)
     loads = (f"*DLOAD\nEBOLT, P{face}, 17.554e6\n*DSLOAD\ntop_bolt, P, 17.554e6\n"
              f"*CLOAD\nbottom_tip, 2, -5.\n2, 1, 7.\n")

@@ -54,7 +54,7 @@ def test_model_translated_by_one_km_gives_same_operators_and_frequency(make, off
 
 # ---------------------------------------------------------------- quadratic cells
 from qsma.model import Body, Clamp, Material, Mesh, Pressure, boundary_facets  # noqa: E402
-from qsma.model.generate import structured_mesh  # noqa: E402
+from qsma.mesh.generate import structured_mesh
 from helpers import check_patch, distorted_3d, distorted_patch  # noqa: E402
 
 STEEL = Material(200e9, 0.285, 7800.0)
@@ -420,12 +420,12 @@ def test_boundary_facets_and_normals_of_quadratic_cells(cell_type):
     """Boundary of the unit square / cube: facets of the right type (corner nodes first,
     midside nodes at the middle of the corner edges), outward normals summing to zero,
     areas to the perimeter (4) / surface (6), each normal along an axis."""
-    from qsma.model.interface import facet_normals
-    from qsma.model.mesh import FACET_CORNERS, FACET_TYPES
+    from qsma.mesh.facets import facet_normals
+    from qsma.mesh.celltypes import TYPES
     mesh = _quadratic_patch(cell_type)
     bf = boundary_facets(mesh)
-    assert bf.shape[1] == FACET_TYPES[mesh.facet_type]
-    nc = FACET_CORNERS[mesh.facet_type]
+    assert bf.shape[1] == TYPES[mesh.facet_type].n_nodes
+    nc = TYPES[mesh.facet_type].corners
     p = mesh.points[bf]
     if mesh.facet_type in ("line3", "triangle6", "quad8", "quad9"):   # first midside node
         assert np.allclose(p[:, nc], 0.5 * (p[:, 0] + p[:, 1]), atol=1e-12)
@@ -598,9 +598,10 @@ def test_tributary_weights_of_facets_are_positive_hrz_shares(facet_type, shares)
     shares where those are positive (line3, quad9), 3/76 : 4/19 on quad8 (consistent:
     -1/12 : 1/3) and 1/19 : 16/57 on triangle6 (consistent: 0 : 1/3). Checked on a
     stretched, translated facet (shares are relative to its area)."""
-    from qsma.model.mesh import _FACET_REFERENCE, facet_node_weights
-    ref = np.asarray(_FACET_REFERENCE[facet_type][0], dtype=float)
-    scale = {"line": 2.0, "tri": 0.5, "quad": 4.0}[_FACET_REFERENCE[facet_type][2]]
+    from qsma.mesh.celltypes import TYPES, reference_nodes
+    from qsma.mesh.facets import facet_node_weights
+    ref = reference_nodes(facet_type)
+    scale = {"line": 2.0, "triangle": 0.5, "quad": 4.0}[TYPES[facet_type].linear]
     pts = np.column_stack([ref, np.zeros((len(ref), 2 - ref.shape[1] + 1))])
     pts = pts[:, :3] * [3.0, 0.5, 1.0] + [10.0, -4.0, 2.0]
     if ref.shape[1] == 1:

@@ -78,7 +78,7 @@ def test_interface_set_inside_its_body_is_refused():
 def test_body_held_only_through_the_joint_is_accepted(clamps):
     """Issue 12: a body whose clamps leave rigid motions free is held by the joint; the
     condensation keeps those motions (tests/test_freefree.py runs such models)."""
-    from qsma.condense import reduce_two_bodies
+    from qsma.reduction.two_bodies import reduce_two_bodies
     from qsma.fe import assemble_body
     from qsma.model import make_pairing
     m = _replace_body(sandwich_2d(1), 1, clamps=clamps)
@@ -402,9 +402,10 @@ def test_unclamped_body_is_still_caught():
 def test_rigid_mode_check_is_kinematic():
     """A rigid motion of one body is refused whatever its eigenvalue; the elastic first
     mode is not."""
-    from qsma.condense import rigid_body_modes
+    from qsma.reduction.rigid import rigid_body_modes
     from qsma.fe import assemble_body
-    from qsma.modal import RIGID_TOL, _check_rigid, nonrigid_part, tie_transform
+    from qsma.modal import RIGID_TOL, nonrigid_part, tie_transform
+    from qsma.modal.tied import _check_rigid
     from qsma.model import make_pairing
     m = _replace_body(sandwich_2d(1), 1, clamps=())
     p = make_pairing(m)
@@ -426,7 +427,7 @@ def test_clamp_check_is_independent_of_units(scale):
     in x along its end keeps the y translation free (the old absolute tolerance 1e-9
     called every body smaller than about 1e-9 m free)."""
     from qsma.fe import assemble_body
-    from qsma.rigid import free_motions
+    from qsma.reduction.rigid import free_motions
     m = sandwich_2d(1)
     b = m.bodies[1]
     mesh = b.mesh

@@ -5,7 +5,7 @@ import scipy.sparse.linalg as spla
 
 from qsma.fe import assemble_body
 from qsma.model import Body, Clamp, Mesh, Pressure, read_mesh
-from qsma.model.generate import structured_mesh
+from qsma.mesh.generate import structured_mesh
 from helpers import STEEL, check_patch, distorted_3d, distorted_patch
 
 @pytest.mark.parametrize("cell_type", ["quad", "triangle"])
@@ -93,7 +93,7 @@ def test_elasticity_form_equals_scikit_fem_model():
 # ------------------------------------------------ batched assembly vs scikit-fem forms
 from pathlib import Path  # noqa: E402
 
-from qsma.model.mesh import mixed_mesh  # noqa: E402
+from qsma.mesh.mesh import mixed_mesh
 
 DATA = Path(__file__).parent / "data"
 

@@ -5,7 +5,7 @@ import scipy.sparse.linalg as spla
 
 from qsma.fe import assemble_body
 from qsma.model import Body, Clamp
-from qsma.model.generate import structured_mesh
+from qsma.mesh.generate import structured_mesh
 from helpers import STEEL, check_patch, distorted_3d
 
 @pytest.mark.parametrize("cell_type", ["hexahedron", "tetra"])

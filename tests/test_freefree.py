@@ -9,13 +9,13 @@ import pytest
 import scipy.sparse.linalg as spla
 
 import qsma
-import qsma.rigid as rigid
+import qsma.reduction.rigid as rigid
 from qsma.errors import InputError
 from qsma.examples import lap_2d_cantilever, lap_2d_free
 from qsma.fe import assemble_body
 from qsma.modal import RIGID_TOL, free_shift, linear_modes, nonrigid_part
 from qsma.model import Body, Interface, Material, Model, Pressure, Probe, make_pairing
-from qsma.model.generate import structured_mesh
+from qsma.mesh.generate import structured_mesh
 
 STEEL = Material(200e9, 0.3, 7850.0)
 L, T = 0.1, 0.005

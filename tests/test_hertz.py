@@ -15,11 +15,11 @@ size of the blocks through the load-approach relation.
 import numpy as np
 import pytest
 
-from qsma.condense import reduce_two_bodies
+from qsma.reduction.two_bodies import reduce_two_bodies
 from qsma.contact import ContactProblem, residual, solve
 from qsma.fe import assemble_body
 from qsma.model import Body, Clamp, Interface, Material, Model, make_pairing
-from qsma.model.generate import graded_axis, structured_mesh
+from qsma.mesh.generate import graded_axis, structured_mesh
 
 E, NU, R, MU = 70e9, 0.3, 0.05, 0.3
 W = H = 0.012           # block width and height [m]

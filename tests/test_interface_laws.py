@@ -9,7 +9,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from qsma.condense import reduce_two_bodies
+from qsma.reduction.two_bodies import reduce_two_bodies
 from qsma.contact import ContactProblem, ContactState, solve
 from qsma.contact.laws import (ElasticStick, ExponentialPressure, InterfaceLaw,
                                LinearPressure, TabularPressure, law_from_table)
@@ -17,7 +17,7 @@ from qsma.contact.layer import Layer, PairLaws, series_stiffness, solve_layered
 from qsma.errors import InputError
 from qsma.fe import assemble_body
 from qsma.model import Body, Clamp, Interface, LinearDamping, Material, Model, make_pairing
-from qsma.model.generate import structured_mesh
+from qsma.mesh.generate import structured_mesh
 
 LAWS = [LinearPressure(2e13), ExponentialPressure(2e-6, 5e6),
         ExponentialPressure(1e-5, 1e8),
@@ -134,7 +134,7 @@ def _blocks(law):
     model = Model(tuple(bodies), itf, mu=0.3)
     pairing = make_pairing(model)
     red = reduce_two_bodies(assemble_body(bodies[0]), assemble_body(bodies[1]), pairing)
-    from qsma.multibody import pair_gaps, pair_laws
+    from qsma.model.pairing import pair_gaps, pair_laws
     physical = ContactProblem(red.K, 0.3, gap0=pair_gaps(model, pairing, 1e-9), dim=2)
     return model, pairing, physical, pair_laws(model, pairing)
 

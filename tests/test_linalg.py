@@ -5,11 +5,13 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from qsma import linalg
+from qsma._infra import dense
+from qsma.reduction import schur
+from qsma.reduction.schur import metis_superlu, registry, superlu, superlu_schur
 from qsma.errors import InputError
 from qsma.examples import sandwich_2d
 from qsma.fe import assemble_body
-from qsma.linalg import AUTO_ORDER, SCHUR_BACKENDS, available_backends, schur_complement
+from qsma.reduction.schur import AUTO_ORDER, SCHUR_BACKENDS, available_backends, schur_complement
 from qsma.model import make_pairing
 from helpers import assert_same_solve_bits
 
@@ -80,7 +82,7 @@ def test_backend_matches_dense_reference(name, problem):
     np.testing.assert_array_equal(Kc, Kc.T)
     assert np.abs(Kc - Kc_ref).max() <= RTOL * np.abs(Kc_ref).max()
     np.testing.assert_array_equal(solver.E, E)
-    assert solver.backend == name and solver.min_pivot_ratio > linalg.PIVOT_RATIO_MIN
+    assert solver.backend == name and solver.min_pivot_ratio > schur.PIVOT_RATIO_MIN
     rng = np.random.default_rng(7)
     B = rng.normal(size=(len(E), 3))
     X = solver(B)
@@ -128,14 +130,14 @@ def test_auto_takes_the_first_available_backend_in_auto_order():
     assert {"splu", "superlu_schur"} <= set(available_backends())
     K3 = sp.kron(laplacian_3d(6), sp.csr_matrix(np.array([[4.0, 1, 0], [1, 4, 1],
                                                             [0, 1, 4]]))).tocsr()
-    assert linalg.suits_multifrontal(K3)
-    assert not linalg.suits_multifrontal(PROBLEMS["elasticity"][0])
+    assert schur.suits_multifrontal(K3)
+    assert not schur.suits_multifrontal(PROBLEMS["elasticity"][0])
     _, solver = schur_complement(K3, np.arange(0, K3.shape[0], 7))
     assert solver.backend == first(set())
 
 
 def test_superlu_schur_falls_back_to_the_dense_solve(monkeypatch):
-    monkeypatch.setattr(linalg, "_superlu_trailing_schur", lambda Kp, nE: None)
+    monkeypatch.setattr(superlu_schur, "_superlu_trailing_schur", lambda Kp, nE: None)
     K, C = PROBLEMS["laplacian"]
     Kc, _ = schur_complement(K, C, backend="superlu_schur")
     Kc_ref, _, _ = dense_reference(K, C)
@@ -143,12 +145,12 @@ def test_superlu_schur_falls_back_to_the_dense_solve(monkeypatch):
 
 
 def test_registry_decorator_adds_a_backend(monkeypatch):
-    monkeypatch.setattr(linalg, "SCHUR_BACKENDS", dict(SCHUR_BACKENDS))
+    monkeypatch.setattr(registry, "SCHUR_BACKENDS", dict(SCHUR_BACKENDS))
 
-    @linalg.register_backend("dense_test")
+    @schur.register_backend("dense_test")
     def _dense(K, C, E):
         Kc, K_EE, _ = dense_reference(K, C)
-        return linalg.SchurParts(Kc, lambda b: np.linalg.solve(K_EE, b), 1.0)
+        return schur.SchurParts(Kc, lambda b: np.linalg.solve(K_EE, b), 1.0)
 
     Kc, solver = schur_complement(*PROBLEMS["random"], backend="dense_test")
     assert solver.backend == "dense_test" and "dense_test" in available_backends()
@@ -194,7 +196,7 @@ def test_spd_solver_solves_and_refuses_a_singular_matrix(backend):
     """``spd_solver`` (tied-mode shift-invert) whatever the ordering: residual at
     round-off on the sandwich beam, InputError on a matrix with a null vector."""
     K, _ = PROBLEMS["elasticity"]
-    solve = linalg.spd_solver(K, backend=backend)
+    solve = schur.spd_solver(K, backend=backend)
     b = np.random.default_rng(2).normal(size=(K.shape[0], 3))
     x = solve(b)
     scale = abs(K).max() * np.abs(x).max()
@@ -203,7 +205,7 @@ def test_spd_solver_solves_and_refuses_a_singular_matrix(backend):
     lap = laplacian_2d(8, 7, shift=0.0)
     neumann = lap - sp.diags(np.asarray(lap.sum(axis=1)).ravel())   # constants: null space
     with pytest.raises(InputError, match="singular or not positive definite"):
-        linalg.spd_solver(neumann.tocsr(), backend=backend)
+        schur.spd_solver(neumann.tocsr(), backend=backend)
 
 
 def test_peak_memory_sees_a_large_allocation():
@@ -238,7 +240,7 @@ def test_symmetrised_in_place_equals_the_half_sum_bit_for_bit():
     ``0.5 * (A + A.T)``; no copy is returned."""
     A = np.random.default_rng(3).standard_normal((1100, 1100))
     ref = 0.5 * (A + A.T)
-    out = linalg.symmetrised(A)
+    out = dense.symmetrised(A)
     assert out is A and np.array_equal(out, ref)
 
 
@@ -247,7 +249,7 @@ def test_mirror_triangle_copies_one_triangle(source):
     A = np.random.default_rng(4).standard_normal((1030, 1030))
     keep = np.triu(A) if source == "upper" else np.tril(A)
     expected = keep + (np.triu(A, 1).T if source == "upper" else np.tril(A, -1).T)
-    assert np.array_equal(linalg.mirror_triangle(A, source), expected)
+    assert np.array_equal(dense.mirror_triangle(A, source), expected)
 
 
 # ----------------------------------------------------------------------------------
@@ -274,7 +276,7 @@ def test_supervariables_are_runs_of_rows_with_one_pattern(seed):
         A[rng.integers(0, A.shape[0]), rng.integers(0, A.shape[0])] = 0.5
     A = A.tocsr()
     A.sort_indices()
-    np.testing.assert_array_equal(linalg.supervariables(A), _groups_by_brute_force(A))
+    np.testing.assert_array_equal(schur.supervariables(A), _groups_by_brute_force(A))
 
 
 def test_nested_dissection_keeps_a_node_together_and_orders_with_little_fill():
@@ -286,9 +288,9 @@ def test_nested_dissection_keeps_a_node_together_and_orders_with_little_fill():
     K, C = sandwich_body()
     E = np.setdiff1d(np.arange(K.shape[0]), C)
     A = K[E][:, E].tocsr()
-    p = linalg.nested_dissection(A)
+    p = schur.nested_dissection(A)
     np.testing.assert_array_equal(np.sort(p), np.arange(A.shape[0]))
-    group = linalg.supervariables(A)
+    group = schur.supervariables(A)
     assert group[-1] + 1 < A.shape[0]                     # nodes were merged
     runs = group[p]                                       # each group once, unbroken
     assert np.count_nonzero(np.diff(runs)) == group[-1]
@@ -303,7 +305,7 @@ def test_dropping_scipys_cached_factor_copies_keeps_the_solver():
     them: the same object at every access) and ``solve`` is still exact."""
     import scipy.sparse.linalg as spla
     A = laplacian_2d(30, 20)
-    lu, ratio, _ = linalg._superlu(A)                  # reads lu.U, then drops
+    lu, ratio, _ = superlu._superlu(A)                  # reads lu.U, then drops
     assert ratio > 0
     b = np.random.default_rng(0).standard_normal(A.shape[0])
     assert np.abs(A @ lu.solve(b) - b).max() < 1e-12 * np.abs(b).max()
@@ -363,14 +365,14 @@ def test_solved_by_columns_splits_and_passes_errors_on():
         return 2.0 * b
 
     B = np.arange(60.0).reshape(4, 15)
-    assert np.array_equal(linalg.solved_by_columns(solve, B, threads=2), 2.0 * B)
+    assert np.array_equal(schur.solved_by_columns(solve, B, threads=2), 2.0 * B)
     assert sorted(seen) == [7, 8]
     seen.clear()
-    narrow = B[:, :2 * linalg.SOLVE_MIN_COLUMNS - 1]
-    linalg.solved_by_columns(solve, narrow, threads=4)
+    narrow = B[:, :2 * schur.SOLVE_MIN_COLUMNS - 1]
+    schur.solved_by_columns(solve, narrow, threads=4)
     assert seen == [narrow.shape[1]]
     seen.clear()
-    linalg.solved_by_columns(solve, B[:, 0], threads=2)
+    schur.solved_by_columns(solve, B[:, 0], threads=2)
     assert seen == [0]
 
     def failing(b):
@@ -378,7 +380,7 @@ def test_solved_by_columns_splits_and_passes_errors_on():
             raise ValueError("worker failed")
         return b
     with pytest.raises(ValueError, match="worker failed"):
-        linalg.solved_by_columns(failing, B, threads=2)
+        schur.solved_by_columns(failing, B, threads=2)
 
 
 @pytest.mark.parametrize("value", ["0", "-2", "two", "1.5"])
@@ -388,7 +390,7 @@ def test_bad_solve_thread_setting_is_refused(value, monkeypatch):
     with pytest.raises(InputError, match="QSMA_SOLVE_THREADS must be a positive integer"):
         solve_threads()
     with pytest.raises(InputError, match="QSMA_SOLVE_THREADS"):      # at the solve
-        linalg.solved_by_columns(lambda b: b, np.ones((3, 12)))
+        schur.solved_by_columns(lambda b: b, np.ones((3, 12)))
 
 
 @pytest.mark.parametrize("value", [0, -1, 1.5, True, "2"])
@@ -421,17 +423,17 @@ def test_coupling_read_from_the_columns_of_U_equals_the_sliced_one(problem, monk
     else:
         K, C = PROBLEMS["elasticity"]
     seen = []
-    original = linalg._coupling_transposed
+    original = metis_superlu._coupling_transposed
 
     def spy(U, nE):
         L_CE = original(U, nE)
         sliced = U[:nE, nE:].tocsr().T.tocsr()
         seen.append(abs(L_CE - sliced).max())
         return L_CE
-    monkeypatch.setattr(linalg, "_coupling_transposed", spy)
+    monkeypatch.setattr(metis_superlu, "_coupling_transposed", spy)
     Kc_new, _ = schur_complement(K, C, backend="metis_superlu")
     assert seen == [0.0]
-    monkeypatch.setattr(linalg, "_coupling_transposed",
+    monkeypatch.setattr(metis_superlu, "_coupling_transposed",
                         lambda U, nE: U[:nE, nE:].tocsr().T.tocsr())
     Kc_old, _ = schur_complement(K, C, backend="metis_superlu")
     assert np.array_equal(Kc_new, Kc_old)
@@ -443,12 +445,12 @@ def test_coupling_falls_back_to_slicing_when_the_trailing_block_is_not_identity(
     U = sp.csc_matrix(np.array([[2.0, 0.5, 0.3],
                                 [0.0, 3.0, 0.7],
                                 [0.0, 0.1, 1.0]]))       # an entry below the unit
-    L_CE = linalg._coupling_transposed(U, 1)
+    L_CE = metis_superlu._coupling_transposed(U, 1)
     assert np.array_equal(L_CE.toarray(), np.array([[0.5], [0.3]]))
     U = sp.csc_matrix(np.array([[2.0, 0.5, 0.3],
                                 [0.0, 1.0, 0.0],
                                 [0.0, 0.0, 1.0]]))
-    assert np.array_equal(linalg._coupling_transposed(U, 1).toarray(),
+    assert np.array_equal(metis_superlu._coupling_transposed(U, 1).toarray(),
                           np.array([[0.5], [0.3]]))
 
 

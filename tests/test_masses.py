@@ -8,7 +8,7 @@ import scipy.sparse.linalg as spla
 from qsma.errors import InputError
 from qsma.fe import assemble_body
 from qsma.model import Body, Clamp, Material, PointMass, Spring
-from qsma.model.generate import structured_mesh
+from qsma.mesh.generate import structured_mesh
 from qsma.model.mass import point_mass_matrix
 
 #: So stiff that the block moves as a rigid body on its springs (its elastic stiffness

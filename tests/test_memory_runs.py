@@ -14,13 +14,13 @@ import pytest
 
 import qsma
 from qsma.analysis import prepare, run_prepared
-from qsma.condense import CondensedBody
+from qsma.reduction.condensation import CondensedBody
 from qsma.examples import sandwich_2d
 from qsma.fe import AssembledBody
 from qsma.fe.batched import cell_quadrature, mesh_pattern
 from qsma.fe.cache import per_mesh
 from qsma.fe.elements import fe_space
-from qsma.linalg import EESolver
+from qsma.reduction.schur import EESolver
 from qsma.model import Mesh
 
 #: The objects of a run that hold its large arrays: meshes (and through the caches,

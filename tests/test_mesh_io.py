@@ -13,9 +13,9 @@ from skfem import MeshTet
 
 from qsma.errors import InputError, MeshFileError
 from qsma.examples import sandwich_2d
-from qsma.model.generate import structured_mesh
-from qsma.model.io import MESH_FORMATS, read_mesh, write_mesh
-from qsma.model.mesh import Mesh, boundary_facets
+from qsma.mesh.generate import structured_mesh
+from qsma.mesh.io import MESH_FORMATS, read_mesh, write_mesh
+from qsma.mesh.mesh import Mesh, boundary_facets
 from helpers import QUAD_GRID
 
 DATA = Path(__file__).parent / "data"
@@ -259,7 +259,7 @@ def test_inp_fields_fit_calculix(tmp_path, cell_type):
     """Coordinates are written in at most 20 characters (CalculiX reads no more of a
     field) to 13 significant digits or more; lines hold at most 16 entries (a C3D20 row
     of 21 continues on the next line)."""
-    from qsma.model.io.abaqus import CALCULIX_ENTRIES, CALCULIX_FIELD
+    from qsma.mesh.io.abaqus import CALCULIX_ENTRIES, CALCULIX_FIELD
     mesh = full_digit_mesh(cell_type)
     path = write_mesh(tmp_path / "m.inp", mesh)
     lines = path.read_text().splitlines()
@@ -800,20 +800,22 @@ def test_damaged_files_raise_only_mesh_file_errors(tmp_path, which, data):
                                                           np.linspace(0, 2, 3))])
 def test_facet_index_finds_boundary_facets_in_any_node_order(make):
     """One facet index per mesh: rows = boundary_facets, owner cell and local face agree
-    with CELL_FACETS, find() ignores node order and answers -1 for internal facets."""
-    from qsma.model.mesh import CELL_FACETS, facet_index
+    with the cell type's facets, find() ignores node order and answers -1 for internal
+    facets."""
+    from qsma.mesh.celltypes import CELL_TYPES
+    from qsma.mesh.mesh import facet_index
     m = make()
     index = facet_index(m)
     assert facet_index(m) is index                                # built once
     np.testing.assert_array_equal(index.rows, boundary_facets(m))
-    local = np.array(CELL_FACETS[m.cell_type])
+    local = np.array(CELL_TYPES[m.cell_type].facets)
     np.testing.assert_array_equal(index.rows, m.cells[index.cell[:, None],
                                                       local[index.local_face]])
     rng = np.random.default_rng(0)
     shuffled = rng.permuted(index.rows, axis=1)
     order = rng.permutation(len(index.rows))
     np.testing.assert_array_equal(index.find(shuffled[order]), order)
-    every = np.concatenate([m.cells[:, list(f)] for f in CELL_FACETS[m.cell_type]])
+    every = np.concatenate([m.cells[:, list(f)] for f in CELL_TYPES[m.cell_type].facets])
     internal = every[index.find(every) < 0]
     assert len(internal) == len(every) - len(index.rows)          # all the others
     assert len(internal) > 0 and (index.find(internal) == -1).all()
@@ -880,7 +882,7 @@ def test_quadratic_files_read_in_meshio_node_order(name, cell_type, element, tmp
     """Straight-edged Gmsh meshes (tests/data/make_quadratic_fixtures.py): in meshio order
     every further node is the mean of its corners; Gmsh's own Abaqus export gives the
     same cells; round trips keep cells and facet sets."""
-    from qsma.model.validate import scaled_jacobians
+    from qsma.mesh.validate import scaled_jacobians
     m = read_mesh(DATA / name)
     assert (m.cell_type, m.element) == (cell_type, element)
     nc, groups = VTK_HIGHER[cell_type]

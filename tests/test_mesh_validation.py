@@ -8,12 +8,11 @@ import numpy as np
 import pytest
 
 from qsma.errors import InputError, MeshFileError
-from qsma.model.generate import structured_mesh
-from qsma.model.io import read_mesh
-from qsma.model.mesh import Mesh
+from qsma.mesh.generate import structured_mesh
+from qsma.mesh.io import read_mesh
+from qsma.mesh.mesh import Mesh
 from qsma.examples import example_dir
-from qsma.model.validate import (DEGENERATE_SCALED_JACOBIAN, MeshQualityWarning,
-                                 scaled_jacobians, validate_mesh)
+from qsma.mesh.validate import (DEGENERATE_SCALED_JACOBIAN, MeshQualityWarning, scaled_jacobians, validate_mesh)
 
 DATA = Path(__file__).parent / "data"
 EXAMPLES = example_dir()        # the example files shipped with qsma

@@ -11,9 +11,9 @@ from qsma.examples import sandwich_2d
 from qsma.fe import assemble_body, pressure_load
 from qsma.modal import linear_modes
 from qsma.model import Body, Clamp, Material, Mesh, Pressure, make_pairing
-from qsma.model.generate import structured_mesh
-from qsma.model.io import read_mesh, write_mesh
-from qsma.model.mesh import CellBlock, boundary_facets, mixed_mesh
+from qsma.mesh.generate import structured_mesh
+from qsma.mesh.io import read_mesh, write_mesh
+from qsma.mesh.mesh import CellBlock, boundary_facets, mixed_mesh
 from helpers import QUAD_GRID, check_patch, distorted_patch
 
 STEEL = Material(200e9, 0.285, 7800.0)
@@ -73,12 +73,12 @@ def test_mixed_mesh_blocks_facets_and_sets():
     ("quad", "quad", "two cell blocks"),
 ])
 def test_unsupported_mixes_are_refused(first, other, words):
-    from qsma.model.mesh import CELL_TYPES
-    dim, nv = CELL_TYPES[first][:2]
+    from qsma.mesh.celltypes import CELL_TYPES
+    dim, nv = CELL_TYPES[first].dim, CELL_TYPES[first].n_nodes
     pts = np.random.default_rng(0).random((30, dim))
     cells = np.arange(nv)[None, :]
     with pytest.raises(InputError, match=words):
-        mixed_mesh(pts, [(first, cells), (other, np.arange(CELL_TYPES[other][1])[None, :])])
+        mixed_mesh(pts, [(first, cells), (other, np.arange(CELL_TYPES[other].n_nodes)[None, :])])
 
 
 # ---------------------------------------------------------------- assembly

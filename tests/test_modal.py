@@ -143,8 +143,8 @@ def test_modes_through_the_condensation_equal_the_factorised_tied_stiffness(name
 def test_substructured_inverse_solves_the_tied_stiffness(name):
     """``(T^T K T) x = b`` to round-off for a random load (with the bolt stiffness;
     free-free: for a self-equilibrated load, up to a rigid motion)."""
-    from qsma.model.bolt import bolt_stiffness
-    from qsma.rigid import assembly_motions
+    from qsma.fe.bolts import bolt_stiffness
+    from qsma.reduction.rigid import assembly_motions
     p, reduced, closed = _preloaded(name)
     args = (p.model, p.assembled, p.pairing)
     T = tie_transform(*args, closed)
@@ -189,7 +189,7 @@ import scipy.sparse as sp  # noqa: E402
 import scipy.sparse.linalg as spla  # noqa: E402
 import scipy.linalg as sla  # noqa: E402
 
-from qsma import modal  # noqa: E402
+from qsma.modal import eigen as modal  # noqa: E402
 
 
 def _chain(n):
@@ -261,9 +261,9 @@ def test_block_shift_invert_finds_every_symmetry_class_from_a_rigid_start():
     the wrong "8 lowest" modes (the one at lambda = 3.19 was missing, 17 % error) as
     converged. The start gets a random part: the eight lowest are found (reference:
     ARPACK shift-invert from its own random start)."""
-    from qsma.condense import rigid_body_modes
+    from qsma.reduction.rigid import rigid_body_modes
     from qsma.model.body import Body, Material
-    from qsma.model.generate import structured_mesh
+    from qsma.mesh.generate import structured_mesh
     mesh = structured_mesh(np.linspace(-1, 1, 17), np.linspace(-0.15, 0.15, 5),
                            np.linspace(-0.1, 0.1, 3))
     ab = assemble_body(Body("box", mesh, Material(1.0, 0.3, 1.0)))
@@ -297,7 +297,7 @@ def test_shift_invert_basis_is_written_in_place_and_restarts_as_products():
     writes the block in place (no copy of the whole basis), a restart keeps
     ``[Q, MQ, W, MW] Y`` and the next block ``W_last - Q (MQ^T W_last)``, as the
     products of the basis it was made from."""
-    from qsma.modal import _Basis
+    from qsma.modal.eigen import _Basis
     rng = np.random.default_rng(11)
     n = 40
     blocks = [[rng.standard_normal((n, 3)) for _ in range(4)] for _ in range(2)]
@@ -330,7 +330,7 @@ def test_tied_modes_on_two_solve_threads_equal_one_bit_for_bit(name, monkeypatch
     1.2e-12), and they still solve the eigenproblem: backward error
     ``|K phi - w^2 M phi| / ((|K| + w^2 |M|) |phi|) <= 1e-12`` per elastic mode (1-norms;
     measured 1e-15 .. 1e-14)."""
-    from qsma.model.bolt import bolt_stiffness
+    from qsma.fe.bolts import bolt_stiffness
     p, reduced, closed = _preloaded(name)
     args = (p.model, p.assembled, p.pairing)
     modes = {}

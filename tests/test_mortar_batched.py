@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from qsma.condense import combine
+from qsma.reduction.two_bodies import combine
 from qsma.model import Body, Clamp, Interface, Material, Mesh, Model
 from qsma.model.coupling import (_pieces_3d, _shoelace, clip_polygons,
                                  mortar_operator)
-from qsma.model.generate import structured_mesh
-from qsma.model.interface import facet_normals
+from qsma.mesh.generate import structured_mesh
+from qsma.mesh.facets import facet_normals
 
 STEEL = Material(200e9, 0.3, 7800.0)
 
@@ -238,7 +238,7 @@ def test_sparse_combination_equals_the_dense_formula_and_woodbury():
 
 
 def test_reduced_model_keeps_the_projection_sparse():
-    from qsma.condense import reduce_two_bodies
+    from qsma.reduction.two_bodies import reduce_two_bodies
     from qsma.fe import assemble_body
     ms, fs = _jittered_plate(4, 0.2, True, 1, False)
     mm, fm = _jittered_plate(3, 0.0, False, 2, True)

@@ -7,14 +7,15 @@ import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from qsma.condense import reduce_two_bodies
+from qsma.reduction.two_bodies import reduce_two_bodies
 from qsma.contact import ContactProblem, residual, solve as contact_solve
 from qsma.errors import InputError
 from qsma.examples import sandwich_2d
 from qsma.fe import assemble_body
 from qsma.model import Body, Clamp, Interface, Material, Model, Pressure, make_pairing
-from qsma.model.generate import graded_axis, structured_mesh
-from qsma.multibody import Coupling, reduce_bodies
+from qsma.mesh.generate import graded_axis, structured_mesh
+from qsma.model.pairing import Coupling
+from qsma.reduction.multibody import reduce_bodies
 
 STEEL = Material(200e9, 0.3, 7800.0)
 
@@ -153,7 +154,7 @@ import qsma  # noqa: E402
 import qsma.analysis as analysis  # noqa: E402
 from qsma.examples import stack_2d, STACK_2D  # noqa: E402
 from qsma.modal import linear_modes  # noqa: E402
-from qsma.multibody import MultiPairing, multi_pairing  # noqa: E402
+from qsma.model.pairing import MultiPairing, multi_pairing
 
 
 @pytest.mark.parametrize("coupling", ["node", "mortar"])

@@ -1,5 +1,5 @@
-"""The multifrontal Cholesky backend (qsma.multifrontal): Kc and K_EE solves against
-dense references on 2D, 3D and tetrahedral bodies, scalar problems, disconnected E,
+"""The multifrontal Cholesky backend (qsma.reduction.schur.multifrontal): Kc and K_EE
+solves against dense references on 2D, 3D and tetrahedral bodies, scalar problems, disconnected E,
 trees of many small fronts, the structure's invariants and the refusal of a K_EE
 that is not positive definite."""
 from pathlib import Path
@@ -9,13 +9,14 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from qsma import linalg, multifrontal as mf
+from qsma.reduction import schur
+from qsma.reduction.schur import multifrontal as mf, superlu
 from qsma.errors import InputError
 from qsma.fe import assemble_body
-from qsma.linalg import schur_complement
+from qsma.reduction.schur import schur_complement
 from qsma.model import Body, Clamp, Material
-from qsma.model.generate import structured_mesh
-from qsma.model.io import read_mesh
+from qsma.mesh.generate import structured_mesh
+from qsma.mesh.io import read_mesh
 
 # pymetis is a dependency everywhere but on Windows, where it has no wheel: skip only
 # there, so that a broken install elsewhere fails here instead of skipping the backend
@@ -83,7 +84,7 @@ def check_against_dense(K, C):
     X = solver(B)
     assert np.abs(K_EE @ X - B).max() <= 1e-12 * np.abs(K_EE).max() * np.abs(X).max()
     assert np.abs(solver(B[:, 2]) - X[:, 2]).max() <= 1e-13 * np.abs(X).max()
-    assert solver.min_pivot_ratio > linalg.PIVOT_RATIO_MIN
+    assert solver.min_pivot_ratio > schur.PIVOT_RATIO_MIN
     return Kc, solver
 
 
@@ -214,7 +215,7 @@ def test_solver_shapes():
 
 def test_many_columns_are_one_solve_whatever_the_thread_setting(monkeypatch):
     """The factor's loop over the fronts holds the GIL, so splitting the columns among
-    Python threads only made the solves wait for each other (linalg docstring): the
+    Python threads only made the solves wait for each other (the backend's docstring): the
     solver takes all the columns in one call, and its answer agrees with the
     column-by-column solves whatever QSMA_SOLVE_THREADS says (to 1e-14 here: a lone
     column takes another path of the BLAS kernels than a column of a pair)."""
@@ -224,7 +225,7 @@ def test_many_columns_are_one_solve_whatever_the_thread_setting(monkeypatch):
 
     def refused(*args):
         raise AssertionError("the multifrontal solve was split among threads")
-    monkeypatch.setattr(linalg, "_threaded", refused)
+    monkeypatch.setattr(superlu, "_threaded", refused)
     monkeypatch.setenv("QSMA_SOLVE_THREADS", "2")
     X = solver(B)
     X1 = solver(B[:, :1])[:, 0]

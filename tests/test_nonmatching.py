@@ -10,14 +10,14 @@ import pytest
 import scipy.sparse.linalg as spla
 
 import qsma
-from qsma.condense import reduce_two_bodies
+from qsma.reduction.two_bodies import reduce_two_bodies
 from qsma.contact import ContactProblem, solve as contact_solve
 from qsma.errors import InputError
 from qsma.examples import sandwich_2d
 from qsma.fe import assemble_body
 from qsma.modal import stacked, tie_transform
 from qsma.model import Body, Clamp, Interface, Material, Mesh, Model, Pressure, make_pairing
-from qsma.model.generate import structured_mesh
+from qsma.mesh.generate import structured_mesh
 
 STEEL = Material(200e9, 0.3, 7800.0)
 W, H = 0.04, 0.01          # block width and height [m] (any size: the answers are exact)
@@ -111,7 +111,7 @@ def test_patch_test_pressure_passes_a_welded_nonmatching_interface(n_bottom, n_t
     mb = m.bodies[mst]
     facets = mb.mesh.facets("upper" if mst == 0 else "lower")
     consistent = np.zeros(mb.mesh.n_nodes)
-    from qsma.model.interface import facet_normals
+    from qsma.mesh.facets import facet_normals
     a_f = np.linalg.norm(facet_normals(mb.mesh, facets), axis=1)
     np.add.at(consistent, facets.ravel(), np.repeat(a_f / facets.shape[1], facets.shape[1]))
     on_master = forces[mst][pr.master_nodes, 1]

@@ -125,7 +125,7 @@ def test_every_cell_of_a_mixed_mesh_is_drawn():
     """A body meshed with a quadrilateral and two triangles (two cell blocks) draws the
     edges of all three cells (found in review: only the first block was drawn), and
     its outline is the strip's rectangle: 6 edges."""
-    from qsma.model.mesh import CellBlock, Mesh
+    from qsma.mesh.mesh import CellBlock, Mesh
     from qsma.report import _body_corner_blocks, body_edges
     pts = np.array([[0, 0], [1, 0], [2, 0], [0, 1], [1, 1], [2, 1]], float)
     mesh = Mesh(pts, np.array([[0, 1, 4, 3]]), "quad",

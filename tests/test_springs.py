@@ -14,7 +14,7 @@ from qsma.errors import InputError
 from qsma.examples import lap_2d, lap_2d_cantilever
 from qsma.fe import assemble_body
 from qsma.model import Body, Material, Pressure, Spring
-from qsma.model.generate import structured_mesh
+from qsma.mesh.generate import structured_mesh
 from qsma.model.spring import spring_matrix, spring_shares
 from qsma.examples import example_dir
 
@@ -75,7 +75,7 @@ def test_springs_hold_a_body_against_rigid_motion():
     """A body with no clamp, on springs in x and y at one end, is held (its rigid
     motions are not free); springs along y only, spread over the base, leave the x
     translation free, and at the end (one x) the rotation too."""
-    from qsma.rigid import free_motions, held
+    from qsma.reduction.rigid import free_motions, held
     held_body = assemble_body(_block((Spring("end", (1e6, 1e6)),)))
     assert free_motions(held_body.body.mesh.points, held(held_body)).shape[1] == 0
     for where, n_free in (("base", 1), ("end", 2)):

@@ -16,7 +16,7 @@ from qsma.errors import InputError
 from qsma.examples import sandwich_2d
 from qsma.model import Material, Pressure
 from qsma.study import grid, parse_values, read_table, sweep
-from qsma.condense import RefactorisedEE
+from qsma.reduction.condensation import RefactorisedEE
 from qsma.study.sweep import done_path
 
 #: 5 levels over the spec's range of linear tied tip deflection (1 um .. 1 mm): small
@@ -46,7 +46,7 @@ ZETA_ROUND_OFF = 1e-10
 #: slip. Measured on the mu = 0.6, preload 1.5 case of this module: zeta and the
 #: dissipation change by up to 1.1e-9 between Schur backends (separate runs), and by
 #: 1.7e-9 between a prepared case and a separate run when the two beams share one
-#: factorisation (qsma.congruence); with the contact tolerance at 1e-13 instead of
+#: factorisation (qsma.reduction.congruence); with the contact tolerance at 1e-13 instead of
 #: 1e-10 the numbers do not move.
 INTEGRAL_RTOL = 5e-9
 

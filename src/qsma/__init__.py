@@ -1,7 +1,7 @@
 """qsma: quasi-static modal analysis of jointed structures with frictional contact,
 solved on a model statically condensed to the contact interface.
 
-Pipeline: :mod:`qsma.model` -> :mod:`qsma.fe` -> :mod:`qsma.condense` ->
+Pipeline: :mod:`qsma.model` -> :mod:`qsma.fe` -> :mod:`qsma.reduction` ->
 :mod:`qsma.contact` -> :mod:`qsma.analysis` (ramps) -> :mod:`qsma.hysteresis` ->
 :mod:`qsma.results`.
 """

@@ -9,7 +9,7 @@ measured with benchmarks/bench_analysis.py: sandwich-2d contact ramp 1.1 s with
 
 The sparse direct solves are parallel in another way: scipy's SuperLU releases the
 GIL in its triangular solves, so the columns of a multi-RHS solve are split into
-blocks solved by Python threads at once (:func:`qsma.linalg.solved_by_columns`).
+blocks solved by Python threads at once (:func:`qsma.reduction.schur.solved_by_columns`).
 :func:`solve_threads` gives their number: the environment variable
 :data:`SOLVE_THREADS_ENV` if set, else ``min(2, cores)``.
 """

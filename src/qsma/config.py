@@ -116,7 +116,7 @@ def load_config(path) -> RunConfig:
 
     The file must be UTF-8 (the TOML standard); a UTF-8 byte-order mark is accepted.
     """
-    from .model.io.common import read_regular
+    from .mesh.io.common import read_regular
     path = Path(path)
     text = decode_toml(read_regular(path, "a TOML configuration"), str(path))
     try:
@@ -183,7 +183,7 @@ def _damping(table, where):
 def _body_mesh(path, cells, files, part=None):
     """The mesh of a body: the whole file, its cell set ``cells`` or its connected part
     number ``part`` (from 1; one file read once for all the bodies taken from it)."""
-    from .model.io import read_mesh
+    from .mesh.io import read_mesh
     if part is not None:
         if cells is not None:
             raise InputError("give either cells (a cell set) or part (a connected part "
@@ -209,8 +209,8 @@ def _body_mesh(path, cells, files, part=None):
 
 
 def _assembly(path, files):
-    """The :class:`qsma.model.io.Assembly` of ``path``, read once per configuration."""
-    from .model.io import read_assembly
+    """The :class:`qsma.mesh.io.Assembly` of ``path``, read once per configuration."""
+    from .mesh.io import read_assembly
     key = str(path)
     if key not in files:
         files[key] = read_assembly(path)
@@ -351,7 +351,7 @@ def config_modes(path) -> tuple | None:
     """The ``modes`` of a configuration file's ``[analysis]`` table (None if it gives
     none), read without its meshes: the command line chooses one run or several before
     it loads the model."""
-    from .model.io.common import read_regular
+    from .mesh.io.common import read_regular
     path = Path(path)
     try:
         data = tomllib.loads(decode_toml(read_regular(path, "a TOML configuration"),
@@ -366,7 +366,7 @@ def _pressures(mesh, tables):
     """``(mesh, pressures)``: a table with ``face = k`` loads face S<k> of the cells of
     cell set ``set`` (an Abaqus ``*DLOAD, set, P<k>``), a facet set ``<set>:S<k>`` added
     to the mesh for it."""
-    from .model.io.abaqus import element_face_facets
+    from .mesh.io.abaqus import element_face_facets
     extra, pressures = {}, []
     for t in tables:
         name = t["set"]

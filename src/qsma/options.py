@@ -67,7 +67,7 @@ class RunOptions:
     continue_on_failure : bool
         Keep ramping after a level whose contact solve failed.
     schur_backend : str
-        Static condensation backend (:data:`qsma.linalg.SCHUR_BACKENDS` or ``"auto"``).
+        Static condensation backend (:data:`qsma.reduction.schur.SCHUR_BACKENDS` or ``"auto"``).
     blas_threads : "auto", int or None
         BLAS thread limit; ``"auto"``: one thread for small interface problems and,
         whatever the size, for the contact ramps and loops

@@ -23,6 +23,7 @@ import tempfile
 
 import numpy as np
 
+from .mesh.celltypes import CELL_TYPES
 from .result import FAILURE_FLAGS
 from .units import column_label, level_units
 
@@ -202,8 +203,6 @@ def draw_mesh_3d(res):
 #: is drawn by its outline (cells of a pixel or less read as a solid area anyway, and
 #: the page stays small: about 30 bytes per edge in the SVG file).
 MAX_SVG_CELLS = 20000
-#: Corner nodes of the 2D cell types (the first ones of quadratic cells, in order).
-CORNERS_2D = {"triangle": 3, "triangle6": 3, "quad": 4, "quad8": 4, "quad9": 4}
 #: The 2D mesh figure: width and margins in inches (left, right for the legend,
 #: bottom, top), the gap between its two panels and the heights a panel may take.
 MESH_2D = dict(width=10.0, margins=(0.9, 3.1, 0.6, 0.75), gap=0.95,
@@ -213,7 +212,8 @@ MESH_2D = dict(width=10.0, margins=(0.9, 3.1, 0.6, 0.75), gap=0.95,
 def _body_corner_blocks(mesh) -> list:
     """Corner node indices of a 2D mesh, one array per cell block (mixed meshes hold
     triangles and quadrilaterals side by side)."""
-    return [block.cells[:, :CORNERS_2D[block.cell_type]] for block in mesh.cell_blocks]
+    return [block.cells[:, :CELL_TYPES[block.cell_type].corners]
+            for block in mesh.cell_blocks]
 
 
 def _cell_edges(blocks) -> np.ndarray:

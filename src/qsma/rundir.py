@@ -36,26 +36,25 @@ files behind its manifest).
 """
 from __future__ import annotations
 
-import ctypes
 import errno
 import fcntl
-import hashlib
 import json
 import os
 import shutil
 import signal
 import socket
-import tempfile
 import threading
 import time
 import uuid
 from contextlib import contextmanager
 from pathlib import Path
 
+from ._infra.files import (TMP_PREFIX, atomic_path, atomic_write, digest as _digest,  # noqa: F401
+                           exchange as _exchange, fsync_dir as _fsync_dir,
+                           replace_atomically, umask_bits as _umask_bits)
 from .errors import InputError, OutputFolderBusy, OutputWriteError
+from .version import __version__
 
-#: prefix of the temporary files renamed into place by :func:`atomic_path`
-TMP_PREFIX = ".qsma-tmp-"
 MANIFEST = "manifest.json"
 MANIFEST_VERSION = 1
 #: What wrote a result folder (``kind`` of its manifest; none: a run) and how messages
@@ -69,45 +68,6 @@ LEGACY_FILES = frozenset({"results.json", "results.csv", "fields.vtu", "backbone
                           "interface_map.png"})
 #: errno values of a full device or an exhausted quota (write(2), close(2), fsync(2))
 FULL_DEVICE = frozenset({errno.ENOSPC, errno.EDQUOT})
-_RENAME_EXCHANGE = 2            # linux/fs.h
-
-
-def _umask_mode():
-    """Permission bits of a normally created file."""
-    return 0o666 & ~_umask_bits()
-
-
-def replace_atomically(tmp, path):
-    """Give ``tmp`` the permissions of a normally created file and rename it to ``path``."""
-    os.chmod(tmp, _umask_mode())
-    os.replace(tmp, path)
-
-
-@contextmanager
-def atomic_path(path):
-    """A temporary path beside ``path`` (same suffix, hidden prefix) to write to; on
-    success it is renamed to ``path``, on any failure or interruption it is removed.
-    Readers see either the old file or the complete new one."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f"{TMP_PREFIX}{path.stem}.", suffix=path.suffix,
-                               dir=path.parent)
-    os.close(fd)
-    try:
-        yield tmp
-        replace_atomically(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-
-
-def atomic_write(path, data, mode="w"):
-    """Write ``data`` (str or bytes) to ``path`` atomically (:func:`atomic_path`); text as
-    UTF-8 with ``\n`` line ends."""
-    text = {} if "b" in mode else {"encoding": "utf-8", "newline": "\n"}
-    with atomic_path(path) as tmp, open(tmp, mode, **text) as f:
-        f.write(data)
-        f.flush()
-        os.fsync(f.fileno())
 
 
 def check_out_path(out) -> Path:
@@ -490,7 +450,6 @@ def _write_manifest(folder: Path, run_id: str, kind: str) -> dict:
     """Write ``folder``'s manifest last, after every file below it is flushed to disk:
     run id, qsma version, kind, and each file with its size and SHA-256. Temporary files
     left in a private staging folder are deleted."""
-    from . import __version__
     for root, _, names in os.walk(folder):
         for name in names:
             if name.startswith(TMP_PREFIX):
@@ -586,17 +545,6 @@ def _is_complete(folder: Path) -> bool:
         return False
 
 
-def _digest(path: Path, sync=True) -> dict:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-        if sync:
-            os.fsync(f.fileno())
-        size = f.tell()
-    return {"bytes": size, "sha256": h.hexdigest()}
-
-
 def _wait_for_owner(fd, tries=40, pause_s=0.005) -> str:
     """The lock owner's description; a run that has just taken the lock writes it
     right after (``_lock``), so an empty file is read again for up to 0.2 s before the
@@ -618,36 +566,3 @@ def _read_owner(fd) -> str:
         return f"pid {info['pid']} on {info['host']}, run {info['run_id']}"
     except (OSError, ValueError, KeyError, TypeError):
         return UNKNOWN_OWNER
-
-
-def _umask_bits():
-    """The process umask (read by setting and restoring it)."""
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-def _fsync_dir(path):
-    fd = os.open(path, os.O_RDONLY | os.O_DIRECTORY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-
-
-def _exchange(a: Path, b: Path) -> bool:
-    """Atomically exchange two paths (Linux ``renameat2(RENAME_EXCHANGE)``); ``False``
-    where the system or the file system does not offer it."""
-    try:
-        libc = ctypes.CDLL(None, use_errno=True)
-        renameat2 = libc.renameat2
-    except (OSError, AttributeError):
-        return False
-    at_fdcwd = -100                                 # fcntl.h
-    rc = renameat2(at_fdcwd, os.fsencode(a), at_fdcwd, os.fsencode(b), _RENAME_EXCHANGE)
-    if rc == 0:
-        return True
-    err = ctypes.get_errno()
-    if err in (errno.EINVAL, errno.ENOSYS, errno.ENOTSUP):
-        return False
-    raise OSError(err, os.strerror(err), str(b))

@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from qsma.contact import METHODS, FORCE_TOL, solve
-from qsma.contact.external import read_fclib_global, read_siconos_dat, stiffness_form
 from qsma.errors import InputError
+
+from external_problems import read_fclib_global, read_siconos_dat, stiffness_form
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "contact" / "siconos"
 FILES = sorted(DATA.glob("*.dat"))

@@ -8,7 +8,8 @@ import scipy.linalg as sla
 from qsma.contact import ContactProblem
 from qsma.contact import zone as zone_module
 from qsma.contact.linear import BlockSystem, free_components, known_displacement
-from qsma.linalg import SYMMETRISE_ROWS, symmetrised
+from qsma._infra.dense import SYMMETRISE_ROWS
+from qsma.reduction.schur.registry import symmetrised
 from qsma.contact.state import OPEN, SLIPPING, STUCK
 from qsma.contact.zone import ContactZone, Elimination, _place, _runs, _spd_inverse
 

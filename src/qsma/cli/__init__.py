@@ -21,6 +21,7 @@ from ..errors import (AnalysisError, ContactConvergenceWarning, InputError, QSMA
 from . import examples as _examples, fit as _fit, init as _init, modes as _modes, \
     run as _run, sweep as _sweep
 from .progress import LOG_LEVELS, LogSetup
+from ..version import __version__
 
 EXIT_OK, EXIT_FAILED, EXIT_INPUT = 0, 1, 2
 #: 128 + SIGINT, the shell convention for a command stopped by Ctrl-C; also used for
@@ -31,7 +32,6 @@ SUBCOMMANDS = {"run": _run, "modes": _modes, "sweep": _sweep, "fit": _fit, "init
 
 
 def build_parser():
-    from .. import __version__
     parser = argparse.ArgumentParser(
         prog="qsma", description="Quasi-static modal analysis of jointed structures.",
         epilog="exit codes: 0 success, 1 analysis failed or results not written, "

@@ -1,8 +1,13 @@
-"""Options shared by the subcommands: where the model comes from."""
+"""Options shared by the subcommands: where the model comes from, the run options with a
+flag, the levels."""
 from __future__ import annotations
 
 from ..errors import InputError
 from ..options import RunOptions
+
+#: RunOptions fields that have a command-line flag of the same name.
+CLI_OPTIONS = ("mode", "method", "tol", "maxiter", "dissipation", "direct_loop",
+               "continue_on_failure", "loop_workers", "loop_scheduler", "max_cycles")
 
 
 def add_model_arguments(p):
@@ -32,8 +37,8 @@ def is_deck(path) -> bool:
 
 
 def read_deck_args(args, levels=None):
-    """The :class:`qsma.model.io.deck.Deck` of ``args.config`` with the probe options."""
-    from ..model.io.deck import read_deck
+    """The :class:`qsma.deck.Deck` of ``args.config`` with the probe options."""
+    from ..deck import read_deck
     direction = None
     if args.tip_direction is not None:
         try:
@@ -109,3 +114,22 @@ def load_model(args):
         model = model.with_mu(args.mu, what=f"--mu {args.mu:g}", fix=(
             "drop --mu and set mu in each [[interfaces]] table of the configuration"))
     return model, cfg.options
+
+
+def parse_levels_spec(spec: str):
+    """``KIND:log|linear:START:STOP:N`` or ``KIND:list:V1,V2,...`` -> Levels."""
+    from ..config import parse_levels
+    parts = spec.split(":")
+    try:
+        if len(parts) == 3 and parts[1] == "list":
+            table = dict(kind=parts[0], spacing="list",
+                         values=[float(v) for v in parts[2].split(",")])
+        elif len(parts) == 5:
+            table = dict(kind=parts[0], spacing=parts[1], start=float(parts[2]),
+                         stop=float(parts[3]), n=int(parts[4]))
+        else:
+            raise ValueError
+    except ValueError:
+        raise InputError(f"--levels {spec!r}: expected KIND:log|linear:START:STOP:N or "
+                         f"KIND:list:V1,V2,... (e.g. tip:log:1e-6:1e-3:51)") from None
+    return parse_levels(table, where="--levels")

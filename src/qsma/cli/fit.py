@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from ..errors import InputError
-from .common import add_model_arguments, load_model
+from .common import add_model_arguments, load_model, parse_levels_spec
 
 HELP = ("fit parameters (friction coefficient, preload scale, materials) to measured "
         "frequency and damping versus amplitude")
@@ -39,7 +39,6 @@ def add_arguments(p):
 def execute(args) -> int:
     import sys
     from ..study.fit import fit, parse_assignments
-    from .run import parse_levels_spec
     if args.max_evaluations < 1:
         raise InputError(f"--max-evaluations must be >= 1, got {args.max_evaluations}")
     model, options = load_model(args)

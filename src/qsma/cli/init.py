@@ -6,7 +6,7 @@ from pathlib import Path
 import sys
 
 from ..errors import InputError
-from .common import add_deck_arguments, is_deck, read_deck_args
+from .common import add_deck_arguments, is_deck, parse_levels_spec, read_deck_args
 
 HELP = ("write the TOML configuration equivalent to an Abaqus/CalculiX deck (every "
         "setting spelled out, what the deck holds that qsma does not use as comments)")
@@ -25,9 +25,8 @@ def add_arguments(p):
 
 
 def execute(args) -> int:
-    from ..model.io.deck import deck_toml
+    from ..deck import deck_toml
     from ..rundir import atomic_write
-    from .run import parse_levels_spec
     if not is_deck(args.config):
         raise InputError(f"qsma init reads an Abaqus/CalculiX deck (.inp), got "
                          f"{args.config!r}")

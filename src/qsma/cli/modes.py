@@ -8,7 +8,7 @@ import sys
 import numpy as np
 
 from ..errors import InputError
-from .common import add_model_arguments, load_model
+from .common import CLI_OPTIONS, add_model_arguments, load_model, parse_levels_spec
 
 HELP = "natural frequencies and mode shapes with interface pairs tied"
 
@@ -79,7 +79,6 @@ def _write(model, modes, tie, n_tied, folder):
 
 def execute_modes(args) -> int:
     from ..study.modes import parse_modes, run_modes
-    from .run import CLI_OPTIONS, parse_levels_spec
     if args.mode is not None:
         raise InputError("give either --mode K or --modes K1,K2,... (not both)")
     modes = parse_modes(args.modes)

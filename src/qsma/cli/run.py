@@ -5,14 +5,12 @@ import sys
 
 import numpy as np
 
-from ..errors import InputError
-from .common import add_amplitude_argument, add_model_arguments, is_deck, load_model
+from .common import (CLI_OPTIONS, add_amplitude_argument, add_model_arguments, is_deck,
+                     load_model, parse_levels_spec)
+from .modes import execute_modes
 from .progress import LOG_NAME
 
 HELP = "quasi-static modal analysis: backbone, frequency and damping versus amplitude"
-#: RunOptions fields that have a command-line flag of the same name.
-CLI_OPTIONS = ("mode", "method", "tol", "maxiter", "dissipation", "direct_loop",
-               "continue_on_failure", "loop_workers", "loop_scheduler", "max_cycles")
 
 
 def add_arguments(p):
@@ -71,7 +69,6 @@ def execute(args) -> int:
         if modes is not None:
             args.modes = ",".join(map(str, modes))
     if args.modes is not None:
-        from .modes import execute_modes
         return execute_modes(args)
 
     worker = _plot_worker(args)
@@ -153,25 +150,6 @@ def _written(res) -> str:
     if res.failed_levels:
         return f"the {res.n_levels} levels solved, the failing ones flagged ('flags'), are"
     return f"the {res.n_levels} levels solved before the failure are"
-
-
-def parse_levels_spec(spec: str):
-    """``KIND:log|linear:START:STOP:N`` or ``KIND:list:V1,V2,...`` -> Levels."""
-    from ..config import parse_levels
-    parts = spec.split(":")
-    try:
-        if len(parts) == 3 and parts[1] == "list":
-            table = dict(kind=parts[0], spacing="list",
-                         values=[float(v) for v in parts[2].split(",")])
-        elif len(parts) == 5:
-            table = dict(kind=parts[0], spacing=parts[1], start=float(parts[2]),
-                         stop=float(parts[3]), n=int(parts[4]))
-        else:
-            raise ValueError
-    except ValueError:
-        raise InputError(f"--levels {spec!r}: expected KIND:log|linear:START:STOP:N or "
-                         f"KIND:list:V1,V2,... (e.g. tip:log:1e-6:1e-3:51)") from None
-    return parse_levels(table, where="--levels")
 
 
 def _warn_flags(res):

@@ -4,7 +4,7 @@ from __future__ import annotations
 import sys
 
 from ..errors import InputError
-from .common import add_amplitude_argument, add_model_arguments, load_model
+from .common import add_amplitude_argument, add_model_arguments, load_model, parse_levels_spec
 
 HELP = ("parameter study: QSMA over a grid of friction, preload scale, materials, mode "
         "or levels, sharing assembly and condensation; cases run on Dask")
@@ -57,7 +57,6 @@ def parse_vary(items) -> dict:
 
 def execute(args) -> int:
     from ..study import sweep
-    from .run import parse_levels_spec
     if args.workers is not None and args.workers < 0:
         raise InputError(f"--workers must be >= 0, got {args.workers}")
     if args.scheduler and args.workers is not None:

@@ -91,9 +91,9 @@ class ContactProblem:
         ``n^3/3``).
 
         ``overwrite=True``: ``K`` is the caller's own float64 array, symmetrised in place
-        (:func:`qsma.linalg.symmetrised`, the same bits as ``(K + K^T) / 2``), frozen
+        (:func:`qsma._infra.dense.symmetrised`, the same bits as ``(K + K^T) / 2``), frozen
         and held: no copy of the zone's size."""
-        from ..linalg import symmetrised
+        from .._infra.dense import symmetrised
         K = _frozen(symmetrised(K) if overwrite else 0.5 * (K + K.T))
         new = object.__new__(cls)
         _set_fields(new, K=K, mu=_frozen(np.array(mu, dtype=float)),

@@ -91,7 +91,7 @@ def stack_3d_bolted(refine: int = 1, mu: float | None = None):
     interface slips a little under the preload (friction matters).
     """
     from ..model import Body, Clamp, Interface, Material, Model
-    from ..model.generate import structured_mesh
+    from ..mesh.generate import structured_mesh
     from .lap import _check_refine
     _check_refine(refine)
     s = STACK_3D

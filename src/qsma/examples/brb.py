@@ -90,8 +90,8 @@ import numpy as np
 from ..errors import InputError
 from ..model import (Body, Bolt, Interface, LinearDamping, Material, Model, PointMass,
                      Probe)
-from ..model.generate import graded_axis, structured_mesh
-from ..model.mesh import Mesh
+from ..mesh.generate import graded_axis, structured_mesh
+from ..mesh.mesh import Mesh
 
 _IN = 0.0254      # metres per inch
 

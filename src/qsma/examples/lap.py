@@ -17,7 +17,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..model import Body, Clamp, Interface, Material, Model, Pressure, Probe
-from ..model.generate import graded_axis, structured_mesh
+from ..mesh.generate import graded_axis, structured_mesh
 
 #: Parameters of the lap joints (SI units). Element sizes at refine 1: 1 mm in the
 #: overlap, 2 mm elsewhere, 4 elements through the thickness (2D).

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..model import Body, Clamp, Interface, Material, Model, Pressure, Probe
-from ..model.generate import graded_axis, structured_mesh
+from ..mesh.generate import graded_axis, structured_mesh
 
 #: parameters of the spec (SI units)
 SANDWICH_2D = dict(

@@ -13,7 +13,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..model import Body, Clamp, Interface, Material, Model, Pressure, Probe
-from ..model.generate import graded_axis, structured_mesh
+from ..mesh.generate import graded_axis, structured_mesh
 from .sandwich import SANDWICH_2D
 
 #: parameters of stack-2d (SI units); the plates, material and bolt of sandwich-2d.

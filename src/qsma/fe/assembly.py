@@ -18,8 +18,11 @@ import skfem
 from skfem.helpers import ddot, div, dot, sym_grad
 
 from ..errors import InputError
-from ..model import Body, Mesh
-from ..model.mesh import FACET_CORNERS, facet_index
+from ..mesh.celltypes import TYPES
+from ..mesh.mesh import Mesh, facet_index
+from ..model.body import Body
+from ..model.mass import point_mass_matrix
+from ..model.spring import spring_matrix
 from . import batched
 from .elements import block_dofs, fe_space, scatter_matrix
 from .formulation import Formulation, MixedFormulation, resolve_formulations
@@ -121,11 +124,9 @@ def assemble_body(body: Body) -> AssembledBody:
     form = resolve_formulations(body.mesh)
     K = stiffness_matrix(body, form)
     if body.springs:                        # grounded springs (qsma.model.spring)
-        from ..model.spring import spring_matrix
         K = (K + spring_matrix(body)).tocsr()
     M = mass_matrix(body)
     if body.masses:                         # point masses (qsma.model.mass)
-        from ..model.mass import point_mass_matrix
         M = (M + point_mass_matrix(body)).tocsr()
     loads = {name: body_load(body, name) for name in body.load_names()}
     fixed = body.clamped_dofs()
@@ -175,7 +176,7 @@ def _facet_pressure(mesh: Mesh, rows: np.ndarray, p: float, what: str) -> np.nda
     """:func:`pressure_load` on facets ``rows`` of a single-type mesh."""
     space = fe_space(mesh)
     n_dofs = mesh.dim * mesh.n_nodes
-    ncorner = FACET_CORNERS[mesh.facet_type]
+    ncorner = TYPES[mesh.facet_type].corners
     vertex_of = np.full(mesh.n_nodes, -1, dtype=np.int64)
     vertex_of[space.vertex_node] = np.arange(len(space.vertex_node))
     corners = vertex_of[rows[:, :ncorner]]

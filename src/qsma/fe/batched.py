@@ -38,7 +38,8 @@ import skfem
 from skfem.quadrature import get_quadrature
 
 from .cache import per_mesh
-from .elements import SKFEM_ELEMENTS, fe_space
+from ..mesh.celltypes import CELL_TYPES
+from .elements import fe_space
 
 #: Elements per batch (bounds the temporary arrays: about 50 MB for hexahedron20).
 BATCH = 4096
@@ -136,10 +137,10 @@ class CellQuadrature:
 @per_mesh
 def cell_quadrature(mesh) -> CellQuadrature:
     """The :class:`CellQuadrature` of a single-type qsma mesh (cached; meshes are
-    immutable), with the quadrature order of :data:`qsma.fe.elements.SKFEM_ELEMENTS`."""
+    immutable), with the quadrature order of :attr:`qsma.mesh.celltypes.CellType.skfem`."""
     space = fe_space(mesh)
     m = space.mesh
-    intorder = SKFEM_ELEMENTS[mesh.cell_type][2]
+    intorder = CELL_TYPES[mesh.cell_type].skfem[2]
     X, W = get_quadrature(space.element.refdom, intorder)
     values, grads = reference_basis(space.element, X)
     geometry = m.elem()

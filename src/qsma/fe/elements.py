@@ -30,31 +30,10 @@ import functools
 import numpy as np
 import skfem
 
+from .._infra.deprecation import forward
 from ..errors import InputError
+from ..mesh.celltypes import CELL_TYPES
 from .cache import per_mesh
-
-# cell type -> (scikit-fem mesh class, scalar element class, quadrature order)
-# Quadrature orders (scikit-fem ``intorder``): 2 gives 2x2 (2x2x2) Gauss on quads /
-# hexes and a 3-point (4-point) rule on triangles (tets), exact for the P1/Q1
-# stiffness and mass; 4 gives 3x3 (3x3x3) Gauss, a 6-point (11-point) rule, exact
-# for the mass of quadratic elements with straight edges.
-SKFEM_ELEMENTS = {
-    "triangle": (skfem.MeshTri1, skfem.ElementTriP1, 2),
-    "quad": (skfem.MeshQuad1, skfem.ElementQuad1, 2),
-    "tetra": (skfem.MeshTet1, skfem.ElementTetP1, 2),
-    "hexahedron": (skfem.MeshHex1, skfem.ElementHex1, 2),
-    "triangle6": (skfem.MeshTri2, skfem.ElementTriP2, 4),
-    "quad8": (skfem.MeshQuad2, skfem.ElementQuadS2, 4),
-    "quad9": (skfem.MeshQuad2, skfem.ElementQuad2, 4),
-    "tetra10": (skfem.MeshTet2, skfem.ElementTetP2, 4),
-    "hexahedron20": (skfem.MeshHex2, skfem.ElementHexS2, 4),
-    "hexahedron27": (skfem.MeshHex2, skfem.ElementHex2, 4),
-}
-# meshio (VTK) -> scikit-fem local node order of hexahedra (skfem.io.meshio HEX_MAPPING
-# inverse): skfem local node k is meshio local node _HEX27_ORDER[k]
-_HEX27_ORDER = [0, 4, 3, 1, 7, 5, 2, 6, 16, 11, 8, 15, 12, 19, 10, 17, 9, 14, 13, 18,
-                20, 24, 22, 23, 25, 21, 26]
-
 
 def local_origin(points: np.ndarray) -> np.ndarray:
     """Lower corner of the bounding box of ``points``: the origin of the assembly
@@ -72,13 +51,15 @@ def lagrange_geometry(points: np.ndarray, cells: np.ndarray, cell_type: str):
     serendipity map at xi = eta = 0). hexahedron20 -> hexahedron27: face centre
     ``-1/4 sum(face corners) + 1/2 sum(face midsides)`` and body centre
     ``-1/4 sum(corners) + 1/4 sum(edge midsides)`` (the 20-node map at the face and
-    body centres). Other cell types are returned unchanged.
+    body centres). Other cell types (no ``skfem_geometry`` of their own) are returned
+    unchanged.
     """
+    if CELL_TYPES[cell_type].skfem_geometry is None:
+        return points, cells
     if cell_type == "quad8":
         extra = [-0.25 * points[cells[:, :4]].sum(1) + 0.5 * points[cells[:, 4:8]].sum(1)]
     elif cell_type == "hexahedron20":
-        from ..model.mesh import CELL_FACETS
-        faces = CELL_FACETS["hexahedron20"]
+        faces = CELL_TYPES["hexahedron20"].facets
         # hexahedron27 face-centre order 20..25: x-, x+, y-, y+, z-, z+ (VTK); our
         # hexahedron20 faces are z-, z+, y-, x+, y+, x-
         order = [5, 3, 2, 4, 0, 1]
@@ -86,7 +67,7 @@ def lagrange_geometry(points: np.ndarray, cells: np.ndarray, cell_type: str):
                  + 0.5 * points[cells[:, list(faces[k][4:])]].sum(1) for k in order]
         extra.append(-0.25 * points[cells[:, :8]].sum(1) + 0.25 * points[cells[:, 8:20]].sum(1))
     else:
-        return points, cells
+        raise NotImplementedError(f"no rule for the Lagrange geometry of {cell_type} cells")
     n = len(points)
     new = np.concatenate(extra)
     idx = n + np.arange(len(new)).reshape(len(extra), len(cells)).T
@@ -95,10 +76,12 @@ def lagrange_geometry(points: np.ndarray, cells: np.ndarray, cell_type: str):
 
 def build_skfem_mesh(points: np.ndarray, cells: np.ndarray, cell_type: str):
     """The scikit-fem mesh of cells ``cells`` (meshio order) on ``points``."""
-    cls = SKFEM_ELEMENTS[cell_type][0]
+    ct = CELL_TYPES[cell_type]
+    cls = getattr(skfem, ct.skfem[0])
     points, cells = lagrange_geometry(points, cells, cell_type)
-    if cell_type in ("hexahedron", "hexahedron20", "hexahedron27"):
-        cells = cells[:, _HEX27_ORDER[:cells.shape[1]]]
+    geometry = CELL_TYPES[ct.skfem_geometry or cell_type]
+    if geometry.skfem_nodes is not None:
+        cells = cells[:, list(geometry.skfem_nodes)]
     try:
         return cls(np.ascontiguousarray(points.T), np.ascontiguousarray(cells.T),
                    validate=True, sort_t=False)
@@ -118,7 +101,7 @@ class FESpace:
     vertex_node : qsma node of each scikit-fem vertex
     origin : the assembly origin in the user's coordinates
     dof_node : qsma node of each scalar scikit-fem DOF
-    intorder : quadrature order (``SKFEM_ELEMENTS``)
+    intorder : quadrature order (:attr:`qsma.mesh.celltypes.CellType.skfem`)
     """
 
     mesh: object
@@ -203,7 +186,8 @@ def fe_space(mesh) -> FESpace:
         raise ValueError("fe_space needs a single-type mesh; assemble a mixed mesh block "
                          "by block (Mesh.block_meshes)")
     ct = mesh.cell_type
-    _, elem_cls, intorder = SKFEM_ELEMENTS[ct]
+    _, elem_name, intorder = CELL_TYPES[ct].skfem
+    elem_cls = getattr(skfem, elem_name)
     origin = local_origin(mesh.points)
     points = mesh.points - origin
     m = build_skfem_mesh(points, mesh.cells, ct)
@@ -212,7 +196,7 @@ def fe_space(mesh) -> FESpace:
     # the vector numbering dim * scalar DOF + component, checked on one element
     probe = skfem.Basis(m, skfem.ElementVector(elem), intorder=1, elements=np.array([0]),
                         disable_doflocs=True)
-    if ct in ("triangle", "quad", "tetra", "hexahedron"):
+    if CELL_TYPES[ct].is_linear:
         expected = dim * np.arange(n)[None, :] + np.arange(dim)[:, None]
         if not np.array_equal(probe.nodal_dofs, expected):
             raise RuntimeError("unexpected scikit-fem DOF ordering")  # guards our convention
@@ -229,7 +213,7 @@ def fe_space(mesh) -> FESpace:
 
 
 def block_dofs(nodes: np.ndarray, dim: int) -> np.ndarray:
-    """Mesh DOFs of the DOFs of a cell block (:meth:`qsma.model.Mesh.block_meshes`):
+    """Mesh DOFs of the DOFs of a cell block (:meth:`qsma.mesh.Mesh.block_meshes`):
     block DOF ``dim * i + c`` is mesh DOF ``dim * nodes[i] + c``."""
     return (dim * np.asarray(nodes, dtype=np.int64)[:, None] + np.arange(dim)).ravel()
 
@@ -239,3 +223,9 @@ def scatter_matrix(A, dofs: np.ndarray, n_dofs: int):
     import scipy.sparse as sp
     A = A.tocoo()
     return sp.csr_matrix((A.data, (dofs[A.row], dofs[A.col])), shape=(n_dofs, n_dofs))
+
+
+# The table of scikit-fem elements became the ``skfem`` of each cell type record
+# (:mod:`qsma.mesh.celltypes`); the old name keeps working for one release, with a
+# DeprecationWarning.
+forward(__name__, names={"SKFEM_ELEMENTS": "qsma.mesh._legacy"})

@@ -19,22 +19,8 @@ from dataclasses import dataclass
 import re
 
 from ..errors import InputError
+from ..mesh.celltypes import CELL_TYPES
 
-#: meshio cell type -> (element family text, Abaqus node-count digits, full integration)
-_CELLS = {
-    "triangle": ("3-node triangle (linear)", "3", "3-point rule"),
-    "quad": ("4-node quadrilateral (bilinear)", "4", "2x2 Gauss"),
-    "triangle6": ("6-node triangle (quadratic)", "6", "6-point rule"),
-    "quad8": ("8-node quadrilateral (serendipity)", "8", "3x3 Gauss"),
-    "quad9": ("9-node quadrilateral (biquadratic Lagrange)", "9", "3x3 Gauss"),
-    "tetra": ("4-node tetrahedron (linear)", "4", "4-point rule"),
-    "hexahedron": ("8-node hexahedron (trilinear)", "8", "2x2x2 Gauss"),
-    "tetra10": ("10-node tetrahedron (quadratic)", "10", "11-point rule"),
-    "hexahedron20": ("20-node hexahedron (serendipity)", "20", "3x3x3 Gauss"),
-    "hexahedron27": ("27-node hexahedron (triquadratic Lagrange)", "27", "3x3x3 Gauss"),
-}
-#: cells that have an incompatible-mode variant (Wilson-Taylor)
-_INCOMPATIBLE = {"quad", "hexahedron"}
 KINEMATICS = ("plane strain", "plane stress", "3d")
 
 
@@ -56,12 +42,12 @@ class Formulation:
     source: str | None = None
 
     def __post_init__(self):
-        if self.cell_type not in _CELLS:
+        if self.cell_type not in CELL_TYPES:
             raise InputError(f"no element formulation for cell type {self.cell_type!r}")
         if self.kinematics not in KINEMATICS:
             raise InputError(f"kinematics must be one of {KINEMATICS}, got "
                              f"{self.kinematics!r}")
-        if self.incompatible and self.cell_type not in _INCOMPATIBLE:
+        if self.incompatible and not CELL_TYPES[self.cell_type].incompatible_modes:
             raise InputError(f"incompatible modes exist for 4-node quadrilaterals and "
                              f"8-node hexahedra only, not {self.cell_type!r}")
 
@@ -69,7 +55,7 @@ class Formulation:
     def name(self) -> str:
         """Abaqus-style name of what is computed (``CPE4I``, ``CPS8``, ``C3D20``; qsma
         writes ``CPE9`` / ``C3D27`` for the 9- and 27-node Lagrange cells)."""
-        digits = _CELLS[self.cell_type][1]
+        digits = str(CELL_TYPES[self.cell_type].n_nodes)
         prefix = {"plane strain": "CPE", "plane stress": "CPS", "3d": "C3D"}[self.kinematics]
         return prefix + digits + ("I" if self.incompatible else "")
 
@@ -77,7 +63,8 @@ class Formulation:
     def label(self) -> str:
         """One line saying what is computed, e.g. ``"CPE4I: plane strain, 4-node
         quadrilateral (bilinear), incompatible modes (Wilson-Taylor), 2x2 Gauss"``."""
-        family, _, rule = _CELLS[self.cell_type]
+        ct = CELL_TYPES[self.cell_type]
+        family, rule = ct.description, ct.integration
         what = "incompatible modes (Wilson-Taylor QM6 with Taylor's correction)" \
             if self.incompatible else "full integration"
         if self.incompatible and self.kinematics == "3d":
@@ -89,7 +76,7 @@ class Formulation:
 @dataclass(frozen=True)
 class MixedFormulation:
     """The formulations of the cell blocks of a mixed mesh (one per block, in the
-    order of :attr:`qsma.model.Mesh.cell_blocks`), all of one kinematics.
+    order of :attr:`qsma.mesh.Mesh.cell_blocks`), all of one kinematics.
 
     Attributes
     ----------
@@ -161,7 +148,8 @@ def resolve_formulation(mesh) -> Formulation:
                          f"strain (CPE*) if that is what you mean")
     if (family == "C3D") != (dim == 3):
         raise InputError(f"element type {name!r} does not fit a {dim}D {ct!r} mesh")
-    expected = _CELLS[ct][1]
+    expected = str(CELL_TYPES[ct].n_nodes)
+    incompatible = CELL_TYPES[ct].incompatible_modes
     if digits != expected and not (ct == "quad9" and digits == "9"):
         raise InputError(f"element type {name!r} has {digits} nodes but the mesh cells are "
                          f"{ct!r} with {expected}; the mesh and the element name disagree")
@@ -171,12 +159,12 @@ def resolve_formulation(mesh) -> Formulation:
             f"implement (no hourglass control: spurious zero-energy modes would corrupt "
             f"the frequencies). Use the fully integrated {family}{digits}"
             + (f" or the incompatible-mode {family}{digits}I (bending-accurate)"
-               if ct in _INCOMPATIBLE else "") + " instead")
+               if incompatible else "") + " instead")
     if suffix not in ("", "I"):
         raise InputError(f"element type {name!r}: suffix {suffix!r} (hybrid, modified, "
                          f"coupled...) is not implemented; use {family}{digits}"
-                         + (f" or {family}{digits}I" if ct in _INCOMPATIBLE else ""))
-    if suffix == "I" and ct not in _INCOMPATIBLE:
+                         + (f" or {family}{digits}I" if incompatible else ""))
+    if suffix == "I" and not incompatible:
         raise InputError(f"element type {name!r}: incompatible modes exist for CPE4I/CPS4I"
                          f"/C3D8I only")
     kin = {"CPE": "plane strain", "CPS": "plane stress", "C3D": "3d"}[family]

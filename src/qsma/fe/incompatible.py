@@ -30,17 +30,15 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp  # noqa: F401  (return annotation)
 
+from ..mesh.celltypes import CELL_TYPES
 from .batched import BATCH, block_pattern, isotropic_blocks, sum_into_csr
 from .cache import per_mesh
 from .elements import local_origin
 
 _GAUSS = np.array([-1.0, 1.0]) / np.sqrt(3.0)      # 2-point Gauss-Legendre, weights 1
 #: corner signs of the reference cell [-1, 1]^d in meshio order
-_SIGNS = {
-    2: np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], dtype=float),
-    3: np.array([[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1],
-                 [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]], dtype=float),
-}
+_SIGNS = {2: np.array(CELL_TYPES["quad"].reference, dtype=float),
+          3: np.array(CELL_TYPES["hexahedron"].reference, dtype=float)}
 
 
 def gauss_points(dim):

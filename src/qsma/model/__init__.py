@@ -1,15 +1,14 @@
-"""Finite element models: meshes with named sets, bodies, materials, interfaces."""
-from .mesh import Mesh, boundary_facets, CELL_TYPES
+"""Finite element models: bodies, materials, supports, loads, bolts, springs, interfaces
+and their pairing; the mesh names a model is built with (from :mod:`qsma.mesh`)."""
+from ..mesh import CELL_TYPES, FacetIndex, Mesh, boundary_facets, facet_index, validate_mesh
 from .body import Material, Clamp, Pressure, NodalForce, Body, Probe, Model
-from .interface import Interface, Pairing, make_pairing, pair_nodes, local_frames
+from .interface import Interface, Pairing, pair_nodes, local_frames
+from .pairing import make_pairing
 
 __all__ = ["Mesh", "boundary_facets", "CELL_TYPES", "Material", "Clamp", "Pressure",
            "NodalForce",
            "Body", "Probe", "Model", "Interface", "Pairing", "make_pairing", "pair_nodes",
            "local_frames"]
-
-from .mesh import FacetIndex, facet_index  # noqa: E402
-from .validate import validate_mesh  # noqa: E402
 
 from .bolt import Bolt  # noqa: E402
 from .spring import Spring  # noqa: E402
@@ -26,6 +25,6 @@ def __getattr__(name):
     writers (Abaqus, Gmsh) cost 0.08 s of CPU to import, and a run of a model built in
     memory (``qsma run --example``) never reads a mesh file."""
     if name in ("read_mesh", "write_mesh"):
-        from . import io
+        from ..mesh import io
         return getattr(io, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -9,7 +9,8 @@ import numpy as np
 
 from ..errors import InputError, NearlyIncompressibleWarning
 from .damping import LinearDamping
-from .mesh import CELL_FACETS, Mesh
+from ..mesh.celltypes import CELL_TYPES
+from ..mesh.mesh import Mesh
 
 #: Poisson's ratio above which the displacement elements of qsma lock. Measured with
 #: linear_modes on sandwich-2d, f0 at refine 1 against refine 4: the discretisation
@@ -182,7 +183,7 @@ def _not_a_facet_set(mesh, name) -> str:
     """Why ``name`` cannot carry a pressure and what to name instead."""
     facets = f"available facet sets: {sorted(mesh.facet_sets)}"
     faces = ("a facet set: in an .inp file a *SURFACE, TYPE=ELEMENT of the loaded faces "
-             f"(rows 'element set, S1'..'S{len(CELL_FACETS[mesh.cell_type])}'), in a Gmsh "
+             f"(rows 'element set, S1'..'S{len(CELL_TYPES[mesh.cell_type].facets)}'), in a Gmsh "
              f"file a physical group of dimension {mesh.dim - 1}")
     if name in mesh.cell_sets:
         return (f"which is a cell set (elements, e.g. the set of an Abaqus *DLOAD), not a "

@@ -44,6 +44,8 @@ import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
 from ..errors import InputError
+from ..mesh.celltypes import TYPES
+from ..mesh.facets import facet_normals
 
 #: Gauss-Legendre points per direction: 4 points integrate degree 7 on a segment and,
 #: collapsed onto a triangle (Duffy), total degree 6 exactly; the integrands of a flat
@@ -127,10 +129,9 @@ def mortar_operator(slave_mesh, slave_facets, master_mesh, master_facets,
         surfaces are farther apart or overlap more than :data:`GAP_FRACTION` of an element,
         and for quadratic facets (the projection is built for linear ones).
     """
-    from .mesh import FACET_CORNERS
     for mesh, facets, body, name in ((slave_mesh, slave_facets, names[0], names[1]),
                                      (master_mesh, master_facets, names[2], names[3])):
-        if facets.shape[1] != FACET_CORNERS[mesh.facet_type]:
+        if facets.shape[1] != TYPES[mesh.facet_type].corners:
             raise InputError(
                 f"interface body {names[0]!r} set {names[1]!r} / body {names[2]!r} set "
                 f"{names[3]!r}: the mortar coupling is built for linear facets, and body "
@@ -148,7 +149,6 @@ def mortar_operator(slave_mesh, slave_facets, master_mesh, master_facets,
 
 
 def _outward(mesh, facets):
-    from .interface import facet_normals
     return facet_normals(mesh, facets)
 
 

@@ -9,9 +9,12 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
+from .._infra.deprecation import forward
 from ..contact.laws import InterfaceLaw
 from ..errors import InputError, QuadraticFacetWarning
-from .mesh import Mesh, facet_index, facet_node_weights
+from ..mesh.facets import facet_node_weights, facet_normals
+from ..mesh.mesh import Mesh, facet_index
+from .coupling import mortar_operator
 
 #: Node-to-node pairing: two nodes are the same point when they are closer than this
 #: fraction of the smallest interface facet edge at either node. It is far above the
@@ -246,60 +249,6 @@ def node_match(mesh1, set1, mesh2, set2, tol=None) -> _Match:
     return _Match(n1[order], n2[j[order]])
 
 
-def facet_normals(mesh: Mesh, facets: np.ndarray) -> np.ndarray:
-    """Unit outward normals of boundary facets, scaled by their area (length in 2D).
-
-    Computed from the corner nodes (the first ``FACET_CORNERS`` of each row): exact for
-    straight / flat facets, the chord (flat) approximation of curved quadratic ones.
-    """
-    from .mesh import FACET_CORNERS
-    p = mesh.points[facets[:, :FACET_CORNERS[mesh.facet_type]]]
-    if mesh.dim == 2:
-        t = p[:, 1] - p[:, 0]
-        nrm = np.stack([t[:, 1], -t[:, 0]], axis=1)
-    else:
-        # polygon (triangle or quad): half the cross product of the diagonals / edges
-        if p.shape[1] == 3:
-            nrm = 0.5 * np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-        else:
-            nrm = 0.5 * np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 1])
-    # orient outward: away from the centroid of the owning cell
-    owner = _owner_centroids(mesh, facets)
-    flip = np.einsum("ij,ij->i", nrm, p.mean(axis=1) - owner) < 0
-    nrm[flip] *= -1
-    return nrm
-
-
-def _owner_centroids(mesh, facets):
-    """Centroid of the cell that owns each facet: boundary facets through the mesh's
-    cached facet index, any other facet (internal, or of no cell) by the lookup below."""
-    from .mesh import facet_index
-    index = facet_index(mesh)
-    row = index.find(facets)
-    if len(row) and (row >= 0).all():
-        cells = index.cell[row]
-        cent = np.concatenate([mesh.points[b.cells].mean(axis=1) for b in mesh.cell_blocks])
-        return cent[cells]
-    return _owner_centroids_by_lookup(mesh, facets)
-
-
-def _owner_centroids_by_lookup(mesh, facets):
-    """Centroid of a cell holding each facet (the last one listed for an internal facet)."""
-    from .mesh import CELL_FACETS
-    owner, cent = {}, []
-    for b in mesh.cell_blocks:                      # mixed meshes: every cell block
-        local, nc, start = CELL_FACETS[b.cell_type], len(b.cells), len(cent)
-        allf = np.sort(np.concatenate([b.cells[:, list(f)] for f in local]), axis=1)
-        owner.update({tuple(k): start + c % nc for c, k in enumerate(allf.tolist())})
-        cent.extend(mesh.points[b.cells].mean(axis=1))
-    cent = np.asarray(cent)
-    keys = [tuple(k) for k in np.sort(facets, axis=1).tolist()]
-    missing = [k for k in keys if k not in owner]
-    if missing:
-        raise InputError(f"facet with nodes {list(missing[0])} belongs to no cell of the mesh")
-    return cent[[owner[k] for k in keys]]
-
-
 def local_frames(normals: np.ndarray) -> np.ndarray:
     """Orthonormal frames with the unit normal last: ``(t, n)`` in 2D with t = n rotated
     by -90 degrees (n = +y gives t = +x); ``(t1, t2, n)`` in 3D with t1 the projection of
@@ -315,14 +264,10 @@ def local_frames(normals: np.ndarray) -> np.ndarray:
     return np.stack([t1, t2, n], axis=1)
 
 
-def make_pairing(model, interface=None) -> Pairing:
+def pair_interface(model, interface=None) -> Pairing:
     """The contact points of ``interface`` (default: ``model.interface``): node pairs or
-    the mortar coupling (``Interface.coupling``), with their local frames. A model of
-    several interfaces (and no ``interface`` given): every one of them, as a
-    :class:`qsma.multibody.MultiPairing`."""
-    if interface is None and model.interface is None:
-        from ..multibody import multi_pairing
-        return multi_pairing(model)
+    the mortar coupling (``Interface.coupling``), with their local frames. Several
+    interfaces: :func:`qsma.model.pairing.make_pairing`."""
     itf = model.interface if interface is None else interface
     b1, b2 = model.body(itf.body1), model.body(itf.body2)
     facets1 = b1.mesh.facets(itf.set1)
@@ -385,7 +330,6 @@ def mortar_pairing(model, interface=None) -> Pairing:
     The slave is ``Interface.slave`` if given, else the side with more interface nodes
     (body 1 on a tie); if the master does not cover it, the other side is tried.
     """
-    from .coupling import mortar_operator
     itf = model.interface if interface is None else interface
     sides = [(1, model.body(itf.body1), itf.set1), (2, model.body(itf.body2), itf.set2)]
     if itf.slave is not None:
@@ -429,7 +373,7 @@ def _warn_partial(itf, op, body, name):
         f"(body {body!r} set {name!r}: {op.unmatched_area:.4g} of its area "
         f"{op.slave_area:.4g}) faces no master facet and is left out of the contact (the "
         f"edges of holes or of offset surfaces meshed apart); if the two surfaces should "
-        f"cover each other, check their facet sets"), stacklevel=3)
+        f"cover each other, check their facet sets"), stacklevel=4)
 
 
 def _warn_quad8(itf, *bodies):
@@ -441,7 +385,8 @@ def _warn_quad8(itf, *bodies):
             f"interface {itf.label}: body {on[0]!r} meets it with quad8 facets "
             f"(hexahedron20 cells); the corner pairs of such facets open under a uniform "
             f"pressure and the midside pairs carry the load. Prefer hexahedron27 or "
-            f"incompatible-mode hexahedra (C3D8I) at contact surfaces"), stacklevel=3)
+            f"incompatible-mode hexahedra (C3D8I) at contact surfaces"),
+        stacklevel=4)                        # the caller of make_pairing
 
 
 def _check_boundary(mesh, facets, body, name):
@@ -496,3 +441,8 @@ def _check_overlaps(model, itfs):
                     f"{set_a!r} and {set_b!r} of body {body_a!r} share {len(common)} "
                     f"facet(s), e.g. nodes {common[0]}. Fix: a surface belongs to one "
                     f"interface; split the facet sets so that each touches one other body")
+
+
+# ``make_pairing`` of several interfaces moved to :mod:`qsma.model.pairing`; the old path
+# keeps working for one release, with a DeprecationWarning.
+forward(__name__, names={"make_pairing": "qsma.model.pairing"})

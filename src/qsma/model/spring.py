@@ -11,14 +11,14 @@ to the body's stiffness matrix, a diagonal term (``e_{i,c}`` the unit vector of 
 ``dim i + c``). A rigid translation ``t`` of the set is resisted by the force
 ``-k_c t_c``: the spring's stiffness is the set's. The shares are
 
-* a facet set: the tributary areas (:func:`qsma.model.mesh.facet_node_weights`,
+* a facet set: the tributary areas (:func:`qsma.mesh.facets.facet_node_weights`,
   the consistent shares ``int N_i dA`` of linear facets) divided by the set's area
   ``A``: the springs act as an elastic foundation of stiffness ``k_c / A`` per area;
 * a node set: equal shares ``1 / n``.
 
 The springs are part of the stiffness everywhere (preload, condensation, tied
 modes, recovery). A direction with ``k_c > 0`` counts as held in the check of
-rigid-body freedom (:func:`qsma.rigid.free_motions`), so a body on springs is no
+rigid-body freedom (:func:`qsma.reduction.rigid.free_motions`), so a body on springs is no
 longer held "only by the joint"; the limit ``k -> 0`` of such a body is the body held
 only by the joint (tests/test_springs.py).
 """
@@ -92,7 +92,7 @@ def set_shares(body, name, what) -> tuple:
     equal shares of a node set (a set that is both: its facets); shares sum to 1.
     ``what`` (a spring, a point mass) names the user of the set in the messages."""
     if name in body.mesh.facet_sets:
-        from .mesh import facet_node_weights
+        from ..mesh.facets import facet_node_weights
         facets = body.mesh.facet_sets[name]
         with np.errstate(invalid="ignore", divide="ignore"):   # degenerate: refused below
             w = facet_node_weights(body.mesh.points, facets, body.mesh.facet_type)

@@ -133,7 +133,7 @@ def read_measured(path) -> Measured:
     values.
     """
     from ..config import decode_utf8
-    from ..model.io.common import read_regular
+    from ..mesh.io.common import read_regular
     path = Path(path)
     text = decode_utf8(read_regular(path, "a CSV of measured data"), str(path),
                        "measured data files")

@@ -14,7 +14,8 @@ tangential                ``rigid`` (default), ``elastic`` (stick stiffness);
 :func:`law_from_table` builds a law from the plain table of a TOML file or of
 results.json (:meth:`InterfaceLaw.as_dict` is its inverse).
 """
-from .base import InterfaceLaw, NormalLaw, TangentialLaw
+from .base import NormalLaw, TangentialLaw
+from .interface import InterfaceLaw
 from .exponential import ExponentialPressure
 from .hard import Hard
 from .linear import LinearPressure

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from ...errors import InputError
-from .base import InterfaceLaw
+from .interface import InterfaceLaw
 from .exponential import ExponentialPressure
 from .hard import Hard
 from .linear import LinearPressure

@@ -1,4 +1,6 @@
-r"""Third-party frictional contact problems: Siconos ``.dat`` local problems.
+r"""Third-party frictional contact problems: Siconos ``.dat`` local problems, for the
+tests and the corpus benchmark (not part of the package: qsma solves the problems of its
+own models).
 
 The Siconos project ships its frictional-contact test problems as text files
 (``numerics/src/FrictionContact/test/data/*.dat``, Apache-2.0). A *local*
@@ -40,8 +42,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..errors import InputError
-from .problem import ContactProblem
+from qsma.contact import ContactProblem
+from qsma.errors import InputError
 
 
 class DelassusProblem(NamedTuple):

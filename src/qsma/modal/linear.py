@@ -1,0 +1,70 @@
+"""The modes of the tied assembly (:func:`linear_modes`), through the condensed bodies
+where they cover the case, else through the factorised tied stiffness."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+from ..fe.bolts import bolt_stiffness
+from ..reduction.rigid import assembly_free_motions
+from .substructured import _substructured_modes, substructured_inverse
+from .tied import (Modes, _check_free_rigid, _check_rigid, _checked_springs, _factor,
+                   _lanczos, _spring_stiffness, check_n_modes, free_shift, stacked,
+                   tie_transform)
+
+def linear_modes(model, assembled, pairing, tied=None, n_modes=6, reduced=None,
+                 springs=None) -> Modes:
+    """First ``n_modes`` modes with the pairs in mask ``tied`` tied (default: all).
+
+    Solves ``(T^T K T - w^2 T^T M T) phi_r = 0`` by shift-invert Lanczos about 0;
+    shapes are mass-normalised (``phi^T M phi = 1``). An assembly that no clamp holds
+    (free-free, :func:`qsma.reduction.rigid.assembly_free_motions` motions free) has its rigid
+    modes first (``Modes.n_rigid``) and ``n_modes`` elastic modes follow them.
+
+    ``reduced``: the condensed two-body model of the run (:mod:`qsma.reduction.two_bodies`, bolts
+    locked or not). Where given and it covers the case (:func:`substructured_inverse`),
+    ``(T^T K T)^-1`` is applied through its per-body ``K_EE`` factors and the dense
+    interface matrices, and a free-free assembly's rigid motions are projected out of
+    the operator (:class:`SubstructuredInverse`); otherwise, and without it, the tied
+    stiffness is factorised (:func:`_factor`), a free-free one shifted to ``-s``
+    (:data:`FREE_SHIFT_RTOL`). Both give the same modes to round-off.
+
+    ``springs``, optional: (n_pairs, dim) stiffness of a compliant interface layer at
+    each tied contact point, per component of its local frame
+    (:func:`qsma.contact.layer.interface_springs`): ``inf`` ties the component, a finite
+    value joins the two sides by a spring, 0 leaves it free. Contact points tied in every
+    component are tied as without springs.
+    """
+    if tied is None:
+        tied = np.ones(pairing.n_pairs, dtype=bool)
+    tied = np.asarray(tied, dtype=bool)
+    if tied.shape != (pairing.n_pairs,):
+        raise InputError(f"tied mask must have {pairing.n_pairs} entries, got {tied.shape}")
+    springs = _checked_springs(springs, pairing.n_pairs, model.dim)
+    held = tied if springs is None else tied & np.all(np.isinf(springs), axis=1)
+    T = tie_transform(model, assembled, pairing, held)
+    n_free = assembly_free_motions(model, assembled)
+    check_n_modes(n_modes, T.shape[1])
+    M = (T.T @ stacked([a.M for a in assembled]) @ T).tocsc()
+    inverse = None if reduced is None else substructured_inverse(
+        model, assembled, pairing, tied, reduced, T, M, springs)
+    if inverse is not None:
+        return _substructured_modes(inverse, M, T, tied, n_modes, model, assembled)
+    K = stacked([a.K for a in assembled])
+    if getattr(model, "bolts", ()):
+        K = K + bolt_stiffness(model)                  # the bolts locked after preload
+    if springs is not None:
+        K = K + _spring_stiffness(model, pairing, springs, held)
+    K = (T.T @ K @ T).tocsc()
+    k = min(n_modes + n_free, T.shape[1] - 2)
+    shift = free_shift(K, M) if n_free else 0.0
+    solve = _factor((K + shift * M).tocsc() if n_free else K, model, assembled, T)
+    lam, vec = _lanczos(K, k, M, -shift, solve, solve)
+    if n_free:
+        _check_free_rigid(lam, model, assembled, T, vec, n_free)
+    else:
+        _check_rigid(lam, model, assembled, T, vec)
+    vec /= np.sqrt(np.einsum("ik,ik->k", vec, M @ vec))
+    omega = np.sqrt(np.maximum(lam, 0.0))
+    omega[:n_free] = 0.0
+    return Modes(omega, T @ vec, tied.copy(), n_free)

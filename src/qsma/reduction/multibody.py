@@ -1,0 +1,330 @@
+r"""Several bodies and interfaces: one contact problem over all interfaces.
+
+Each body ``j`` is condensed onto the union ``C_j`` of its interface nodes over every
+interface it belongs to (global components). Interface ``I`` couples a slave body
+``s`` to a master body ``m`` (node-to-node: the projection is the identity), and its
+contact points' relative displacements, in their local frames ``F_i``, are rows of
+one sparse operator ``G`` over the stacked interface DOFs ``u = (u_1, ..., u_B)``::
+
+    d_i = sigma_I F_i (u_s,i - sum_k N_ik u_m,k)     d = G u,   forces on the bodies G^T lam
+
+(sigma_I = -1 when the slave is the interface's body 1, +1 when body 2, so that d is
+"body 2 minus body 1" along the normal from body 1 into body 2 as in section 4 of
+docs/theory.md). With ``Kc`` the block-diagonal condensed stiffness, equilibrium is
+``Kc u = Fc + G^T lam``.
+
+The slave DOFs (every contact point's node, each in exactly one interface) are
+eliminated as in section 8 of docs/theory.md: split ``u`` into slave DOFs ``u_s`` and
+the rest ``u_r``, ``G = [G_s G_r]`` with ``G_s`` square (one contact point per slave
+node), ``Q = G_s^-1``. Then ``u = T_r u_r + T_d d`` with ``T_r = [-Q G_r; I]``,
+``T_d = [Q; 0]``, and since ``G T_r = 0`` the contact forces drop out of
+``T_r^T (Kc u - Fc) = 0``::
+
+    S     = T_r^T Kc T_r                              (the welded assembly, condensed)
+    u_r   = S^-1 T_r^T (Fc - Kc T_d d)
+    lam   = Q^T (Kc u - Fc)_s = K d + lam_w
+    K     = Q^T [Kc T_d - Kc T_r S^-1 T_r^T Kc T_d]_s
+    lam_w = Q^T [Kc T_r S^-1 T_r^T Fc - Fc]_s
+
+Only ``S`` is factorised (Cholesky): a body need not be held on its own as long as
+the welded assembly is (the contact problem then still needs ``K`` positive definite).
+For two bodies these are the formulas of :func:`qsma.reduction.two_bodies.combine`. (The
+interface flexibility form ``K = (G Kc^-1 G^T)^-1``, which inverts every ``Kc_j``, was
+tried first: on sandwich-2d it reproduced the two-body model's recovered fields for a
+random ``d`` only to 3e-7 relative; this form to 1e-11, ``tests/test_multibody.py``.)
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+
+from .._infra.dense import cho_solved
+from ..errors import InputError
+from .condensation import condense_bodies, condensed_loads
+
+
+@dataclass(frozen=True, eq=False)
+class MultiReducedModel:
+    r"""``lam = K d + W a`` over the contact points of every interface (interface
+    order, then contact-point order; local frames).
+
+    Attributes
+    ----------
+    K, W, patterns : as :class:`qsma.reduction.two_bodies.ReducedModel`
+    bodies : condensed bodies (global components on their interface nodes)
+    G : sparse (n_contact dofs, sum of interface dofs) relative-displacement operator
+    offsets : start of each body's interface DOFs in ``u``
+    rows : start of each interface's contact points (``rows[I]:rows[I+1]``)
+    T_r, T_d, S_cho, Kc : the elimination of the slave DOFs (module docstring)
+    """
+
+    K: np.ndarray
+    W: np.ndarray
+    patterns: tuple
+    bodies: tuple
+    loads: tuple
+    Fc: np.ndarray
+    G: sp.csr_matrix
+    offsets: np.ndarray
+    rows: np.ndarray
+    T_r: np.ndarray
+    T_d: np.ndarray
+    S_cho: object
+    Kc: np.ndarray
+    dim: int
+    functionals: dict
+    definitions: dict
+
+    @property
+    def n_pairs(self):
+        return self.K.shape[0] // self.dim
+
+    def welded_contact_force(self, a) -> np.ndarray:
+        return (self.W @ np.asarray(a, dtype=float)).reshape(-1, self.dim)
+
+    def interface_displacements(self, d, a):
+        """``u = T_r S^-1 T_r^T (Fc a - Kc T_d d) + T_d d``, split per body."""
+        d = np.asarray(d, dtype=float).ravel()
+        a = np.asarray(a, dtype=float)
+        ur = cho_solved(self.S_cho, self.T_r.T @ (self.Fc @ a - self.Kc @ (self.T_d @ d)))
+        u = self.T_r @ ur + self.T_d @ d
+        return tuple(u[self.offsets[j]:self.offsets[j + 1]] for j in range(len(self.bodies)))
+
+    def recover(self, d, a):
+        """Full displacement vectors of every body from ``d`` and the load factors."""
+        a = np.asarray(a, dtype=float)
+        loads = (L @ a for L in self.loads)
+        return tuple(b.recover(u, F) for b, u, F in
+                     zip(self.bodies, self.interface_displacements(d, a), loads))
+
+    def evaluate(self, name, d, a) -> float:
+        c_d, c_a = self.functionals[name]
+        return float(c_d @ np.asarray(d).ravel() + c_a @ np.asarray(a, dtype=float))
+
+    def add_pattern(self, name, *loads) -> "MultiReducedModel":
+        """One more load pattern, ``loads`` the full load vector of each body (body
+        order). Its column of ``W`` is ``T_d^T (Kc T_r S^-1 T_r^T fc - fc)``."""
+        if name in self.patterns:
+            raise InputError(f"load pattern {name!r} exists already")
+        if len(loads) != len(self.bodies):
+            raise InputError(f"load pattern {name!r}: {len(loads)} load vectors for "
+                             f"{len(self.bodies)} bodies")
+        fc = np.concatenate([b.condensed_load(F) for b, F in zip(self.bodies, loads)])
+        y = cho_solved(self.S_cho, self.T_r.T @ fc)
+        w = self.T_d.T @ (self.Kc @ (self.T_r @ y) - fc)
+        new = replace(self, W=np.column_stack([self.W, w]), patterns=self.patterns + (name,),
+                      loads=tuple(np.column_stack([L, F]) for L, F in zip(self.loads, loads)),
+                      Fc=np.column_stack([self.Fc, fc]), functionals={}, definitions={})
+        return new.with_functionals(self.definitions)
+
+    def with_functionals(self, definitions: dict) -> "MultiReducedModel":
+        """Attach ``name -> (l_1, ..., l_B)`` (full DOF vectors per body): with ``h`` the
+        condensed functional, ``y = S^-1 T_r^T h``, ``c_d = T_d^T (h - Kc T_r y)`` and
+        ``c_a = Fc^T T_r y + sum_j e_j``."""
+        funcs = dict(self.functionals)
+        for name, ls in definitions.items():
+            parts = [b.functional(l, L) for b, l, L in zip(self.bodies, ls, self.loads)]
+            h = np.concatenate([p[0] for p in parts])
+            y = cho_solved(self.S_cho, self.T_r.T @ h)
+            funcs[name] = (self.T_d.T @ (h - self.Kc @ (self.T_r @ y)),
+                           self.Fc.T @ (self.T_r @ y) + sum(p[1] for p in parts))
+        return replace(self, functionals=funcs, definitions={**self.definitions,
+                                                             **definitions})
+
+
+def interface_nodes(n_bodies, couplings, names=None):
+    """Sorted interface nodes of each body over all couplings; a body in no interface
+    is refused (it would float free of the others)."""
+    nodes = [[] for _ in range(n_bodies)]
+    for c in couplings:
+        nodes[c.body1].append(c.pairing.nodes1)
+        nodes[c.body2].append(c.pairing.nodes2)
+    lonely = [j for j in range(n_bodies) if not nodes[j]]
+    if lonely:
+        who = [names[j] if names else j for j in lonely]
+        raise InputError(f"body {who[0]!r} belongs to no interface: it is not connected to "
+                         f"the other bodies. Fix: add an interface joining it to another "
+                         f"body, or remove it from the model.")
+    return [np.unique(np.concatenate(n)) for n in nodes]
+
+
+def relative_displacement_operator(couplings, nodes, dim):
+    """``G`` with ``d = G u`` (module docstring) and the offsets of each body in ``u``."""
+    offsets = np.concatenate([[0], np.cumsum([dim * len(n) for n in nodes])])
+    rows, cols, vals = [], [], []
+    start = 0
+    for c in couplings:
+        p = c.pairing
+        F = p.frames                                         # (n, dim, dim), rows = axes
+        n = p.n_pairs
+        r = start + dim * np.arange(n)[:, None, None] + np.arange(dim)[None, :, None]
+        for body, local, weight in _terms(c, nodes):
+            cc = (offsets[body] + dim * local[1][:, None, None]
+                  + np.arange(dim)[None, None, :])
+            rows.append(np.broadcast_to(r[local[0]], (len(local[0]), dim, dim)).ravel())
+            cols.append(np.broadcast_to(cc, (len(local[0]), dim, dim)).ravel())
+            vals.append((weight[:, None, None] * F[local[0]]).ravel())
+        start += dim * n
+    G = sp.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                      shape=(start, offsets[-1])).tocsr()
+    return G, offsets
+
+
+def _terms(c, nodes):
+    """(body, (contact point, node position in the body's set), weight) of ``d``."""
+    p = c.pairing
+    n = p.n_pairs
+    s_pos = np.searchsorted(nodes[c.slave], p.contact_nodes)
+    N = c.projection.tocoo()
+    m_pos = np.searchsorted(nodes[c.master], p.master_nodes)[N.col]
+    return [(c.slave, (np.arange(n), s_pos), np.full(n, c.sigma)),
+            (c.master, (N.row, m_pos), -c.sigma * N.data)]
+
+
+def reduce_bodies(assembled, couplings, patterns=("preload",), backend="auto",
+                  names=None) -> MultiReducedModel:
+    """Condense every body onto its interface nodes and combine all interfaces into one
+    relative-displacement problem by eliminating the slave DOFs (module docstring)."""
+    dim = assembled[0].body.dim
+    nodes = interface_nodes(len(assembled), couplings,
+                            names or [a.body.name for a in assembled])
+    bodies = condense_bodies(assembled, nodes,
+                             [np.broadcast_to(np.eye(dim), (len(n), dim, dim)) for n in nodes],
+                             backend)
+    loads = tuple(np.column_stack([a.loads.get(p, np.zeros(a.n_dofs)) for p in patterns])
+                  for a in assembled)
+    Fc = np.vstack(condensed_loads(bodies, loads))
+    Kc = sla.block_diag(*[b.Kc for b in bodies])
+    G, offsets = relative_displacement_operator(couplings, nodes, dim)
+    slave = _slave_dofs(couplings, nodes, offsets, dim)
+    rest = np.setdiff1d(np.arange(offsets[-1]), slave)
+    Gs, Gr = G[:, slave].toarray(), G[:, rest].toarray()
+    singular = InputError("the contact points do not determine their slave nodes (a node "
+                          "is the slave of two interfaces?)")
+    try:
+        lu = sla.lu_factor(Gs, check_finite=True)
+    except (np.linalg.LinAlgError, ValueError) as exc:
+        raise singular from exc
+    pivots = np.abs(np.diag(lu[0]))       # lu_factor only warns on a singular matrix
+    if pivots.size and pivots.min() <= 1e3 * np.finfo(float).eps * pivots.max():
+        raise singular
+    n_u, n_c = offsets[-1], G.shape[0]
+    T_r = np.zeros((n_u, len(rest)))
+    T_r[slave] = -sla.lu_solve(lu, Gr)
+    T_r[rest, np.arange(len(rest))] = 1.0
+    T_d = np.zeros((n_u, n_c))
+    T_d[slave] = sla.lu_solve(lu, np.eye(n_c))
+    KT_r = Kc @ T_r
+    S = T_r.T @ KT_r
+    try:
+        S_cho = sla.cho_factor(0.5 * (S + S.T))
+    except np.linalg.LinAlgError as exc:
+        raise InputError("the welded assembly is not held against rigid-body motion; add "
+                         "clamps") from exc
+    KT_d = Kc @ T_d
+    # lam = Q^T (Kc u - Fc)_s = T_d^T (Kc u - Fc): T_d is zero outside the slave rows
+    K = T_d.T @ (KT_d - KT_r @ cho_solved(S_cho, KT_r.T @ T_d))
+    K = 0.5 * (K + K.T)
+    W = T_d.T @ (KT_r @ cho_solved(S_cho, T_r.T @ Fc) - Fc)
+    rows = np.concatenate([[0], np.cumsum([c.pairing.n_pairs for c in couplings])])
+    return MultiReducedModel(K, W, tuple(patterns), bodies, loads, Fc, G, offsets, rows,
+                             T_r, T_d, S_cho, Kc, dim, {}, {})
+
+
+def _slave_dofs(couplings, nodes, offsets, dim):
+    """Positions in ``u`` of the DOFs of every contact point's node (each once)."""
+    dofs = []
+    for c in couplings:
+        pos = np.searchsorted(nodes[c.slave], c.pairing.contact_nodes)
+        dofs.append((offsets[c.slave] + dim * pos[:, None] + np.arange(dim)).ravel())
+    dofs = np.concatenate(dofs)
+    if len(np.unique(dofs)) != len(dofs):
+        raise InputError("a node is the slave of two interfaces; choose the slave sides "
+                         "(Interface(slave=...)) so that each node carries at most one "
+                         "interface's contact unknowns")
+    return dofs
+
+
+def reduce_model(model, assembled, pairing, backend="auto",
+                 patterns=("preload",)) -> MultiReducedModel:
+    """:func:`reduce_bodies` of a model and its
+    :class:`~qsma.model.pairing.MultiPairing` (``patterns``:
+    the load patterns to condense, e.g. the bolts' unit tensions besides 'preload')."""
+    return reduce_bodies(assembled, list(pairing.couplings), patterns=patterns,
+                         backend=backend, names=[b.name for b in model.bodies])
+
+
+def tie_transform(model, assembled, pairing, tied) -> sp.csr_matrix:
+    r"""``T`` with ``x_all = T x_reduced`` for the contact points in mask ``tied`` of
+    every interface tied: Dirichlet DOFs dropped, and per tied contact point, component
+    by component, the slave node's DOFs replaced by the interpolation of the master's,
+    ``u_s = sum_k N_ik u_m,k`` (``N = I`` node-to-node). A master DOF that is itself a
+    slave of another interface (a washer between two plates) is replaced in turn, so
+    ``T`` is the product of the substitutions; a chain that closes on itself is refused.
+
+    A clamped slave DOF of a node-to-node pair clamps its partner; a clamped slave node
+    of a mortar interface is refused (the projection would clamp a master patch).
+    """
+    off = model.dof_offsets()
+    dim = model.dim
+    n = off[-1]
+    fixed = np.zeros(n, dtype=bool)
+    for k, a in enumerate(assembled):
+        fixed[off[k] + a.fixed] = True
+    tied = np.asarray(tied, dtype=bool)
+    rows, cols, vals, slaves = [], [], [], []
+    for itf, c, sl in zip(pairing.interfaces, pairing.couplings, _row_slices(pairing)):
+        p, t = c.pairing, tied[sl]
+        N = c.projection[t].tocoo()
+        snodes, mnodes = p.contact_nodes[t], p.master_nodes
+        for comp in range(dim):
+            sd = off[c.slave] + dim * snodes + comp
+            md = off[c.master] + dim * mnodes[N.col] + comp
+            if fixed[sd].any():
+                if p.projection is not None:
+                    bad = snodes[fixed[sd]]
+                    raise InputError(f"interface {itf.label}: slave node(s) "
+                                     f"{bad[:10].tolist()} of body "
+                                     f"{model.bodies[c.slave].name!r} are clamped and "
+                                     f"cannot be tied to the master surface; remove them "
+                                     f"from the interface set or from the clamp")
+                fixed[md[fixed[sd][N.row]]] = True
+            slaves.append(sd)
+            rows.append(sd[N.row])
+            cols.append(md)
+            vals.append(N.data)
+    slaves = np.concatenate(slaves)
+    if len(np.unique(slaves)) != len(slaves):
+        raise InputError("a node is the slave of two interfaces; choose the slave sides "
+                         "(Interface(slave=...)) so that each node carries at most one "
+                         "interface's contact unknowns")
+    is_slave = np.zeros(n, dtype=bool)
+    is_slave[slaves] = True
+    free = np.flatnonzero(~is_slave)
+    B = sp.coo_matrix((np.concatenate([np.ones(len(free))] + vals),
+                       (np.concatenate([free] + rows), np.concatenate([free] + cols))),
+                      shape=(n, n)).tocsr()
+    B = _substitute(B, is_slave, len(pairing.couplings))
+    keep = np.flatnonzero(~fixed & ~is_slave)
+    return B[:, keep].tocsr()
+
+
+def _row_slices(pairing):
+    r = pairing.rows
+    return [slice(r[k], r[k + 1]) for k in range(len(r) - 1)]
+
+
+def _substitute(B, is_slave, depth):
+    """``B`` composed with itself until no column is a slave DOF (at most ``depth``
+    times: each interface can pass a DOF on once)."""
+    for _ in range(depth + 1):
+        if not B[:, np.flatnonzero(is_slave)].count_nonzero():
+            return B
+        B = (B @ B).tocsr()
+        B.eliminate_zeros()
+    raise InputError("the slave sides of the interfaces form a closed chain (a node is "
+                     "tied, through other interfaces, to itself); choose the slave sides "
+                     "(Interface(slave=...)) so that they do not")
