@@ -363,3 +363,56 @@ def test_amplitude_at_the_end_of_the_step_and_density_given(tmp_path):
     smooth.write_text(path.read_text().replace("NAME=RAMP", "NAME=RAMP, DEFINITION=SMOOTH STEP"))
     (note,) = read_deck(smooth, density=6600.0).refusals
     assert note.what == "*DSLOAD, AMPLITUDE=RAMP" and "tabular" in note.fix
+
+
+def _mm_deck(path):
+    """The lap deck in mm-N-s-tonne: coordinates in mm, E in MPa, rho in t/mm^3, the
+    bolt pressure in MPa (the same structure)."""
+    import dataclasses
+    bodies = sandwich_2d(1).bodies
+    mesh = bodies_in_one_mesh(bodies)
+    write_mesh(path, dataclasses.replace(mesh, points=mesh.points * 1e3))
+    steps = (STEPS.replace("200e9, 0.285", "200e3, 0.285").replace("6600.", "6.6e-9")
+             .replace("1e13, 0.", "1e4, 0.").replace("0.6, 1e12", "0.6, 1e3"))
+    path.write_text(path.read_text() + steps.format(
+        sections=SECTIONS, loads=DSLOAD.replace("17.554e6", "17.554")))
+    return path
+
+
+def test_deck_units_follow_its_materials(tmp_path):
+    """A deck states no units: one whose materials are solids only in mm-N-s-tonne
+    (E = 200e3 MPa, rho = 6.6e-9 t/mm^3) is read in that system, with a note and the
+    comment in its TOML; its tied frequency in Hz is the SI deck's (the same structure
+    in consistent units, so f0 agrees to round-off), and the run's labels use mm.
+    --units overrides; an SI deck stays SI."""
+    mm = read_deck(_mm_deck(tmp_path / "mm.inp"))
+    si = read_deck(lap_deck(tmp_path / "si.inp"))
+    assert mm.config["units"] == "mm-N-s-tonne" and si.config["units"] == "SI"
+    assert any("units: mm-N-s-tonne" in str(n) for n in mm.notes)
+    assert not any(n.refuses for n in mm.notes)
+    f = []
+    for deck in (mm, si):
+        model = parse_config(deck.config, base=tmp_path).model
+        assert qsma.units.unit_mismatches(model) == []
+        modes = qsma.modal.linear_modes(model, [assemble_body(b) for b in model.bodies],
+                                        qsma.model.pairing.make_pairing(model), n_modes=1)
+        f.append(modes.f_hz[0])
+    assert f[0] == pytest.approx(f[1], rel=1e-9)
+    forced = read_deck(tmp_path / "mm.inp", units="SI")
+    assert forced.config["units"] == "SI"
+    from qsma.deck import deck_toml
+    assert "a deck states no units" in deck_toml(mm)
+
+
+def test_deck_units_option(tmp_path, capsys):
+    """--units is a deck option: checked against the systems qsma knows, refused with a
+    TOML file (which declares `units` itself)."""
+    path = _mm_deck(tmp_path / "mm.inp")
+    assert main(["init", str(path), "--units", "furlongs"]) == 2
+    assert "invalid choice" in capsys.readouterr().err
+    from qsma.examples import example_file
+    assert main(["run", str(example_file("sandwich-2d.toml")), "--units", "SI", "--out",
+                 str(tmp_path / "o")]) == 2
+    assert "`units` at its top" in capsys.readouterr().err
+    assert main(["init", str(path), "--units", "SI", "--out", str(tmp_path / "mm.toml")]) == 0
+    assert 'units = "SI"' in (tmp_path / "mm.toml").read_text()

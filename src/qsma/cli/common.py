@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from ..errors import InputError
 from ..options import RunOptions
+from ..units import UNIT_SYSTEMS
 
 #: RunOptions fields that have a command-line flag of the same name.
 CLI_OPTIONS = ("mode", "method", "tol", "maxiter", "dissipation", "direct_loop",
@@ -30,6 +31,9 @@ def add_deck_arguments(p):
     p.add_argument("--density", type=float, metavar="RHO",
                    help="deck only: density of the materials that give no *DENSITY, in the "
                         "deck's units (e.g. 7.85e-9 t/mm^3 or 7850 kg/m^3 for steel)")
+    p.add_argument("--units", choices=sorted(UNIT_SYSTEMS),
+                   help="deck only: the deck's unit system (default: the one its materials' "
+                        "E and rho fit, else SI)")
 
 
 def is_deck(path) -> bool:
@@ -48,7 +52,7 @@ def read_deck_args(args, levels=None):
                              f"separated by commas, e.g. 0,0,1") from None
     return read_deck(args.config, mode=getattr(args, "mode", None) or 0,
                      tip_node=args.tip_node, tip_direction=direction, levels=levels,
-                     density=args.density)
+                     density=args.density, units=args.units)
 
 
 def deck_refusal(deck) -> InputError:
@@ -103,10 +107,11 @@ def load_model(args):
         cfg = _load_deck(args)
     else:
         if any(getattr(args, k, None) is not None for k in ("tip_node", "tip_direction",
-                                                              "density")):
-            raise InputError("--tip-node, --tip-direction and --density apply to .inp "
-                             "decks; a configuration file gives the probe in its [tip] "
-                             "table and the density per body")
+                                                              "density", "units")):
+            raise InputError("--tip-node, --tip-direction, --density and --units apply to "
+                             ".inp decks; a configuration file gives the probe in its [tip] "
+                             "table, the density per body and its unit system as `units` "
+                             "at its top")
         from ..config import load_config
         cfg = load_config(args.config)
     model = cfg.model

@@ -4,12 +4,14 @@ from __future__ import annotations
 
 from pathlib import Path
 import re
+from types import SimpleNamespace
 
 import numpy as np
 
 from ..errors import InputError
 from ..mesh.io.abaqus.lexer import _inp_cards
 from ..mesh.io.assembly import read_assembly
+from ..units import SI, UNIT_SYSTEMS, plausible, unit_system
 from .loads import SupportsAndLoads
 from .probe import ProbeAndLevels
 from .records import (LAW_NOTES, Deck, DeckInterface, DeckNote, SurfaceInteraction,
@@ -19,7 +21,8 @@ from .records import (LAW_NOTES, Deck, DeckInterface, DeckNote, SurfaceInteracti
 
 
 def read_deck(path, *, mode: int = 0, tip_node: int | None = None,
-              tip_direction=None, levels=None, density: float | None = None) -> Deck:
+              tip_direction=None, levels=None, density: float | None = None,
+              units: str | None = None) -> Deck:
     """Read an Abaqus / CalculiX deck as a QSMA run (module docstring).
 
     Parameters
@@ -33,6 +36,9 @@ def read_deck(path, *, mode: int = 0, tip_node: int | None = None,
     levels : :class:`qsma.levels.Levels` or None (:data:`DEFAULT_LEVELS`)
     density : the density of the materials that give no ``*DENSITY`` (in the deck's
         units); None: such a material is refused (a frequency needs mass)
+    units : the deck's unit system (a name of :data:`qsma.units.UNIT_SYSTEMS`); None:
+        the one system in which every material's E and rho are those of a solid (a
+        deck states no units), else SI
 
     Returns
     -------
@@ -40,8 +46,10 @@ def read_deck(path, *, mode: int = 0, tip_node: int | None = None,
     """
     path = Path(path)
     cards = _inp_cards(path)
+    if units is not None:
+        unit_system(units)                       # an unknown name is refused here
     reader = _DeckReader(path, cards, read_assembly(path), density)
-    return reader.deck(mode, tip_node, tip_direction, levels)
+    return reader.deck(mode, tip_node, tip_direction, levels, units)
 
 
 class _DeckReader(SupportsAndLoads, ProbeAndLevels):
@@ -183,7 +191,7 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels):
         self.sections.append((elset, material, thickness, _where(card)))
 
     # --- the run ----------------------------------------------------------------------
-    def deck(self, mode, tip_node, tip_direction, levels) -> Deck:
+    def deck(self, mode, tip_node, tip_direction, levels, units=None) -> Deck:
         bodies = self._body_list = self._bodies()
         preload = self._preload_step()
         self._frequency = self._frequency_step()
@@ -191,7 +199,8 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels):
         clamps = self._clamps(bodies, preload)
         loads = self._loads(bodies, preload)
         interfaces = self._interfaces(bodies)
-        config = {"name": self.path.stem, "bodies": []}
+        config = {"name": self.path.stem, "units": self._units(bodies, units),
+                  "bodies": []}
         per_body = {"clamps": clamps, **loads}         # key -> per body [(entry, comment)]
         for k, b in enumerate(bodies):
             table = dict(b["table"])
@@ -403,6 +412,31 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels):
             self.comments[("bodies", k, "name")] = (
                 f"section thickness {section[2]:g} ({section[3]}): qsma's 2D bodies have "
                 f"unit depth, forces are per unit depth")
+
+    def _units(self, bodies, given):
+        """The unit system: ``given``, else the one in which every body's E and rho are
+        those of a solid (:func:`qsma.units.plausible`), else SI (where qsma's check
+        of the model then warns)."""
+        if given is not None:
+            self.comments[("units",)] = "--units"
+            return unit_system(given).name
+        materials = [SimpleNamespace(E=b["table"]["E"], rho=b["table"]["rho"])
+                     for b in bodies]
+        fits = [name for name in UNIT_SYSTEMS
+                if all(plausible(m, name) for m in materials)]
+        if len(fits) == 1 and fits[0] != SI.name:
+            u = UNIT_SYSTEMS[fits[0]]
+            self.comments[("units",)] = (
+                f"a deck states no units: E and rho of every material are those of a "
+                f"solid in {u.name} (E in {u.stress}, rho in {u.density}) and in no "
+                f"other system (--units for another)")
+            self.note(self.path.name, f"units: {u.name}, from the materials (E in "
+                      f"{u.stress}, rho in {u.density})", "labels, files and messages use "
+                      "them; give --units if the deck is in another system", False)
+            return u.name
+        self.comments[("units",)] = ("a deck states no units: SI unless its materials "
+                                     "look like another system (--units for another)")
+        return SI.name
 
     # --- supports and loads -------------------------------------------------------------
     def _find(self, mesh, name, kinds=("node", "facet")):

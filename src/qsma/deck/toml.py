@@ -37,6 +37,8 @@ def deck_toml(deck: Deck, folder=None) -> str:
         out += ["#", "# Not used from the deck (the run does not need them):"]
         out += [f"#   {n}" for n in kept]
     out += ["", f"name = {_toml(config['name'])}"]
+    if "units" in config:
+        out.append(_line(f"units = {_toml(config['units'])}", c.get(("units",))))
     for k, b in enumerate(config["bodies"]):
         out += ["", _line("[[bodies]]", c.get(("bodies", k, "name")))]
         for key, value in b.items():
