@@ -289,7 +289,7 @@ def test_probe_options_are_checked(tmp_path, capsys):
     assert main(["run", str(toml), "--tip-node", "3", "--out", str(tmp_path / "o")]) == 2
     assert "apply to .inp decks" in capsys.readouterr().err
     assert main(["init", str(toml)]) == 2
-    assert "reads an Abaqus/CalculiX deck" in capsys.readouterr().err
+    assert "reads an Abaqus/CalculiX deck (.inp) or a Gmsh mesh" in capsys.readouterr().err
 
 
 def test_tip_points_in_toml(tmp_path):
