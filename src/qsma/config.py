@@ -33,7 +33,8 @@ SCHEMA = {
                "nu": (_NUM, True), "rho": (_NUM, True), "clamps": (list, False),
                "pressures": (list, False), "springs": (list, False),
                "masses": (list, False), "forces": (list, False)},
-    "clamps": {"set": (str, True), "components": (list, False), "dofs": (list, False)},
+    "clamps": {"set": (str, True), "components": (list, False), "dofs": (list, False),
+               "displacement": (list, False)},
     "springs": {"set": (str, True), "stiffness": (list, True)},
     "masses": {"set": (str, True), "mass": (_NUM, True)},
     "bolts": {"name": (str, True), "body_a": (str, True), "set_a": (str, True),
@@ -439,8 +440,20 @@ def _clamp(table, where) -> Clamp:
             raise InputError(f"{where}: dofs must be a list of degrees of freedom 1, 2 or 3 "
                              f"(1 = x, 2 = y, 3 = z, counted from 1 as in Abaqus and "
                              f"CalculiX), got {dofs!r}")
-        return Clamp(table["set"], tuple(d - 1 for d in dofs))
-    return Clamp(table["set"], tuple(table["components"]) if "components" in table else None)
+        return Clamp(table["set"], tuple(d - 1 for d in dofs), _displacement(table, where))
+    return Clamp(table["set"], tuple(table["components"]) if "components" in table else None,
+                 _displacement(table, where))
+
+
+def _displacement(table, where):
+    """A clamp's prescribed ``displacement`` (one number per component held), or None."""
+    if "displacement" not in table:
+        return None
+    v = table["displacement"]
+    if not all(isinstance(x, _NUM) and not isinstance(x, bool) for x in v):
+        raise InputError(f"{where}: displacement must be a list of numbers, one per "
+                         f"component held (in the model's length unit), got {v!r}")
+    return tuple(float(x) for x in v)
 
 
 def _modes(analysis, where):

@@ -19,23 +19,30 @@ class SupportsAndLoads:
         if preload is not None:
             cards += [c for c in preload.cards if c.keyword == "BOUNDARY"]
         for card in cards:
+            scale = 1.0 if preload is None or card not in preload.cards \
+                else self._amplitude(card, preload)
+            if scale is None:
+                continue
             moved = [(where, text) for where, tokens, text in _rows_of(card)
-                     if self._clamp_row(bodies, out, where, tokens, text) == "prescribed"]
+                     if self._clamp_row(bodies, out, where, tokens, text, scale)
+                     == "prescribed"]
             if moved:
                 (where, text), n = moved[0], len(moved)
                 self.note(_row_where(where), f"*BOUNDARY row {text!r} prescribes a "
                           f"displacement" + (f" (and {n - 1} more rows of this *BOUNDARY)"
                                              if n > 1 else ""),
-                          "qsma holds clamped DOFs at zero; apply the load as a force or "
-                          "pressure instead", True)
-        return out
+                          "read as part of the preload: the DOF is moved there in the "
+                          "preload step and held there from then on", False)
+        return [_overridden(rows) for rows in out]
 
-    def _clamp_row(self, bodies, out, where, tokens, text):
+    def _clamp_row(self, bodies, out, where, tokens, text, scale=1.0):
         """Clamps of one *BOUNDARY row into ``out``; ``"prescribed"`` for a row with a
-        non-zero value (named per card by the caller)."""
+        non-zero value (its displacement times ``scale``, the amplitude at the end of
+        the preload step; named per card by the caller)."""
         w = _row_where(where)
         ref = tokens[0]
         kind = tokens[1].upper() if len(tokens) > 1 else ""
+        value = 0.0
         if kind in _BOUNDARY_TYPES:
             first, last = _BOUNDARY_TYPES[kind]
         else:
@@ -46,10 +53,8 @@ class SupportsAndLoads:
                     if len(tokens) > 3 and tokens[3] else 0.0
             except (ValueError, IndexError):
                 self.note(w, f"*BOUNDARY row {text!r} is not read", "give 'node or node "
-                          "set, first dof[, last dof[, 0]]'", True)
+                          "set, first dof[, last dof[, value]]'", True)
                 return
-            if value != 0.0:
-                return "prescribed"
             if first > 3:
                 self.note(w, f"*BOUNDARY on DOFs {first}-{last} (not displacements) is not "
                           f"used", "qsma's nodes have displacement DOFs 1-3 only", False)
@@ -59,10 +64,14 @@ class SupportsAndLoads:
         for k, found in owners:
             dofs = [d for d in range(first, last + 1) if d <= bodies[k]["mesh"].dim]
             if dofs:
-                out[k].append(({"set": found, "dofs": dofs}, f"*BOUNDARY, {w}"))
+                table = {"set": found, "dofs": dofs}
+                if value != 0.0:
+                    table["displacement"] = [value * scale] * len(dofs)
+                out[k].append((table, f"*BOUNDARY, {w}"))
         if not owners:
             self.note(w, f"*BOUNDARY on {ref!r}, which holds no node of a body",
                       "check the set", True)
+        return "prescribed" if value != 0.0 and owners else None
 
     def _loads(self, bodies, preload):
         out = {"forces": [[] for _ in bodies], "pressures": [[] for _ in bodies]}
@@ -169,3 +178,21 @@ class SupportsAndLoads:
                       "check the element set", True)
 
     # --- interfaces ---------------------------------------------------------------------
+
+
+def _overridden(rows):
+    """A body's clamp rows in deck order with what a later row sets on the same set and
+    DOF taken out of the earlier rows (a step's ``*BOUNDARY`` modifies the model data's,
+    as in Abaqus and CalculiX); rows left with no DOF are dropped."""
+    out = []
+    for k, (table, comment) in enumerate(rows):
+        later = {d for t, _ in rows[k + 1:] if t["set"] == table["set"] for d in t["dofs"]}
+        keep = [i for i, d in enumerate(table["dofs"]) if d not in later]
+        if not keep:
+            continue
+        if len(keep) < len(table["dofs"]):
+            table = dict(table, dofs=[table["dofs"][i] for i in keep])
+            if "displacement" in table:
+                table["displacement"] = [table["displacement"][i] for i in keep]
+        out.append((table, comment))
+    return out

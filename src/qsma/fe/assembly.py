@@ -73,7 +73,10 @@ def _mass_form(rho):
 class AssembledBody:
     """Sparse operators of one body (all DOFs; Dirichlet DOFs listed in ``fixed``).
 
-    ``loads`` maps a load pattern name to its full-length force vector.
+    ``loads`` maps a load pattern name to its full-length force vector; a displacement
+    the clamps prescribe (``prescribed``: pattern name -> full-length displacement,
+    nonzero only at Dirichlet DOFs) enters its pattern's load as the force it exerts
+    on the free DOFs, ``-K[:, p] u_p``, and the recovered fields as itself.
     ``formulation`` says which element was computed (:attr:`Formulation.label`, e.g.
     ``"CPE4: plane strain (unit thickness), 4-node quadrilateral (bilinear), full
     integration, 2x2 Gauss"``); ``element`` is the :class:`Formulation` itself.
@@ -86,6 +89,7 @@ class AssembledBody:
     fixed: np.ndarray
     free: np.ndarray
     element: Formulation | MixedFormulation | None = None
+    prescribed: dict = None
 
     @property
     def n_dofs(self):
@@ -131,7 +135,12 @@ def assemble_body(body: Body) -> AssembledBody:
     loads = {name: body_load(body, name) for name in body.load_names()}
     fixed = body.clamped_dofs()
     free = np.setdiff1d(np.arange(body.n_dofs), fixed)
-    return AssembledBody(body, K, M, loads, fixed, free, form)
+    prescribed = {}
+    u_p = body.prescribed_displacement()
+    if u_p is not None:                     # the preload's prescribed displacement
+        prescribed["preload"] = u_p
+        loads["preload"] = loads["preload"] - K @ u_p
+    return AssembledBody(body, K, M, loads, fixed, free, form, prescribed)
 
 
 def _block_bodies(body: Body):

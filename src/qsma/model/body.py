@@ -68,11 +68,24 @@ class Material:
 
 @dataclass(frozen=True)
 class Clamp:
-    """Dirichlet condition u_c = 0 on the nodes of a set, for components ``components``
-    (``None``: every component)."""
+    """Dirichlet condition on the nodes of a set, for components ``components``
+    (``None``: every component): ``u_c = 0``, or with ``displacement`` (one value per
+    component held, in the model's length unit) the displacement prescribed in the
+    preload step and held from then on (a support moved into place, a displacement-
+    driven preload, as an Abaqus ``*BOUNDARY`` row with a value)."""
 
     set: str
     components: tuple | None = None
+    displacement: tuple | None = None
+
+    def __post_init__(self):
+        if self.displacement is not None:
+            v = self.displacement
+            if isinstance(v, (str, bytes)) or not hasattr(v, "__len__"):
+                raise InputError(f"clamp on {self.set!r}: displacement must be a list of one "
+                                 f"value per component held, got {v!r}")
+            object.__setattr__(self, "displacement", tuple(
+                _finite(f"displacement of the clamp on {self.set!r}", x) for x in v))
 
 
 @dataclass(frozen=True)
@@ -146,6 +159,13 @@ class Body:
                 raise InputError(f"body {self.name!r}: clamp components must be integers "
                                  f"in 0..{self.mesh.dim - 1} (0 = x, 1 = y, 2 = z), got "
                                  f"{c.components!r}")
+            if c.displacement is not None and len(c.displacement) != len(comps):
+                raise InputError(f"body {self.name!r}: the clamp on {c.set!r} holds "
+                                 f"{len(comps)} component(s) and prescribes "
+                                 f"{len(c.displacement)} displacement(s); give one value "
+                                 f"per component held")
+        if any(c.displacement is not None for c in self.clamps):
+            self.prescribed_displacement()           # contradictory values refused here
         for p in self.pressures:
             if p.set not in self.mesh.facet_sets:
                 raise InputError(f"body {self.name!r}: pressure on {p.set!r}, "
@@ -175,8 +195,38 @@ class Body:
         return np.unique(np.concatenate([d.ravel() for d in dofs])) if dofs \
             else np.zeros(0, dtype=np.int64)
 
+    def prescribed_displacement(self) -> np.ndarray | None:
+        """The displacement the clamps prescribe (full length, zero where a clamp
+        holds at zero and at free DOFs), part of the preload; None if every clamp holds
+        at zero. A DOF two clamps hold at different values is refused."""
+        if all(c.displacement is None or not any(c.displacement) for c in self.clamps):
+            return None
+        dim = self.dim
+        u = np.zeros(self.n_dofs)
+        given = np.zeros(self.n_dofs, dtype=bool)
+        for c in self.clamps:
+            comps = np.asarray(range(dim) if c.components is None else c.components)
+            values = np.zeros(len(comps)) if c.displacement is None \
+                else np.asarray(c.displacement, dtype=float)
+            dofs = dim * self.mesh.nodes(c.set)[:, None] + comps[None, :]
+            vals = np.broadcast_to(values, dofs.shape)
+            clash = given[dofs] & (u[dofs] != vals)
+            if clash.any():
+                i = np.argwhere(clash)[0]
+                dof = int(dofs[tuple(i)])
+                raise InputError(f"body {self.name!r}: node {dof // dim} component "
+                                 f"{dof % dim} is held at {u[dof]:g} by one clamp and at "
+                                 f"{float(vals[tuple(i)]):g} by the clamp on {c.set!r}; "
+                                 f"give each held DOF one value")
+            u[dofs] = vals
+            given[dofs] = True
+        return u
+
     def load_names(self):
-        return sorted({p.load for p in self.pressures} | {f.load for f in self.forces})
+        names = {p.load for p in self.pressures} | {f.load for f in self.forces}
+        if self.prescribed_displacement() is not None:
+            names.add("preload")
+        return sorted(names)
 
 
 def _not_a_facet_set(mesh, name) -> str:

@@ -64,11 +64,15 @@ class CondensedBody:
         ``u_local`` and ``F`` give columns of the result (one multi-RHS solve)."""
         return recovered((self,), (u_local,), (F,))[0]
 
-    def functional(self, l: np.ndarray, patterns: np.ndarray):
-        """Split ``l @ u`` into ``h @ u_local + e @ a`` (``patterns``: full loads, columns)."""
+    def functional(self, l: np.ndarray, patterns: np.ndarray, prescribed=None):
+        """Split ``l @ u`` into ``h @ u_local + e @ a`` (``patterns``: full loads,
+        columns; ``prescribed``: the displacements the clamps prescribe per pattern, the
+        same columns, or None)."""
         z = self.solve_EE(l[self.E])
         h = self.R.T @ (l[self.C] - self.K_EC.T @ z)
         e = patterns[self.E].T @ z
+        if prescribed is not None:
+            e = e + prescribed.T @ l
         return h, e
 
 
@@ -224,6 +228,32 @@ def recovered(bodies, u_locals, loads) -> list:
         full[b.E] = zb
         out.append(full)
     return out
+
+
+def prescribed_patterns(assembled, patterns):
+    """Per body, the displacements its clamps prescribe (:attr:`qsma.fe.AssembledBody.
+    prescribed`) as columns of the load ``patterns`` (n_dofs, n_patterns), None for a
+    body that prescribes none; None if no body does."""
+    out = tuple(None if not getattr(a, "prescribed", None) else np.column_stack(
+        [a.prescribed.get(p, np.zeros(a.n_dofs)) for p in patterns]) for a in assembled)
+    return None if all(P is None for P in out) else out
+
+
+def with_prescribed(fields, prescribed, a) -> tuple:
+    """The recovered ``fields`` (one full vector per body) plus the displacements the
+    clamps prescribe at the load factors ``a`` (:func:`prescribed_patterns`): the
+    recovery leaves the Dirichlet DOFs at zero."""
+    if prescribed is None:
+        return tuple(fields)
+    return tuple(u if P is None else u + P @ a for u, P in zip(fields, prescribed))
+
+
+def extended_prescribed(prescribed) -> tuple | None:
+    """``prescribed`` with a zero column for a new load pattern."""
+    if prescribed is None:
+        return None
+    return tuple(None if P is None else np.column_stack([P, np.zeros(len(P))])
+                 for P in prescribed)
 
 
 # -- a condensed model sent to another process ----------------------------------------

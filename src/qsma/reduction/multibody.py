@@ -43,7 +43,8 @@ import scipy.sparse as sp
 
 from .._infra.dense import cho_solved
 from ..errors import InputError
-from .condensation import condense_bodies, condensed_loads
+from .condensation import (condense_bodies, condensed_loads, extended_prescribed,
+                           prescribed_patterns, with_prescribed)
 
 
 @dataclass(frozen=True, eq=False)
@@ -77,6 +78,7 @@ class MultiReducedModel:
     dim: int
     functionals: dict
     definitions: dict
+    prescribed: tuple | None = None     # as ReducedModel.prescribed
 
     @property
     def n_pairs(self):
@@ -97,8 +99,9 @@ class MultiReducedModel:
         """Full displacement vectors of every body from ``d`` and the load factors."""
         a = np.asarray(a, dtype=float)
         loads = (L @ a for L in self.loads)
-        return tuple(b.recover(u, F) for b, u, F in
-                     zip(self.bodies, self.interface_displacements(d, a), loads))
+        return with_prescribed((b.recover(u, F) for b, u, F in
+                                zip(self.bodies, self.interface_displacements(d, a), loads)),
+                               self.prescribed, a)
 
     def evaluate(self, name, d, a) -> float:
         c_d, c_a = self.functionals[name]
@@ -117,7 +120,8 @@ class MultiReducedModel:
         w = self.T_d.T @ (self.Kc @ (self.T_r @ y) - fc)
         new = replace(self, W=np.column_stack([self.W, w]), patterns=self.patterns + (name,),
                       loads=tuple(np.column_stack([L, F]) for L, F in zip(self.loads, loads)),
-                      Fc=np.column_stack([self.Fc, fc]), functionals={}, definitions={})
+                      Fc=np.column_stack([self.Fc, fc]), functionals={}, definitions={},
+                      prescribed=extended_prescribed(self.prescribed))
         return new.with_functionals(self.definitions)
 
     def with_functionals(self, definitions: dict) -> "MultiReducedModel":
@@ -126,7 +130,9 @@ class MultiReducedModel:
         ``c_a = Fc^T T_r y + sum_j e_j``."""
         funcs = dict(self.functionals)
         for name, ls in definitions.items():
-            parts = [b.functional(l, L) for b, l, L in zip(self.bodies, ls, self.loads)]
+            given = self.prescribed or (None,) * len(self.bodies)
+            parts = [b.functional(l, L, Pr) for b, l, L, Pr
+                     in zip(self.bodies, ls, self.loads, given)]
             h = np.concatenate([p[0] for p in parts])
             y = cho_solved(self.S_cho, self.T_r.T @ h)
             funcs[name] = (self.T_d.T @ (h - self.Kc @ (self.T_r @ y)),
@@ -231,7 +237,8 @@ def reduce_bodies(assembled, couplings, patterns=("preload",), backend="auto",
     W = T_d.T @ (KT_r @ cho_solved(S_cho, T_r.T @ Fc) - Fc)
     rows = np.concatenate([[0], np.cumsum([c.pairing.n_pairs for c in couplings])])
     return MultiReducedModel(K, W, tuple(patterns), bodies, loads, Fc, G, offsets, rows,
-                             T_r, T_d, S_cho, Kc, dim, {}, {})
+                             T_r, T_d, S_cho, Kc, dim, {}, {},
+                             prescribed_patterns(assembled, patterns))
 
 
 def _slave_dofs(couplings, nodes, offsets, dim):

@@ -21,7 +21,8 @@ import scipy.sparse as sp
 
 from .._infra.dense import cho_solved, mirror_triangle, symmetrised
 from ..errors import InputError
-from .condensation import condense_bodies, condensed_loads, recovered
+from .condensation import (condense_bodies, condensed_loads, extended_prescribed,
+                           prescribed_patterns, recovered, with_prescribed)
 from .rigid import assembly_gauge, ghost, regularised_S
 
 
@@ -66,6 +67,9 @@ class ReducedModel:
     slave: int = 0
     ghost: object = None          # qsma.reduction.rigid.Ghost: K holds its spring, or None
     gauge: np.ndarray | None = None   # rigid motions of a free-free assembly in S
+    #: per body, the displacements its clamps prescribe per pattern (or None): the
+    #: recovered fields and the functionals include them
+    prescribed: tuple | None = None
 
     def __post_init__(self):
         # Read-only, so the contact problem can hold this K instead of a copy of it
@@ -102,7 +106,8 @@ class ReducedModel:
         """Full displacement vectors of both bodies from ``d`` and the load factors."""
         u1, u2 = self.interface_displacements(d, a)
         a = np.asarray(a, dtype=float)
-        return tuple(recovered(self.bodies, (u1, u2), [F @ a for F in self.loads]))
+        return with_prescribed(recovered(self.bodies, (u1, u2), [F @ a for F in self.loads]),
+                               self.prescribed, a)
 
     def evaluate(self, name, d, a) -> float:
         c_d, c_a = self.functionals[name]
@@ -120,7 +125,8 @@ class ReducedModel:
         # the existing columns are kept as they are (the preload was solved with them;
         # the ghost spring's anchor lives in the 'preload' column, rigid.anchored)
         new = replace(self, W=np.column_stack([self.W, w_new]),
-                      patterns=self.patterns + (name,), loads=loads, Fc=Fc, functionals={})
+                      patterns=self.patterns + (name,), loads=loads, Fc=Fc, functionals={},
+                      prescribed=extended_prescribed(self.prescribed))
         return new.with_functionals(self.definitions)
 
     def with_functionals(self, definitions: dict) -> "ReducedModel":
@@ -156,7 +162,9 @@ def _functional(rm, l1, l2):
     ``c_d = sigma (h_s - Kc_s P y)``; in both ``c_a = (sum of condensed loads seen by
     S)^T y + e_1 + e_2``.
     """
-    (h1, e1), (h2, e2) = (b.functional(l, L) for b, l, L in zip(rm.bodies, (l1, l2), rm.loads))
+    given = rm.prescribed or (None, None)
+    (h1, e1), (h2, e2) = (b.functional(l, L, Pr) for b, l, L, Pr
+                          in zip(rm.bodies, (l1, l2), rm.loads, given))
     if rm.P is None:
         y = cho_solved(rm.S_cho, h1 + h2)
         c_d = h2 - rm.bodies[1].Kc @ y
@@ -261,7 +269,7 @@ def reduce_two_bodies(assembled1, assembled2, pairing, patterns=("preload",),
         W = _welded((b1, b2), S_cho, Fc, gauged=Z is not None)
         K, g = _ghost(K, [None if b1.rigid is None else -b1.rigid, b2.rigid])
         return ReducedModel(K, W, tuple(patterns), (b1, b2), loads, S_cho, Fc, dim, {}, {},
-                            ghost=g, gauge=Z)
+                            ghost=g, gauge=Z, prescribed=prescribed_patterns(asm, patterns))
     s = pairing.slave - 1
     m = 1 - s
     nodes = (pairing.nodes1, pairing.nodes2)
@@ -278,7 +286,7 @@ def reduce_two_bodies(assembled1, assembled2, pairing, patterns=("preload",),
     K, g = _ghost(K, [None if bs.rigid is None else sigma * bs.rigid,
                       None if bm.rigid is None else -sigma * (P @ bm.rigid)])
     return ReducedModel(K, W, tuple(patterns), bodies, loads, S_cho, Fc, dim, {}, {}, P, s,
-                        ghost=g, gauge=Z)
+                        ghost=g, gauge=Z, prescribed=prescribed_patterns(asm, patterns))
 
 
 def _node_to_node(Kc1, Kc2, Z):
