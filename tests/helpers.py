@@ -192,3 +192,33 @@ def load_benchmark(name):
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+def in_forked_child(function):
+    """Run ``function()`` in a forked child and fail the test with the child's traceback
+    if it raised. For tests that leave threads behind (a Dask client's IO loop thread
+    outlives the client in ``distributed``): they would keep the rest of the session
+    from forking (qsma forks only a process with one thread)."""
+    import multiprocessing
+    import traceback
+    import pytest
+    ctx = multiprocessing.get_context("fork")
+    receive, send = ctx.Pipe(duplex=False)
+
+    def target():
+        try:
+            function()
+            send.send(None)
+        except BaseException:               # reported to the parent, the child ends
+            send.send(traceback.format_exc())
+
+    child = ctx.Process(target=target)
+    child.start()
+    send.close()
+    try:
+        error = receive.recv()
+    except EOFError:
+        error = f"the child ended without a report (exit code {child.exitcode})"
+    child.join()
+    if error is not None:
+        pytest.fail(error, pytrace=False)

@@ -13,6 +13,7 @@ from qsma._forked import parallel_available
 from qsma.result import LEVEL_FIELDS
 from qsma.levels import Levels
 from qsma.model import Mesh
+from helpers import in_forked_child
 
 
 @pytest.fixture(scope="module")
@@ -92,19 +93,22 @@ def test_loops_on_a_dask_cluster_give_the_results_of_this_process_bit_for_bit():
     backbone states shipped to them (no condensation there), have the bits of the loops
     computed in this process."""
     distributed = pytest.importorskip("distributed")
-    import logging
-    from qsma import analysis
-    prepared = analysis.prepare(lap_3d(1))
-    options = dict(levels=Levels.log("tip", 3e-5, 1e-4, 2), dissipation="loop")
-    here = analysis.run_prepared(prepared, loop_workers=1, **options)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=":0",
-                                  silence_logs=logging.ERROR) as cluster:
-        there = analysis.run_prepared(prepared, loop_scheduler=cluster.scheduler_address,
-                                      **options)
-    assert here.success and len(here.loops) == 2 and there.options.loop_workers is None
-    _assert_same_bits(here, there)
-    assert np.all(there.level_costs.loop_seconds > 0)
+
+    def body():                    # in a child: the Dask client leaves a thread behind
+        import logging
+        from qsma import analysis
+        prepared = analysis.prepare(lap_3d(1))
+        options = dict(levels=Levels.log("tip", 3e-5, 1e-4, 2), dissipation="loop")
+        here = analysis.run_prepared(prepared, loop_workers=1, **options)
+        with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                      dashboard_address=":0",
+                                      silence_logs=logging.ERROR) as cluster:
+            there = analysis.run_prepared(
+                prepared, loop_scheduler=cluster.scheduler_address, **options)
+        assert here.success and len(here.loops) == 2 and there.options.loop_workers is None
+        _assert_same_bits(here, there)
+        assert np.all(there.level_costs.loop_seconds > 0)
+    in_forked_child(body)
 
 
 def test_an_unreachable_loop_scheduler_is_named_with_the_fix(tmp_path, capsys, monkeypatch):
@@ -119,15 +123,19 @@ def test_an_unreachable_loop_scheduler_is_named_with_the_fix(tmp_path, capsys, m
     class Stages(Progress):
         def stage(self, name):
             stages.append(name)
-    with pytest.raises(InputError, match="cannot reach the Dask scheduler"):
-        qsma.run(lap_2d(1), levels=Levels.log("tip", 1e-4, 1e-3, 2),
-                 loop_scheduler="tcp://127.0.0.1:9", progress=Stages())
-    assert "contact" not in stages
-    code = main(["run", "--example", "lap-2d", "--out", str(tmp_path / "o"), "-q",
-                 "--no-plots", "--no-vtu", "--levels", "tip:log:1e-4:1e-3:2",
-                 "--dissipation", "loop", "--scheduler", "tcp://127.0.0.1:9"])
-    err = capsys.readouterr().err
-    assert code == 2 and "cannot reach the Dask scheduler" in err and "tcp://127.0.0.1:9" in err
+
+    def body():                    # in a child: the Dask client leaves a thread behind
+        with pytest.raises(InputError, match="cannot reach the Dask scheduler"):
+            qsma.run(lap_2d(1), levels=Levels.log("tip", 1e-4, 1e-3, 2),
+                     loop_scheduler="tcp://127.0.0.1:9", progress=Stages())
+        assert "contact" not in stages
+        code = main(["run", "--example", "lap-2d", "--out", str(tmp_path / "o"), "-q",
+                     "--no-plots", "--no-vtu", "--levels", "tip:log:1e-4:1e-3:2",
+                     "--dissipation", "loop", "--scheduler", "tcp://127.0.0.1:9"])
+        err = capsys.readouterr().err
+        assert code == 2 and "cannot reach the Dask scheduler" in err and \
+            "tcp://127.0.0.1:9" in err
+    in_forked_child(body)
 
 
 def _triangles(body):

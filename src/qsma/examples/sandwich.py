@@ -24,12 +24,14 @@ SANDWICH_2D = dict(
 #: ``None`` element name: qsma's default formulation (full integration)
 ELEMENTS_2D = {
     "quad": ("quad", None), "CPE4": ("quad", "CPE4"), "CPE4I": ("quad", "CPE4I"),
-    "quad8": ("quad8", None), "CPE8": ("quad8", "CPE8"), "quad9": ("quad9", None),
+    "quad8": ("quad8", None), "CPE8": ("quad8", "CPE8"), "CPE8R": ("quad8", "CPE8R"),
+    "quad9": ("quad9", None),
 }
 ELEMENTS_3D = {
     "hexahedron": ("hexahedron", None), "C3D8": ("hexahedron", "C3D8"),
     "C3D8I": ("hexahedron", "C3D8I"), "hexahedron20": ("hexahedron20", None),
-    "C3D20": ("hexahedron20", "C3D20"), "hexahedron27": ("hexahedron27", None),
+    "C3D20": ("hexahedron20", "C3D20"), "C3D20R": ("hexahedron20", "C3D20R"),
+    "hexahedron27": ("hexahedron27", None),
     "C3D27": ("hexahedron27", "C3D27"),
 }
 

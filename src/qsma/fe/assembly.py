@@ -111,7 +111,7 @@ def stiffness_matrix(body: Body, formulation: Formulation | MixedFormulation | N
     if form.incompatible:
         from .incompatible import incompatible_stiffness
         return incompatible_stiffness(body.mesh, lam, mu)
-    return batched.stiffness(body.mesh, lam, mu)
+    return batched.stiffness(body.mesh, lam, mu, getattr(form, "reduced", False))
 
 
 def mass_matrix(body: Body) -> sp.csr_matrix:

@@ -135,12 +135,14 @@ class CellQuadrature:
 
 
 @per_mesh
-def cell_quadrature(mesh) -> CellQuadrature:
+def cell_quadrature(mesh, reduced=False) -> CellQuadrature:
     """The :class:`CellQuadrature` of a single-type qsma mesh (cached; meshes are
-    immutable), with the quadrature order of :attr:`qsma.mesh.celltypes.CellType.skfem`."""
+    immutable), with the quadrature order of :attr:`qsma.mesh.celltypes.CellType.skfem`
+    (``reduced``: that of :attr:`~qsma.mesh.celltypes.CellType.reduced`)."""
     space = fe_space(mesh)
     m = space.mesh
-    intorder = CELL_TYPES[mesh.cell_type].skfem[2]
+    ct = CELL_TYPES[mesh.cell_type]
+    intorder = ct.reduced[0] if reduced else ct.skfem[2]
     X, W = get_quadrature(space.element.refdom, intorder)
     values, grads = reference_basis(space.element, X)
     geometry = m.elem()
@@ -252,9 +254,10 @@ def scalar_mass_blocks(quad: CellQuadrature, rho):
                            optimize=True)
 
 
-def stiffness(mesh, lam, mu) -> sp.csr_matrix:
-    """Elasticity matrix of a single-type mesh in qsma DOF order (CSR)."""
-    quad = cell_quadrature(mesh)
+def stiffness(mesh, lam, mu, reduced=False) -> sp.csr_matrix:
+    """Elasticity matrix of a single-type mesh in qsma DOF order (CSR); ``reduced``:
+    on the cell type's reduced rule (:attr:`qsma.mesh.celltypes.CellType.reduced`)."""
+    quad = cell_quadrature(mesh, True) if reduced else cell_quadrature(mesh)
     d, nb = mesh.dim, quad.nodes.shape[1]
     K = elasticity_blocks(quad, lam, mu).reshape(-1, nb, d, nb, d)
     return sum_into_csr(lambda i, k: K[:, :, i, :, k], mesh_pattern(mesh), d)

@@ -34,12 +34,16 @@ class Formulation:
     kinematics : ``"plane strain"``, ``"plane stress"`` or ``"3d"``
     incompatible : Wilson-Taylor incompatible modes (``CPE4I``, ``CPS4I``, ``C3D8I``)
     source : element name given by the source file (``None``: none given)
+    reduced : the stiffness on the reduced rule of the cell type
+        (:attr:`qsma.mesh.celltypes.CellType.reduced`: ``CPE8R``, ``CPS8R``, ``C3D20R``);
+        the mass stays consistent (full rule)
     """
 
     cell_type: str
     kinematics: str
     incompatible: bool = False
     source: str | None = None
+    reduced: bool = False
 
     def __post_init__(self):
         if self.cell_type not in CELL_TYPES:
@@ -50,6 +54,9 @@ class Formulation:
         if self.incompatible and not CELL_TYPES[self.cell_type].incompatible_modes:
             raise InputError(f"incompatible modes exist for 4-node quadrilaterals and "
                              f"8-node hexahedra only, not {self.cell_type!r}")
+        if self.reduced and CELL_TYPES[self.cell_type].reduced is None:
+            raise InputError(f"reduced integration is computed for 8-node quadrilaterals "
+                             f"and 20-node hexahedra only, not {self.cell_type!r}")
 
     @property
     def name(self) -> str:
@@ -57,7 +64,8 @@ class Formulation:
         writes ``CPE9`` / ``C3D27`` for the 9- and 27-node Lagrange cells)."""
         digits = str(CELL_TYPES[self.cell_type].n_nodes)
         prefix = {"plane strain": "CPE", "plane stress": "CPS", "3d": "C3D"}[self.kinematics]
-        return prefix + digits + ("I" if self.incompatible else "")
+        return prefix + digits + ("I" if self.incompatible else "") + \
+            ("R" if self.reduced else "")
 
     @property
     def label(self) -> str:
@@ -69,6 +77,8 @@ class Formulation:
             if self.incompatible else "full integration"
         if self.incompatible and self.kinematics == "3d":
             what = "incompatible modes (Wilson-Taylor, 9 modes, Taylor's correction)"
+        if self.reduced:
+            what, rule = "reduced integration (stiffness; consistent mass)", ct.reduced[1]
         kin = "" if self.kinematics == "3d" else f"{self.kinematics} (unit thickness), "
         return f"{self.name}: {kin}{family}, {what}, {rule}"
 
@@ -109,6 +119,19 @@ class MixedFormulation:
         return "mixed mesh: " + " + ".join(p.label for p in self.parts)
 
 
+def hourglass_hint(assembled) -> str:
+    """A sentence for messages about a singular stiffness: the bodies computed with
+    reduced integration (their zero-energy modes spread through meshes one element
+    thick), or "" if none is."""
+    names = [f"{a.body.name!r} ({a.element.name})" for a in assembled
+             if getattr(a.element, "reduced", False)]
+    if not names:
+        return ""
+    return (f" Or a zero-energy (hourglass) mode of reduced integration in body "
+            f"{', '.join(names)}: use the fully integrated element (without R) or mesh at "
+            f"least two elements through every section.")
+
+
 def resolve_formulations(mesh):
     """:func:`resolve_formulation` of a mesh of one or several cell blocks: a
     :class:`Formulation`, or a :class:`MixedFormulation` for a mixed mesh."""
@@ -126,8 +149,10 @@ def resolve_formulation(mesh) -> Formulation:
     ``mesh.element`` ``None``: plane strain in 2D, full integration. Otherwise an
     Abaqus/CalculiX name whose node count must match the cell type: ``CPE*`` plane
     strain, ``CPS*`` plane stress, ``C3D*`` solid, suffix ``I`` incompatible modes.
-    Refused with :class:`InputError`: axisymmetric ``CAX*``, reduced integration
-    ``*R``, hybrid ``*H`` and other suffixes, node-count mismatches.
+    Suffix ``R`` (reduced integration) for 8-node quadrilaterals and 20-node hexahedra
+    (:attr:`qsma.mesh.celltypes.CellType.reduced`). Refused with :class:`InputError`:
+    axisymmetric ``CAX*``, reduced integration of other cells, hybrid ``*H`` and other
+    suffixes, node-count mismatches.
     """
     ct = mesh.cell_type
     name = getattr(mesh, "element", None)
@@ -153,11 +178,15 @@ def resolve_formulation(mesh) -> Formulation:
     if digits != expected and not (ct == "quad9" and digits == "9"):
         raise InputError(f"element type {name!r} has {digits} nodes but the mesh cells are "
                          f"{ct!r} with {expected}; the mesh and the element name disagree")
+    kin = {"CPE": "plane strain", "CPS": "plane stress", "C3D": "3d"}[family]
+    if suffix == "R" and CELL_TYPES[ct].reduced is not None:
+        return Formulation(ct, kin, False, str(name), reduced=True)
     if suffix == "R":
         raise InputError(
-            f"element type {name!r} uses reduced integration, which qsma does not "
-            f"implement (no hourglass control: spurious zero-energy modes would corrupt "
-            f"the frequencies). Use the fully integrated {family}{digits}"
+            f"element type {name!r} uses reduced integration, which qsma computes for "
+            f"8-node quadrilaterals and 20-node hexahedra only (a linear cell would need "
+            f"hourglass control: its zero-energy modes would corrupt the frequencies). "
+            f"Use the fully integrated {family}{digits}"
             + (f" or the incompatible-mode {family}{digits}I (bending-accurate)"
                if incompatible else "") + " instead")
     if suffix not in ("", "I"):
@@ -167,5 +196,4 @@ def resolve_formulation(mesh) -> Formulation:
     if suffix == "I" and not incompatible:
         raise InputError(f"element type {name!r}: incompatible modes exist for CPE4I/CPS4I"
                          f"/C3D8I only")
-    kin = {"CPE": "plane strain", "CPS": "plane stress", "C3D": "3d"}[family]
     return Formulation(ct, kin, suffix == "I", source=str(name))

@@ -71,6 +71,11 @@ class CellType:
         from the serendipity map (:func:`qsma.fe.elements.lagrange_geometry`).
     description, integration : str or None
         The element family and its full-integration rule, as run reports name them.
+    reduced : tuple or None
+        ``(scikit-fem quadrature order, rule name)`` of the reduced-integration variant
+        (Abaqus suffix R) where qsma computes one: the quadratic quadrilaterals and
+        hexahedra on 2x2 (2x2x2) Gauss, whose few zero-energy modes do not spread
+        through a mesh; None: refused (linear cells need hourglass control).
     incompatible_modes : bool
         Whether a Wilson-Taylor incompatible-mode variant (``CPE4I``, ``C3D8I``) exists.
     gmsh : int or None
@@ -110,6 +115,7 @@ class CellType:
     skfem_geometry: str | None = None
     description: str | None = None
     integration: str | None = None
+    reduced: tuple | None = None
     incompatible_modes: bool = False
     gmsh: int | None = None
     gmsh_higher_nodes: tuple | None = None
@@ -234,6 +240,7 @@ _RECORDS = (
              basis=_QUAD2_BASIS, skfem=("MeshQuad2", "ElementQuadS2", 4),
              skfem_geometry="quad9",
              description="8-node quadrilateral (serendipity)", integration="3x3 Gauss",
+             reduced=(2, "2x2 Gauss"),
              gmsh=16, abaqus=("CPE8", "CPS8", "CAX8", "S8", "M3D8", "SFM3D8"),
              abaqus_write="CPE8"),
     CellType("quad9", 2, 9, "quad", higher_nodes=_QUAD_EDGES + ((0, 1, 2, 3),),
@@ -259,6 +266,7 @@ _RECORDS = (
              basis=_monomials(3, 2, squares=1), skfem=("MeshHex2", "ElementHexS2", 4),
              skfem_nodes=_SKFEM_HEX[:20], skfem_geometry="hexahedron27",
              description="20-node hexahedron (serendipity)", integration="3x3x3 Gauss",
+             reduced=(2, "2x2x2 Gauss"),
              gmsh=17, gmsh_higher_nodes=_GMSH_HEX_EDGES, abaqus=("C3D20",),
              abaqus_write="C3D20"),
     # hexahedron27 face centres: 20 (x-), 21 (x+), 22 (y-), 23 (y+), 24 (z-), 25 (z+)

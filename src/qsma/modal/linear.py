@@ -49,7 +49,8 @@ def linear_modes(model, assembled, pairing, tied=None, n_modes=6, reduced=None,
     inverse = None if reduced is None else substructured_inverse(
         model, assembled, pairing, tied, reduced, T, M, springs)
     if inverse is not None:
-        return _substructured_modes(inverse, M, T, tied, n_modes, model, assembled)
+        return _check_hourglass(
+            _substructured_modes(inverse, M, T, tied, n_modes, model, assembled), assembled)
     K = stacked([a.K for a in assembled])
     if getattr(model, "bolts", ()):
         K = K + bolt_stiffness(model)                  # the bolts locked after preload
@@ -67,4 +68,44 @@ def linear_modes(model, assembled, pairing, tied=None, n_modes=6, reduced=None,
     vec /= np.sqrt(np.einsum("ik,ik->k", vec, M @ vec))
     omega = np.sqrt(np.maximum(lam, 0.0))
     omega[:n_free] = 0.0
-    return Modes(omega, T @ vec, tied.copy(), n_free)
+    return _check_hourglass(Modes(omega, T @ vec, tied.copy(), n_free), assembled)
+
+
+#: A mode whose strain energy in a body on the full rule exceeds this many times its
+#: energy on the reduced rule of that body's elements is a zero-energy (hourglass) mode
+#: of reduced integration (for a physical mode the ratio is about 1: the reduced rule
+#: only softens the element slightly).
+HOURGLASS_RATIO = 10.0
+
+
+def _check_hourglass(modes, assembled):
+    """Refuse modes that are zero-energy modes of reduced integration (C3D20R, CPE8R):
+    their deformation carries almost no strain energy on the reduced rule and a normal
+    amount on the full one. Such modes spread through meshes one element thick; in
+    thicker meshes they cannot, and every mode passes."""
+    from dataclasses import replace
+    from ..fe.assembly import stiffness_matrix
+    offsets = np.cumsum([0] + [a.n_dofs for a in assembled])
+    for j, a in enumerate(assembled):
+        form = a.element
+        if not getattr(form, "reduced", False):
+            continue
+        K_red = stiffness_matrix(a.body, form)
+        K_full = stiffness_matrix(a.body, replace(form, reduced=False))
+        phi = modes.shapes[offsets[j]:offsets[j + 1], modes.n_rigid:]
+        e_red = np.einsum("ik,ik->k", phi, K_red @ phi)
+        e_full = np.einsum("ik,ik->k", phi, K_full @ phi)
+        scale = max(e_full.max(initial=0.0), np.finfo(float).tiny)
+        bad = np.flatnonzero(e_full > HOURGLASS_RATIO * np.maximum(e_red, 0.0)
+                             + 1e-9 * scale)
+        if bad.size:
+            k = int(bad[0])
+            raise InputError(
+                f"body {a.body.name!r} ({form.name}): mode {k} (f = "
+                f"{modes.f_hz[modes.n_rigid + k]:.4g} Hz) is a zero-energy (hourglass) mode "
+                f"of reduced integration: its strain energy on the full rule is "
+                f"{e_full[k] / max(e_red[k], np.finfo(float).tiny):.3g} times that on the "
+                f"reduced one. It spreads through a mesh one element thick: use the fully "
+                f"integrated {form.name[:-1]} or mesh at least two elements through every "
+                f"section")
+    return modes

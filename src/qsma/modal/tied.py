@@ -17,6 +17,7 @@ import scipy.sparse.linalg as spla
 
 from .._resources import free_memory
 from ..errors import AnalysisError, InputError
+from ..fe.formulation import hourglass_hint
 from ..model.pairing import Coupling, MultiPairing, body_order
 from ..reduction import multibody
 from ..reduction.multibody import relative_displacement_operator
@@ -218,7 +219,8 @@ def _factor(K, model, assembled, T):
         raise InputError(
             f"the stiffness of the tied assembly is singular ({exc}): some body is not "
             f"held against rigid-body motion. Add Dirichlet conditions (clamps) to "
-            f"{_unclamped(model, assembled)} or tie more interface pairs.") from exc
+            f"{_unclamped(model, assembled)} or tie more interface pairs."
+            + hourglass_hint(assembled)) from exc
 
 
 def _unclamped(model, assembled):

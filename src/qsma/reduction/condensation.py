@@ -23,6 +23,7 @@ import scipy.sparse as sp
 
 from .._infra.dense import symmetrised
 from ..errors import InputError
+from ..fe.formulation import hourglass_hint
 from .congruence import CongruentMatrix, MappedSolver, find_congruence, solved_together
 from .rigid import interface_basis
 from .schur import ee_rhs, schur_complement, spd_solver
@@ -105,7 +106,8 @@ def condense_body(assembled, nodes, frames, backend="auto") -> CondensedBody:
         Kc_glob, solve = schur_complement(Kf, np.searchsorted(free, C), backend=backend)
     except InputError as exc:
         raise InputError(f"body {body.name!r}: {exc}; a body without clamps must be held "
-                         f"by its interface nodes (not all on one line in 3D)") from exc
+                         f"by its interface nodes (not all on one line in 3D)."
+                         + hourglass_hint([assembled])) from exc
     t0 = time.perf_counter()
     E = free[solve.E]
     K_EC = K[E][:, C].tocsc()
