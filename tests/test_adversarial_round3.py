@@ -17,7 +17,7 @@ from qsma.config import load_config
 from qsma.errors import AnalysisError, InputError
 from qsma.examples import stack_2d
 from qsma.model import Pressure
-from qsma.rundir import verify_run_folder
+from qsma.output.folders import verify_run_folder
 from qsma.examples import example_dir
 
 from helpers import STACK_INTERFACES, stack_toml
@@ -370,7 +370,7 @@ def test_a_second_study_on_a_folder_in_use_is_refused_before_computing(tmp_path,
     """Two identical sweeps into one folder: the second is refused while the first
     holds the study's lock (every case ran twice, and the loser's table once marked a
     sound case failed)."""
-    from qsma.rundir import StudyFolder
+    from qsma.output.folders import StudyFolder
     from qsma.study.sweep import _in_study
     _no_case_computed(monkeypatch)
     with StudyFolder(tmp_path / "study", allowed=_in_study):

@@ -243,7 +243,7 @@ def test_auto_method_of_a_run_is_recorded_as_the_method_that_ran(example, chosen
     basket in 2D, active_set on lap-3d's 176 pairs in 3D; results.json says both."""
     import json
     from qsma.examples import EXAMPLES
-    from qsma.results import write_all
+    from qsma.output.files import write_all
     res = qsma.run(EXAMPLES[example](1), levels=Levels.log("tip", 1e-6, 1e-4, 2),
                    dissipation="masing")
     assert res.options.method == "auto" and res.solver["method"] == chosen
@@ -326,7 +326,7 @@ def test_level_costs_count_every_solve_of_the_run_at_its_level(monkeypatch, tmp_
     import json
     import qsma.analysis as analysis
     from qsma.examples import lap_2d
-    from qsma.results import write_json
+    from qsma.output.files import write_json
     calls = []
     inner = analysis._Solver.__call__
 

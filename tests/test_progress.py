@@ -11,7 +11,7 @@ from qsma.cli import main
 from qsma.examples import lap_2d
 from qsma.levels import Levels
 from qsma.progress import Progress
-from qsma.rundir import verify_run_folder
+from qsma.output.folders import verify_run_folder
 
 LEVELS = Levels.log("tip", 1e-5, 1e-3, 6)
 

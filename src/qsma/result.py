@@ -1,8 +1,8 @@
 """The outcome of a QSMA run as typed data: :class:`QSMAResult` and its parts.
 
 The per-level quantities are named once, in :data:`LEVEL_FIELDS`; results.json,
-results.csv (:mod:`qsma.results`) and the study tables follow that tuple. The writers
-live in :mod:`qsma.results`; this module holds data only.
+results.csv (:mod:`qsma.output.files`) and the study tables follow that tuple. The writers
+live in :mod:`qsma.output.files`; this module holds data only.
 """
 from __future__ import annotations
 

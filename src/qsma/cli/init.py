@@ -26,7 +26,7 @@ def add_arguments(p):
 
 def execute(args) -> int:
     from ..deck import deck_toml
-    from ..rundir import atomic_write
+    from ..output.folders import atomic_write
     if not is_deck(args.config):
         raise InputError(f"qsma init reads an Abaqus/CalculiX deck (.inp), got "
                          f"{args.config!r}")

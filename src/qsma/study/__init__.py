@@ -1,6 +1,6 @@
 """Parameter studies on top of a QSMA run: sweeps (:mod:`.sweep`, on Dask), fits to
 measured data (:mod:`.fit`), their figures (:mod:`.plots`) and the reduced-order model
-export (:mod:`qsma.rom`)."""
+export (:mod:`qsma.study.rom`)."""
 from .sweep import (Case, CaseOutcome, SweepResult, grid, parse_values, read_table,
                     run_case, study_table, sweep)
 from .fit import FitResult, Measured, fit, read_measured

@@ -47,7 +47,7 @@ from ..analysis import STUDY_MU_FIX
 from ..errors import AnalysisError, InputError
 from ..levels import Levels
 from ..options import RunOptions
-from ..rundir import RunFolder
+from ..output.folders import RunFolder
 from .sweep import (MATERIAL_PARAMETERS, Case, _material_key, _model_with_materials,
                     _check_bodies, case_inputs, parameter_kind)
 
@@ -518,13 +518,13 @@ def fit_dict(fr: FitResult) -> dict:
 def write_fit(fr: FitResult, out, start_prediction=None) -> FitResult:
     """Write fit.json, fit.csv (measured against fitted per amplitude), fit.png (the
     overlay) and ``best/`` (the result folder of the fitted run) as one result folder
-    ``out`` (a path, or an entered :class:`qsma.rundir.RunFolder` of kind ``fit``),
+    ``out`` (a path, or an entered :class:`qsma.output.folders.RunFolder` of kind ``fit``),
     swapped into place as a whole."""
     if not isinstance(out, RunFolder):
         with RunFolder(out, kind="fit") as folder:
             return write_fit(fr, folder, start_prediction)
     from dataclasses import replace
-    from ..results import atomic_write, write_all
+    from ..output.files import atomic_write, write_all
     from .plots import plot_fit
     folder, out = out, out.staging
     paths = {"json": out / "fit.json", "csv": out / "fit.csv"}

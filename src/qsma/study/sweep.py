@@ -19,7 +19,7 @@ the preparations (nothing pickled, nothing condensed or factorised again); on Da
 (:mod:`distributed`): a :class:`distributed.LocalCluster` (``scheduler="dask"``, or
 where this process may not fork), any scheduler by address; or serially in this
 process (``scheduler="serial"``). Each case writes a folder as ``qsma run`` does
-(:func:`qsma.results.write_all`) and then a done-marker; a study started again in the
+(:func:`qsma.output.files.write_all`) and then a done-marker; a study started again in the
 same folder skips the cases whose marker exists. A failing case is recorded with its
 message and the others go on. The study table (:data:`TABLE_NAME`) has a row per case
 and level, read back from the case folders, so a resumed study and a fresh one give
@@ -44,7 +44,7 @@ import numpy as np
 from ..errors import InputError, QSMAError, SerialSweepWarning
 from ..levels import Levels
 from ..options import RunOptions
-from ..rundir import MANIFEST, StudyFolder
+from ..output.folders import MANIFEST, StudyFolder
 
 log = logging.getLogger("qsma")
 
@@ -330,7 +330,7 @@ def run_case(prepared, case: Case, options: RunOptions, folder, files=()) -> Cas
     """Run one case from its group's preparation, write its folder and, last, its
     done-marker. Errors are caught and recorded: a case never stops the study."""
     from ..analysis import run_prepared
-    from ..results import atomic_write, write_all
+    from ..output.files import atomic_write, write_all
     t0, c0 = time.perf_counter(), time.process_time()
     params = case.as_dict()
     status, message = "ok", "all levels converged"
@@ -339,7 +339,7 @@ def run_case(prepared, case: Case, options: RunOptions, folder, files=()) -> Cas
         write_all(res, folder, plots="plots" in files, vtu="vtu" in files,
                   report="report" in files)
         if "rom" in files and res.n_levels:
-            from ..rom import export_rom
+            from .rom import export_rom
             export_rom(res, Path(folder).with_name(Path(folder).name + ".rom.json"))
         if not res.success:
             status, message = "unsuccessful", res.message
@@ -451,16 +451,16 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
         Processes of the local pool or cluster, at most the usable cores (default
         :data:`DEFAULT_WORKERS`, or the cores if fewer).
     files : iterable of {"plots", "vtu", "rom", "report"}
-        Per-case files besides results.json and results.csv (rom: :mod:`qsma.rom`,
+        Per-case files besides results.json and results.csv (rom: :mod:`qsma.study.rom`,
         written beside the case folder as ``case-NNNN.rom.json``; report: the case's
-        report.html, :mod:`qsma.report`).
+        report.html, :mod:`qsma.output.report`).
     plots : bool
         Study figures (frequency and damping versus amplitude per parameter); the
         study's report.html is written in any case.
     progress : callable, optional
         ``progress(done, total)`` after each case (skipped ones included).
     amplitude : str, optional
-        The amplitude measure of the study figures (:data:`qsma.plots.AMPLITUDES`,
+        The amplitude measure of the study figures (:data:`qsma.output.plots.AMPLITUDES`,
         default the peak tip deflection, as a run's figures).
 
     Returns
@@ -483,7 +483,7 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
         from .._threads import usable_cores
         workers = min(DEFAULT_WORKERS, usable_cores())
     if amplitude is not None:
-        from ..plots import check_amplitude
+        from ..output.plots import check_amplitude
         check_amplitude(amplitude)
     if not (isinstance(workers, int) and workers >= 0):
         raise InputError(f"workers must be an integer >= 0, got {workers!r}")
@@ -498,9 +498,9 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
 
 def _study(folder, model, vary, options, cases, scheduler, workers, files, plots, progress,
            t0, amplitude=None) -> SweepResult:
-    """:func:`sweep` in its entered :class:`qsma.rundir.StudyFolder` (manifest written
+    """:func:`sweep` in its entered :class:`qsma.output.folders.StudyFolder` (manifest written
     when every case is done)."""
-    from ..results import atomic_write
+    from ..output.files import atomic_write
     out = folder.path
     study = dict(model=model.name, fingerprint=_fingerprint(model, options),
                  parameters=list(vary), n_cases=len(cases),
@@ -539,7 +539,7 @@ def _study(folder, model, vary, options, cases, scheduler, workers, files, plots
         figures = plot_study(table, list(vary), out, units=model.units, dim=model.dim,
                              amplitude=amplitude)
         paths.update(figures)
-    from ..report import REPORT_NAME, write_study_report
+    from ..output.report import REPORT_NAME, write_study_report
     paths["report"] = write_study_report(list(vary), ordered, table,
                                          {k[len("plot_"):]: v for k, v in figures.items()},
                                          out / REPORT_NAME)
@@ -818,15 +818,15 @@ def _run_dask(groups, key_of, todo, options, out, files, scheduler, workers):
 
 def table_columns(parameters) -> tuple:
     """Columns of the study table: case, parameters, status, message, then those of a
-    run's results.csv (:func:`qsma.results.csv_columns`)."""
-    from ..results import csv_columns
+    run's results.csv (:func:`qsma.output.files.csv_columns`)."""
+    from ..output.files import csv_columns
     return ("case",) + tuple(parameters) + ("status", "message") + csv_columns()
 
 
 def study_table(cases, outcomes, out) -> dict:
     """Column name -> list, a row per case and level, read from the case folders
     (a case without levels has one row with empty level values)."""
-    from ..results import csv_columns
+    from ..output.files import csv_columns
     params = [n for n, _ in cases[0].params]
     cols = {c: [] for c in table_columns(params)}
     level_cols = csv_columns()
@@ -855,7 +855,7 @@ def write_table(table, out, units="SI", dim=3) -> dict:
     """Write the study table as CSV (always) and Parquet (when pyarrow is installed);
     the CSV header names the units of the level columns in the model's system
     (``tip [m]``, as results.csv)."""
-    from ..results import atomic_path, atomic_write, _csv_cell
+    from ..output.files import atomic_path, atomic_write, _csv_cell
     from ..units import column_label, level_units
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
@@ -883,7 +883,7 @@ def write_table(table, out, units="SI", dim=3) -> dict:
 def read_table(path) -> dict:
     """The study CSV as column name (its unit left out: ``tip [m]`` -> ``tip``) -> list
     of strings (empty cells as '')."""
-    from ..results import column_name
+    from ..output.files import column_name
     with open(path, newline="") as f:
         rows = list(csv.reader(f))
     return {column_name(name): [r[i] for r in rows[1:]] for i, name in enumerate(rows[0])}
