@@ -42,7 +42,7 @@ import statistics
 import numpy as np
 
 import qsma
-from qsma._resources import cpu_with_children_s
+from qsma._infra.resources import cpu_with_children_s
 from qsma.cli.run import parse_levels_spec
 from qsma.examples import EXAMPLES
 from qsma.result import LEVEL_FIELDS

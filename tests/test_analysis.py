@@ -209,11 +209,11 @@ def _blas_threads():
 def test_auto_blas_threads_keep_the_contact_stage_on_one_thread(monkeypatch):
     """Above SMALL_PROBLEM unknowns ``blas_threads="auto"`` leaves the condensation
     on the process's BLAS threads but solves the ramps on one
-    (:data:`qsma._threads.CONTACT_BLAS_THREADS`; two threads there made sandwich-3d
+    (:data:`qsma._infra.threads.CONTACT_BLAS_THREADS`; two threads there made sandwich-3d
     refine 2's contact stage 1.7x slower); an explicit setting applies everywhere."""
     from threadpoolctl import threadpool_limits
     import qsma.analysis as analysis
-    import qsma._threads as threads
+    import qsma._infra.threads as threads
     seen = {"condensation": [], "contact": []}
     solve, reduce = analysis._solve, analysis.reduce_two_bodies
 

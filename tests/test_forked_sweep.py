@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import qsma
-from qsma._forked import fork_refusal
+from qsma._infra.forked import fork_refusal
 from qsma.examples import sandwich_2d
 
 

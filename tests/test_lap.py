@@ -9,7 +9,7 @@ import pytest
 import qsma
 from qsma.cli import main
 from qsma.examples import lap_2d, lap_3d
-from qsma._forked import parallel_available
+from qsma._infra.forked import parallel_available
 from qsma.result import LEVEL_FIELDS
 from qsma.levels import Levels
 from qsma.model import Mesh

@@ -22,7 +22,7 @@ from qsma.levels import Levels, spec_levels
 from qsma.output.files import write_all
 from qsma.output.folders import verify_run_folder
 
-from qsma._forked import parallel_available
+from qsma._infra.forked import parallel_available
 
 needs_fork = pytest.mark.skipif(not parallel_available(),
                                 reason="no fork start method (Windows)")

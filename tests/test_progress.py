@@ -71,7 +71,7 @@ def test_a_plain_callable_gets_the_levels(recorded):
 
 def test_bars_draw_every_task_without_a_thread_of_their_own():
     """The bars are redrawn on the run's reports, not by a timer thread: the run may
-    still fork its second process (qsma._forked.fork_refusal refuses while another
+    still fork its second process (qsma._infra.forked.fork_refusal refuses while another
     thread runs)."""
     from rich.console import Console
     from qsma.cli.progress import RunBars

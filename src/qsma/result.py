@@ -172,7 +172,7 @@ class QSMAResult:
     solver: dict[str, object]
     timings_s: dict[str, float]
     #: process peak resident memory (MiB, None where not reported) and CPU seconds at
-    #: the end of the run (:func:`qsma._resources.snapshot`)
+    #: the end of the run (:func:`qsma._infra.resources.snapshot`)
     resources: dict[str, float | None] = None
     direct_loop: DirectLoop | None = None
     #: messages of qsma's own warnings raised during the run (e.g. mortar gaps taken as

@@ -15,7 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .._resources import free_memory
+from .._infra.resources import free_memory
 from ..errors import AnalysisError, InputError
 from ..model.pairing import Coupling, MultiPairing, body_order
 from ..reduction import multibody

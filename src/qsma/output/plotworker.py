@@ -18,7 +18,7 @@ parent draws every figure itself, as it does without a worker, and logs why: the
 files are the same either way (tests/test_plot_worker.py), only the time differs.
 
 The worker runs only where forking is possible and safe (:func:`why_not_fork`, the
-rules of every fork of qsma, :func:`qsma._forked.fork_refusal`): the ``fork`` start
+rules of every fork of qsma, :func:`qsma._infra.forked.fork_refusal`): the ``fork`` start
 method exists (not on Windows), this is not a daemonic process, this is the main
 thread and no other thread runs; and only when :data:`ENV` is ``1`` (off by default:
 measured slower on an idle 2-core machine, see :data:`ENV`).
@@ -33,9 +33,9 @@ import threading
 import traceback
 import warnings
 
-from .._forked import (default_signals, fork_refusal, quiet_fork, raise_again,
-                      recorded_warnings)
-from .._threads import usable_cores
+from .._infra.forked import (default_signals, fork_refusal, quiet_fork, raise_again,
+                             recorded_warnings)
+from .._infra.threads import usable_cores
 from ..errors import InputError
 
 log = logging.getLogger(__name__)

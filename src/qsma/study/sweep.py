@@ -69,7 +69,7 @@ CASE_FILES = ("plots", "vtu", "rom", "report")
 #: a margin for the report; plus a fixed part for the case, its outcome and its entry
 #: in study.json.
 CASE_BYTES, LEVEL_BYTES = 4096, 2048
-#: Share of the free memory (:func:`qsma._resources.free_memory`) a study's cases may
+#: Share of the free memory (:func:`qsma._infra.resources.free_memory`) a study's cases may
 #: take; where the system does not say, :data:`MAX_CASES_UNKNOWN_MEMORY` cases.
 CASES_MEMORY_SHARE, MAX_CASES_UNKNOWN_MEMORY = 0.5, 100_000
 #: Run options a sweep does not vary: the BLAS thread count, the loop workers, the
@@ -201,7 +201,7 @@ def max_cases(n_levels: int = 1) -> int:
     """Most cases of ``n_levels`` load levels a study may have: those whose rows and
     records (:data:`CASE_BYTES`, :data:`LEVEL_BYTES`) fit in :data:`CASES_MEMORY_SHARE`
     of the free memory."""
-    from .._resources import free_memory
+    from .._infra.resources import free_memory
     free = free_memory()
     if free is None:
         return MAX_CASES_UNKNOWN_MEMORY
@@ -480,7 +480,7 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
         if f not in CASE_FILES:
             raise InputError(f"unknown per-case file kind {f!r}; valid: {CASE_FILES}")
     if workers is None:
-        from .._threads import usable_cores
+        from .._infra.threads import usable_cores
         workers = min(DEFAULT_WORKERS, usable_cores())
     if amplitude is not None:
         from ..output.plots import check_amplitude
@@ -625,7 +625,7 @@ def _runner(scheduler, workers, n_todo):
     Dask cluster, or without Dask in this process with a
     :class:`qsma.errors.SerialSweepWarning`; on Dask (``"dask"``: a local cluster, an
     address or a client: :func:`_run_dask`)."""
-    from .._forked import fork_refusal
+    from .._infra.forked import fork_refusal
     if scheduler == "serial" or (scheduler is None and workers == 0) or n_todo == 0:
         return _run_serial
     if scheduler is not None:
@@ -650,7 +650,7 @@ _CASE_JOB = None
 
 def _call_case(i):
     """``_CASE_JOB(i)`` and the warnings it raised, for this process to raise again."""
-    from .._forked import recorded_warnings
+    from .._infra.forked import recorded_warnings
     with warnings.catch_warnings(record=True) as seen:
         warnings.simplefilter("always")
         out = _CASE_JOB(i)
@@ -675,7 +675,7 @@ def _run_forked(groups, key_of, todo, options, out, files, scheduler, workers):
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor, as_completed
     from concurrent.futures.process import BrokenProcessPool
-    from .._forked import default_signals, quiet_fork, raise_again
+    from .._infra.forked import default_signals, quiet_fork, raise_again
     opts = options.replace(**FORKED_CASE_OPTIONS)
     _CASE_JOB = lambda i: run_case(groups[key_of(todo[i])], todo[i], opts,
                                    out / todo[i].name, files)
@@ -724,10 +724,10 @@ def _most_levels(vary, options) -> int:
 
 def _check_workers(workers, scheduler):
     """Refuse a local cluster of more worker processes than the cores this process may
-    use (:func:`qsma._threads.usable_cores`): each case is a CPU-bound process, so the
+    use (:func:`qsma._infra.threads.usable_cores`): each case is a CPU-bound process, so the
     extra ones only compete for the cores (6 workers on a 2-core machine started 7
     processes). A cluster of more machines is reached by a scheduler address."""
-    from .._threads import usable_cores
+    from .._infra.threads import usable_cores
     if scheduler is not None:
         return
     cores = usable_cores()
