@@ -517,7 +517,7 @@ def test_a_study_too_large_to_hold_is_refused_before_allocating(tmp_path, capsys
 def test_max_cases_follows_the_free_memory(monkeypatch):
     """The limit is the cases whose records fit in half the free memory."""
     import qsma._infra.resources as resources
-    from qsma.study.sweep import CASE_BYTES, LEVEL_BYTES, max_cases
+    from qsma.study.cases import CASE_BYTES, LEVEL_BYTES, max_cases
     monkeypatch.setattr(resources, "free_memory", lambda: 2**30)
     assert max_cases(51) == int(0.5 * 2**30 // (CASE_BYTES + 51 * LEVEL_BYTES))
     monkeypatch.setattr(resources, "free_memory", lambda: None)
@@ -650,6 +650,6 @@ def test_more_local_workers_than_cores_are_refused(tmp_path, capsys, monkeypatch
                  "--quiet", "--out", str(tmp_path / "s")]) == 2
     assert "--workers 6: this machine lets qsma use 2 core(s)" in capsys.readouterr().err
     assert not (tmp_path / "s").exists()
-    from qsma.study.sweep import _check_workers
-    _check_workers(2, None)
-    _check_workers(64, "tcp://cluster:8786")
+    from qsma.study.runners import check_workers
+    check_workers(2, None)
+    check_workers(64, "tcp://cluster:8786")

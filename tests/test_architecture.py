@@ -303,3 +303,9 @@ def test_private_names_and_old_tables_forward_too():
     with pytest.warns(DeprecationWarning):
         from qsma.fe.elements import SKFEM_ELEMENTS
     assert SKFEM_ELEMENTS["quad8"][2] == CELL_TYPES["quad8"].skfem[2]
+    sweep_module = importlib.import_module("qsma.study.sweep")   # qsma.study.sweep: the function
+    with pytest.warns(DeprecationWarning, match="qsma.study.sweep.done_path moved to "
+                                                "qsma.study.runners.done_path"):
+        done_path = sweep_module.done_path
+    from qsma.study.runners import done_path as new_done_path
+    assert done_path is new_done_path
