@@ -135,7 +135,7 @@ def test_checker_sees_crowded_ticks_and_missing_units():
 
 def test_log_axes_have_a_1_2_5_minor_grid(results, tmp_path, monkeypatch):
     """Minor ticks of the logarithmic axes only at 2 and 5 times a power of ten (what
-    keeps the figures cheap to draw, docs/performance.md), and some of them drawn."""
+    keeps the figures cheap to draw, CHANGELOG.md "The small case"), and some of them drawn."""
     figures = _capture(results["sandwich-2d"], tmp_path, monkeypatch)
     seen = 0
     for fig in figures.values():

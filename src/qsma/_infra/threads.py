@@ -82,7 +82,7 @@ def threads_for(n_unknowns: int):
 #: 8.0-9.1 ms at 6,435 unknowns on two threads), on which a second OpenBLAS thread
 #: mostly spins: sandwich-3d refine 2, quiet machine, contact stage 110.5 s wall /
 #: 218.7 s CPU on two BLAS threads against 64.8 / 64.8 s on one (docs/performance.md,
-#: "BLAS threads of the contact stage"). The condensation's dense products keep the
+#: "BLAS threads"). The condensation's dense products keep the
 #: process's threads (50.4 against 64.0 s there).
 CONTACT_BLAS_THREADS = 1
 
@@ -91,9 +91,9 @@ CONTACT_BLAS_THREADS = 1
 #: (a positive integer; 1: serial).
 SOLVE_THREADS_ENV = "QSMA_SOLVE_THREADS"
 #: Default thread count of a multi-RHS solve at most (fewer on a machine with fewer
-#: usable cores): the targets of issue 14 are two cores. On a machine whose other cores
-#: are busy, one thread is faster (docs/performance.md, "Condensation and tied modes on
-#: two cores"): set the variable to 1 there.
+#: usable cores): two threads took 0.62 of the wall time on an idle 2-core machine. On a
+#: machine whose other cores are busy, one thread is faster (docs/performance.md, "Solve
+#: threads"): set the variable to 1 there.
 DEFAULT_SOLVE_THREADS = 2
 
 

@@ -34,7 +34,7 @@ def _figure(nrows=1, ncols=1, figsize=(6, 4.5), hspace=0.2, wspace=0.2,
 
 
 #: zlib level of the PNG files: 1 writes them 15-20 % larger than the default 6 in a
-#: fifth less time (benchmarks/bench_process.py, docs/performance.md).
+#: fifth less time (benchmarks/bench_process.py, CHANGELOG.md "The small case").
 PNG_COMPRESSION = 1
 
 
@@ -93,7 +93,7 @@ LOG_MINOR_SUBS = (2.0, 5.0)
 #: Number of intervals between the major ticks of a linear axis (at most; steps of 1,
 #: 2, 2.5 or 5 times a power of ten). Matplotlib's automatic choice puts up to nine
 #: ticks on these axes; five read as well and build a fifth less of the figure's
-#: artists (each tick is two marks, a grid line and two labels; docs/performance.md).
+#: artists (each tick is two marks, a grid line and two labels; CHANGELOG.md).
 LINEAR_BINS = 5
 
 

@@ -2,7 +2,7 @@
 
 Importing matplotlib and drawing the four PNG figures took more than half of a
 sandwich-2d run's wall time on one core while the second core sat idle
-(docs/performance.md, "Figures beside the analysis (make run)"). A
+(docs/performance.md, "Figures beside the analysis"). A
 :class:`PlotWorker` is forked when the command starts, before the result folder is
 locked and before the analysis has run a single BLAS call; it imports matplotlib and
 :mod:`qsma.output.plots` while the parent computes, then waits. The parent hands it the

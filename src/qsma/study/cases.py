@@ -132,7 +132,7 @@ def max_cases(n_levels: int = 1) -> int:
 def check_case_count(n: int, what: str, n_levels: int | None = None):
     """Refuse ``n`` cases (from ``what``, for messages) beyond :func:`max_cases` of
     ``n_levels`` levels (None: not known yet, counted as one), before anything of them
-    is made (a grid of 10^10 cases asked for 74.5 GiB)."""
+    is made (the 10^10 values of such a grid alone take 74.5 GiB as doubles)."""
     most = max_cases(n_levels or 1)
     if n > most:
         of = (f"of {n_levels} load level(s), about "

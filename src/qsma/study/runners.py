@@ -189,7 +189,7 @@ def _call_case(i):
 
 #: Run options of a case on a forked worker: the worker is one of ``workers`` processes
 #: that share the cores, so it forks no loop workers nor a second ramp of its own (the
-#: results are the same bits either way, docs/performance.md).
+#: results are the same bits either way, docs/performance.md "How it uses the cores").
 FORKED_CASE_OPTIONS = dict(loop_workers=1, parallel_ramps=False)
 
 

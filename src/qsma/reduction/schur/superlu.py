@@ -42,7 +42,7 @@ def _drop_extracted_factors(lu):
 #: Fewest columns a thread of :func:`solved_by_columns` is given. Measured on the
 #: sandwich-3d refine-1 factor (15,810 DOFs, one BLAS thread): 8 columns take 41 ms
 #: serially and 52 ms as two threads of 4 (the two threads share the reading of the
-#: factor), 12 columns 71 ms and 45 ms as two of 6 (docs/performance.md).
+#: factor), 12 columns 71 ms and 45 ms as two of 6 (docs/performance.md, "Solve threads").
 SOLVE_MIN_COLUMNS = 6
 
 
