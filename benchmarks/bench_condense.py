@@ -139,7 +139,7 @@ def measure_memory(refine, backend="auto"):
     two bodies of sandwich-3d at ``refine`` (steps named by wrapping functions of
     the metis_superlu and multifrontal backends)."""
     import threading
-    from qsma import _resources
+    from qsma._infra import resources as _resources
     from qsma.reduction.schur import metis_superlu as linalg
     from qsma.reduction.schur import multifrontal
     from qsma.examples import sandwich_3d

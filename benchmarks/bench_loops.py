@@ -1,7 +1,9 @@
 """Computed loops on lap joints: where the solves go, loops on two processes, and
 whether D could be interpolated between a subset of the levels.
 
-Three tables (docs/performance.md, "Loops on 3D lap joints"):
+Three tables (docs/performance.md, "The real joints: lap joints and the Brake-Reuss
+beam" and "Loops on several processes"; the interpolation: CHANGELOG.md, "Tried and
+not kept"):
 
 ``profile``
     One run per case: per computed loop, the cycles on the initial increments until
@@ -42,7 +44,7 @@ import statistics
 import numpy as np
 
 import qsma
-from qsma._resources import cpu_with_children_s
+from qsma._infra.resources import cpu_with_children_s
 from qsma.cli.run import parse_levels_spec
 from qsma.examples import EXAMPLES
 from qsma.result import LEVEL_FIELDS

@@ -67,9 +67,9 @@ def _child(example, out):
     from qsma.analysis import run
     by_stage = _cpu_per_stage(analysis)
     from qsma.examples import EXAMPLES
-    from qsma.plots import write_plots
-    from qsma.report import write_report
-    from qsma.results import write_csv, write_json, write_vtu
+    from qsma.output.plots import write_plots
+    from qsma.output.report import write_report
+    from qsma.output.files import write_csv, write_json, write_vtu
     lap("import")
     model = EXAMPLES[example]()
     lap("model")

@@ -10,7 +10,7 @@ ways: wall time, CPU time of the process and of the child processes it waited fo
 (all threads; more than the wall time where
 BLAS runs on both cores, and the honest measure on a shared machine where the wall time
 waits for other jobs), and the peak resident memory during the stage (Linux ``VmHWM``,
-reset at the start of each stage; qsma._resources), and the resident memory left at
+reset at the start of each stage; qsma._infra.resources), and the resident memory left at
 the end of each stage, beside the MB of the dense interface matrices the result holds
 and the number of K_EE factorisations (congruent bodies share one, qsma.reduction.congruence).
 The table gives the medians over
@@ -31,7 +31,7 @@ import statistics
 import numpy as np
 
 import qsma
-from qsma import _resources
+from qsma._infra import resources as _resources
 from qsma import analysis
 from qsma.analysis import STAGES
 from qsma.examples import sandwich_3d

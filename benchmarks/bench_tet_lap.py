@@ -45,7 +45,7 @@ from pathlib import Path
 import numpy as np
 
 import qsma
-from qsma._resources import cpu_with_children_s
+from qsma._infra.resources import cpu_with_children_s
 from qsma.examples.lap import LAP_3D
 from qsma.cli.run import parse_levels_spec
 from qsma.model import Body, Clamp, Interface, Material, Model, Pressure, Probe

@@ -3,7 +3,7 @@
 Usage: python benchmarks/bench_vtu.py [--example sandwich-3d] [--repeat 5]
 
 Runs the example once (5 levels), then writes, best of ``--repeat``:
-``qsma.results.write_vtu`` (fields.vtu, three levels) and ``qsma.results.write_fields``
+``qsma.output.files.write_vtu`` (fields.vtu, three levels) and ``qsma.output.files.write_fields``
 (fields.vtu and the three level files of fields.pvd, each level's fields computed
 once); and the import of meshio in a fresh process. Most of the writing time is the
 von Mises stress at the nodes, not the file.
@@ -18,7 +18,7 @@ import time
 import qsma
 from qsma.examples import EXAMPLES
 from qsma.levels import Levels
-from qsma.results import write_fields, write_vtu
+from qsma.output.files import write_fields, write_vtu
 
 
 def best(f, repeat):

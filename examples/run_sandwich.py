@@ -7,7 +7,7 @@ import sys
 import qsma
 from qsma.examples import sandwich_2d
 from qsma.levels import Levels
-from qsma.results import prepare_output_dir, write_all
+from qsma.output.files import prepare_output_dir, write_all
 
 
 def main(out="out/example-api"):

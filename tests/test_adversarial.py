@@ -1,7 +1,7 @@
 """An adversarial user: kills, concurrent runs and a full disk on one result folder;
 broken encodings, NUL characters and absurd sizes in the input.
 
-Every result-folder test ends with :func:`qsma.rundir.verify_run_folder`: the folder
+Every result-folder test ends with :func:`qsma.output.folders.verify_run_folder`: the folder
 holds one complete run (manifest, sizes, SHA-256), the previous one or the new one.
 """
 import csv
@@ -19,13 +19,13 @@ import numpy as np
 import pytest
 
 import qsma
-import qsma.results as results
-import qsma.rundir as rundir
+import qsma.output.files as files
+import qsma.output.folders as folders
 from qsma.cli import main
 from qsma.errors import InputError, OutputFolderBusy
 from qsma.examples import sandwich_2d
 from qsma.levels import Levels
-from qsma.rundir import RunFolder, verify_run_folder
+from qsma.output.folders import RunFolder, verify_run_folder
 from qsma.examples import example_dir
 
 EXAMPLES = example_dir()        # the example files shipped with qsma
@@ -72,15 +72,15 @@ def result():
 def previous(tmp_path, result):
     """A result folder holding one complete run; returns (folder, its run id)."""
     out = tmp_path / "out"
-    results.write_all(result, out, plots=False, vtu=False)
+    files.write_all(result, out, plots=False, vtu=False)
     return out, _run_ids(out)
 
 
 # ---- kills ---------------------------------------------------------------------------
 
-CHECKPOINTS = [(rundir, "_digest"), (rundir, "_fsync_dir"), (rundir, "_exchange"),
-               (rundir.os, "rename"), (rundir.os, "chmod"), (rundir.os, "mkdir"),
-               (rundir.shutil, "rmtree"), (results, "write_csv"), (results, "write_json")]
+CHECKPOINTS = [(folders, "_digest"), (folders, "_fsync_dir"), (folders, "_exchange"),
+               (folders.os, "rename"), (folders.os, "chmod"), (folders.os, "mkdir"),
+               (folders.shutil, "rmtree"), (files, "write_csv"), (files, "write_json")]
 
 
 def _write_killed_at(result, out, k, exchange=True):
@@ -100,8 +100,8 @@ def _write_killed_at(result, out, k, exchange=True):
                     return _real(*a, **kw)
                 setattr(mod, name, step)
             if not exchange:
-                rundir._exchange = lambda a, b: False
-            results.write_all(result, out, plots=False, vtu=False)
+                folders._exchange = lambda a, b: False
+            files.write_all(result, out, plots=False, vtu=False)
             os._exit(0)
         except BaseException:
             os._exit(3)
@@ -133,7 +133,7 @@ def test_kill_at_every_step_of_the_protocol(previous, result, exchange):
     assert not killed, "the write never finished: more steps than the loop covers"
     assert seen == {True, False}                        # both outcomes were reached
     assert recovered == (0 if exchange else 1)          # the gap between the renames
-    results.write_all(result, out, plots=False, vtu=False)
+    files.write_all(result, out, plots=False, vtu=False)
     assert _only_the_folder(out)
 
 
@@ -228,8 +228,8 @@ def test_a_live_run_is_never_disturbed(previous, result, capsys):
         err = capsys.readouterr().err
         assert "in use by another qsma run" in err and f"pid {os.getpid()}" in err
         with pytest.raises(OutputFolderBusy):
-            results.write_all(result, out)
-        results.write_all(result, out.parent / "other", plots=False, vtu=False)
+            files.write_all(result, out)
+        files.write_all(result, out.parent / "other", plots=False, vtu=False)
         assert (live.staging / "results.csv").read_text() == "in progress\n"
     assert _run_ids(out) == old_id                      # never committed: unchanged
     assert sorted(p.name for p in out.parent.iterdir()) == ["other", "out"]
@@ -253,7 +253,7 @@ def test_full_disk_is_a_plain_error(previous, monkeypatch, capsys):
 
     def full(*a, **k):
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(out / "results.csv"))
-    monkeypatch.setattr(results, "write_csv", full)
+    monkeypatch.setattr(files, "write_csv", full)
     assert main(["run", *QUICK, "--no-plots", "--out", str(out)]) == 1
     err = capsys.readouterr().err
     assert "device is full" in err and "internal error" not in err and "--out" in err

@@ -17,7 +17,7 @@ from qsma.config import load_config
 from qsma.errors import AnalysisError, InputError
 from qsma.examples import stack_2d
 from qsma.model import Pressure
-from qsma.rundir import verify_run_folder
+from qsma.output.folders import verify_run_folder
 from qsma.examples import example_dir
 
 from helpers import STACK_INTERFACES, stack_toml
@@ -370,7 +370,7 @@ def test_a_second_study_on_a_folder_in_use_is_refused_before_computing(tmp_path,
     """Two identical sweeps into one folder: the second is refused while the first
     holds the study's lock (every case ran twice, and the loser's table once marked a
     sound case failed)."""
-    from qsma.rundir import StudyFolder
+    from qsma.output.folders import StudyFolder
     from qsma.study.sweep import _in_study
     _no_case_computed(monkeypatch)
     with StudyFolder(tmp_path / "study", allowed=_in_study):
@@ -516,8 +516,8 @@ def test_a_study_too_large_to_hold_is_refused_before_allocating(tmp_path, capsys
 
 def test_max_cases_follows_the_free_memory(monkeypatch):
     """The limit is the cases whose records fit in half the free memory."""
-    import qsma._resources as resources
-    from qsma.study.sweep import CASE_BYTES, LEVEL_BYTES, max_cases
+    import qsma._infra.resources as resources
+    from qsma.study.cases import CASE_BYTES, LEVEL_BYTES, max_cases
     monkeypatch.setattr(resources, "free_memory", lambda: 2**30)
     assert max_cases(51) == int(0.5 * 2**30 // (CASE_BYTES + 51 * LEVEL_BYTES))
     monkeypatch.setattr(resources, "free_memory", lambda: None)
@@ -530,7 +530,7 @@ def test_a_refinement_beyond_the_free_memory_is_refused_before_meshing(
     """--refine 100 allocated 4.7 and 29.7 GiB before failing. With 1 GiB free, the
     estimate (measured bytes per DOF) refuses it and names the largest refine that
     fits (sandwich-2d refine 8 peaked at 709 MiB, so 9 is about right in 2D)."""
-    import qsma._resources as resources
+    import qsma._infra.resources as resources
     from qsma.examples import EXAMPLES, run_bytes
     monkeypatch.setattr(resources, "free_memory", lambda: 2**30)
     assert main(["modes", "--example", example, "--refine", "100", "-n", "1"]) == 2
@@ -643,13 +643,13 @@ def test_one_swept_value_from_a_range_is_refused(tmp_path, capsys, monkeypatch):
 def test_more_local_workers_than_cores_are_refused(tmp_path, capsys, monkeypatch):
     """--workers 6 on a 2-core machine started 7 processes without a word; with a
     scheduler the workers are the cluster's."""
-    import qsma._threads as threads
+    import qsma._infra.threads as threads
     monkeypatch.setattr(threads, "usable_cores", lambda: 2)
     _no_case_computed(monkeypatch)
     assert main(["sweep", "--example", "sandwich-2d", "--vary", "mu=0.5", "--workers", "6",
                  "--quiet", "--out", str(tmp_path / "s")]) == 2
     assert "--workers 6: this machine lets qsma use 2 core(s)" in capsys.readouterr().err
     assert not (tmp_path / "s").exists()
-    from qsma.study.sweep import _check_workers
-    _check_workers(2, None)
-    _check_workers(64, "tcp://cluster:8786")
+    from qsma.study.runners import check_workers
+    check_workers(2, None)
+    check_workers(64, "tcp://cluster:8786")

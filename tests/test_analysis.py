@@ -209,11 +209,11 @@ def _blas_threads():
 def test_auto_blas_threads_keep_the_contact_stage_on_one_thread(monkeypatch):
     """Above SMALL_PROBLEM unknowns ``blas_threads="auto"`` leaves the condensation
     on the process's BLAS threads but solves the ramps on one
-    (:data:`qsma._threads.CONTACT_BLAS_THREADS`; two threads there made sandwich-3d
+    (:data:`qsma._infra.threads.CONTACT_BLAS_THREADS`; two threads there made sandwich-3d
     refine 2's contact stage 1.7x slower); an explicit setting applies everywhere."""
     from threadpoolctl import threadpool_limits
     import qsma.analysis as analysis
-    import qsma._threads as threads
+    import qsma._infra.threads as threads
     seen = {"condensation": [], "contact": []}
     solve, reduce = analysis._solve, analysis.reduce_two_bodies
 
@@ -243,7 +243,7 @@ def test_auto_method_of_a_run_is_recorded_as_the_method_that_ran(example, chosen
     basket in 2D, active_set on lap-3d's 176 pairs in 3D; results.json says both."""
     import json
     from qsma.examples import EXAMPLES
-    from qsma.results import write_all
+    from qsma.output.files import write_all
     res = qsma.run(EXAMPLES[example](1), levels=Levels.log("tip", 1e-6, 1e-4, 2),
                    dissipation="masing")
     assert res.options.method == "auto" and res.solver["method"] == chosen
@@ -326,7 +326,7 @@ def test_level_costs_count_every_solve_of_the_run_at_its_level(monkeypatch, tmp_
     import json
     import qsma.analysis as analysis
     from qsma.examples import lap_2d
-    from qsma.results import write_json
+    from qsma.output.files import write_json
     calls = []
     inner = analysis._Solver.__call__
 

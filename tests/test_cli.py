@@ -150,7 +150,7 @@ def test_busy_folder_names_the_owner_that_is_still_writing_its_name(tmp_path):
     import os
     import threading
     from qsma.errors import OutputFolderBusy
-    from qsma.rundir import RunFolder
+    from qsma.output.folders import RunFolder
     fd = os.open(tmp_path / ".out.qsma-lock", os.O_RDWR | os.O_CREAT, 0o666)
     fcntl.flock(fd, fcntl.LOCK_EX)
     info = json.dumps({"pid": 4242, "host": "elsewhere", "run_id": "r1"}).encode()
@@ -164,10 +164,10 @@ def test_busy_folder_names_the_owner_that_is_still_writing_its_name(tmp_path):
 
 
 #: Modules a ``qsma run`` of a built-in example never needs: parameter studies, fits
-#: and reduced-order models, the mesh-file readers, Dask, pyplot (figures are drawn on
-#: matplotlib's Figure + Agg). meshio writes the VTU files: a run with ``--no-vtu``
-#: does not import it.
-NOT_IMPORTED_BY_A_RUN = ("qsma.study", "qsma.rom", "qsma.model.io",
+#: and reduced-order models (all in ``qsma.study``), the mesh-file readers, Dask,
+#: pyplot (figures are drawn on matplotlib's Figure + Agg). meshio writes the VTU
+#: files: a run with ``--no-vtu`` does not import it.
+NOT_IMPORTED_BY_A_RUN = ("qsma.study", "qsma.model.io",
                          "dask", "distributed", "matplotlib.pyplot")
 
 
@@ -216,7 +216,7 @@ def test_a_level_whose_loop_failed_is_written_as_null_beside_its_flag(tmp_path):
     from qsma.errors import AnalysisError
     from qsma.examples import sandwich_2d
     from qsma.levels import Levels
-    from qsma.results import results_dict, write_csv
+    from qsma.output.files import results_dict, write_csv
 
     res = qsma.run(sandwich_2d(1), levels=Levels.log("tip", 1e-6, 1e-4, 4),
                    refine_levels=False)

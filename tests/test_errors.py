@@ -213,7 +213,7 @@ def test_killed_run_leaves_no_partial_results(tmp_path):
     """SIGKILL at several moments of a first run: the folder is absent or holds the
     complete run (its manifest checks); a later run removes the killed runs' staging
     folders and leaves nothing hidden beside the result folder."""
-    from qsma.rundir import verify_run_folder
+    from qsma.output.folders import verify_run_folder
     out = tmp_path / "out"
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     cmd = [sys.executable, "-m", "qsma", "run", "--example", "sandwich-2d", "--out",
@@ -308,7 +308,7 @@ def test_mixed_cell_types_write_vtu(tmp_path):
     mixed = _replace_body(m, 0, mesh=tmesh)
     res = qsma.run(mixed, levels=Levels.log("tip", 1e-5, 1e-3, 4))
     assert res.success
-    from qsma.results import write_all
+    from qsma.output.files import write_all
     import meshio
     write_all(res, tmp_path / "mixed", plots=False)
     vtu = meshio.read(tmp_path / "mixed" / "fields.vtu")

@@ -1,7 +1,7 @@
 """Figures a person can read: no overlapping tick labels, a unit on every axis, every
 plotted curve inside its axes, on the 2D and 3D examples.
 
-The figures are captured as they are saved (``qsma.plots._save``) and inspected
+The figures are captured as they are saved (``qsma.output.plots._save``) and inspected
 through matplotlib's own text extents after a draw, so the test measures what the PNG
 shows.
 """
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import qsma
-import qsma.plots as plots
+import qsma.output.plots as plots
 from qsma.examples import lap_2d, lap_3d, sandwich_2d
 from qsma.levels import Levels, spec_levels
 
@@ -135,7 +135,7 @@ def test_checker_sees_crowded_ticks_and_missing_units():
 
 def test_log_axes_have_a_1_2_5_minor_grid(results, tmp_path, monkeypatch):
     """Minor ticks of the logarithmic axes only at 2 and 5 times a power of ten (what
-    keeps the figures cheap to draw, docs/performance.md), and some of them drawn."""
+    keeps the figures cheap to draw, CHANGELOG.md "The small case"), and some of them drawn."""
     figures = _capture(results["sandwich-2d"], tmp_path, monkeypatch)
     seen = 0
     for fig in figures.values():

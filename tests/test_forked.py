@@ -1,5 +1,5 @@
 """The -alpha ramp on a forked process beside the last refinement round
-(qsma.analysis._NegativeRamp) and the forked call it uses (qsma._forked)."""
+(qsma.analysis._NegativeRamp) and the forked call it uses (qsma._infra.forked)."""
 import os
 import threading
 import warnings
@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 import qsma
-from qsma import _forked, analysis
+from qsma import analysis
+from qsma._infra import forked as _forked
 from qsma.errors import ContactConvergenceWarning, InputError
 from qsma.examples import sandwich_2d
 from qsma.options import RunOptions
@@ -144,7 +145,7 @@ def test_cancel_stops_a_running_child():
 
 
 def test_loops_use_every_usable_core_by_default(monkeypatch):
-    import qsma._threads as threads
+    import qsma._infra.threads as threads
     assert RunOptions(loop_workers=3).loop_worker_count == 3
     monkeypatch.setattr(_forked.sys, "platform", "darwin")
     monkeypatch.setattr(_forked, "usable_cores", lambda: 8)
@@ -168,7 +169,7 @@ def test_a_child_ends_when_its_parent_is_killed(tmp_path):
     pidfile = tmp_path / "child.pid"
     script.write_text(
         "import os, sys, time\n"
-        "from qsma import _forked\n"
+        "from qsma._infra import forked as _forked\n"
         "def job():\n"
         f"    open({str(pidfile)!r}, 'w').write(str(os.getpid()))\n"
         "    time.sleep(120)\n"

@@ -1,7 +1,6 @@
 """A study's cases on processes forked from the calling one (the default on Linux and
 macOS): the same results as in one process, no preparation pickled, and a worker
 that dies costs its case a second try, not the study."""
-import importlib
 import os
 import signal
 
@@ -9,9 +8,9 @@ import numpy as np
 import pytest
 
 import qsma
-from qsma._forked import fork_refusal
+from qsma._infra.forked import fork_refusal
 from qsma.examples import sandwich_2d
-
+from qsma.study import runners
 
 
 @pytest.fixture(autouse=True)
@@ -22,7 +21,7 @@ def may_fork():
     if why_not is not None:
         pytest.skip(f"this process may not fork: {why_not}")
 
-sw = importlib.import_module("qsma.study.sweep")   # (qsma.study.sweep is the function)
+
 OPTIONS = qsma.RunOptions(levels=qsma.Levels.log("tip", 1e-6, 1e-3, 11))
 VARY = {"mu": [0.3, 0.5, 0.7]}
 
@@ -43,7 +42,7 @@ def test_forked_cases_give_the_serial_results(serial, tmp_path, monkeypatch):
         raise AssertionError("the preparation was pickled")
 
     monkeypatch.setattr(qsma.analysis.Prepared, "__reduce__", no_pickle)
-    assert sw._runner(None, 2, 3) is sw._run_forked
+    assert runners.choose_runner(None, 2, 3) is runners.run_forked
     res = qsma.sweep(sandwich_2d(1), VARY, OPTIONS, out=tmp_path, workers=2, plots=False)
     assert res.success and [o.status for o in res.cases] == ["ok"] * 3
     for name in ("f_hz", "zeta", "dissipation", "q", "tip"):
@@ -56,7 +55,7 @@ def test_a_worker_that_dies_costs_its_case_a_second_try(serial, tmp_path, monkey
     pool breaks, the unfinished cases run in a new pool, the study completes with the
     serial results."""
     marker = tmp_path / "killed-once"
-    real = sw.run_case
+    real = runners.run_case
 
     def dies_once(prepared, case, options, folder, files=()):
         if case.index == 1 and not marker.exists():
@@ -64,7 +63,7 @@ def test_a_worker_that_dies_costs_its_case_a_second_try(serial, tmp_path, monkey
             os.kill(os.getpid(), signal.SIGKILL)
         return real(prepared, case, options, folder, files)
 
-    monkeypatch.setattr(sw, "run_case", dies_once)
+    monkeypatch.setattr(runners, "run_case", dies_once)
     res = qsma.sweep(sandwich_2d(1), VARY, OPTIONS, out=tmp_path / "s", workers=2,
                      plots=False)
     assert marker.exists()

@@ -28,7 +28,7 @@ import pytest
 
 from qsma.contact import OPEN, ContactProblem, solve
 from qsma.errors import InputError
-from qsma._forked import parallel_available
+from qsma._infra.forked import parallel_available
 from qsma.hysteresis import compute_loop, cycle_area, map_loops, masing_checks, masing_estimate
 from qsma.options import RunOptions
 

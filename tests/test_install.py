@@ -49,16 +49,16 @@ def test_qsma_examples_lists_and_copies(tmp_path, capsys):
 def test_a_sweep_without_distributed_runs_its_cases(tmp_path, monkeypatch, capsys):
     """Without the 'sweep' extra a study still runs (it used to refuse): on processes
     forked from this one where it may fork, else one case after the other, saying so."""
-    import qsma._forked
+    import qsma._infra.forked
     monkeypatch.setitem(sys.modules, "distributed", None)      # import fails
     opts = qsma.RunOptions(levels=qsma.Levels.log("tip", 1e-6, 1e-4, 3))
-    if qsma._forked.fork_refusal() is None:
+    if qsma._infra.forked.fork_refusal() is None:
         with warnings.catch_warnings():
             warnings.simplefilter("error", SerialSweepWarning)
             res = qsma.sweep(qsma.examples.sandwich_2d(1), {"mu": [0.4, 0.6]}, opts,
                              out=tmp_path / "forked", workers=2, plots=False)
         assert res.success and len(res.cases) == 2
-    monkeypatch.setattr(qsma._forked, "fork_refusal", lambda: "no fork here")
+    monkeypatch.setattr(qsma._infra.forked, "fork_refusal", lambda: "no fork here")
     with pytest.warns(SerialSweepWarning, match="pip install 'qsma\\[sweep\\]'"):
         res = qsma.sweep(qsma.examples.sandwich_2d(1), {"mu": [0.4, 0.6]}, opts,
                          out=tmp_path / "api", workers=2, plots=False)

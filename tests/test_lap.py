@@ -9,7 +9,7 @@ import pytest
 import qsma
 from qsma.cli import main
 from qsma.examples import lap_2d, lap_3d
-from qsma._forked import parallel_available
+from qsma._infra.forked import parallel_available
 from qsma.result import LEVEL_FIELDS
 from qsma.levels import Levels
 from qsma.model import Mesh
@@ -195,7 +195,7 @@ def test_lap_joint_meshed_apart_runs_through_the_mortar_coupling(tmp_path):
     the patch edges then off the top plate's grid): the default coupling joins them by
     the mortar projection and every result file is written. The tied frequency is
     within 1 % of the matching mesh's (discretisation difference)."""
-    from qsma.results import write_all
+    from qsma.output.files import write_all
     levels = Levels.log("tip", 1e-6, 1e-4, 4)
     apart = qsma.run(lap_2d(1, top_overlap_elements=21), levels=levels)
     assert apart.pairing.coupling == "mortar"

@@ -216,7 +216,7 @@ def test_peak_memory_sees_a_large_allocation():
     resident here whatever the allocator keeps: a numpy array was once served from
     pages already resident in a loaded CI run (VmRSS 515 MB before and after)."""
     import mmap
-    from qsma import _resources
+    from qsma._infra import resources as _resources
     _resources.reset_peak()
     before = _resources.peak_memory_mb()
     if before is None:
@@ -385,7 +385,7 @@ def test_solved_by_columns_splits_and_passes_errors_on():
 
 @pytest.mark.parametrize("value", ["0", "-2", "two", "1.5"])
 def test_bad_solve_thread_setting_is_refused(value, monkeypatch):
-    from qsma._threads import solve_threads
+    from qsma._infra.threads import solve_threads
     monkeypatch.setenv("QSMA_SOLVE_THREADS", value)
     with pytest.raises(InputError, match="QSMA_SOLVE_THREADS must be a positive integer"):
         solve_threads()
@@ -395,14 +395,14 @@ def test_bad_solve_thread_setting_is_refused(value, monkeypatch):
 
 @pytest.mark.parametrize("value", [0, -1, 1.5, True, "2"])
 def test_bad_solve_thread_argument_is_refused(value):
-    from qsma._threads import solve_threads
+    from qsma._infra.threads import solve_threads
     with pytest.raises(InputError, match="solve threads must be a positive integer"):
         solve_threads(value)
 
 
 def test_solve_threads_default_and_setting(monkeypatch):
     import os
-    from qsma._threads import solve_threads
+    from qsma._infra.threads import solve_threads
     monkeypatch.delenv("QSMA_SOLVE_THREADS", raising=False)
     assert solve_threads() == max(1, min(2, len(os.sched_getaffinity(0))))
     monkeypatch.setenv("QSMA_SOLVE_THREADS", " 3 ")
@@ -459,7 +459,7 @@ def test_one_blas_thread_nests_and_restores_the_setting():
     worker thread; leaving the outermost block restores the previous limit."""
     import threading
     from threadpoolctl import threadpool_info, threadpool_limits
-    from qsma._threads import one_blas_thread
+    from qsma._infra.threads import one_blas_thread
 
     def blas_threads():
         return {i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"}

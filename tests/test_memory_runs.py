@@ -140,7 +140,7 @@ def test_sweep_case_frees_reference_cycles_of_large_interfaces():
     leaves it to the automatic collector. Shown on a synthetic reference cycle; that a
     sweep case's contact problems form such cycles (their cached zone elimination) is
     the reason for the call, not asserted here."""
-    from qsma.study.sweep import FREE_CYCLES_FROM, _free_cycles
+    from qsma.study.runners import FREE_CYCLES_FROM, _free_cycles
 
     class Node:
         pass

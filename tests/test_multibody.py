@@ -219,7 +219,7 @@ def test_stack_runs_end_to_end_with_both_interfaces(stack_run, tmp_path):
     for k in range(2):                       # the bolt closes pairs of both interfaces
         assert (res.preload.status[rows[k]:rows[k + 1]] != 2).any()
     assert res.zeta[-1] > 1e-4 and res.f_hz[-1] < res.f0_hz  # microslip softens, damps
-    from qsma.results import write_all
+    from qsma.output.files import write_all
     paths = write_all(res, tmp_path / "out")
     import meshio
     vtu = meshio.read(paths["vtu"])

@@ -533,8 +533,8 @@ def test_mortar_gap_is_the_initial_gap_of_the_contact_problem():
     assert res.success
     # the warning is kept with the result (results.json, report.html), once
     assert len(res.warnings) == 1 and "initial gaps" in res.warnings[0]
-    from qsma.report import run_warnings
-    from qsma.results import results_dict
+    from qsma.output.report import run_warnings
+    from qsma.output.files import results_dict
     assert results_dict(res)["warnings"] == list(res.warnings)
     assert any("initial gaps" in w for w in run_warnings(res))
     assert np.allclose(res.pairing.gap, delta, rtol=1e-9)

@@ -1,4 +1,4 @@
-"""The figures drawn by a forked process beside the analysis (qsma._plotworker): the
+"""The figures drawn by a forked process beside the analysis (qsma.output.plotworker): the
 same files as drawn in the qsma process, the result folder protocol kept when the
 worker raises, dies or is switched off, and no worker where forking is not possible.
 """
@@ -14,15 +14,15 @@ import numpy as np
 import pytest
 
 import qsma
-import qsma._plotworker as pw
-import qsma.plots as plots
+import qsma.output.plotworker as pw
+import qsma.output.plots as plots
 from qsma.errors import InputError
 from qsma.examples import lap_3d, sandwich_2d
 from qsma.levels import Levels, spec_levels
-from qsma.results import write_all
-from qsma.rundir import verify_run_folder
+from qsma.output.files import write_all
+from qsma.output.folders import verify_run_folder
 
-from qsma._forked import parallel_available
+from qsma._infra.forked import parallel_available
 
 needs_fork = pytest.mark.skipif(not parallel_available(),
                                 reason="no fork start method (Windows)")
@@ -138,7 +138,7 @@ def test_a_failing_worker_leaves_the_figures_to_this_process(results, reference,
     monkeypatch.setattr(pw, "_draw", broken)        # inherited by the fork
     worker = pw.PlotWorker.start()
     try:
-        with caplog.at_level(logging.WARNING, logger="qsma._plotworker"):
+        with caplog.at_level(logging.WARNING, logger="qsma.output.plotworker"):
             write_all(results["sandwich-2d"], tmp_path / "out", plot_worker=worker)
     finally:
         worker.close()

@@ -11,7 +11,7 @@ from qsma.cli import main
 from qsma.examples import lap_2d
 from qsma.levels import Levels
 from qsma.progress import Progress
-from qsma.rundir import verify_run_folder
+from qsma.output.folders import verify_run_folder
 
 LEVELS = Levels.log("tip", 1e-5, 1e-3, 6)
 
@@ -71,7 +71,7 @@ def test_a_plain_callable_gets_the_levels(recorded):
 
 def test_bars_draw_every_task_without_a_thread_of_their_own():
     """The bars are redrawn on the run's reports, not by a timer thread: the run may
-    still fork its second process (qsma._forked.fork_refusal refuses while another
+    still fork its second process (qsma._infra.forked.fork_refusal refuses while another
     thread runs)."""
     from rich.console import Console
     from qsma.cli.progress import RunBars

@@ -12,8 +12,8 @@ import pytest
 
 import qsma
 from qsma.examples import sandwich_2d
-import qsma.report
-from qsma.report import REPORT_NAME, run_report_html
+import qsma.output.report
+from qsma.output.report import REPORT_NAME, run_report_html
 
 LEVELS = qsma.Levels.log("tip", 1e-6, 1e-3, 5)
 #: Debian's chromium and its driver (apt-get install chromium chromium-driver; .ci/run
@@ -83,7 +83,7 @@ def test_mesh_figure_shows_every_cell_and_pair_where_it_is(run_result):
     colour of its state after the preload (counts as in the result) at the pair's
     position, both panels at the same scale in x and y (the drawing is not
     distorted), axes labelled with the model's length unit."""
-    from qsma.report import _body_corner_blocks, _cell_edges, draw_mesh_2d
+    from qsma.output.report import _body_corner_blocks, _cell_edges, draw_mesh_2d
     res = run_result
     fig = draw_mesh_2d(res)
     fig.canvas.draw()
@@ -115,7 +115,7 @@ def test_mesh_figure_shows_every_cell_and_pair_where_it_is(run_result):
     assert f"interface pair, stuck after preload ({pre.n_stuck})" in legend
     assert fig._suptitle.get_text().endswith(
         f"{res.model.n_nodes} nodes, {res.pairing.n_pairs} interface pairs")
-    mime, svg = qsma.report.mesh_figure(res)
+    mime, svg = qsma.output.report.mesh_figure(res)
     root = ET.fromstring(svg)
     assert mime == "image/svg+xml" and root.tag.endswith("svg")
     assert root.find(".//*[@id='cells-0']") is not None
@@ -126,7 +126,7 @@ def test_every_cell_of_a_mixed_mesh_is_drawn():
     edges of all three cells (found in review: only the first block was drawn), and
     its outline is the strip's rectangle: 6 edges."""
     from qsma.mesh.mesh import CellBlock, Mesh
-    from qsma.report import _body_corner_blocks, body_edges
+    from qsma.output.report import _body_corner_blocks, body_edges
     pts = np.array([[0, 0], [1, 0], [2, 0], [0, 1], [1, 1], [2, 1]], float)
     mesh = Mesh(pts, np.array([[0, 1, 4, 3]]), "quad",
                 extra_blocks=(CellBlock("triangle", np.array([[1, 2, 5], [1, 5, 4]]),
@@ -139,7 +139,7 @@ def test_every_cell_of_a_mixed_mesh_is_drawn():
             for a, b in zip(cell, cell[1:] + cell[:1]):
                 assert tuple(sorted((a, b))) in drawn
     assert len(drawn) == 8
-    assert len(qsma.report._outline_edges(_body_corner_blocks(mesh))) == 6
+    assert len(qsma.output.report._outline_edges(_body_corner_blocks(mesh))) == 6
 
 
 def test_a_fine_mesh_is_drawn_by_its_outline(run_result, monkeypatch):
@@ -150,18 +150,18 @@ def test_a_fine_mesh_is_drawn_by_its_outline(run_result, monkeypatch):
     node = np.arange((nx + 1) * (ny + 1)).reshape(ny + 1, nx + 1)
     cells = np.array([[node[j, i], node[j, i + 1], node[j + 1, i + 1], node[j + 1, i]]
                       for j in range(ny) for i in range(nx)])
-    edges = qsma.report._outline_edges([cells])
+    edges = qsma.output.report._outline_edges([cells])
     assert len(edges) == 2 * (nx + ny)
     rows, cols = np.divmod(edges, nx + 1)
     on_side = ((rows == 0).all(1) | (rows == ny).all(1) | (cols == 0).all(1)
                | (cols == nx).all(1))
     assert on_side.all()
-    every_cell = qsma.report.mesh_figure(run_result)[1]
-    monkeypatch.setattr(qsma.report, "MAX_SVG_CELLS", 100)
-    fig = qsma.report.draw_mesh_2d(run_result)
+    every_cell = qsma.output.report.mesh_figure(run_result)[1]
+    monkeypatch.setattr(qsma.output.report, "MAX_SVG_CELLS", 100)
+    fig = qsma.output.report.draw_mesh_2d(run_result)
     gids = {p.get_gid() for p in fig.axes[0].patches}
     assert gids == {f"outline-{i}" for i in range(len(run_result.model.bodies))}
-    outline = qsma.report.mesh_figure(run_result)[1]
+    outline = qsma.output.report.mesh_figure(run_result)[1]
     assert len(outline) < len(every_cell) / 2
 
 
@@ -171,13 +171,13 @@ def test_3d_mesh_figure_is_a_png_with_every_pair_state_at_equal_scales():
     legend entry per pair state that occurs after the preload."""
     from qsma.examples import lap_3d
     res = qsma.run(lap_3d(), levels=qsma.Levels.log("tip", 1e-6, 1e-4, 2))
-    mime, png = qsma.report.mesh_figure(res)
+    mime, png = qsma.output.report.mesh_figure(res)
     assert mime == "image/png" and png.startswith(PNG_MAGIC)
-    ax = qsma.report.draw_mesh_3d(res).axes[0]
+    ax = qsma.output.report.draw_mesh_3d(res).axes[0]
     extent = np.ptp(np.vstack([b.mesh.points for b in res.model.bodies]), axis=0)
     box = np.asarray(ax.get_box_aspect())
     np.testing.assert_allclose(box / box[0], extent / extent[0], rtol=1e-9)
-    states = qsma.report._pair_states(res.preload.status)    # every pair in one state
+    states = qsma.output.report._pair_states(res.preload.status)    # every pair in one state
     assert sum(int(sel.sum()) for *_, sel in states) == res.pairing.n_pairs
     html = run_report_html(res, figures={})
     assert images(html)[0].startswith("data:image/png;base64,")
@@ -307,7 +307,7 @@ def test_browser_check_catches_a_broken_page(browser, tmp_path):
     errors, widths = show(browser, bad)
     assert any("broken on purpose" in e["message"] for e in errors)
     assert widths == [0]
-    from qsma.plots import _figure, png_bytes
+    from qsma.output.plots import _figure, png_bytes
     png = base64.b64encode(png_bytes(_figure()[0])).decode()
     cramped = tmp_path / "cramped.html"
     cramped.write_text('<!DOCTYPE html><html><body><table><tr><th></th><th></th></tr>'

@@ -10,8 +10,8 @@ import qsma
 from qsma.errors import InputError
 from qsma.examples import sandwich_2d
 from qsma.masing import masing
-from qsma.rom import (Iwan4, JenkinsSeries, ModalIwan, export_rom, fit_iwan, fit_jenkins,
-                      read_rom)
+from qsma.study.rom import (Iwan4, JenkinsSeries, ModalIwan, export_rom, fit_iwan,
+                            fit_jenkins, read_rom)
 
 #: The tied first mode of sandwich-2d (212.5 Hz, tests/test_analysis.py) and Iwan
 #: parameters spanning Segalman's lap-joint identifications (-1 < chi <= 0, beta >= 0).

@@ -8,7 +8,7 @@ import pytest
 import qsma
 from qsma.contact import ContactProblem, residual
 from qsma.examples import sandwich_3d
-from qsma.results import write_all
+from qsma.output.files import write_all
 
 
 @pytest.fixture(scope="module")

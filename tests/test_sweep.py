@@ -17,7 +17,7 @@ from qsma.examples import sandwich_2d
 from qsma.model import Material, Pressure
 from qsma.study import grid, parse_values, read_table, sweep
 from qsma.reduction.condensation import RefactorisedEE
-from qsma.study.sweep import done_path
+from qsma.study.runners import done_path
 
 #: 5 levels over the spec's range of linear tied tip deflection (1 um .. 1 mm): small
 #: enough for a test, wide enough to cross from stuck to gross slip on sandwich-2d.
@@ -400,7 +400,7 @@ def test_a_case_computes_its_loops_itself_whatever_the_loop_scheduler():
     """The study's workers are its parallel part: a case on one of them that handed its
     loops to the same scheduler could wait for workers that all wait for loops."""
     from qsma.options import RunOptions
-    from qsma.study.sweep import case_inputs
+    from qsma.study.cases import case_inputs
     _, opts = case_inputs(object(), {"mode": 1},
                           RunOptions(loop_scheduler="tcp://host:8786"))
     assert opts.loop_scheduler is None and opts.mode == 1

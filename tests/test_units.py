@@ -15,7 +15,7 @@ from qsma.errors import InputError, UnitSystemWarning
 from qsma.examples import sandwich_2d
 from qsma.levels import Levels
 from qsma.model import Material, Pressure
-from qsma.results import column_name, write_all
+from qsma.output.files import column_name, write_all
 from qsma.units import (MM_N_S_TONNE, SI, check_model_units, quantity_unit,
                         unit_mismatches, unit_system, units_block)
 

@@ -3,7 +3,7 @@ solved on a model statically condensed to the contact interface.
 
 Pipeline: :mod:`qsma.model` -> :mod:`qsma.fe` -> :mod:`qsma.reduction` ->
 :mod:`qsma.contact` -> :mod:`qsma.analysis` (ramps) -> :mod:`qsma.hysteresis` ->
-:mod:`qsma.results`.
+:mod:`qsma.output.files`.
 """
 from .version import __version__
 from .levels import Levels
@@ -37,7 +37,7 @@ def __getattr__(name):
         from . import model
         return getattr(model, name)
     if name == "write_all":
-        from .results import write_all
+        from .output.files import write_all
         return write_all
     raise AttributeError(f"module 'qsma' has no attribute {name!r}")
 

@@ -18,8 +18,8 @@ import warnings
 
 import numpy as np
 
-from ._forked import ChildFailed, ForkedCall, fork_refusal, second_core_refusal
-from ._threads import CONTACT_BLAS_THREADS, blas_threads as threads_limited, threads_for
+from ._infra.forked import ChildFailed, ForkedCall, fork_refusal, second_core_refusal
+from ._infra.threads import CONTACT_BLAS_THREADS, blas_threads as threads_limited, threads_for
 from .condense import reduce_two_bodies, refactorised_bodies
 from .contact import DEFAULT_TOL, ContactProblem, ContactState, OPEN, SLIPPING, STUCK
 from .contact import solve as contact_solve
@@ -40,7 +40,7 @@ from .modal import linear_modes, probe_vector
 from .model import make_pairing
 from .multibody import (MultiPairing, body_order, multi_pairing, pair_gaps, pair_laws,
                         pair_mu, reduce_model, warn_closed_gaps)
-from . import _resources
+from ._infra import resources as _resources
 from .options import RunOptions
 from .progress import Progress, reporter
 from .model.bolt import bolt_functionals, with_bolt_loads

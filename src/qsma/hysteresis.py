@@ -32,8 +32,8 @@ import warnings
 
 import numpy as np
 
-from ._forked import (default_signals, fork_refusal, quiet_fork, raise_again,
-                      recorded_warnings)
+from ._infra.forked import (default_signals, fork_refusal, quiet_fork, raise_again,
+                            recorded_warnings)
 from .contact.state import OPEN
 
 log = logging.getLogger("qsma")

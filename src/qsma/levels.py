@@ -12,8 +12,8 @@ KINDS = ("alpha", "tip")
 #: ramp solves one contact problem per level and keeps every level's contact state
 #: (3 ms per level on sandwich-2d, `qsma run --example sandwich-2d --levels
 #: tip:log:1e-6:1e-3:5`: contact 0.015 s), so 10^4 levels already take about 30 s
-#: there and hours on 3D models; a larger count is a typo (n = 10^10 tried to allocate
-#: 74.5 GiB before this limit).
+#: there and hours on 3D models; a larger count is a typo (n = 10^10 levels would
+#: allocate 74.5 GiB for their values alone).
 MAX_LEVELS = 10_000
 
 

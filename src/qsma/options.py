@@ -71,7 +71,7 @@ class RunOptions:
     blas_threads : "auto", int or None
         BLAS thread limit; ``"auto"``: one thread for small interface problems and,
         whatever the size, for the contact ramps and loops
-        (:data:`qsma._threads.CONTACT_BLAS_THREADS`); an integer or ``None`` (as the
+        (:data:`qsma._infra.threads.CONTACT_BLAS_THREADS`); an integer or ``None`` (as the
         process is set) applies to the whole run.
     loop_steps : int
         Largest number of increments per loop branch before refinement (the branch
@@ -168,12 +168,12 @@ class RunOptions:
     @property
     def loop_worker_count(self) -> int:
         """``loop_workers``, or for ``None`` one process per core this one may use
-        (:func:`qsma._threads.usable_cores`), on Linux (one elsewhere:
-        :func:`qsma._forked.second_core_refusal`)."""
+        (:func:`qsma._infra.threads.usable_cores`), on Linux (one elsewhere:
+        :func:`qsma._infra.forked.second_core_refusal`)."""
         if self.loop_workers is not None:
             return int(self.loop_workers)
-        from ._forked import second_core_refusal
-        from ._threads import usable_cores
+        from ._infra.forked import second_core_refusal
+        from ._infra.threads import usable_cores
         return 1 if second_core_refusal() else min(usable_cores(), MAX_LOOP_WORKERS)
 
     @property

@@ -1,8 +1,8 @@
 """The outcome of a QSMA run as typed data: :class:`QSMAResult` and its parts.
 
 The per-level quantities are named once, in :data:`LEVEL_FIELDS`; results.json,
-results.csv (:mod:`qsma.results`) and the study tables follow that tuple. The writers
-live in :mod:`qsma.results`; this module holds data only.
+results.csv (:mod:`qsma.output.files`) and the study tables follow that tuple. The writers
+live in :mod:`qsma.output.files`; this module holds data only.
 """
 from __future__ import annotations
 
@@ -172,7 +172,7 @@ class QSMAResult:
     solver: dict[str, object]
     timings_s: dict[str, float]
     #: process peak resident memory (MiB, None where not reported) and CPU seconds at
-    #: the end of the run (:func:`qsma._resources.snapshot`)
+    #: the end of the run (:func:`qsma._infra.resources.snapshot`)
     resources: dict[str, float | None] = None
     direct_loop: DirectLoop | None = None
     #: messages of qsma's own warnings raised during the run (e.g. mortar gaps taken as

@@ -56,7 +56,7 @@ def build_parser():
 #: place): run as the process itself, they leave by ``os._exit`` once stdout and
 #: stderr are flushed. The interpreter's own teardown (clearing the modules of numpy,
 #: scipy and matplotlib, collecting their objects) took 0.3-0.45 s of CPU after a
-#: sandwich-2d run, a tenth of the process (docs/performance.md).
+#: sandwich-2d run, a tenth of the process (CHANGELOG.md, "The small case").
 FAST_EXIT = frozenset({"run"})
 
 

@@ -81,7 +81,7 @@ def _load_deck(args):
 
 def add_amplitude_argument(p):
     """``--amplitude``: the measure the figures draw frequency and damping against,
-    the same for a run and a study (:data:`qsma.plots.AMPLITUDES`)."""
+    the same for a run and a study (:data:`qsma.output.plots.AMPLITUDES`)."""
     p.add_argument("--amplitude", choices=("tip", "velocity", "q"), default="tip",
                    help="amplitude measure of the figures: peak tip deflection (tip, "
                         "the default), peak tip velocity or peak modal amplitude q")

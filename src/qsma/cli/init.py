@@ -32,7 +32,7 @@ def add_arguments(p):
 
 def execute(args) -> int:
     from ..deck import deck_toml
-    from ..rundir import atomic_write
+    from ..output.folders import atomic_write
     mesh = str(args.config).lower().endswith(MESH_SUFFIXES)
     if not is_deck(args.config) and not mesh:
         raise InputError(f"qsma init reads an Abaqus/CalculiX deck (.inp) or a Gmsh mesh "
@@ -58,7 +58,7 @@ def execute(args) -> int:
 def _mesh_skeleton(args, out) -> int:
     """``qsma init model.msh``: the skeleton (:func:`qsma.deck.skeleton.mesh_toml`)."""
     from ..deck.skeleton import mesh_toml
-    from ..rundir import atomic_write
+    from ..output.folders import atomic_write
     given = [f"--{k.replace('_', '-')}" for k in ("tip_node", "tip_direction", "density",
                                                    "units", "levels", "mode")
              if getattr(args, k, None) is not None]

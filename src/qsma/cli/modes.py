@@ -26,7 +26,7 @@ def add_arguments(p):
 
 def execute(args) -> int:
     from contextlib import nullcontext
-    from ..rundir import RunFolder
+    from ..output.folders import RunFolder
     model, _ = load_model(args)
     if args.n_modes < 1:
         raise InputError(f"--n-modes must be >= 1, got {args.n_modes}")
@@ -67,8 +67,8 @@ def _closed_after_preload(model, assembled, pairing):
 
 def _write(model, modes, tie, n_tied, folder):
     """modes.vtu and modes.json into the result folder ``folder`` (an entered
-    :class:`qsma.rundir.RunFolder`), then swapped into place."""
-    from ..results import atomic_write
+    :class:`qsma.output.folders.RunFolder`), then swapped into place."""
+    from ..output.files import atomic_write
     from ..study.modes import MODES_JSON, MODES_VTU, write_modes_vtu
     write_modes_vtu(model, modes, folder.staging / MODES_VTU)
     atomic_write(folder.staging / MODES_JSON, json.dumps(dict(

@@ -5,7 +5,7 @@ contact ramps, loops) with the time spent in it, and beneath it a bar per counte
 task (the load levels, the refinement rounds of the ramp, the loops) with the time
 left estimated from the steps done so far. The bars are redrawn when the analysis
 reports progress, not by a timer: a timer thread would keep the analysis from
-forking its second process (:func:`qsma._forked.fork_refusal` refuses while another
+forking its second process (:func:`qsma._infra.forked.fork_refusal` refuses while another
 thread runs), so a long single step (a factorisation) shows as a stage whose clock
 moves on at its end.
 

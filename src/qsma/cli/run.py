@@ -61,7 +61,7 @@ def add_arguments(p):
 
 
 def execute(args) -> int:
-    from ..rundir import RunFolder
+    from ..output.folders import RunFolder
     if args.modes is None and args.mode is None and args.config is not None \
             and not is_deck(args.config):
         from ..config import config_modes
@@ -86,21 +86,21 @@ def execute(args) -> int:
 
 def _plot_worker(args):
     """The process that draws the figures beside the analysis
-    (:class:`qsma._plotworker.PlotWorker`), forked now: before the result folder's
+    (:class:`qsma.output.plotworker.PlotWorker`), forked now: before the result folder's
     lock is taken (the worker holds no copy of it) and before any BLAS call. ``None``
     with ``--no-plots`` (matplotlib is never imported then) or where no worker may be
     forked (Windows, ``QSMA_PLOT_WORKER=0``): the figures are drawn in this process."""
     if args.no_plots:
         return None
-    from .._plotworker import PlotWorker
+    from ..output.plotworker import PlotWorker
     return PlotWorker.start()
 
 
 def _run_into(args, folder, worker=None):
     """Load the model, run the analysis and write every file into ``folder`` (the
-    figures by ``worker`` if given, :func:`qsma.results.write_all`)."""
+    figures by ``worker`` if given, :func:`qsma.output.files.write_all`)."""
     from ..analysis import run
-    from ..results import write_all
+    from ..output.files import write_all
 
     model, options = load_model(args)
     options = options.replace(**{key: getattr(args, key) for key in CLI_OPTIONS},

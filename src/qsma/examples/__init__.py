@@ -24,7 +24,7 @@ __all__ = ["sandwich_2d", "sandwich_3d", "lap_2d", "lap_3d", "SANDWICH_2D", "SAN
 
 
 #: Peak memory of a run per degree of freedom, measured on the preparation (assembly
-#: and condensation, the larger stages; ``qsma._resources.peak_memory_mb`` over the
+#: and condensation, the larger stages; ``qsma._infra.resources.peak_memory_mb`` over the
 #: imports): sandwich-2d refine 4 / 8, 65604 / 258180 DOFs: 2.2 / 2.4 kB per DOF,
 #: about 140 log2(n) bytes (nested-dissection fill of a 2D mesh); sandwich-3d refine
 #: 1 / 2 (docs/performance.md): 9.3 / 14.5 kB per DOF, about 240 n^(1/3) bytes.
@@ -41,7 +41,7 @@ def check_refine(name: str, refine) -> None:
     """Refuse a refinement of example ``name`` whose run would not fit in the free memory
     (``--refine 100`` allocated 4.7 and 29.7 GiB before failing), from its size at refine
     1 (DOFs grow as ``refine^dim``), before the mesh is made."""
-    from .._resources import free_memory
+    from .._infra.resources import free_memory
     if not isinstance(refine, int) or isinstance(refine, bool) or refine < 1:
         raise InputError(f"--refine must be a positive integer, got {refine!r}")
     free = free_memory()

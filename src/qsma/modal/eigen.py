@@ -20,7 +20,7 @@ EIG_RESIDUAL_RTOL = 1e-11
 EIG_RESIDUAL_FLOOR = 1e-8
 #: Extra columns of the block beyond the wanted modes (they speed up the convergence
 #: of the last wanted ones); blocks of 4-16 columns cost 1.6-5 single solves of a
-#: SuperLU factor (docs/performance.md).
+#: SuperLU factor (CHANGELOG.md, "Tied modes").
 EIG_GUARD = 2
 #: Most columns of a block (the inverse applied to that many vectors at once).
 EIG_BLOCK = 6

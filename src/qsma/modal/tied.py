@@ -15,7 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .._resources import free_memory
+from .._infra.resources import free_memory
 from ..errors import AnalysisError, InputError
 from ..fe.formulation import hourglass_hint
 from ..model.pairing import Coupling, MultiPairing, body_order
@@ -28,7 +28,7 @@ from .eigen import EIG_SEED
 #: Most modes one eigen solve may ask for. ARPACK keeps 2k+1 Lanczos vectors and
 #: orthogonalises against them; measured on sandwich-2d (4500 DOFs, 2-core machine,
 #: `linear_modes(..., n_modes=k)`): k = 100 in 1.8 s, 200 in 3.1 s, 800 in 28 s, and
-#: n_modes = 100000 ran > 300 s before this limit. QSMA needs mode + 1 modes.
+#: k = 100000 more than 300 s. QSMA needs mode + 1 modes.
 MAX_MODES = 200
 #: Fraction of the free memory the 2k+1 Lanczos vectors of n doubles may take; the
 #: other half is left to the factorised stiffness and the rest of the run.

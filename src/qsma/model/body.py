@@ -368,7 +368,7 @@ class Model:
     def _check_pairing_tol(self, itf):
         """The interface pairing tolerance must be finite, >= 0 and below half the
         smallest distance between two nodes of either interface set, so that no node
-        can find two partners (``tol = nan`` or ``inf`` used to switch pairing off)."""
+        can find two partners (``nan`` or ``inf`` would pair nothing or everything, silently)."""
         if itf.tol is None:
             return
         tol = _finite("interface pairing tolerance tol", itf.tol)

@@ -28,10 +28,10 @@ node), ``Q = G_s^-1``. Then ``u = T_r u_r + T_d d`` with ``T_r = [-Q G_r; I]``,
 
 Only ``S`` is factorised (Cholesky): a body need not be held on its own as long as
 the welded assembly is (the contact problem then still needs ``K`` positive definite).
-For two bodies these are the formulas of :func:`qsma.reduction.two_bodies.combine`. (The
-interface flexibility form ``K = (G Kc^-1 G^T)^-1``, which inverts every ``Kc_j``, was
-tried first: on sandwich-2d it reproduced the two-body model's recovered fields for a
-random ``d`` only to 3e-7 relative; this form to 1e-11, ``tests/test_multibody.py``.)
+For two bodies these are the formulas of :func:`qsma.reduction.two_bodies.combine`. (Not
+the interface flexibility form ``K = (G Kc^-1 G^T)^-1``: it inverts every ``Kc_j`` and on
+sandwich-2d reproduces the two-body model's recovered fields for a random ``d`` only to
+3e-7 relative; this form to 1e-11, ``tests/test_multibody.py``.)
 """
 from __future__ import annotations
 

@@ -27,7 +27,7 @@ uncertainty :math:`s / S_k`: when the data determine only a product of parameter
 (e.g. :math:`\mu s`), the other combinations have a large uncertainty and the fit
 says so instead of reporting the arbitrary point of the valley it stopped at.
 
-Every evaluation is one case of the sweep machinery (:func:`qsma.study.sweep.
+Every evaluation is one case of the sweep machinery (:func:`qsma.study.cases.
 case_inputs`): the preparation (assembly, condensation) is made once per set of
 material constants and reused; a friction coefficient or preload scale costs only
 the preload solve and the ramps.
@@ -47,9 +47,9 @@ from ..analysis import STUDY_MU_FIX
 from ..errors import AnalysisError, InputError
 from ..levels import Levels
 from ..options import RunOptions
-from ..rundir import RunFolder
-from .sweep import (MATERIAL_PARAMETERS, Case, _material_key, _model_with_materials,
-                    _check_bodies, case_inputs, parameter_kind)
+from ..output.folders import RunFolder
+from .cases import (MATERIAL_PARAMETERS, Case, case_inputs, check_bodies, material_key,
+                    model_with_materials, parameter_kind)
 
 #: Amplitude column names of the measured CSV: kind_unit -> (result field, factor to SI).
 #: ``tip``: peak deflection of the tip probe (``tip`` of results.json); ``q``: peak
@@ -221,12 +221,12 @@ class _Evaluator:
     def result(self, values):
         from ..analysis import prepare, run_prepared
         case = Case(0, tuple(zip(self.names, (float(v) for v in values))))
-        key = _material_key(case, len(self.model.bodies),
+        key = material_key(case, len(self.model.bodies),
                             [b.name for b in self.model.bodies])
         if key not in self.groups:
             if len(self.groups) > 2:         # material fits: keep the memory bounded
                 self.groups.pop(next(iter(self.groups)))
-            self.groups[key] = prepare(_model_with_materials(self.model, key), self.options)
+            self.groups[key] = prepare(model_with_materials(self.model, key), self.options)
         self.nruns += 1
         res = run_prepared(*case_inputs(self.groups[key], case.as_dict(), self.options))
         if not res.success:
@@ -383,7 +383,7 @@ def fit(model_or_config, measured, params, options: RunOptions | None = None, *,
     measured = in_model_units(measured, model.units)
     names = tuple(params.split(",") if isinstance(params, str) else params)
     _check_names(names)
-    _check_bodies([Case(0, tuple((n, 1.0) for n in names if n != "mu"))], model)
+    check_bodies([Case(0, tuple((n, 1.0) for n in names if n != "mu"))], model)
     if "mu" in names:
         model.check_mu_reaches(None, STUDY_MU_FIX, what="fitting mu")
     for w, v in (("sigma_f", sigma_f), ("sigma_zeta", sigma_zeta)):
@@ -518,13 +518,13 @@ def fit_dict(fr: FitResult) -> dict:
 def write_fit(fr: FitResult, out, start_prediction=None) -> FitResult:
     """Write fit.json, fit.csv (measured against fitted per amplitude), fit.png (the
     overlay) and ``best/`` (the result folder of the fitted run) as one result folder
-    ``out`` (a path, or an entered :class:`qsma.rundir.RunFolder` of kind ``fit``),
+    ``out`` (a path, or an entered :class:`qsma.output.folders.RunFolder` of kind ``fit``),
     swapped into place as a whole."""
     if not isinstance(out, RunFolder):
         with RunFolder(out, kind="fit") as folder:
             return write_fit(fr, folder, start_prediction)
     from dataclasses import replace
-    from ..results import atomic_write, write_all
+    from ..output.files import atomic_write, write_all
     from .plots import plot_fit
     folder, out = out, out.staging
     paths = {"json": out / "fit.json", "csv": out / "fit.csv"}

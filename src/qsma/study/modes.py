@@ -10,7 +10,7 @@ result equals a separate ``qsma run --mode k``. The folder it writes::
     OUT/modes.json                  per mode: f0, success, message, folder
     OUT/modes.vtu                   tied mode shapes after the preload (mode_00, ...)
 
-OUT is one result folder (:class:`qsma.rundir.RunFolder`, kind ``run-modes``): locked
+OUT is one result folder (:class:`qsma.output.folders.RunFolder`, kind ``run-modes``): locked
 and checked before anything is computed, written in a staging folder and swapped into
 place as a whole, so a mode folder of an earlier run with other modes does not stay
 behind; each ``mode-K`` has a manifest of its own.
@@ -65,7 +65,7 @@ def write_modes_vtu(model, modes, path):
     modes : :class:`qsma.modal.Modes` (mass-normalised shapes over the stacked DOFs)
     path : output file (the frequencies are in modes.json)
     """
-    from ..results import vtu_grid, write_vtu_file
+    from ..output.files import vtu_grid, write_vtu_file
     dim = model.dim
     point_data = {"body": np.concatenate([np.full(b.mesh.n_nodes, k, np.int32)
                                           for k, b in enumerate(model.bodies)])}
@@ -102,7 +102,7 @@ def run_modes(model, modes, options: RunOptions | None = None, *, out=None, plot
         A mode that cannot be run (e.g. it does not move the tip) is recorded in the
         summary with its message; the others go on.
     """
-    from ..rundir import RunFolder
+    from ..output.folders import RunFolder
     modes = parse_modes(",".join(str(m) for m in modes))
     options = options or RunOptions()
     if options.n_modes is None:
@@ -114,11 +114,11 @@ def run_modes(model, modes, options: RunOptions | None = None, *, out=None, plot
 
 
 def _run_modes(model, modes, options, folder, plots, vtu, progress) -> ModesResult:
-    """:func:`run_modes` into ``folder`` (an entered :class:`qsma.rundir.RunFolder`, or
+    """:func:`run_modes` into ``folder`` (an entered :class:`qsma.output.folders.RunFolder`, or
     None): every mode's folder and the tables are written into its staging folder and
     swapped into place together, so no mode folder of an earlier run stays behind."""
     from ..analysis import prepare, run_prepared
-    from ..results import atomic_write, write_all
+    from ..output.files import atomic_write, write_all
     prepared = prepare(model, options)
     results, summary, paths = {}, [], {}
     for i, m in enumerate(modes):

@@ -1,12 +1,12 @@
 """Figures of a study: frequency and damping versus amplitude, one curve per case,
-one figure per varied parameter (matplotlib Agg, as :mod:`qsma.plots`)."""
+one figure per varied parameter (matplotlib Agg, as :mod:`qsma.output.plots`)."""
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
 
-from ..plots import _figure, _save
+from ..output.plots import _figure, _save
 from ..units import quantity_unit
 
 
@@ -23,8 +23,8 @@ def plot_parameter(table, parameter, others, path, units="SI", dim=3, amplitude=
     """Secant frequency and damping ratio versus the amplitude, a curve per case,
     coloured by the value of ``parameter`` (the other parameters in the label), in
     the model's ``units``. ``amplitude``: the measure of a run's figures
-    (:data:`qsma.plots.AMPLITUDES`, default the peak tip deflection)."""
-    from ..plots import AMPLITUDES, DEFAULT_AMPLITUDE, check_amplitude
+    (:data:`qsma.output.plots.AMPLITUDES`, default the peak tip deflection)."""
+    from ..output.plots import AMPLITUDES, DEFAULT_AMPLITUDE, check_amplitude
     field, text, quantity = AMPLITUDES[check_amplitude(amplitude or DEFAULT_AMPLITUDE)]
     from matplotlib import colormaps
     fig, (a1, a2) = _figure(2, 1, figsize=(6.5, 7), sharex=True)
@@ -46,7 +46,7 @@ def plot_parameter(table, parameter, others, path, units="SI", dim=3, amplitude=
         a2.semilogx(amp, z, "-", color=colour, lw=1.2)
     a1.set_ylabel("secant frequency [Hz]")
     a2.set_ylabel("damping ratio \u03b6 [-]")
-    a2.set_yscale("symlog", linthresh=1e-6)   # zero and round-off stay visible (plots.py)
+    a2.set_yscale("symlog", linthresh=1e-6)   # zero and round-off stay visible
     a2.set_xlabel(f"{text} [{quantity_unit(quantity, units, dim, pretty=True)}]")
     a1.set_title(f"Study over {parameter}")
     for a in (a1, a2):

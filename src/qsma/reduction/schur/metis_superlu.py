@@ -12,7 +12,7 @@ import scipy.sparse.linalg as spla
 from scipy.linalg import blas as sla_blas
 
 from ..._infra.dense import mirror_triangle
-from ..._threads import one_blas_thread
+from ..._infra.threads import one_blas_thread
 from .ordering import nested_dissection
 from .registry import PIVOT_RATIO_MIN, SchurParts, register_backend
 from .superlu import _drop_extracted_factors, solved_by_columns

@@ -47,7 +47,7 @@ import scipy.sparse as sp
 from scipy.linalg import blas, lapack
 
 from ..._infra.dense import mirror_triangle
-from ..._threads import one_blas_thread
+from ..._infra.threads import one_blas_thread
 from .ordering import node_graph
 from .registry import PIVOT_RATIO_MIN, SchurParts, register_backend
 

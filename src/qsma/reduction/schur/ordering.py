@@ -14,7 +14,7 @@ def nested_dissection(A) -> np.ndarray:
     FE matrix): vertices ``g``, an edge ``g - h`` where ``A`` couples them. The
     permutation lists the groups in METIS's order, each group's rows consecutively.
     On a 3D body of 15,810 DOFs (sandwich-3d refine 1) this is 7x faster than METIS
-    on the DOF graph, with the same fill (docs/performance.md)."""
+    on the DOF graph, with the same fill (docs/schur.md, "Node-graph ordering")."""
     import pymetis
     group, G = node_graph(A)
     n_groups = G.shape[0]

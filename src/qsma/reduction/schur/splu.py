@@ -6,7 +6,7 @@ import time
 
 import numpy as np
 
-from ..._threads import one_blas_thread
+from ..._infra.threads import one_blas_thread
 from .registry import PIVOT_RATIO_MIN, SchurParts, _blocks, register_backend
 from .superlu import _factorised_EE, _superlu_solver
 

@@ -8,7 +8,7 @@ import threading
 import numpy as np
 import scipy.sparse.linalg as spla
 
-from ..._threads import one_blas_thread, solve_threads
+from ..._infra.threads import one_blas_thread, solve_threads
 from ...errors import InputError
 
 def _superlu(A, ordering="MMD_AT_PLUS_A"):
@@ -42,7 +42,7 @@ def _drop_extracted_factors(lu):
 #: Fewest columns a thread of :func:`solved_by_columns` is given. Measured on the
 #: sandwich-3d refine-1 factor (15,810 DOFs, one BLAS thread): 8 columns take 41 ms
 #: serially and 52 ms as two threads of 4 (the two threads share the reading of the
-#: factor), 12 columns 71 ms and 45 ms as two of 6 (docs/performance.md).
+#: factor), 12 columns 71 ms and 45 ms as two of 6 (docs/performance.md, "Solve threads").
 SOLVE_MIN_COLUMNS = 6
 
 
@@ -67,7 +67,7 @@ def solved_by_columns(solve, b, threads=None) -> np.ndarray:
     at that level; ``QSMA_SOLVE_THREADS=1`` gives the serial bits. With several BLAS
     threads the bits of a solve depend on its width (OpenBLAS splits the columns among
     its threads), so the blocks are solved with
-    BLAS limited to one thread (:func:`qsma._threads.one_blas_thread`), which is also
+    BLAS limited to one thread (:func:`qsma._infra.threads.one_blas_thread`), which is also
     the fast setting: SuperLU calls BLAS on small supernode blocks, where OpenBLAS
     threads spin (a 12-column solve at sandwich-3d refine 1: 506 ms with two BLAS
     threads, 66 ms with one). The threads pay only where the solve releases the GIL
@@ -77,7 +77,7 @@ def solved_by_columns(solve, b, threads=None) -> np.ndarray:
     ----------
     solve : callable on (n, k) arrays returning (n, k) arrays
     b : (n,) or (n, k) array
-    threads : thread count (:func:`qsma._threads.solve_threads`: validated, default
+    threads : thread count (:func:`qsma._infra.threads.solve_threads`: validated, default
         from the environment or ``min(2, cores)``); ``t = min(threads,
         k // SOLVE_MIN_COLUMNS)`` blocks, one block (a plain call) below that.
     """

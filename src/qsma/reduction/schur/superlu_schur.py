@@ -7,7 +7,7 @@ import time
 import numpy as np
 import scipy.sparse.linalg as spla
 
-from ..._threads import one_blas_thread
+from ..._infra.threads import one_blas_thread
 from .registry import PIVOT_RATIO_MIN, SchurParts, register_backend
 from .splu import _schur_splu
 from .superlu import _factorised_EE, _superlu_solver
