@@ -17,6 +17,7 @@ qsma's loop at the same modal force.
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 from pathlib import Path
 import shutil
 import sys
@@ -26,6 +27,7 @@ import time
 import numpy as np
 
 import qsma
+from qsma.contact.laws import ElasticStick, InterfaceLaw, LinearPressure
 from qsma.deck import export_calculix
 from qsma.deck.calculix import PENALTY_FACTOR, _default_penalty
 from qsma.deck.calculix_output import displacements, eigenfrequencies, run_calculix
@@ -50,18 +52,21 @@ def compare(model, folder: Path, penalty=None, amplitudes=None, steps=20, opts=N
     """One comparison (module docstring): a dict of the measures."""
     opts = opts or RunOptions()
     t0 = time.perf_counter()
+    law = model.interface.law
     deck = export_calculix(model, folder / "model.inp", options=opts, penalty=penalty,
-                           amplitudes=amplitudes, steps=steps, tied=True)
+                           amplitudes=amplitudes, steps=steps,
+                           tied=law is None or law.rigid)
     t_qsma = time.perf_counter() - t0
     mode, pairing = deck.mode, deck.mode["pairing"]
     t0 = time.perf_counter()
     text = run_calculix(deck.path)
     t_ccx = time.perf_counter() - t0
-    f_tied = eigenfrequencies(run_calculix(deck.tied_path))
+    f_tied = eigenfrequencies(run_calculix(deck.tied_path)) if deck.tied_path else None
     blocks = displacements(text, deck.first_node[-1] - 1)
-    f_ccx = eigenfrequencies(text)
+    f_ccx = eigenfrequencies(text) if amplitudes is None else None
     f0 = mode["f0_hz"]
-    at = lambda f: float(f[int(np.sum(f < 1e-3 * f0)) + opts.mode])
+    at = lambda f: float("nan") if f is None else float(f[int(np.sum(f < 1e-3 * f0))
+                                                          + opts.mode])
     n_pre = len(_preload_times(blocks))
     u_pre = deck.per_body(blocks[n_pre - 1][1])
     assembled = [assemble_body(b) for b in model.bodies]
@@ -85,24 +90,25 @@ def _preload_times(blocks):
 
 
 def _loops(model, deck, later, u_pre, opts):
-    """Dissipation of CalculiX's loop at each amplitude (the branches +A -> -A -> +A)
+    """Dissipation of CalculiX's loop at each amplitude (its steps +A -> -A -> +A)
     against qsma's computed loop at the same modal forces; ``later``: the displacement
-    blocks of the cyclic steps (``steps`` increments per branch)."""
-    mphi = deck.mode["mphi"]
+    blocks of the cyclic steps, step ``j`` (0-based) from total time ``1 + j`` to
+    ``2 + j``, the modal force linear in time within it."""
+    ends = [x for A in deck.amplitudes for x in (A, -A, A)]
+    starts = [0.0] + ends[:-1]
+    t = np.array([time for time, _ in later])
+    j = np.minimum(np.ceil(t - 1.0 - 1e-9).astype(int) - 1, len(ends) - 1)
+    alpha = np.array(starts)[j] + (np.array(ends) - np.array(starts))[j] * (t - 1.0 - j)
     q = np.array([sum(np.sum(m * (u[:, :model.dim] - u0[:, :model.dim]))
-                      for m, u, u0 in zip(mphi, deck.per_body(ub), u_pre))
+                      for m, u, u0 in zip(deck.mode["mphi"], deck.per_body(ub), u_pre))
                   for _, ub in later])
-    n = deck.steps
     res = qsma.run(model, opts, levels=Levels("alpha", deck.amplitudes), dissipation="loop")
     d_ccx, q_ccx = [], []
-    for j, A in enumerate(deck.amplitudes):
-        seg = q[3 * n * j:3 * n * (j + 1)]
-        a = np.concatenate([np.linspace(0, A, n + 1)[1:] if j == 0 else
-                            np.linspace(deck.amplitudes[j - 1], A, n + 1)[1:],
-                            np.linspace(A, -A, n + 1)[1:], np.linspace(-A, A, n + 1)[1:]])
-        loop_q, loop_a = seg[n - 1:], a[n - 1:]
-        d_ccx.append(abs(np.trapezoid(loop_a, loop_q)))
-        q_ccx.append(seg[n - 1])
+    for i in range(len(deck.amplitudes)):
+        top = int(np.flatnonzero(j == 3 * i)[-1])          # the end of the ramp to +A
+        loop = slice(top, int(np.flatnonzero(j == 3 * i + 2)[-1]) + 1)
+        d_ccx.append(abs(np.trapezoid(alpha[loop], q[loop])))
+        q_ccx.append(q[top])
     return dict(alpha=np.asarray(deck.amplitudes), q_ccx=np.array(q_ccx),
                 q_qsma=np.asarray(res.q), D_ccx=np.array(d_ccx),
                 D_qsma=np.asarray(res.dissipation),
@@ -116,6 +122,9 @@ def main(argv=None):
     ap.add_argument("--amplitudes", type=float, nargs="*", default=None,
                     help="linear tied tip deflections of the cyclic steps")
     ap.add_argument("--steps", type=int, default=20)
+    ap.add_argument("--linear", type=float, nargs=2, metavar=("KN", "KT"),
+                    help="a linear law (normal and stick slopes, Pa/m) on the interface "
+                         "instead of the hard one: both codes then solve the same law")
     args = ap.parse_args(argv)
     if shutil.which("ccx") is None:
         print("ccx not found (apt-get install calculix-ccx)")
@@ -127,6 +136,9 @@ def main(argv=None):
     loops = []
     for name in args.example:
         model = EXAMPLES[name](refine=1)
+        if args.linear:
+            law = InterfaceLaw(LinearPressure(args.linear[0]), ElasticStick(args.linear[1]))
+            model = replace(model, interface=replace(model.interface, law=law))
         for factor in args.penalty_factor:
             K = factor / PENALTY_FACTOR * _default_penalty(model, model.interface)
             levels = None if args.amplitudes is None else Levels("tip",

@@ -190,6 +190,45 @@ def calculix_deck(model, *, options=None, amplitudes=None, penalty=None,
                         tied_text=tied_text)
 
 
+# --- numbering and faces, shared with the CalculiX benchmarks ------------------------
+def calculix_number(x) -> str:
+    """A number as CalculiX reads it whole: at most 20 characters (its ``f20.0``
+    fields), the shortest text that reads back as the same double where that fits
+    (:func:`qsma.mesh.io.abaqus.writer._inp_number`)."""
+    return _inp_number(x)
+
+
+def calculix_numbering(model) -> tuple:
+    """``(first_node, first_element)``: per body its first CalculiX node and element
+    number (1-based, bodies in order), one entry more past the last body."""
+    nodes, elements = [1], [1]
+    for b in model.bodies:
+        nodes.append(nodes[-1] + b.mesh.n_nodes)
+        elements.append(elements[-1] + b.mesh.n_cells)
+    return nodes, elements
+
+
+def surface_rows(body, facet_set, first_element) -> list:
+    """``(element number, face number)`` of every facet of ``facet_set`` of ``body``,
+    sorted (Abaqus face numbering, :func:`qsma.mesh.celltypes.abaqus_faces`; elements
+    numbered from ``first_element`` in the order of the mesh's cell blocks)."""
+    mesh = body.mesh
+    index = facet_index(mesh)
+    found = index.find(mesh.facet_sets[facet_set])
+    starts = np.cumsum([0] + [len(b.cells) for b in mesh.cell_blocks])
+    numbers = []
+    for b in mesh.cell_blocks:
+        faces = [sorted(f) for f in abaqus_faces(b.cell_type)]
+        numbers.append([1 + faces.index(sorted(local))
+                        for local in CELL_TYPES[b.cell_type].facets])
+    rows = []
+    for i in np.unique(found):
+        cell, local = int(index.cell[i]), int(index.local_face[i])
+        block = int(np.searchsorted(starts, cell, side="right") - 1)
+        rows.append((first_element + cell, numbers[block][local]))
+    return sorted(rows)
+
+
 # --- what cannot be written -----------------------------------------------------------
 def calculix_element(body) -> list:
     """The CalculiX element name of each cell block of ``body`` (the formulation qsma
@@ -257,10 +296,7 @@ class _Writer:
 
     def __init__(self, model, penalty):
         self.model = model
-        self.first_node, self.first_element = [1], [1]
-        for b in model.bodies:
-            self.first_node.append(self.first_node[-1] + b.mesh.n_nodes)
-            self.first_element.append(self.first_element[-1] + b.mesh.n_cells)
+        self.first_node, self.first_element = calculix_numbering(model)
         self.next_element = self.first_element[-1]
         self.sets = {}                 # (body index, set, kind) -> deck name
         self.taken = set()
@@ -382,27 +418,9 @@ class _Writer:
             else:
                 out += [f"** facet set {name!r} of body {b.name!r} (element faces)",
                         f"*SURFACE, NAME={deck_name}, TYPE=ELEMENT"]
-                out += [f"{e}, S{s}" for e, s in self.faces(k, name)]
+                out += [f"{e}, S{f}" for e, f in surface_rows(b, name,
+                                                               self.first_element[k])]
         return out
-
-    def faces(self, k, name):
-        """``(element number, face number)`` of every facet of facet set ``name`` of
-        body ``k`` (Abaqus numbering, :func:`qsma.mesh.celltypes.abaqus_faces`)."""
-        mesh = self.model.bodies[k].mesh
-        index = facet_index(mesh)
-        found = index.find(mesh.facet_sets[name])
-        starts = np.cumsum([0] + [len(b.cells) for b in mesh.cell_blocks])
-        numbers = []
-        for b in mesh.cell_blocks:
-            faces = [sorted(f) for f in abaqus_faces(b.cell_type)]
-            numbers.append([1 + faces.index(sorted(local))
-                            for local in CELL_TYPES[b.cell_type].facets])
-        rows = []
-        for i in np.unique(found):
-            cell, local = int(index.cell[i]), int(index.local_face[i])
-            block = int(np.searchsorted(starts, cell, side="right") - 1)
-            rows.append((self.first_element[k] + cell, numbers[block][local]))
-        return sorted(rows)
 
     def nodes(self) -> list:
         out = ["** nodes: body after body, node i of a body is its first number + i",
