@@ -141,12 +141,14 @@ def main(argv=None):
             model = replace(model, interface=replace(model.interface, law=law))
         for factor in args.penalty_factor:
             K = factor / PENALTY_FACTOR * _default_penalty(model, model.interface)
+            K = K if not args.linear else None      # the linear law's own slopes
             levels = None if args.amplitudes is None else Levels("tip",
                                                                  tuple(args.amplitudes))
             with tempfile.TemporaryDirectory() as tmp:
                 r = compare(model, Path(tmp), penalty=K, amplitudes=levels,
                             steps=args.steps)
             rel = lambda f: (f - r["f0_qsma"]) / r["f0_qsma"]
+            K = r["penalty"]
             print(f"| {name} | {K:.3g} | {r['f0_qsma']:.6f} | {r['f0_tied']:.6f} | "
                   f"{rel(r['f0_tied']):+.2e} | {r['f0_ccx']:.6f} | {rel(r['f0_ccx']):+.2e} | "
                   f"{r['closed_qsma']} / "
@@ -162,7 +164,7 @@ def main(argv=None):
             for a, q1, q2, d1, d2 in zip(r["alpha"], r["q_qsma"], r["q_ccx"], r["D_qsma"],
                                          r["D_ccx"]):
                 print(f"| {name} | {K:.3g} | {a:.4e} | {q1:.6e} | {q2:.6e} | {d1:.4e} | "
-                      f"{d2:.4e} | {d2 / d1:.4f} |")
+                      f"{d2:.4e} | {f'{d2 / d1:.4f}' if d1 > 0 else 'stuck'} |")
     return 0
 
 
