@@ -26,11 +26,8 @@ supports carry no load); its distance from the axis is in :func:`compare`'s row.
 from __future__ import annotations
 
 import argparse
-import os
 from pathlib import Path
-import re
 import shutil
-import subprocess
 import sys
 import tempfile
 import time
@@ -39,14 +36,13 @@ import numpy as np
 
 from qsma.analysis import _Timer, prepare
 from qsma.contact.state import OPEN, SLIPPING
+from qsma.deck.calculix import calculix_number, calculix_numbering, surface_rows
+from qsma.deck.calculix_output import contact_stresses, displacements
+from qsma.deck.calculix_output import run_calculix as run_ccx
 from qsma.examples.bolted import stack_3d_bolted
 from qsma.fe import assemble_body
 from qsma.fe.bolts import washer_weights
 from qsma.options import RunOptions
-
-#: Local node numbers (0-based, meshio / CalculiX C3D8 order) of the faces S1..S6.
-C3D8_FACES = ((0, 1, 2, 3), (4, 7, 6, 5), (0, 4, 5, 1), (1, 5, 6, 2), (2, 6, 7, 3),
-              (3, 7, 4, 0))
 
 #: sigma_inf of CalculiX's linear pressure-overclosure law (Pa): the tension a
 #: node-to-face spring carries at a clearance below c0 sqrt(area). CalculiX's default,
@@ -55,20 +51,12 @@ C3D8_FACES = ((0, 1, 2, 3), (4, 7, 6, 5), (0, 4, 5, 1), (1, 5, 6, 2), (2, 6, 7, 
 TENSION = 1.0
 
 
-def _num(v) -> str:
-    """A number as CalculiX reads it: at most 20 characters (its ``f20.0`` fields)."""
-    return f"{v:.14g}"
+_num = calculix_number
 
 
 def _face_surface(body, facet_set, first_element):
-    """``(element, 'S<k>')`` rows of the C3D8 faces whose nodes form the facet set."""
-    wanted = {tuple(sorted(f)) for f in body.mesh.facet_sets[facet_set].tolist()}
-    out = []
-    for e, cell in enumerate(body.mesh.cells):
-        for k, face in enumerate(C3D8_FACES):
-            if tuple(sorted(cell[list(face)].tolist())) in wanted:
-                out.append(f"{first_element + e}, S{k + 1}")
-    return out
+    """``element, S<k>`` rows of the faces that form the facet set."""
+    return [f"{e}, S{k}" for e, k in surface_rows(body, facet_set, first_element)]
 
 
 def contact_surfaces(model, first_elem):
@@ -84,12 +72,8 @@ def contact_surfaces(model, first_elem):
 
 def numbering(model):
     """First CalculiX node and element number of each body (1-based, bodies in
-    order), and the two reference node numbers."""
-    nodes, elems = [1], [1]
-    for b in model.bodies:
-        nodes.append(nodes[-1] + b.mesh.n_nodes)
-        elems.append(elems[-1] + len(b.mesh.cells))
-    return nodes, elems
+    order); the two reference nodes follow the last body's nodes."""
+    return calculix_numbering(model)
 
 
 def calculix_deck(model, penalty: float, tension: float = TENSION) -> str:
@@ -145,38 +129,18 @@ def calculix_deck(model, penalty: float, tension: float = TENSION) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _last_block(text, title):
-    """The number rows of the last block of the .dat file whose title starts so."""
-    blocks = re.split(r"^\s*(?=\S.* and time )", text, flags=re.M)
-    rows = None
-    for blk in blocks:
-        if blk.strip().lower().startswith(title):
-            rows = [ln.split() for ln in blk.splitlines()[1:] if ln.strip()]
-    if rows is None:
-        raise RuntimeError(f"no block {title!r} in the CalculiX output")
-    return np.array([[float(v) for v in r] for r in rows])
-
-
 def run_calculix(model, penalty, folder: Path, tension=TENSION):
     """Solve the deck in ``folder``: ``(displacements per body, CSTR rows, seconds)``;
     CSTR rows are ``node, pressure, shear 1, shear 2`` of the slave nodes in contact."""
     (folder / "stack.inp").write_text(calculix_deck(model, penalty, tension))
     t0 = time.perf_counter()
-    out = subprocess.run(["ccx", "-i", "stack"], cwd=folder, capture_output=True,
-                         text=True, env={**os.environ, "OMP_NUM_THREADS": "1"})
+    text = run_ccx(folder / "stack.inp")
     seconds = time.perf_counter() - t0
-    text = (folder / "stack.dat").read_text() if (folder / "stack.dat").exists() else ""
-    if out.returncode != 0 or "displacements" not in text:
-        raise RuntimeError(f"ccx failed:\n{out.stdout[-2000:]}\n{out.stderr[-2000:]}")
-    u = _last_block(text, "displacements")
     first_node, _ = numbering(model)
-    full = np.zeros((first_node[-1] + 1, 3))
-    full[u[:, 0].astype(int) - 1] = u[:, 1:4]
+    full = displacements(text, first_node[-1] + 1)[-1][1]
     per_body = [full[a - 1:b - 1] for a, b in zip(first_node[:-1], first_node[1:])]
-    try:
-        cstr = _last_block(text, "contact stress")
-    except RuntimeError:
-        cstr = np.zeros((0, 4))
+    stresses = contact_stresses(text)
+    cstr = stresses[-1][1] if stresses else np.zeros((0, 4))
     return per_body, cstr, seconds
 
 

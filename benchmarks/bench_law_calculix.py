@@ -38,7 +38,6 @@ import dataclasses
 import importlib.util
 import os
 from pathlib import Path
-import re
 import shutil
 import subprocess
 import sys
@@ -48,6 +47,7 @@ import time
 import numpy as np
 
 import qsma
+from qsma.deck.calculix_output import displacements
 from qsma.contact.laws import ElasticStick, ExponentialPressure, InterfaceLaw, LinearPressure
 from qsma.examples.lap import lap_3d
 from qsma.fe import assemble_body
@@ -147,22 +147,7 @@ def calculix_deck(model, kn, kt, mphi, times, amplitude):
 
 def displacement_blocks(text, n_total):
     """Every printed displacement block of the .dat file: ``[(time, u (n, 3))]``."""
-    out = []
-    for m in re.finditer(r"displacements \(vx,vy,vz\) for set NALL and time\s+(\S+)", text):
-        start = m.end()
-        rows = []
-        for line in text[start:].splitlines()[1:]:
-            parts = line.split()
-            if len(parts) != 4:
-                if rows:
-                    break
-                continue
-            rows.append([float(v) for v in parts])
-        u = np.zeros((n_total, 3))
-        r = np.array(rows)
-        u[r[:, 0].astype(int) - 1] = r[:, 1:]
-        out.append((float(m.group(1)), u))
-    return out
+    return displacements(text, n_total)
 
 
 def qsma_side(model, alphas_tip, steps):

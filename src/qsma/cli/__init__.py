@@ -1,4 +1,5 @@
-"""Command line: ``qsma run``, ``modes``, ``sweep``, ``fit``, ``init`` and ``examples``.
+"""Command line: ``qsma run``, ``modes``, ``sweep``, ``fit``, ``init``, ``export`` and
+``examples``.
 The only place that prints.
 
 Exit codes: 0 success, 1 analysis failed (or results could not be written), 2 bad
@@ -18,8 +19,8 @@ import warnings
 
 from ..errors import (AnalysisError, ContactConvergenceWarning, InputError, QSMAError,
                       QSMAWarning)
-from . import examples as _examples, fit as _fit, init as _init, modes as _modes, \
-    run as _run, sweep as _sweep
+from . import examples as _examples, export as _export, fit as _fit, init as _init, \
+    modes as _modes, run as _run, sweep as _sweep
 from .progress import LOG_LEVELS, LogSetup
 from ..version import __version__
 
@@ -28,7 +29,7 @@ EXIT_OK, EXIT_FAILED, EXIT_INPUT = 0, 1, 2
 #: SIGTERM so that scripts see one code for "interrupted"
 EXIT_INTERRUPTED = 130
 SUBCOMMANDS = {"run": _run, "modes": _modes, "sweep": _sweep, "fit": _fit, "init": _init,
-               "examples": _examples}
+               "export": _export, "examples": _examples}
 
 
 def build_parser():

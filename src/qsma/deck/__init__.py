@@ -38,6 +38,8 @@ from .records import (DEFAULT_LEVELS, LAW_NOTES, Deck, DeckInterface, DeckNote,
                       SurfaceInteraction, law_table)
 from .reader import read_deck
 from .toml import deck_toml
+from .calculix import CalculixDeck, CalculixRefusal, calculix_deck, export_calculix
 
-__all__ = ["read_deck", "deck_toml", "Deck", "DeckInterface", "DeckNote",
+__all__ = ["read_deck", "deck_toml", "export_calculix", "calculix_deck", "CalculixDeck",
+           "CalculixRefusal", "Deck", "DeckInterface", "DeckNote",
            "SurfaceInteraction", "LAW_NOTES", "DEFAULT_LEVELS", "law_table"]

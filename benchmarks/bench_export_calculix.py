@@ -1,0 +1,172 @@
+"""qsma against CalculiX on the deck ``qsma export --calculix`` writes of the same model.
+
+    python benchmarks/bench_export_calculix.py [--example sandwich-2d lap-3d]
+                                               [--penalty-factor 1e3 1e4]
+                                               [--amplitudes 1e-6 1e-5] [--steps 20]
+
+Per example and penalty: the deck of :func:`qsma.deck.export_calculix` is solved by
+``ccx`` and compared with qsma's run of the model: the tied frequency f0 (CalculiX's
+``*FREQUENCY`` perturbation step about its preload against qsma's tied modes), the
+preload's normal contact force at each contact point (qsma's ``lam``; CalculiX's
+``K u - F`` of the slave body at its interface nodes, from its printed displacements,
+the body's stiffness being the same element, tests/test_elements.py), the closed pairs,
+and with ``--amplitudes`` (linear tied tip deflections, converted as qsma's levels) the
+loop dissipation of CalculiX's last branch pair (``oint alpha dq``, trapezoidal) against
+qsma's loop at the same modal force.
+"""
+from __future__ import annotations
+
+import argparse
+from dataclasses import replace
+from pathlib import Path
+import shutil
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+import qsma
+from qsma.contact.laws import ElasticStick, InterfaceLaw, LinearPressure
+from qsma.deck import export_calculix
+from qsma.deck.calculix import PENALTY_FACTOR, _default_penalty
+from qsma.deck.calculix_output import displacements, eigenfrequencies, run_calculix
+from qsma.examples import EXAMPLES
+from qsma.fe import assemble_body
+from qsma.levels import Levels
+from qsma.options import RunOptions
+
+
+def contact_forces(model, deck, u_body, assembled, pairing):
+    """Normal contact force on body 2 of the (one) interface at its contact points:
+    ``(K u - F_preload) . n`` from CalculiX's displacements of that body."""
+    k = model.body_index(model.interface.body2)
+    a = assembled[k]
+    dim = model.dim
+    u = u_body[k][:, :dim].ravel()
+    f = (a.K @ u - a.loads.get("preload", 0.0)).reshape(-1, dim)
+    return np.einsum("ij,ij->i", f[pairing.nodes2], pairing.normals)
+
+
+def compare(model, folder: Path, penalty=None, amplitudes=None, steps=20, opts=None):
+    """One comparison (module docstring): a dict of the measures."""
+    opts = opts or RunOptions()
+    t0 = time.perf_counter()
+    law = model.interface.law
+    deck = export_calculix(model, folder / "model.inp", options=opts, penalty=penalty,
+                           amplitudes=amplitudes, steps=steps,
+                           tied=law is None or law.rigid)
+    t_qsma = time.perf_counter() - t0
+    mode, pairing = deck.mode, deck.mode["pairing"]
+    t0 = time.perf_counter()
+    text = run_calculix(deck.path)
+    t_ccx = time.perf_counter() - t0
+    f_tied = eigenfrequencies(run_calculix(deck.tied_path)) if deck.tied_path else None
+    blocks = displacements(text, deck.first_node[-1] - 1)
+    f_ccx = eigenfrequencies(text) if amplitudes is None else None
+    f0 = mode["f0_hz"]
+    at = lambda f: float("nan") if f is None else float(f[int(np.sum(f < 1e-3 * f0))
+                                                          + opts.mode])
+    n_pre = len(_preload_times(blocks))
+    u_pre = deck.per_body(blocks[n_pre - 1][1])
+    assembled = [assemble_body(b) for b in model.bodies]
+    lam_c = contact_forces(model, deck, u_pre, assembled, pairing)
+    lam_q = mode["lam"][:, -1]
+    out = dict(model=model.name, pairs=pairing.n_pairs, penalty=deck.penalty[0][0],
+               f0_qsma=f0, f0_tied=at(f_tied), f0_ccx=at(f_ccx),
+               closed_qsma=int(mode["closed"].sum()),
+               closed_ccx=int((lam_c > 1e-6 * np.abs(lam_q).max()).sum()),
+               total_qsma=float(lam_q.sum()), total_ccx=float(lam_c.sum()),
+               max_diff=float(np.abs(lam_q - lam_c).max() / np.abs(lam_q).max()),
+               t_qsma=t_qsma, t_ccx=t_ccx)
+    if amplitudes is not None:
+        out.update(_loops(model, deck, blocks[n_pre:], u_pre, opts))
+    return out
+
+
+def _preload_times(blocks):
+    """The blocks of step 1 (times up to 1)."""
+    return [t for t, _ in blocks if t <= 1.0 + 1e-9]
+
+
+def _loops(model, deck, later, u_pre, opts):
+    """Dissipation of CalculiX's loop at each amplitude (its steps +A -> -A -> +A)
+    against qsma's computed loop at the same modal forces; ``later``: the displacement
+    blocks of the cyclic steps, step ``j`` (0-based) from total time ``1 + j`` to
+    ``2 + j``, the modal force linear in time within it."""
+    ends = [x for A in deck.amplitudes for x in (A, -A, A)]
+    starts = [0.0] + ends[:-1]
+    t = np.array([time for time, _ in later])
+    j = np.minimum(np.ceil(t - 1.0 - 1e-9).astype(int) - 1, len(ends) - 1)
+    alpha = np.array(starts)[j] + (np.array(ends) - np.array(starts))[j] * (t - 1.0 - j)
+    q = np.array([sum(np.sum(m * (u[:, :model.dim] - u0[:, :model.dim]))
+                      for m, u, u0 in zip(deck.mode["mphi"], deck.per_body(ub), u_pre))
+                  for _, ub in later])
+    res = qsma.run(model, opts, levels=Levels("alpha", deck.amplitudes), dissipation="loop")
+    d_ccx, q_ccx = [], []
+    for i in range(len(deck.amplitudes)):
+        top = int(np.flatnonzero(j == 3 * i)[-1])          # the end of the ramp to +A
+        loop = slice(top, int(np.flatnonzero(j == 3 * i + 2)[-1]) + 1)
+        d_ccx.append(abs(np.trapezoid(alpha[loop], q[loop])))
+        q_ccx.append(q[top])
+    return dict(alpha=np.asarray(deck.amplitudes), q_ccx=np.array(q_ccx),
+                q_qsma=np.asarray(res.q), D_ccx=np.array(d_ccx),
+                D_qsma=np.asarray(res.dissipation),
+                D_qsma_error=np.asarray(res.dissipation_error))
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--example", nargs="+", default=["sandwich-2d", "lap-3d"])
+    ap.add_argument("--penalty-factor", type=float, nargs="+", default=[PENALTY_FACTOR])
+    ap.add_argument("--amplitudes", type=float, nargs="*", default=None,
+                    help="linear tied tip deflections of the cyclic steps")
+    ap.add_argument("--steps", type=int, default=20)
+    ap.add_argument("--linear", type=float, nargs=2, metavar=("KN", "KT"),
+                    help="a linear law (normal and stick slopes, Pa/m) on the interface "
+                         "instead of the hard one: both codes then solve the same law")
+    args = ap.parse_args(argv)
+    if shutil.which("ccx") is None:
+        print("ccx not found (apt-get install calculix-ccx)")
+        return 1
+    print(f"| model | K (Pa/m) | f0 qsma (Hz) | f0 ccx tied deck | rel. diff | f0 ccx "
+          f"perturbation | rel. diff | closed qsma / ccx | contact force qsma / ccx (N) | "
+          f"largest nodal diff | t qsma / ccx (s) |")
+    print("|---" * 11 + "|")
+    loops = []
+    for name in args.example:
+        model = EXAMPLES[name](refine=1)
+        if args.linear:
+            law = InterfaceLaw(LinearPressure(args.linear[0]), ElasticStick(args.linear[1]))
+            model = replace(model, interface=replace(model.interface, law=law))
+        for factor in args.penalty_factor:
+            K = factor / PENALTY_FACTOR * _default_penalty(model, model.interface)
+            K = K if not args.linear else None      # the linear law's own slopes
+            levels = None if args.amplitudes is None else Levels("tip",
+                                                                 tuple(args.amplitudes))
+            with tempfile.TemporaryDirectory() as tmp:
+                r = compare(model, Path(tmp), penalty=K, amplitudes=levels,
+                            steps=args.steps)
+            rel = lambda f: (f - r["f0_qsma"]) / r["f0_qsma"]
+            K = r["penalty"]
+            print(f"| {name} | {K:.3g} | {r['f0_qsma']:.6f} | {r['f0_tied']:.6f} | "
+                  f"{rel(r['f0_tied']):+.2e} | {r['f0_ccx']:.6f} | {rel(r['f0_ccx']):+.2e} | "
+                  f"{r['closed_qsma']} / "
+                  f"{r['closed_ccx']} | {r['total_qsma']:.6g} / {r['total_ccx']:.6g} | "
+                  f"{r['max_diff']:.2e} | {r['t_qsma']:.1f} / {r['t_ccx']:.1f} |", flush=True)
+            if "D_ccx" in r:
+                loops.append((name, K, r))
+    if loops:
+        print("\n| model | K (Pa/m) | alpha | q qsma | q ccx | D qsma (J) | D ccx (J) | "
+              "ccx / qsma |")
+        print("|---" * 8 + "|")
+        for name, K, r in loops:
+            for a, q1, q2, d1, d2 in zip(r["alpha"], r["q_qsma"], r["q_ccx"], r["D_qsma"],
+                                         r["D_ccx"]):
+                print(f"| {name} | {K:.3g} | {a:.4e} | {q1:.6e} | {q2:.6e} | {d1:.4e} | "
+                      f"{d2:.4e} | {f'{d2 / d1:.4f}' if d1 > 0 else 'stuck'} |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
