@@ -438,3 +438,14 @@ def test_boundary_with_a_value_is_a_prescribed_displacement(tmp_path):
     body = model.body("top")
     u = res.fields(None)[1].reshape(-1, 2)[body.mesh.nodes("top_clamp")]
     assert np.allclose(u, [0.0, -1e-5], rtol=0, atol=1e-15)
+
+
+def test_a_deck_friction_of_no_slip_is_taken_as_the_largest_mu(tmp_path):
+    """A deck's *FRICTION mu = 1e20 (CalculiX's idiom for no slip) is read as
+    qsma.model.interface.MU_NO_SLIP, named as a note."""
+    from qsma.model.interface import MU_NO_SLIP
+    path = lap_deck(tmp_path / "lap.inp")
+    path.write_text(path.read_text().replace("*FRICTION\n0.6, 1e12", "*FRICTION\n1.E20, 1e12"))
+    deck = read_deck(path)
+    assert deck.config["interface"]["mu"] == MU_NO_SLIP
+    assert any("mu = 1e+20" in str(n) and not n.refuses for n in deck.notes)

@@ -470,3 +470,23 @@ def test_nearly_incompressible_material_warns():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         Material(200e9, NU_LOCKING, 7800.0)              # at the limit: silent
+
+
+def test_a_friction_coefficient_past_no_slip_is_refused_with_the_fix():
+    """mu above 1e4 (a deck's 1e20 for 'no slip') changes no answer but costs the contact
+    solve its digits (a CalculiX test deck with mu = 1e20 failed its solve at level 29
+    and runs with 1e4): refused with the value to give, on the model and per interface;
+    at 1e4 a joint runs and its stuck levels are those of any large mu."""
+    import dataclasses
+    import qsma
+    from qsma.levels import Levels
+    with pytest.raises(InputError, match="mu = 1e\\+20 is above 10000.*give mu = 10000"):
+        sandwich_2d(1, mu=1e20)
+    model = sandwich_2d(1)
+    with pytest.raises(InputError, match="interface .*mu = 1e\\+06 is above 10000"):
+        dataclasses.replace(model.interface, mu=1e6)
+    levels = Levels("alpha", (20.0, 2000.0))
+    sticky = qsma.run(sandwich_2d(1, mu=1e4), levels=levels)
+    assert sticky.success and np.all(sticky.zeta <= 1e-12)
+    assert sticky.f0_hz == pytest.approx(qsma.run(sandwich_2d(1, mu=1e3), levels=levels).f0_hz,
+                                         rel=1e-12)

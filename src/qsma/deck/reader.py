@@ -11,6 +11,7 @@ import numpy as np
 from ..errors import InputError
 from ..mesh.io.abaqus.lexer import _inp_cards
 from ..mesh.io.assembly import read_assembly
+from ..model.interface import MU_NO_SLIP
 from ..units import SI, UNIT_SYSTEMS, plausible, unit_system
 from .loads import SupportsAndLoads
 from .probe import ProbeAndLevels
@@ -153,6 +154,13 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels):
             if rows and rows[0][1] and rows[0][1][0]:
                 w, t = rows[0]
                 interaction["mu"] = _number(t[0], w, "the friction coefficient")
+                if interaction["mu"] > MU_NO_SLIP:
+                    self.note(_row_where(w), f"*FRICTION mu = {interaction['mu']:g} of "
+                              f"interaction {name!r} (no slip)", f"taken as mu = "
+                              f"{MU_NO_SLIP:g}: a pair then slips only as it opens, as with "
+                              f"the deck's value; larger values only cost the contact solve "
+                              f"its accuracy", False)
+                    interaction["mu"] = MU_NO_SLIP
                 if len(t) > 1 and t[1]:
                     interaction["stick_slope"] = _number(t[1], w, "the stick slope")
         elif card.keyword == "SURFACE BEHAVIOR":

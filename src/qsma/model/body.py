@@ -296,6 +296,8 @@ class Model:
         mu = _finite("friction coefficient mu", self.mu)
         if mu < 0:
             raise InputError(f"friction coefficient mu must be >= 0, got {mu}")
+        from .interface import check_mu
+        check_mu(mu)
         object.__setattr__(self, "mu", mu)
         from ..units import unit_system
         object.__setattr__(self, "units", unit_system(self.units).name)

@@ -27,6 +27,23 @@ NODE_MATCH_FRACTION = 1e-6
 COUPLINGS = ("node", "mortar", "auto")
 
 
+#: Largest friction coefficient taken: a pair slips only where its tangential force
+#: exceeds this many times its normal force, that is, as it opens. Larger values (a
+#: deck's 1e20 for "no slip") change no answer and cost the contact solve its digits
+#: (the cone's test then subtracts numbers 1e20 apart).
+MU_NO_SLIP = 1e4
+
+
+def check_mu(mu, where=""):
+    """Refuse a friction coefficient above :data:`MU_NO_SLIP`, with the fix."""
+    if mu > MU_NO_SLIP:
+        raise InputError(f"{where}friction coefficient mu = {mu:g} is above {MU_NO_SLIP:g}: "
+                         f"for a joint that does not slip give mu = {MU_NO_SLIP:g} (a pair "
+                         f"then slips only where its tangential force exceeds {MU_NO_SLIP:g} "
+                         f"times its normal force, as it opens); larger values change no "
+                         f"answer and only cost the contact solve its accuracy")
+
+
 @dataclass(frozen=True)
 class Interface:
     """A contact interface: facet set ``set1`` of ``body1`` against facet set ``set2``
@@ -81,6 +98,8 @@ class Interface:
                                     or not np.isfinite(self.mu) or self.mu < 0):
             raise InputError(f"interface {self.label}: friction coefficient mu must be a "
                              f"finite number >= 0, got {self.mu!r}")
+        if self.mu is not None:
+            check_mu(self.mu, f"interface {self.label}: ")
         if self.law is not None:
             if not isinstance(self.law, InterfaceLaw):
                 raise InputError(f"interface {self.label}: law must be a "
