@@ -261,7 +261,7 @@ def measures(problem, lam_w, d, lam, previous_state=None, known_products=None):
 
 
 def legacy_residual(problem, lam_w, d, lam, previous_state=None):
-    """The residual of qsma before issue 17, for comparison only.
+    """The earlier, scale-relative residual, kept for comparison only.
 
     ``max(r_eq, r_n, r_t)`` with every part divided by
     ``max(max|lam_w|, max|lam|, max(|K| |d|))`` and the natural map in

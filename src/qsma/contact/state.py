@@ -121,8 +121,8 @@ class ContactResult:
     residual_force : float
         :func:`qsma.contact.force_residual`, the force-only check.
     residual_legacy : float
-        :func:`qsma.contact.residual.legacy_residual`, the measure before
-        issue 17 (for comparison).
+        :func:`qsma.contact.residual.legacy_residual`, the earlier scale-relative
+        measure (for comparison).
     law_residual : float
         For a nonlinear interface law, the consistency of its layer with the pressures
         found (:meth:`qsma.contact.layer.Layer.law_residual`; part of ``residual``);
