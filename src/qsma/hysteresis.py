@@ -198,7 +198,7 @@ def cycle_area_error(alpha, q, k_ref) -> float:
 
 def compute_loop(step, modal, amplitude, start, fractions, *, k_ref, max_cycles=8,
                  rtol=5e-3, atol=0.0, refine_rounds=REFINE_ROUNDS,
-                 expect_closing=False) -> Loop:
+                 expect_closing=False, warm_start=False) -> Loop:
     """The stabilised loop at ``amplitude``, with the increments refined to ``rtol``.
 
     Parameters
@@ -231,6 +231,12 @@ def compute_loop(step, modal, amplitude, start, fractions, *, k_ref, max_cycles=
         pairs a solve on a contact zone lets in before it starts
         (:func:`qsma.contact.zone.solve_in_zone`). A guess: the same solution to the
         contact tolerance (the zones differ, so the bits do).
+    warm_start : bool
+        With ``expect_closing``: call ``step(alpha, state, closing, guess)`` where the
+        cycle before had a point at the same load on the same branch, ``guess`` the
+        state it reached there (a settling loop nearly repeats it): the iteration of
+        the solve starts from it (the answer is judged as any other; the same
+        solution to the contact tolerance, fewer iterations).
 
     Notes
     -----
@@ -249,7 +255,7 @@ def compute_loop(step, modal, amplitude, start, fractions, *, k_ref, max_cycles=
     """
     u = np.unique(np.clip(np.asarray(fractions, dtype=float), 0.0, 1.0))
     u = np.union1d(u[u > 0], [1.0])
-    closings = _Closings() if expect_closing else None
+    closings = _Closings(warm_start) if expect_closing else None
     loop, changed, end, ratio = _cycles(step, modal, amplitude, start, u, k_ref,
                                         max_cycles, rtol, atol, closings)
     if not loop.success or refine_rounds == 0:
@@ -386,10 +392,14 @@ class _Closings:
     expected to close at a point of the next cycle, a loop repeating itself. A point
     of a refined cycle that the last one did not have takes the pairs of the last
     one's next point in the direction of travel (the path of a refined cycle holds
-    the coarser one's loads exactly)."""
+    the coarser one's loads exactly). With the states of the last cycle recorded, the
+    state it reached at the same load of the same branch is the next cycle's guess
+    (:meth:`state`) when ``warm``."""
 
-    def __init__(self):
+    def __init__(self, warm=False):
+        self.warm = bool(warm)
         self.branches = None
+        self.states = None
 
     def expected(self, path, k):
         """Pairs expected closed at ``path[k]`` (``k >= 1``), or None (no cycle yet)."""
@@ -403,22 +413,44 @@ class _Closings:
              else np.searchsorted(loads, a, side="left"))
         return closed[i] if i < len(closed) else None
 
-    def record(self, path, status):
+    def state(self, path, k):
+        """The state the last cycle reached at the load ``path[k]`` (``k >= 1``) on the
+        same branch, or None (no cycle recorded with its states, or no point of the
+        last cycle at this load: a new point of a refined cycle)."""
+        if self.states is None:
+            return None
+        n = (len(path) - 1) // 2
+        branch = 0 if k <= n else 1
+        loads, a = self.branches[branch][0], path[k]
+        i = (np.searchsorted(-loads, -a, side="left") if branch == 0
+             else np.searchsorted(loads, a, side="left"))
+        return self.states[branch][i] if i < len(loads) and loads[i] == a else None
+
+    def record(self, path, status, states=None):
         """The closed pairs of a whole cycle on ``path`` (``status`` at every point,
-        the start included)."""
+        the start included) and, if given, its states (every point but the start)."""
         n = (len(path) - 1) // 2
         loads, closed = np.asarray(path[1:], float), np.asarray(status[1:]) != OPEN
         self.branches = ((loads[:n], closed[:n]), (loads[n:], closed[n:]))
+        self.states = None if states is None else (states[:n], states[n:])
 
 
 def _one_cycle(step, modal, A, state0, path, closings=None):
     """Solve the cycle ``path`` (``path[0] = A``, the state ``state0``); with
     ``closings`` (:class:`_Closings`), each solve is told the pairs closed at that
-    point of the cycle before, and this cycle is recorded for the next."""
+    point of the cycle before, and this cycle is recorded for the next; with
+    ``closings.warm``, a solve at a load the cycle before also had starts from the
+    state reached there, ``step(alpha, state, closing, guess)``."""
     qs, status, state, span = [modal(state0.d, A)], [state0.status], state0, 0.0
+    warm = closings is not None and closings.warm
+    states = [] if warm else None
     for k, a in enumerate(path[1:], start=1):
         expected = None if closings is None else closings.expected(path, k)
-        res = step(a, state) if expected is None else step(a, state, expected)
+        guess = closings.state(path, k) if warm else None
+        if guess is not None:
+            res = step(a, state, expected, guess)
+        else:
+            res = step(a, state) if expected is None else step(a, state, expected)
         if not res.success:
             return _Cycle(np.array(qs), status, state, span, k,
                           f"loop at A = {A:.6g}: contact solve failed at alpha = {a:.6g}: "
@@ -426,9 +458,11 @@ def _one_cycle(step, modal, A, state0, path, closings=None):
         state = res.state
         qs.append(modal(res.d, a))
         status.append(res.status)
+        if warm:
+            states.append(state)
         span = max(span, float(np.abs(res.d - state0.d).max()))
     if closings is not None:
-        closings.record(path, status)
+        closings.record(path, status, states)
     return _Cycle(np.array(qs), status, state, span, len(path) - 1, None)
 
 
