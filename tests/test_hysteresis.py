@@ -373,6 +373,52 @@ def test_each_solve_of_a_loop_is_told_the_pairs_closed_there_a_cycle_before():
         assert np.array_equal(told_mask, first_closed[i])
 
 
+def test_a_warm_started_loop_starts_each_solve_from_the_state_a_cycle_before():
+    """``warm_start``: a solve at a load the cycle before also had is handed the state
+    reached there (on the same branch) as its guess; the first cycle and the new points
+    of a refined cycle get none. The loop is the same as without (this stepper solves
+    from the guess, the solver judges the answer alone)."""
+    A = 1600.0
+    problem, lam_w = _problem()
+    _, res = _ramp(problem, lam_w, [A])
+    start, u0 = res[-1].state, np.linspace(0, 1, 6)[1:]
+    calls = []
+
+    def step(alpha, state, closing=None, guess=None):
+        out = solve(problem, lam_w(alpha), state, guess=guess)
+        assert out.success, out.message
+        calls.append((alpha, guess, out.state))
+        return out
+    warm = compute_loop(step, _modal, A, start, u0, k_ref=kt, rtol=1e-12, refine_rounds=2,
+                        expect_closing=True, warm_start=True)
+    cold = compute_loop(_stepper(problem, lam_w), _modal, A, start, u0, k_ref=kt,
+                        rtol=1e-12, refine_rounds=2)
+    assert warm.success and cold.success
+    assert warm.n_solves == cold.n_solves == len(calls)
+    np.testing.assert_allclose(warm.q, cold.q, rtol=1e-9)
+    np.testing.assert_allclose(warm.dissipation, cold.dissipation, rtol=1e-9)
+    # replay the cycles: each one starts at +A, its branches down to -A and back up
+    cycles, current = [], []
+    for j, (a, guess, state) in enumerate(calls):
+        current.append((a, guess, state))
+        if a == A:
+            cycles.append(current)
+            current = []
+    assert len(cycles) >= 3 and all(g is None for _, g, _ in cycles[0])
+    told = 0
+    for before, cycle in zip(cycles, cycles[1:]):
+        n_before = len(before) // 2
+        for k, (a, guess, _) in enumerate(cycle):
+            branch = before[:n_before] if k < len(cycle) // 2 else before[n_before:]
+            same = [s for b, _, s in branch if b == a]
+            if same:
+                assert guess is not None and np.array_equal(guess.d, same[0].d)
+                told += 1
+            else:
+                assert guess is None
+    assert told > 0
+
+
 def test_closings_of_a_refined_cycle_come_from_the_next_coarse_point():
     from qsma.hysteresis import _Closings, cycle_path
     A = 2.0
