@@ -68,6 +68,12 @@ REFINE_ROUNDS = 3
 #: from that change. Slower loops settle each round as on the initial increments
 #: (the tetrahedral lap joint's highest levels: r = 0.6 to 0.85).
 ONE_CYCLE_CONTRACTION = 0.5
+#: Share of the tolerance of a loop's D that the intervals no longer refined may take
+#: in all (:func:`_settled_intervals`): the intervals of a refinement round whose
+#: shares of D and of q changed least when they were halved, within this share, are not
+#: halved again, and their changes are added to the loop's error estimate. 0 refines
+#: every interval where a pair changes state, round after round.
+LOCAL_SHARE = 0.25
 
 
 @dataclass(frozen=True, eq=False)
@@ -264,19 +270,30 @@ def compute_loop(step, modal, amplitude, start, fractions, *, k_ref, max_cycles=
     if changed.any():
         loop = replace(loop, error=np.inf)     # no path estimate yet: refine once
     cycles, rounds, change = 0, 0, None
+    settled = np.zeros(len(u), bool)       # branch intervals no longer refined
+    settled_error = 0.0                    # what their path error may still be
     for _ in range(refine_rounds):
         if loop.error <= rtol * abs(loop.dissipation) + atol:
             break
-        u, coarse = _refined(u, changed), u
+        if settled.any() and not (changed & ~settled).any():
+            break                           # every interval left to refine has settled
+        u, coarse = _refined(u, changed & ~settled), u
+        settled = settled[_parents(u, coarse)]
         refined, changed, end, n, change = _refinement_round(
             step, modal, loop, end, u, coarse, k_ref, max_cycles, rtol, atol, closings,
-            ratio, change)
+            ratio, change, settled_error)
         cycles, rounds = cycles + n, rounds + 1
         if refined.outcome == "not_stabilised":      # honest: keep the settled round
             loop = replace(loop, n_solves=refined.n_solves, message=loop.message
                            + f"; the cycles on {len(u)} increments per branch did not "
                            f"settle within max_cycles")
             break
+        budget = LOCAL_SHARE * (rtol * abs(refined.dissipation) + atol) - settled_error
+        if refined.success and budget > 0:
+            newly, bound = _settled_intervals(refined, loop, u, coarse, k_ref, budget)
+            newly &= ~settled
+            settled |= newly
+            settled_error += bound          # in this round's change; after it, not
         loop = refined
         if not loop.success:
             break
@@ -288,8 +305,57 @@ def compute_loop(step, modal, amplitude, start, fractions, *, k_ref, max_cycles=
                    coarse_dissipation=stabilised.dissipation)
 
 
+def _parents(u, coarse):
+    """Per branch interval of ``u`` (ending at ``u[i]``), the interval of ``coarse`` (a
+    subset of ``u`` with the same last point) that holds it."""
+    return np.searchsorted(coarse, u, side="left")
+
+
+def _interval_pieces(alpha, q, k_ref):
+    """Per branch interval, the trapezoids of :func:`cycle_area` and the increments of
+    ``q``, each as ``(n, 2)``: the unloading branch, then the reloading one."""
+    alpha, q = np.asarray(alpha, float), np.asarray(q, float)
+    r = q - alpha / k_ref
+    area = 0.5 * (alpha[1:] + alpha[:-1]) * np.diff(r)
+    dq = np.diff(q)
+    n = len(area) // 2
+    return np.stack([area[:n], area[n:]], axis=1), np.stack([dq[:n], dq[n:]], axis=1)
+
+
+def _settled_intervals(fine, coarse_loop, u, coarse, k_ref, budget):
+    r"""The branch intervals of ``u`` whose coarse interval's share of the cycle hardly
+    changed when its increments were halved: ``(settled (len(u),) bool, bound)``.
+
+    Per interval ``j`` of ``coarse``, the change of its trapezoids of ``D`` over both
+    branches, ``\Delta D_j``, and of its increments of ``q``, ``\Delta q_j``, from the
+    cycle on ``coarse`` (``coarse_loop``) to the one on ``u`` (``fine``). The intervals
+    of the smallest ``\Delta D_j`` are settled as long as their sum stays within
+    ``budget`` and that of their ``\Delta q_j`` within ``budget / |D|`` times the range
+    of ``q``: halving one again would change the loop by about its ``\Delta_j`` or
+    less (a first-order path error halves with the increment), so ``bound``, the sum
+    of their ``\Delta D_j``, is what their path error may still be, added to the
+    loop's error estimate from the next round on (this round's change of ``D``, the
+    estimate of the path error of all the intervals, holds their changes). A history shifted by the intervals before moves ``q`` along
+    a branch, not the area or the increments of an interval, so ``\Delta_j`` is the
+    interval's own."""
+    n = len(coarse)
+    parent = _parents(u, coarse)
+    area_f, dq_f = _interval_pieces(fine.alpha, fine.q, k_ref)
+    area_c, dq_c = _interval_pieces(coarse_loop.alpha, coarse_loop.q, k_ref)
+    per = lambda x: np.stack([np.bincount(parent, x[:, b], minlength=n) for b in (0, 1)], 1)
+    dD = np.abs(per(area_f) - area_c).sum(axis=1)
+    dq = np.abs(per(dq_f) - dq_c).sum(axis=1)
+    span = max(np.ptp(fine.q), np.finfo(float).tiny)
+    q_budget = budget / max(abs(fine.dissipation), np.finfo(float).tiny) * span
+    order = np.argsort(dD, kind="stable")            # the smallest changes first
+    fits = (np.cumsum(dD[order]) <= budget) & (np.cumsum(dq[order]) <= q_budget)
+    still = np.zeros(n, bool)
+    still[order[:np.argmin(fits) if not fits.all() else n]] = True
+    return still[parent], float(dD[still].sum())
+
+
 def _refinement_round(step, modal, previous, state0, u, coarse, k_ref, max_cycles, rtol,
-                      atol, closings, known, last_change=None):
+                      atol, closings, known, last_change=None, settled_error=0.0):
     """The cycles on the refined increments ``u`` from ``state0`` (where ``previous``,
     settled on the increments ``coarse``, a subset of ``u``, ended), until they settle
     as those of :func:`_cycles` (``known``: the contraction of the drift measured there):
@@ -302,7 +368,9 @@ def _refinement_round(step, modal, previous, state0, u, coarse, k_ref, max_cycle
     quadrature estimate, what is left of the transient and of the path error still to
     come: the change itself where it shrank by half or more from ``last_change`` (the
     previous round's; first order), ``rho / (1 - rho)`` times it where it shrank by
-    ``rho`` more slowly, and the larger of the two where it did not shrink."""
+    ``rho`` more slowly, and the larger of the two where it did not shrink; plus
+    ``settled_error``, what the intervals no longer refined may still add
+    (:func:`_settled_intervals`)."""
     A = previous.amplitude
     if known is not None and known <= ONE_CYCLE_CONTRACTION:
         loop, changed, end = _single_cycle(step, modal, A, state0, u, k_ref, closings)
@@ -321,7 +389,7 @@ def _refinement_round(step, modal, previous, state0, u, coarse, k_ref, max_cycle
     if shape > rtol:
         change = max(change, shape * abs(D))
     return replace(loop, first_dissipation=previous.first_dissipation,
-                   error=max(loop.error, _path_error(change, last_change)),
+                   error=max(loop.error, _path_error(change, last_change) + settled_error),
                    n_cycles=previous.n_cycles, n_solves=n_solves,
                    message=previous.message.split(";")[0]
                    + f"; increments refined ({len(u)} per branch)"), \
