@@ -559,3 +559,7 @@ def test_the_path_error_still_to_come_after_a_refinement_round():
     assert _path_error(0.2, 1.0) == 0.2
     assert _path_error(0.8, 1.0) == pytest.approx(3.2)   # slower: 0.8 x 0.8 / 0.2
     assert _path_error(1.5, 1.0) == 1.5 and _path_error(0.5, 0.4) == 0.5
+    # the intervals no longer halved add their last changes, with the same factor
+    assert _path_error(1.0, None, 0.25) == 1.25
+    assert _path_error(0.5, 1.0, 0.25) == 0.75
+    assert _path_error(0.8, 1.0, 0.2) == pytest.approx(4.0)

@@ -389,7 +389,7 @@ def _refinement_round(step, modal, previous, state0, u, coarse, k_ref, max_cycle
     if shape > rtol:
         change = max(change, shape * abs(D))
     return replace(loop, first_dissipation=previous.first_dissipation,
-                   error=max(loop.error, _path_error(change, last_change) + settled_error),
+                   error=max(loop.error, _path_error(change, last_change, settled_error)),
                    n_cycles=previous.n_cycles, n_solves=n_solves,
                    message=previous.message.split(";")[0]
                    + f"; increments refined ({len(u)} per branch)"), \
@@ -410,19 +410,21 @@ def _single_cycle(step, modal, A, state0, u, k_ref, closings):
         _changed(out.status, len(u)), out.state
 
 
-def _path_error(change, last_change):
+def _path_error(change, last_change, settled=0.0):
     """What is left of the path error after a round whose settled cycle changed ``D``
     by ``change``, the round before by ``last_change`` (None: the first round). Halving
     the increments halves the error of a first-order path, so the last change bounds
     what is left when the changes shrink by half or faster; a slower ratio ``rho``
     leaves ``rho / (1 - rho)`` times the last change (a geometric series); changes
-    that did not shrink say only that the error is at least the larger one."""
+    that did not shrink say only that the error is at least the larger one.
+    ``settled``: the last changes of the intervals no longer halved
+    (:func:`_settled_intervals`), counted with the same factor."""
     if last_change is None or last_change <= 0.0:
-        return change
+        return change + settled
     rho = change / last_change
     if rho >= 1.0:
-        return max(change, last_change)
-    return change * max(1.0, rho / (1.0 - rho))
+        return max(change, last_change) + settled
+    return (change + settled) * max(1.0, rho / (1.0 - rho))
 
 
 def _shape_change(q, q_previous):
