@@ -335,9 +335,9 @@ def _settled_intervals(fine, coarse_loop, u, coarse, k_ref, budget):
     less (a first-order path error halves with the increment), so ``bound``, the sum
     of their ``\Delta D_j``, is what their path error may still be, added to the
     loop's error estimate from the next round on (this round's change of ``D``, the
-    estimate of the path error of all the intervals, holds their changes). A history shifted by the intervals before moves ``q`` along
-    a branch, not the area or the increments of an interval, so ``\Delta_j`` is the
-    interval's own."""
+    estimate of the path error of all the intervals, holds their changes). A history
+    shifted by the intervals before moves ``q`` along a branch, not the area or the
+    increments of an interval, so ``\Delta_j`` is the interval's own."""
     n = len(coarse)
     parent = _parents(u, coarse)
     area_f, dq_f = _interval_pieces(fine.alpha, fine.q, k_ref)
