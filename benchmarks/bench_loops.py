@@ -21,6 +21,18 @@ not kept"):
     alternating); the median of the hysteresis and the contact stages, the ratio to the
     first method, the loop solves, and the largest relative difference of the loops'
     zeta from the first method's.
+``warm``
+    ``--repeat`` runs of each case with one loop worker, alternating: the loops' solves
+    started from the state reached at the same load a cycle before (the default,
+    ``warm_start``) and from the previous point of the cycle only; per side the median
+    CPU seconds of the run (the ramps are the same on both sides), the iterations of
+    the loops' contact solves, and the largest relative difference of the loops' D and
+    zeta between the two (both meet the contact tolerance; the bits differ).
+``settle``
+    The same for the refinement rounds: the intervals whose share of the loop settled
+    are no longer halved (the default) against every interval where a pair changes
+    state halved in every round; also the largest difference of D in units of the
+    larger error estimate.
 ``interpolation``
     From one run (the levels with computed loops): loops at every ``stride``-th level, the
     others interpolated by PCHIP of ``log D`` and ``log q_a`` in ``log A`` where the
@@ -35,6 +47,9 @@ not kept"):
     python benchmarks/bench_loops.py methods --cases lap-3d:1 brb:1 --repeat 2 \
         --levels tip:log:1e-4:1e-3:2 --dissipation loop
     python benchmarks/bench_loops.py interpolation --cases lap-2d:1 lap-3d:1 brb:1
+    python benchmarks/bench_loops.py warm --cases brb:1 lap-3d:1 \
+        --levels tip:log:1e-5:1e-3:5 --dissipation loop --repeat 3
+    python benchmarks/bench_loops.py settle --cases brb:1 lap-3d:1 --repeat 1
 """
 from __future__ import annotations
 
@@ -165,6 +180,93 @@ def methods(args):
                   flush=True)
 
 
+def warm(args):
+    """Loops warm-started from the cycle before against loops started from the previous
+    point only, alternating in one process."""
+    from qsma import analysis
+    loop = analysis.compute_loop
+
+    def side(on):
+        analysis.compute_loop = lambda *a, **k: loop(*a, **{**k, "warm_start": on})
+    try:
+        _alternating(args, side, "from the cycle before", "from the previous point")
+    finally:
+        analysis.compute_loop = loop
+
+
+def settle(args):
+    """Refinement rounds that stop halving the intervals whose share of the loop has
+    settled (the default ``LOCAL_SHARE``) against rounds that halve every interval
+    where a pair changes state (``LOCAL_SHARE = 0``), alternating in one process."""
+    from qsma import hysteresis
+    share = hysteresis.LOCAL_SHARE
+
+    def side(on):
+        hysteresis.LOCAL_SHARE = share if on else 0.0
+    try:
+        _alternating(args, side, f"settled intervals kept ({share:g} of the tolerance)",
+                     "every changed interval halved")
+    finally:
+        hysteresis.LOCAL_SHARE = share
+
+
+def _alternating(args, side, name_on, name_off):
+    """``--repeat`` runs of each case with one loop worker, ``side(True)`` and
+    ``side(False)`` alternating (the model prepared once); per side the median CPU
+    seconds of the run, the loop solves, the iterations of all contact solves (the
+    ramps' are the same on both sides), and the largest relative difference of the
+    loops' D and zeta between the sides and the largest ``|D_on - D_off|`` over the
+    larger of the two error estimates."""
+    import time
+    from qsma import analysis
+    from qsma.contact import zone
+    _header("case", "loops", "loop solves", "side", "CPU of the run [s]",
+            "iterations of the contact solves (ramps included)", "CPU / second side's",
+            "max rel. diff of D, zeta", "max \\|D_1 - D_2\\| / estimate")
+    solve = zone.solve
+    nit = [0]
+
+    def counted(*a, **k):
+        out = solve(*a, **k)
+        nit[0] += out.nit
+        return out
+    zone.solve = counted
+    try:
+        for case in args.cases:
+            name, refine = case.split(":")
+            prepared = analysis.prepare(EXAMPLES[name](int(refine)))
+            kw = dict(dissipation=args.dissipation, loop_workers=1, parallel_ramps=False)
+            if args.levels:
+                kw["levels"] = parse_levels_spec(args.levels)
+            cpu = {True: [], False: []}
+            its, runs = {}, {}
+            for _ in range(args.repeat):
+                for on in (True, False):
+                    side(on)
+                    nit[0], t = 0, time.process_time()
+                    runs[on] = analysis.run_prepared(prepared, **kw)
+                    cpu[on].append(time.process_time() - t)
+                    its[on] = nit[0]
+            a, b = runs[True], runs[False]
+            ok = np.array([k in a.loops and a.loops[k].success and k in b.loops
+                           and b.loops[k].success for k in range(a.n_levels)])
+            rel = lambda x, y: float(np.max(np.abs(x[ok] - y[ok]) / np.maximum(
+                np.abs(y[ok]), np.finfo(float).tiny), initial=0.0))
+            diff = max(rel(a.dissipation_loop, b.dissipation_loop),
+                       rel(a.zeta_loop, b.zeta_loop))
+            est = np.maximum(a.dissipation_error, b.dissipation_error)[ok]
+            off = np.abs(a.dissipation_loop - b.dissipation_loop)[ok]
+            units = float(np.max(off / np.maximum(est, np.finfo(float).tiny), initial=0.0))
+            c_on, c_off = statistics.median(cpu[True]), statistics.median(cpu[False])
+            for on, c in ((True, c_on), (False, c_off)):
+                r = runs[on]
+                print(f"| {case} | {len(r.loops)} | {r.solver['loop_solves']} | "
+                      f"{name_on if on else name_off} | {c:.2f} | {its[on]} | "
+                      f"{c / c_off:.2f} | {diff:.1e} | {units:.2f} |", flush=True)
+    finally:
+        zone.solve = solve
+
+
 def _same_bits(a, b):
     for name in LEVEL_FIELDS:
         x, y = getattr(a, name), getattr(b, name)
@@ -276,7 +378,8 @@ def interpolation(args):
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("table", choices=["profile", "parallel", "methods", "interpolation"])
+    p.add_argument("table", choices=["profile", "parallel", "methods", "interpolation",
+                                     "warm", "settle"])
     p.add_argument("--cases", nargs="+", default=["lap-2d:1"], help="EXAMPLE:REFINE")
     p.add_argument("--levels", help="levels spec (default: the 51 default levels)")
     p.add_argument("--dissipation", default="auto", choices=["auto", "loop"])
@@ -289,7 +392,7 @@ def main(argv=None):
     p.add_argument("--strides", type=int, nargs="+", default=[2, 4, 8])
     args = p.parse_args(argv)
     {"profile": profile, "parallel": parallel, "methods": methods,
-     "interpolation": interpolation}[args.table](args)
+     "interpolation": interpolation, "warm": warm, "settle": settle}[args.table](args)
 
 
 if __name__ == "__main__":

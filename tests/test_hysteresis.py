@@ -157,6 +157,53 @@ def test_refinement_converges_to_the_closed_form():
     assert errors[-1] < 0.1 * errors[0] and errors[-1] < 2e-3 * D
 
 
+def test_settled_intervals_are_those_whose_share_of_the_loop_did_not_change():
+    """An interval of a refinement round whose trapezoids of D and increments of q are
+    those of the coarser cycle (here the first) is settled and its fine intervals with
+    it; one whose share changed (a kink inside it, here the second) is not, unless the
+    budget holds its change; the bound is the sum of the settled changes."""
+    from qsma.hysteresis import Loop, _settled_intervals, cycle_path
+    A, k = 2.0, 3.0
+    coarse_u, fine_u = np.array([0.5, 1.0]), np.array([0.25, 0.5, 0.75, 1.0])
+    loop = lambda u, q: Loop(A, cycle_path(A, u), q, cycle_area(cycle_path(A, u), q, k),
+                             np.nan, 0.0, q[0], q[len(u)], 1, 0, "stabilised", "")
+    coarse_path, fine_path = cycle_path(A, coarse_u), cycle_path(A, fine_u)
+    coarse = loop(coarse_u, coarse_path / k)             # a line: no area
+    q_fine = fine_path / k
+    q_fine[3] += 0.01                  # unloading, u = 0.75: inside the second interval
+    fine = loop(fine_u, q_fine)
+    # r = q - alpha / k is 0.01 at point 3 only: the trapezoids 3 and 4 change by
+    # 0.5 (alpha_3 + alpha_2) 0.01 - 0.5 (alpha_4 + alpha_3) 0.01; the q increments
+    # of the interval add up as before
+    changed = 0.5 * (fine_path[2] - fine_path[4]) * 0.01
+    settled, bound = _settled_intervals(fine, coarse, fine_u, coarse_u, k, 1e-6)
+    assert settled.tolist() == [True, True, False, False] and bound == 0.0
+    settled, bound = _settled_intervals(fine, coarse, fine_u, coarse_u, k, 10.0)
+    assert settled.all() and bound == pytest.approx(changed, rel=1e-12)
+
+
+def test_settled_intervals_are_not_halved_again_and_the_estimate_holds(monkeypatch):
+    """With a share of the tolerance for the intervals whose share of the loop no longer
+    changes (LOCAL_SHARE), the refinement rounds halve fewer intervals, and the loop
+    stays within its error estimate of the closed form (the Jenkins element with its
+    stop, increments that miss the kinks)."""
+    from qsma import hysteresis
+    A = 1600.0
+    problem, lam_w = _problem()
+    step = _stepper(problem, lam_w)
+    _, res = _ramp(problem, lam_w, [A])
+    D = _exact(A)[0]
+    loops = {}
+    for share in (0.0, 0.25):
+        monkeypatch.setattr(hysteresis, "LOCAL_SHARE", share)
+        loops[share] = compute_loop(step, _modal, A, res[-1].state, np.linspace(0, 1, 6)[1:],
+                                    k_ref=kt, rtol=3e-3, refine_rounds=3)
+    for lp in loops.values():
+        assert lp.success and abs(lp.dissipation - D) <= lp.error
+    assert len(loops[0.25].q) < len(loops[0.0].q)
+    assert loops[0.25].n_solves < loops[0.0].n_solves
+
+
 def test_refinement_rounds_continue_the_history_one_cycle_each():
     """Each refinement round is one more cycle on the halved increments, started where
     the previous cycle ended: the backbone state is the history of the first solve
@@ -373,6 +420,52 @@ def test_each_solve_of_a_loop_is_told_the_pairs_closed_there_a_cycle_before():
         assert np.array_equal(told_mask, first_closed[i])
 
 
+def test_a_warm_started_loop_starts_each_solve_from_the_state_a_cycle_before():
+    """``warm_start``: a solve at a load the cycle before also had is handed the state
+    reached there (on the same branch) as its guess; the first cycle and the new points
+    of a refined cycle get none. The loop is the same as without (this stepper solves
+    from the guess, the solver judges the answer alone)."""
+    A = 1600.0
+    problem, lam_w = _problem()
+    _, res = _ramp(problem, lam_w, [A])
+    start, u0 = res[-1].state, np.linspace(0, 1, 6)[1:]
+    calls = []
+
+    def step(alpha, state, closing=None, guess=None):
+        out = solve(problem, lam_w(alpha), state, guess=guess)
+        assert out.success, out.message
+        calls.append((alpha, guess, out.state))
+        return out
+    warm = compute_loop(step, _modal, A, start, u0, k_ref=kt, rtol=1e-12, refine_rounds=2,
+                        expect_closing=True, warm_start=True)
+    cold = compute_loop(_stepper(problem, lam_w), _modal, A, start, u0, k_ref=kt,
+                        rtol=1e-12, refine_rounds=2)
+    assert warm.success and cold.success
+    assert warm.n_solves == cold.n_solves == len(calls)
+    np.testing.assert_allclose(warm.q, cold.q, rtol=1e-9)
+    np.testing.assert_allclose(warm.dissipation, cold.dissipation, rtol=1e-9)
+    # replay the cycles: each one starts at +A, its branches down to -A and back up
+    cycles, current = [], []
+    for j, (a, guess, state) in enumerate(calls):
+        current.append((a, guess, state))
+        if a == A:
+            cycles.append(current)
+            current = []
+    assert len(cycles) >= 3 and all(g is None for _, g, _ in cycles[0])
+    told = 0
+    for before, cycle in zip(cycles, cycles[1:]):
+        n_before = len(before) // 2
+        for k, (a, guess, _) in enumerate(cycle):
+            branch = before[:n_before] if k < len(cycle) // 2 else before[n_before:]
+            same = [s for b, _, s in branch if b == a]
+            if same:
+                assert guess is not None and np.array_equal(guess.d, same[0].d)
+                told += 1
+            else:
+                assert guess is None
+    assert told > 0
+
+
 def test_closings_of_a_refined_cycle_come_from_the_next_coarse_point():
     from qsma.hysteresis import _Closings, cycle_path
     A = 2.0
@@ -466,3 +559,7 @@ def test_the_path_error_still_to_come_after_a_refinement_round():
     assert _path_error(0.2, 1.0) == 0.2
     assert _path_error(0.8, 1.0) == pytest.approx(3.2)   # slower: 0.8 x 0.8 / 0.2
     assert _path_error(1.5, 1.0) == 1.5 and _path_error(0.5, 0.4) == 0.5
+    # the intervals no longer halved add their last changes, with the same factor
+    assert _path_error(1.0, None, 0.25) == 1.25
+    assert _path_error(0.5, 1.0, 0.25) == 0.75
+    assert _path_error(0.8, 1.0, 0.2) == pytest.approx(4.0)

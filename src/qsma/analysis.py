@@ -1229,15 +1229,18 @@ class _LevelLoops:
         u = _loop_fractions(self.grid, g, self.linear_end, self.opts.loop_steps)
         zone = _loop_zone(self.zone, self.pos.status[:g + 1], self.neg_status[:g + 1])
         solver = _Solver(self.layer, self.loads, self.method, self.solver_options, zone)
-        step = lambda a, s, closing=None: solver(a, s, f"loop at A={A:.4g} (alpha={a:.4g})",
-                                                 closing)
+
+        def step(a, s, closing=None, guess=None):
+            solver.guess = guess        # the state at this load a cycle before, or None
+            return solver(a, s, f"loop at A={A:.4g} (alpha={a:.4g})", closing)
+
         started = time.perf_counter()
         with threads_limited(self.threads):
             lp = compute_loop(step, self.response.q, A, self.pos.state(g), u,
                               k_ref=self.k_ref, max_cycles=self.opts.max_cycles,
                               rtol=self.opts.dissipation_rtol,
                               atol=ZETA_ZERO * 2 * np.pi * A * abs(self.pos.q[g]),
-                              expect_closing=True)
+                              expect_closing=True, warm_start=True)
         return replace(lp, seconds=time.perf_counter() - started)
 
 

@@ -68,6 +68,12 @@ REFINE_ROUNDS = 3
 #: from that change. Slower loops settle each round as on the initial increments
 #: (the tetrahedral lap joint's highest levels: r = 0.6 to 0.85).
 ONE_CYCLE_CONTRACTION = 0.5
+#: Share of the tolerance of a loop's D that the intervals no longer refined may take
+#: in all (:func:`_settled_intervals`): the intervals of a refinement round whose
+#: shares of D and of q changed least when they were halved, within this share, are not
+#: halved again, and their changes are added to the loop's error estimate. 0 refines
+#: every interval where a pair changes state, round after round.
+LOCAL_SHARE = 0.25
 
 
 @dataclass(frozen=True, eq=False)
@@ -198,7 +204,7 @@ def cycle_area_error(alpha, q, k_ref) -> float:
 
 def compute_loop(step, modal, amplitude, start, fractions, *, k_ref, max_cycles=8,
                  rtol=5e-3, atol=0.0, refine_rounds=REFINE_ROUNDS,
-                 expect_closing=False) -> Loop:
+                 expect_closing=False, warm_start=False) -> Loop:
     """The stabilised loop at ``amplitude``, with the increments refined to ``rtol``.
 
     Parameters
@@ -231,6 +237,12 @@ def compute_loop(step, modal, amplitude, start, fractions, *, k_ref, max_cycles=
         pairs a solve on a contact zone lets in before it starts
         (:func:`qsma.contact.zone.solve_in_zone`). A guess: the same solution to the
         contact tolerance (the zones differ, so the bits do).
+    warm_start : bool
+        With ``expect_closing``: call ``step(alpha, state, closing, guess)`` where the
+        cycle before had a point at the same load on the same branch, ``guess`` the
+        state it reached there (a settling loop nearly repeats it): the iteration of
+        the solve starts from it (the answer is judged as any other; the same
+        solution to the contact tolerance, fewer iterations).
 
     Notes
     -----
@@ -249,7 +261,7 @@ def compute_loop(step, modal, amplitude, start, fractions, *, k_ref, max_cycles=
     """
     u = np.unique(np.clip(np.asarray(fractions, dtype=float), 0.0, 1.0))
     u = np.union1d(u[u > 0], [1.0])
-    closings = _Closings() if expect_closing else None
+    closings = _Closings(warm_start) if expect_closing else None
     loop, changed, end, ratio = _cycles(step, modal, amplitude, start, u, k_ref,
                                         max_cycles, rtol, atol, closings)
     if not loop.success or refine_rounds == 0:
@@ -258,19 +270,30 @@ def compute_loop(step, modal, amplitude, start, fractions, *, k_ref, max_cycles=
     if changed.any():
         loop = replace(loop, error=np.inf)     # no path estimate yet: refine once
     cycles, rounds, change = 0, 0, None
+    settled = np.zeros(len(u), bool)       # branch intervals no longer refined
+    settled_error = 0.0                    # what their path error may still be
     for _ in range(refine_rounds):
         if loop.error <= rtol * abs(loop.dissipation) + atol:
             break
-        u, coarse = _refined(u, changed), u
+        if settled.any() and not (changed & ~settled).any():
+            break                           # every interval left to refine has settled
+        u, coarse = _refined(u, changed & ~settled), u
+        settled = settled[_parents(u, coarse)]
         refined, changed, end, n, change = _refinement_round(
             step, modal, loop, end, u, coarse, k_ref, max_cycles, rtol, atol, closings,
-            ratio, change)
+            ratio, change, settled_error)
         cycles, rounds = cycles + n, rounds + 1
         if refined.outcome == "not_stabilised":      # honest: keep the settled round
             loop = replace(loop, n_solves=refined.n_solves, message=loop.message
                            + f"; the cycles on {len(u)} increments per branch did not "
                            f"settle within max_cycles")
             break
+        budget = LOCAL_SHARE * (rtol * abs(refined.dissipation) + atol) - settled_error
+        if refined.success and budget > 0:
+            newly, bound = _settled_intervals(refined, loop, u, coarse, k_ref, budget)
+            newly &= ~settled
+            settled |= newly
+            settled_error += bound          # in this round's change; after it, not
         loop = refined
         if not loop.success:
             break
@@ -282,8 +305,57 @@ def compute_loop(step, modal, amplitude, start, fractions, *, k_ref, max_cycles=
                    coarse_dissipation=stabilised.dissipation)
 
 
+def _parents(u, coarse):
+    """Per branch interval of ``u`` (ending at ``u[i]``), the interval of ``coarse`` (a
+    subset of ``u`` with the same last point) that holds it."""
+    return np.searchsorted(coarse, u, side="left")
+
+
+def _interval_pieces(alpha, q, k_ref):
+    """Per branch interval, the trapezoids of :func:`cycle_area` and the increments of
+    ``q``, each as ``(n, 2)``: the unloading branch, then the reloading one."""
+    alpha, q = np.asarray(alpha, float), np.asarray(q, float)
+    r = q - alpha / k_ref
+    area = 0.5 * (alpha[1:] + alpha[:-1]) * np.diff(r)
+    dq = np.diff(q)
+    n = len(area) // 2
+    return np.stack([area[:n], area[n:]], axis=1), np.stack([dq[:n], dq[n:]], axis=1)
+
+
+def _settled_intervals(fine, coarse_loop, u, coarse, k_ref, budget):
+    r"""The branch intervals of ``u`` whose coarse interval's share of the cycle hardly
+    changed when its increments were halved: ``(settled (len(u),) bool, bound)``.
+
+    Per interval ``j`` of ``coarse``, the change of its trapezoids of ``D`` over both
+    branches, ``\Delta D_j``, and of its increments of ``q``, ``\Delta q_j``, from the
+    cycle on ``coarse`` (``coarse_loop``) to the one on ``u`` (``fine``). The intervals
+    of the smallest ``\Delta D_j`` are settled as long as their sum stays within
+    ``budget`` and that of their ``\Delta q_j`` within ``budget / |D|`` times the range
+    of ``q``: halving one again would change the loop by about its ``\Delta_j`` or
+    less (a first-order path error halves with the increment), so ``bound``, the sum
+    of their ``\Delta D_j``, is what their path error may still be, added to the
+    loop's error estimate from the next round on (this round's change of ``D``, the
+    estimate of the path error of all the intervals, holds their changes). A history
+    shifted by the intervals before moves ``q`` along a branch, not the area or the
+    increments of an interval, so ``\Delta_j`` is the interval's own."""
+    n = len(coarse)
+    parent = _parents(u, coarse)
+    area_f, dq_f = _interval_pieces(fine.alpha, fine.q, k_ref)
+    area_c, dq_c = _interval_pieces(coarse_loop.alpha, coarse_loop.q, k_ref)
+    per = lambda x: np.stack([np.bincount(parent, x[:, b], minlength=n) for b in (0, 1)], 1)
+    dD = np.abs(per(area_f) - area_c).sum(axis=1)
+    dq = np.abs(per(dq_f) - dq_c).sum(axis=1)
+    span = max(np.ptp(fine.q), np.finfo(float).tiny)
+    q_budget = budget / max(abs(fine.dissipation), np.finfo(float).tiny) * span
+    order = np.argsort(dD, kind="stable")            # the smallest changes first
+    fits = (np.cumsum(dD[order]) <= budget) & (np.cumsum(dq[order]) <= q_budget)
+    still = np.zeros(n, bool)
+    still[order[:np.argmin(fits) if not fits.all() else n]] = True
+    return still[parent], float(dD[still].sum())
+
+
 def _refinement_round(step, modal, previous, state0, u, coarse, k_ref, max_cycles, rtol,
-                      atol, closings, known, last_change=None):
+                      atol, closings, known, last_change=None, settled_error=0.0):
     """The cycles on the refined increments ``u`` from ``state0`` (where ``previous``,
     settled on the increments ``coarse``, a subset of ``u``, ended), until they settle
     as those of :func:`_cycles` (``known``: the contraction of the drift measured there):
@@ -296,7 +368,9 @@ def _refinement_round(step, modal, previous, state0, u, coarse, k_ref, max_cycle
     quadrature estimate, what is left of the transient and of the path error still to
     come: the change itself where it shrank by half or more from ``last_change`` (the
     previous round's; first order), ``rho / (1 - rho)`` times it where it shrank by
-    ``rho`` more slowly, and the larger of the two where it did not shrink."""
+    ``rho`` more slowly, and the larger of the two where it did not shrink; plus
+    ``settled_error``, what the intervals no longer refined may still add
+    (:func:`_settled_intervals`)."""
     A = previous.amplitude
     if known is not None and known <= ONE_CYCLE_CONTRACTION:
         loop, changed, end = _single_cycle(step, modal, A, state0, u, k_ref, closings)
@@ -315,7 +389,7 @@ def _refinement_round(step, modal, previous, state0, u, coarse, k_ref, max_cycle
     if shape > rtol:
         change = max(change, shape * abs(D))
     return replace(loop, first_dissipation=previous.first_dissipation,
-                   error=max(loop.error, _path_error(change, last_change)),
+                   error=max(loop.error, _path_error(change, last_change, settled_error)),
                    n_cycles=previous.n_cycles, n_solves=n_solves,
                    message=previous.message.split(";")[0]
                    + f"; increments refined ({len(u)} per branch)"), \
@@ -336,19 +410,21 @@ def _single_cycle(step, modal, A, state0, u, k_ref, closings):
         _changed(out.status, len(u)), out.state
 
 
-def _path_error(change, last_change):
+def _path_error(change, last_change, settled=0.0):
     """What is left of the path error after a round whose settled cycle changed ``D``
     by ``change``, the round before by ``last_change`` (None: the first round). Halving
     the increments halves the error of a first-order path, so the last change bounds
     what is left when the changes shrink by half or faster; a slower ratio ``rho``
     leaves ``rho / (1 - rho)`` times the last change (a geometric series); changes
-    that did not shrink say only that the error is at least the larger one."""
+    that did not shrink say only that the error is at least the larger one.
+    ``settled``: the last changes of the intervals no longer halved
+    (:func:`_settled_intervals`), counted with the same factor."""
     if last_change is None or last_change <= 0.0:
-        return change
+        return change + settled
     rho = change / last_change
     if rho >= 1.0:
-        return max(change, last_change)
-    return change * max(1.0, rho / (1.0 - rho))
+        return max(change, last_change) + settled
+    return (change + settled) * max(1.0, rho / (1.0 - rho))
 
 
 def _shape_change(q, q_previous):
@@ -386,10 +462,14 @@ class _Closings:
     expected to close at a point of the next cycle, a loop repeating itself. A point
     of a refined cycle that the last one did not have takes the pairs of the last
     one's next point in the direction of travel (the path of a refined cycle holds
-    the coarser one's loads exactly)."""
+    the coarser one's loads exactly). With the states of the last cycle recorded, the
+    state it reached at the same load of the same branch is the next cycle's guess
+    (:meth:`state`) when ``warm``."""
 
-    def __init__(self):
+    def __init__(self, warm=False):
+        self.warm = bool(warm)
         self.branches = None
+        self.states = None
 
     def expected(self, path, k):
         """Pairs expected closed at ``path[k]`` (``k >= 1``), or None (no cycle yet)."""
@@ -403,22 +483,44 @@ class _Closings:
              else np.searchsorted(loads, a, side="left"))
         return closed[i] if i < len(closed) else None
 
-    def record(self, path, status):
+    def state(self, path, k):
+        """The state the last cycle reached at the load ``path[k]`` (``k >= 1``) on the
+        same branch, or None (no cycle recorded with its states, or no point of the
+        last cycle at this load: a new point of a refined cycle)."""
+        if self.states is None:
+            return None
+        n = (len(path) - 1) // 2
+        branch = 0 if k <= n else 1
+        loads, a = self.branches[branch][0], path[k]
+        i = (np.searchsorted(-loads, -a, side="left") if branch == 0
+             else np.searchsorted(loads, a, side="left"))
+        return self.states[branch][i] if i < len(loads) and loads[i] == a else None
+
+    def record(self, path, status, states=None):
         """The closed pairs of a whole cycle on ``path`` (``status`` at every point,
-        the start included)."""
+        the start included) and, if given, its states (every point but the start)."""
         n = (len(path) - 1) // 2
         loads, closed = np.asarray(path[1:], float), np.asarray(status[1:]) != OPEN
         self.branches = ((loads[:n], closed[:n]), (loads[n:], closed[n:]))
+        self.states = None if states is None else (states[:n], states[n:])
 
 
 def _one_cycle(step, modal, A, state0, path, closings=None):
     """Solve the cycle ``path`` (``path[0] = A``, the state ``state0``); with
     ``closings`` (:class:`_Closings`), each solve is told the pairs closed at that
-    point of the cycle before, and this cycle is recorded for the next."""
+    point of the cycle before, and this cycle is recorded for the next; with
+    ``closings.warm``, a solve at a load the cycle before also had starts from the
+    state reached there, ``step(alpha, state, closing, guess)``."""
     qs, status, state, span = [modal(state0.d, A)], [state0.status], state0, 0.0
+    warm = closings is not None and closings.warm
+    states = [] if warm else None
     for k, a in enumerate(path[1:], start=1):
         expected = None if closings is None else closings.expected(path, k)
-        res = step(a, state) if expected is None else step(a, state, expected)
+        guess = closings.state(path, k) if warm else None
+        if guess is not None:
+            res = step(a, state, expected, guess)
+        else:
+            res = step(a, state) if expected is None else step(a, state, expected)
         if not res.success:
             return _Cycle(np.array(qs), status, state, span, k,
                           f"loop at A = {A:.6g}: contact solve failed at alpha = {a:.6g}: "
@@ -426,9 +528,11 @@ def _one_cycle(step, modal, A, state0, path, closings=None):
         state = res.state
         qs.append(modal(res.d, a))
         status.append(res.status)
+        if warm:
+            states.append(state)
         span = max(span, float(np.abs(res.d - state0.d).max()))
     if closings is not None:
-        closings.record(path, status)
+        closings.record(path, status, states)
     return _Cycle(np.array(qs), status, state, span, len(path) - 1, None)
 
 

@@ -64,8 +64,10 @@ def solve_active_set(problem, lam_w, previous, *, tol, maxiter=None, guess=None,
         Cap on the iterations of the solve, fallback included: at most
         ``min(maxiter, 50)`` Newton steps, the rest for the fallback.
     guess : ContactState, optional
-        Starting iterate (default ``previous``, whose active sets the first
-        step holds).
+        Starting iterate (default ``previous``). The first step holds the active
+        sets of the starting iterate's pair states: for a guess that is the
+        answer of a neighbouring path (the same point of the cycle before, in a
+        computed loop) they are nearly this level's.
     """
     if not (np.isscalar(augmentation) and np.isfinite(augmentation) and augmentation > 0):
         raise InputError(f"augmentation must be a positive number, got {augmentation!r}")
@@ -82,7 +84,8 @@ def solve_active_set(problem, lam_w, previous, *, tol, maxiter=None, guess=None,
 
 
 def _previous_sets(previous):
-    """``(status, h)`` of the previous state, or None if every pair was stuck."""
+    """``(status, h)`` of a state (the previous one or a guess), or None if every pair
+    is stuck in it."""
     if np.all(previous.status == STUCK):
         return None
     return previous.status.copy(), -slip_directions_from_forces(previous.lam[:, :-1],
@@ -113,7 +116,7 @@ class _Newton:
         self.lam = problem.K @ self.d + self.lw
         self.seen, self.damped, self.failure = set(), False, None
         self.best, self.stall = np.inf, 0
-        self.first = _previous_sets(previous) if guess is None else None
+        self.first = _previous_sets(start)
 
     @property
     def d2(self):
@@ -136,8 +139,9 @@ class _Newton:
     def step(self):
         """One Newton step (damped after a cycle); False if it cannot proceed.
 
-        The first step holds the sets of the previous converged state (the
-        warm start), later ones take the sets of the augmented forces.
+        The first step holds the sets of the starting state (the previous
+        converged state or the guess: the warm start), later ones take the sets
+        of the augmented forces.
         """
         if self.first is not None:
             sets, self.first = self.sets(imposed=self.first), None
