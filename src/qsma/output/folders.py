@@ -152,16 +152,7 @@ class RunFolder:
 
     # -- life cycle -------------------------------------------------------------------
     def __enter__(self):
-        refuse_nested(self.path)        # before a parent is created inside another one
-        try:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            with _signals_deferred():       # the lock file is never left half-taken
-                self._lock()
-        except BaseException as exc:
-            self._unlock()
-            if isinstance(exc, OSError):
-                raise self._unwritable(exc) from exc
-            raise
+        _take_lock(self)
         try:
             self._recover()
             self._check_replaceable()
@@ -358,16 +349,7 @@ class StudyFolder:
     _unwritable = RunFolder._unwritable
 
     def __enter__(self):
-        refuse_nested(self.path)
-        try:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            with _signals_deferred():
-                self._lock()
-        except BaseException as exc:
-            self._unlock()
-            if isinstance(exc, OSError):
-                raise self._unwritable(exc) from exc
-            raise
+        _take_lock(self)
         try:
             self._check()
             self.path.mkdir(exist_ok=True)
@@ -566,3 +548,19 @@ def _read_owner(fd) -> str:
         return f"pid {info['pid']} on {info['host']}, run {info['run_id']}"
     except (OSError, ValueError, KeyError, TypeError):
         return UNKNOWN_OWNER
+
+
+def _take_lock(folder):
+    """Take the lock of a run or study folder: refused inside another result folder
+    (before a parent is created inside one), the parent made, the lock file never left
+    half-taken (signals deferred); an unwritable place named with its fix."""
+    refuse_nested(folder.path)
+    try:
+        folder.path.parent.mkdir(parents=True, exist_ok=True)
+        with _signals_deferred():
+            folder._lock()
+    except BaseException as exc:
+        folder._unlock()
+        if isinstance(exc, OSError):
+            raise folder._unwritable(exc) from exc
+        raise
