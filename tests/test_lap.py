@@ -217,3 +217,25 @@ def test_max_cycles_from_the_command_line_and_the_fix_it_names(tmp_path, capsys)
     data = json.loads((tmp_path / "results.json").read_text())
     assert data["options"]["max_cycles"] == 1
     assert code == 1 and "loop_not_stabilised" in err and "--max-cycles" in err
+
+
+def test_a_negligible_negative_loop_within_its_estimate_is_zero_not_a_failure():
+    """lap-3d refine 1 at its default levels 11-14 with loops (nearly stuck): level 12's
+    loop encloses -1.2e-9 J with an error estimate of 1.6e-8 J, a damping ratio of
+    3.6e-5 between neighbours of +4e-7 and +2e-7. A cycle cannot create energy and
+    the value is zero within its estimate, which is negligible as a damping ratio
+    (below qsma.analysis.ZETA_NEGLIGIBLE): reported as 0 with its estimate, not as
+    negative_dissipation (the default lap-3d run failed so). A negative value beyond
+    its estimate, or with an estimate that is not negligible, stays a failure."""
+    from qsma.analysis import ZETA_NEGLIGIBLE, _negligible_negative
+    model = lap_3d(1)
+    alphas = qsma.run(model, dissipation="masing").alpha[11:15]
+    r = qsma.run(model, dissipation="loop", levels=Levels("alpha", tuple(alphas)))
+    assert r.success, r.message
+    assert all("negative_dissipation" not in f for f in r.flags)
+    scale = 2 * np.pi * r.alpha * np.abs(r.q)
+    assert np.all(r.dissipation >= 0) and np.all(r.dissipation_error / scale < ZETA_NEGLIGIBLE)
+    assert r.dissipation[1] == 0.0 and r.dissipation_error[1] > 0
+    assert not _negligible_negative(-2.0, 1.0, 1.0, 1.0)          # beyond its estimate
+    assert not _negligible_negative(-1.0, 2.0, 1.0, 1.0)          # estimate not negligible
+    assert _negligible_negative(-1e-6, 2e-6, 1.0, 1.0)
