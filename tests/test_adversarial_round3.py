@@ -177,7 +177,9 @@ def _level_columns(D, err, use_loop=False, n=1):
 def test_negative_dissipation_beyond_round_off_fails_whatever_its_error_estimate():
     """A negative D beyond the round-off bound (zeta < -1e-8) is a failure even when the
     error estimate exceeds |D| (a middle body with E = 1e300 gave D = -9790 J with only
-    information flags); one within it is reported as exactly 0."""
+    information flags), unless that estimate is negligible as a damping ratio
+    (test_lap.py::test_a_negligible_negative_loop_within_its_estimate_is_zero_not_a_failure);
+    one within the round-off bound is reported as exactly 0."""
     from qsma.analysis import _flags, _settle_dissipation
     from qsma.options import RunOptions
     args = (np.ones(1), np.ones(1), np.ones(1))          # alpha, q, tip: energy scale 1

@@ -442,8 +442,8 @@ def test_boundary_with_a_value_is_a_prescribed_displacement(tmp_path):
 
 def test_a_deck_friction_of_no_slip_is_taken_as_the_largest_mu(tmp_path):
     """A deck's *FRICTION mu = 1e20 (CalculiX's idiom for no slip) is read as
-    qsma.model.interface.MU_NO_SLIP, named as a note."""
-    from qsma.model.interface import MU_NO_SLIP
+    qsma.model.friction.MU_NO_SLIP, named as a note."""
+    from qsma.model.friction import MU_NO_SLIP
     path = lap_deck(tmp_path / "lap.inp")
     path.write_text(path.read_text().replace("*FRICTION\n0.6, 1e12", "*FRICTION\n1.E20, 1e12"))
     deck = read_deck(path)

@@ -3,23 +3,27 @@ macOS): the same results as in one process, no preparation pickled, and a worker
 that dies costs its case a second try, not the study."""
 import os
 import signal
+import threading
 
 import numpy as np
 import pytest
 
 import qsma
-from qsma._infra.forked import fork_refusal
+from qsma._infra.forked import fork_refusal, parallel_available
 from qsma.examples import sandwich_2d
 from qsma.study import runners
 
 
 @pytest.fixture(autouse=True)
 def may_fork():
-    """Forked workers need a process that may fork now (no other thread: a Dask client
-    an earlier test left behind keeps threads running)."""
+    """Forked workers need the fork start method (skipped where the platform has none,
+    Windows) and a process that may fork now: a thread an earlier test left running
+    (a Dask client's IO loop) is that test's fault, and fails here by name."""
+    if not parallel_available():
+        pytest.skip("the fork start method is not available on this platform")
     why_not = fork_refusal()
-    if why_not is not None:
-        pytest.skip(f"this process may not fork: {why_not}")
+    assert why_not is None, (f"this process may not fork: {why_not} "
+                             f"({[t.name for t in threading.enumerate()]})")
 
 
 OPTIONS = qsma.RunOptions(levels=qsma.Levels.log("tip", 1e-6, 1e-3, 11))

@@ -34,7 +34,7 @@ def _fill(text):
             if line.startswith(old):
                 line = new
         if line.startswith("# clamps = "):
-            line = line[2:].replace("dofs = [1, 2]", "dofs = [1, 2]")
+            line = line[2:]
         if line.startswith("# pressures = "):
             line = line[2:].replace("p = 0.0", "p = 17.554e6")
         if line.startswith("# points = "):

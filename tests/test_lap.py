@@ -225,7 +225,7 @@ def test_a_negligible_negative_loop_within_its_estimate_is_zero_not_a_failure():
     3.6e-5 between neighbours of +4e-7 and +2e-7. A cycle cannot create energy and
     the value is zero within its estimate, which is negligible as a damping ratio
     (below qsma.analysis.ZETA_NEGLIGIBLE): reported as 0 with its estimate, not as
-    negative_dissipation (the default lap-3d run failed so). A negative value beyond
+    negative_dissipation, so the default lap-3d run succeeds. A negative value beyond
     its estimate, or with an estimate that is not negligible, stays a failure."""
     from qsma.analysis import ZETA_NEGLIGIBLE, _negligible_negative
     model = lap_3d(1)

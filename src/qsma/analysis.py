@@ -1400,7 +1400,7 @@ def _flags(alpha, q, tip, hyst, omega0, opts):
                       "loop_failed")
         elif D[k] < -ZETA_ZERO * 2 * np.pi * alpha[k] * abs(q[k]) and not \
                 _negligible_negative(D[k], err[k], alpha[k], q[k]):
-            fl.append("negative_dissipation")       # whatever its error estimate says
+            fl.append("negative_dissipation")       # beyond round-off and not negligible
         if hyst["zeta_masing"][k] < -ZETA_ZERO and use_loop[k]:
             fl.append("masing_negative")
         hard = f[k] > f0 * (1 + STUCK_FREQUENCY_RTOL) or (

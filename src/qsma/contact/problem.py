@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import blas as sla_blas
 
+from .._infra.dense import symmetrised
 from ..errors import InputError
 
 #: Relative asymmetry accepted in K: ``max|K - K^T| <= SYMMETRY_RTOL * max|K|``.
@@ -93,7 +94,6 @@ class ContactProblem:
         ``overwrite=True``: ``K`` is the caller's own float64 array, symmetrised in place
         (:func:`qsma._infra.dense.symmetrised`, the same bits as ``(K + K^T) / 2``), frozen
         and held: no copy of the zone's size."""
-        from .._infra.dense import symmetrised
         K = _frozen(symmetrised(K) if overwrite else 0.5 * (K + K.T))
         new = object.__new__(cls)
         _set_fields(new, K=K, mu=_frozen(np.array(mu, dtype=float)),

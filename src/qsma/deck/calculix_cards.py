@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..contact.laws import ElasticStick, InterfaceLaw
 from ..errors import InputError
 from ..fe.formulation import resolve_formulations
 from ..mesh.celltypes import CELL_TYPES, abaqus_faces
@@ -152,7 +153,6 @@ def _surface_behavior(law, slope, label):
     interface law: ``*SURFACE BEHAVIOR``, the stick slope of ``*FRICTION`` (None: qsma's
     rigid stick, written with the penalty ``slope``) and the slope of a linear or hard
     (penalty) normal law."""
-    from ..contact.laws import ElasticStick, InterfaceLaw
     law = law if law is not None else InterfaceLaw()
     normal, tangential = law.normal, law.tangential
     note = []

@@ -9,6 +9,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..mesh.io.abaqus.writer import _inp_number
+from ..model.pairing import make_pairing
 from ..model.spring import set_shares
 from .calculix_cards import (FIELD_CONTROLS, PENALTY_FACTOR, CalculixRefusal,
                              _surface_behavior, calculix_element, calculix_numbering,
@@ -267,7 +268,6 @@ class _Writer:
     def _slave(self, itf):
         """The body whose nodes carry the contact points: qsma's mortar slave, body 2
         of a node-to-node interface (both meshes coincide there)."""
-        from ..model.pairing import make_pairing
         if itf.slave is not None:
             return itf.slave
         if itf.coupling == "node":

@@ -11,7 +11,7 @@ import numpy as np
 from ..errors import InputError
 from ..mesh.io.abaqus.lexer import _inp_cards
 from ..mesh.io.assembly import read_assembly
-from ..model.interface import MU_NO_SLIP
+from ..model.friction import MU_NO_SLIP
 from ..units import SI, UNIT_SYSTEMS, plausible, unit_system
 from .loads import SupportsAndLoads
 from .probe import ProbeAndLevels

@@ -2,10 +2,14 @@
 where they cover the case, else through the factorised tied stiffness."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ..errors import InputError
+from ..fe.assembly import stiffness_matrix
 from ..fe.bolts import bolt_stiffness
+from ..model.spring import spring_matrix
 from ..reduction.rigid import assembly_free_motions
 from .substructured import _substructured_modes, substructured_inverse
 from .tied import (Modes, _check_free_rigid, _check_rigid, _checked_springs, _factor,
@@ -83,17 +87,18 @@ def _check_hourglass(modes, assembled):
     their deformation carries almost no strain energy on the reduced rule and a normal
     amount on the full one. Such modes spread through meshes one element thick; in
     thicker meshes they cannot, and every mode passes."""
-    from dataclasses import replace
-    from ..fe.assembly import stiffness_matrix
     offsets = np.cumsum([0] + [a.n_dofs for a in assembled])
     for j, a in enumerate(assembled):
         form = a.element
         if not getattr(form, "reduced", False):
             continue
-        K_red = stiffness_matrix(a.body, form)
+        # the body's own K (its grounded springs included) against the same body on
+        # the full rule, springs added: only the cells' rule differs between the two
         K_full = stiffness_matrix(a.body, replace(form, reduced=False))
+        if a.body.springs:
+            K_full = K_full + spring_matrix(a.body)
         phi = modes.shapes[offsets[j]:offsets[j + 1], modes.n_rigid:]
-        e_red = np.einsum("ik,ik->k", phi, K_red @ phi)
+        e_red = np.einsum("ik,ik->k", phi, a.K @ phi)
         e_full = np.einsum("ik,ik->k", phi, K_full @ phi)
         scale = max(e_full.max(initial=0.0), np.finfo(float).tiny)
         bad = np.flatnonzero(e_full > HOURGLASS_RATIO * np.maximum(e_red, 0.0)

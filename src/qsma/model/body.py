@@ -9,6 +9,7 @@ import numpy as np
 
 from ..errors import InputError, NearlyIncompressibleWarning
 from .damping import LinearDamping
+from .friction import check_mu
 from ..mesh.celltypes import CELL_TYPES
 from ..mesh.mesh import Mesh
 
@@ -296,7 +297,6 @@ class Model:
         mu = _finite("friction coefficient mu", self.mu)
         if mu < 0:
             raise InputError(f"friction coefficient mu must be >= 0, got {mu}")
-        from .interface import check_mu
         check_mu(mu)
         object.__setattr__(self, "mu", mu)
         from ..units import unit_system

@@ -31,6 +31,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import InputError
+from ..mesh.facets import facet_node_weights
 
 
 @dataclass(frozen=True)
@@ -92,7 +93,6 @@ def set_shares(body, name, what) -> tuple:
     equal shares of a node set (a set that is both: its facets); shares sum to 1.
     ``what`` (a spring, a point mass) names the user of the set in the messages."""
     if name in body.mesh.facet_sets:
-        from ..mesh.facets import facet_node_weights
         facets = body.mesh.facet_sets[name]
         with np.errstate(invalid="ignore", divide="ignore"):   # degenerate: refused below
             w = facet_node_weights(body.mesh.points, facets, body.mesh.facet_type)

@@ -159,10 +159,7 @@ class RunFolder:
             os.mkdir(self.staging, 0o700)
         except BaseException as exc:        # also Ctrl-C / SIGTERM: leave nothing behind
             shutil.rmtree(self.staging, ignore_errors=True)
-            self._unlock()
-            if isinstance(exc, OSError):
-                raise self._unwritable(exc) from exc
-            raise
+            _release(self, exc)
         return self
 
     def __exit__(self, *exc):
@@ -354,10 +351,7 @@ class StudyFolder:
             self._check()
             self.path.mkdir(exist_ok=True)
         except BaseException as exc:
-            self._unlock()
-            if isinstance(exc, OSError):
-                raise self._unwritable(exc) from exc
-            raise
+            _release(self, exc)
         return self
 
     def __exit__(self, *exc):
@@ -560,7 +554,13 @@ def _take_lock(folder):
         with _signals_deferred():
             folder._lock()
     except BaseException as exc:
-        folder._unlock()
-        if isinstance(exc, OSError):
-            raise folder._unwritable(exc) from exc
-        raise
+        _release(folder, exc)
+
+
+def _release(folder, exc):
+    """Give up the lock of ``folder`` after ``exc`` and raise it again; an OSError as
+    the folder's unwritable-place error naming the fix."""
+    folder._unlock()
+    if isinstance(exc, OSError):
+        raise folder._unwritable(exc) from exc
+    raise exc
