@@ -232,3 +232,28 @@ def test_linearised_first_step_gives_the_same_ramp(monkeypatch):
         np.testing.assert_array_equal(a.status, b.status)
         np.testing.assert_allclose(a.d, b.d, rtol=0, atol=1e-11 * np.abs(b.d).max())
     assert sum(r.nit for r in newton) <= sum(r.nit for r in plain)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_active_set_hands_its_measures_on_and_they_are_the_iterates(dim, monkeypatch):
+    """``active_set`` reports the measures of the iterate it stopped on, from the same
+    products as its stopping test: they equal the measures formed afresh, and the
+    registry does not form them again (a ramp with a counting spy on the registry's
+    own evaluation: no call)."""
+    from qsma.contact import registry
+    from qsma.contact.active_set import solve_active_set
+    from qsma.contact.residual import measures
+    from qsma.contact.state import ContactState
+    p, base = _problem(dim=dim)
+    pre = solve(p, base, method="active_set")
+    lw = _level(base, 1.0, turn=0.7)
+    out = solve_active_set(p, lw, pre.state, tol=TOL)
+    assert out.converged and out.nit > 0 and out.measures is not None
+    assert out.measures == measures(p, lw, out.d, out.lam, pre.state)
+    assert out.measures[0] <= TOL
+    calls = []
+    real = registry._measures
+    monkeypatch.setattr(registry, "_measures", lambda *a: calls.append(1) or real(*a))
+    ramp = _ramp(p, base, np.linspace(0.2, 2.0, 8), method="active_set")
+    assert all(r.success and r.residual <= TOL for r in ramp)
+    assert any(r.n_slipping > 0 for r in ramp) and not calls

@@ -22,7 +22,8 @@ backtracking line search on ``|F|^2``; if the line search fails, the
 Jacobian is singular or ``maxiter`` is reached, the method stops unconverged
 and :func:`qsma.contact.solve` hands over to ``"basket"`` from the current
 iterate (unless ``fallback=False``). Success is decided by
-:func:`qsma.contact.residual`.
+:func:`qsma.contact.residual`; the measures of the converged iterate are
+handed back with it (one pass over ``K`` per iterate).
 """
 from __future__ import annotations
 
@@ -34,7 +35,7 @@ from ..errors import InputError
 from .law import augmented_forces, pair_quantities, slip_directions_from_forces
 from .linear import basket_system, solve_partitioned
 from .registry import Iterate, register_method
-from .residual import residual
+from .residual import measures, products, residual_components
 from .state import OPEN, SLIPPING, STUCK
 
 #: Armijo constant and the smallest step of the damped line search.
@@ -74,9 +75,13 @@ def solve_active_set(problem, lam_w, previous, *, tol, maxiter=None, guess=None,
     steps = NEWTON_STEPS if maxiter is None else min(maxiter, NEWTON_STEPS)
     newton = _Newton(problem, lam_w, previous, augmentation * problem.kappa, guess)
     for it in range(steps + 1):
-        if residual(problem, lam_w, newton.d2, newton.lam2, previous) <= tol:
+        Kd_aKd = products(problem, newton.d)
+        if residual_components(problem, lam_w, newton.d2, newton.lam2, previous,
+                               known_products=Kd_aKd).total <= tol:
+            checked = measures(problem, lam_w, newton.d2, newton.lam2, previous,
+                               known_products=Kd_aKd)
             return Iterate(newton.d2, newton.lam2, it, True,
-                           f"converged in {it} Newton steps{newton.note()}")
+                           f"converged in {it} Newton steps{newton.note()}", measures=checked)
         if it == steps or not newton.step():
             break
     reason = (newton.failure or f"no convergence in {it} Newton steps") + newton.note()

@@ -126,7 +126,7 @@ def products(problem, d):
         return problem.product(x), problem.abs_product(x, symmetric=True)
 
 
-def residual_components(problem, lam_w, d, lam, previous_state=None):
+def residual_components(problem, lam_w, d, lam, previous_state=None, known_products=None):
     r"""Scale-honest residual of ``(d, lam)``, part by part.
 
     With ``e = |K| |d| + |lam_w|`` (size of the terms of each equation), the
@@ -153,6 +153,9 @@ def residual_components(problem, lam_w, d, lam, previous_state=None):
     problem : ContactProblem
     lam_w, d, lam : (n_pairs, dim)
     previous_state : ContactState or None
+    known_products : tuple, optional
+        ``(K d, |K| |d|)`` of this ``d`` already formed by :func:`products` (a method
+        that checks its iterate and then reports its :func:`measures` from one pass).
 
     Returns
     -------
@@ -160,7 +163,7 @@ def residual_components(problem, lam_w, d, lam, previous_state=None):
     """
     lam_w, d, lam = (np.asarray(a, dtype=float) for a in (lam_w, d, lam))
     return _components(problem, lam_w, d, lam, _previous_displacement(problem, previous_state),
-                       products(problem, d))
+                       products(problem, d) if known_products is None else known_products)
 
 
 def _components(problem, lam_w, d, lam, d_prev, Kd_aKd):
