@@ -19,7 +19,7 @@ import time
 import numpy as np
 
 import qsma
-from qsma import hysteresis
+from qsma.hysteresis import refinement as hysteresis
 from qsma.examples import EXAMPLES
 from qsma.levels import Levels
 

@@ -215,7 +215,7 @@ def settle(args):
     """Refinement rounds that stop halving the intervals whose share of the loop has
     settled (the default ``LOCAL_SHARE``) against rounds that halve every interval
     where a pair changes state (``LOCAL_SHARE = 0``), alternating in one process."""
-    from qsma import hysteresis
+    from qsma.hysteresis import refinement as hysteresis
     share = hysteresis.LOCAL_SHARE
 
     def side(on):

@@ -117,7 +117,7 @@ def test_methods_agree_on_the_backbone(result, method):
     other = qsma.run(sandwich_2d(1), levels=levels, method=method, refine_levels=False)
     assert other.success
     assert np.allclose(other.q, result.q[::5], rtol=1e-7)
-    from qsma.masing import masing
+    from qsma.hysteresis.masing import masing
     ref = masing(result.alpha[::5], result.q[::5])      # same levels, same quadrature
     assert np.allclose(other.zeta, ref.zeta, rtol=1e-5, atol=1e-9)
 

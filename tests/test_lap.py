@@ -114,10 +114,10 @@ def test_loops_on_a_dask_cluster_give_the_results_of_this_process_bit_for_bit():
 def test_an_unreachable_loop_scheduler_is_named_with_the_fix(tmp_path, capsys, monkeypatch):
     """Before the ramps: a wrong address costs no computing."""
     pytest.importorskip("distributed")
-    import qsma.hysteresis
+    import qsma.hysteresis.workers
     from qsma.errors import InputError
     from qsma.progress import Progress
-    monkeypatch.setattr(qsma.hysteresis, "SCHEDULER_TIMEOUT", "2s")
+    monkeypatch.setattr(qsma.hysteresis.workers, "SCHEDULER_TIMEOUT", "2s")
     stages = []
 
     class Stages(Progress):

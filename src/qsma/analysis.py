@@ -34,7 +34,7 @@ from .errors import (AnalysisError, ContactConvergenceWarning, InputError,
 from .fe import assemble_body
 from .hysteresis import (SECANT_RTOL, compute_loop, map_loops, masing_checks,
                          masing_estimate, scheduler_client)
-from .masing import loop_area
+from .hysteresis import loop_area
 from .levels import spec_levels
 from .modal import linear_modes, probe_vector
 from .model import make_pairing

@@ -55,7 +55,7 @@ class RunOptions:
         Loop cycles per amplitude before a level is declared not stabilised (more
         while the loop's shakedown converges geometrically fast enough, up to
         :data:`qsma.hysteresis.CYCLE_CEILING` times as many; see
-        :data:`qsma.hysteresis.CONTRACTION`).
+        :data:`qsma.hysteresis.cycles.CONTRACTION`).
     refine_levels : bool
         Insert backbone levels where the estimate of the Masing integral exceeds
         ``dissipation_rtol`` or the pair states change (the output grid stays ``levels``).

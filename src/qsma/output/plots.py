@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..masing import masing_loop
+from ..hysteresis import masing_loop
 from .folders import atomic_write
 from ..units import SI, display_stress, quantity_unit
 
