@@ -155,7 +155,7 @@ def starved_solver(monkeypatch):
     iteration of the nodal Gauss-Seidel, which cannot converge on this problem."""
     import qsma.analysis as analysis
     import qsma.contact.zone as zone
-    real = analysis.contact_solve
+    real = analysis.solves.contact_solve
     calls = {"n": 0}
 
     def starved(problem, lam_w, state=None, **kw):
@@ -163,7 +163,7 @@ def starved_solver(monkeypatch):
         if calls["n"] > 1:
             kw.update(method="nodal_gs", maxiter=1)
         return real(problem, lam_w, state, **kw)
-    monkeypatch.setattr(analysis, "contact_solve", starved)
+    monkeypatch.setattr(analysis.solves, "contact_solve", starved)
     monkeypatch.setattr(zone, "solve", starved)       # the ramp solves on the zone
     return calls
 

@@ -160,8 +160,9 @@ def test_shipped_preparation_arrives_condensed_and_runs_as_the_original(model, m
     def condensing(*args, **kwargs):
         raise AssertionError("condensed again")
 
-    monkeypatch.setattr(qsma.analysis, "_condense", condensing)
-    monkeypatch.setattr(qsma.analysis, "reduce_two_bodies", condensing)
+    monkeypatch.setattr(qsma.analysis.prepared, "_condense", condensing)
+    monkeypatch.setattr(qsma.analysis.stages, "_condense", condensing)
+    monkeypatch.setattr(qsma.analysis.stages, "reduce_two_bodies", condensing)
     back = pickle.loads(pickle.dumps(prep))
     again = pickle.loads(pickle.dumps(back.with_mu(0.4)))        # worker to worker
     assert again.model.mu == 0.4 and np.array_equal(again.reduced.K, prep.reduced.K)
