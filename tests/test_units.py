@@ -17,7 +17,8 @@ from qsma.levels import Levels
 from qsma.model import Material, Pressure
 from qsma.output.files import column_name, write_all
 from qsma.units import (MM_N_S_TONNE, SI, check_model_units, quantity_unit,
-                        unit_mismatches, unit_system, units_block)
+                        unit_mismatches, unit_system)
+from qsma.result import units_block
 
 LEVELS_M = (1e-6, 1e-5, 3e-4, 1e-3)
 

@@ -1,18 +1,21 @@
 """The outcome of a QSMA run as typed data: :class:`QSMAResult` and its parts.
 
-The per-level quantities are named once, in :data:`LEVEL_FIELDS`; results.json,
-results.csv (:mod:`qsma.output.files`) and the study tables follow that tuple. The writers
-live in :mod:`qsma.output.files`; this module holds data only.
+The per-level quantities are the fields of :class:`LevelTable`, each with its meaning,
+its physical quantity (its unit in the model's system) and how the writers treat it
+(:func:`column`); results.json, results.csv (:mod:`qsma.output.files`), the report's
+table and the study tables follow them in their order (:data:`LEVEL_FIELDS`). The
+writers live in :mod:`qsma.output.files`; this module holds data only.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .contact import ContactState
 from .options import RunOptions
+from .units import QUANTITIES, SI, quantity_unit, unit_system
 from .version import __version__
 
 if TYPE_CHECKING:  # types only: no import cost or cycle at run time
@@ -49,6 +52,133 @@ FAILURE_FIXES = {
     "q_not_increasing": "the modal amplitude does not grow with the load: check the "
                         "contact solves of these levels (tol, maxiter) and the levels",
 }
+
+
+def column(doc, quantity=None, *, optional=False, nan_when_flagged=False, report=None,
+           derived=False):
+    """A field of :class:`LevelTable`: one column of results.json's ``levels``, of
+    results.csv and of the study tables.
+
+    Parameters
+    ----------
+    doc : str
+        What the column holds (docs/results.md says it to the user).
+    quantity : str or None
+        Its physical quantity (:data:`qsma.units.QUANTITIES`), which gives its unit in
+        the model's system; ``None`` for counts, names and flags.
+    optional : bool
+        NaN where it was not computed (a loop at a level that used Masing, the -alpha
+        ramp beyond a failure): written as null / an empty cell.
+    nan_when_flagged : bool
+        Comes from the frequency, the damping or the loop: NaN at a level flagged
+        ``not_finite``, ``loop_failed`` or ``loop_not_stabilised`` is written as null
+        beside the flag (:data:`qsma.output.files.NAN_FLAGS`); any other NaN is refused.
+    report : (heading, format) or None
+        Its column in the report's per-level table, if it has one.
+    derived : bool
+        Computed by :class:`QSMAResult` from its other fields (not a constructor
+        argument).
+    """
+    return field(init=not derived, metadata=dict(
+        doc=doc, quantity=quantity, optional=optional, nan_when_flagged=nan_when_flagged,
+        report=report))
+
+
+@dataclass(frozen=True, eq=False)
+class LevelTable:
+    """The per-level results, one entry per solved level of the user's grid: each field
+    is a column (:func:`column` holds its meaning, unit and treatment), in the order of
+    results.csv. A new column is a field here and its value where it is computed (the
+    run's backbone columns in :mod:`qsma.analysis.driver`, the dissipation's in
+    :class:`qsma.analysis.dissipation.Dissipation`, a derived one in
+    :meth:`QSMAResult.__post_init__`), and its line in docs/results.md."""
+
+    alpha: np.ndarray = column("modal force of the level", "modal_force")
+    tip_lin: np.ndarray = column("tip deflection of the linear tied structure at alpha",
+                                 "length", report=("linear tip", "{:.3e}"))
+    q: np.ndarray = column("modal amplitude on the +alpha backbone, from the preload "
+                           "state", "modal_amplitude")
+    tip: np.ndarray = column("tip deflection (probe) on the +alpha backbone, from the "
+                             "preload state", "length", report=("peak tip", "{:.3e}"))
+    q_neg: np.ndarray = column("modal amplitude on the -alpha backbone", "modal_amplitude",
+                               optional=True)
+    asymmetry: np.ndarray = column("(q + q_neg) / q: 0 for a symmetric joint",
+                                   "dimensionless", optional=True)
+    f_hz: np.ndarray = column("secant frequency of the method used at this level",
+                              "frequency", nan_when_flagged=True, report=("f", "{:.4f}"))
+    zeta: np.ndarray = column("equivalent viscous damping ratio of the method used",
+                              "dimensionless", nan_when_flagged=True,
+                              report=("zeta", "{:.3e}"))
+    zeta_structure: np.ndarray = column(
+        "linear damping ratio of the structure besides the joint at the level's "
+        "frequency (model.damping; zero without it)", "dimensionless",
+        nan_when_flagged=True, derived=True)
+    zeta_total: np.ndarray = column(
+        "zeta + zeta_structure: what a test of the assembly measures", "dimensionless",
+        nan_when_flagged=True, derived=True)
+    dissipation: np.ndarray = column("energy dissipated per cycle, method used", "energy",
+                                     nan_when_flagged=True,
+                                     report=("dissipation", "{:.3e}"))
+    dissipation_error: np.ndarray = column("estimate of the integration error of "
+                                           "dissipation", "energy", optional=True)
+    dissipation_method: np.ndarray = column("masing or loop",
+                                            report=("dissipation by", "{}"))
+    f_hz_masing: np.ndarray = column("Masing's rules on the +alpha backbone: frequency",
+                                     "frequency")
+    zeta_masing: np.ndarray = column("Masing's rules: damping ratio", "dimensionless")
+    dissipation_masing: np.ndarray = column("Masing's rules: dissipation per cycle",
+                                            "energy")
+    f_hz_loop: np.ndarray = column("the stabilised computed loop: frequency", "frequency",
+                                   optional=True)
+    zeta_loop: np.ndarray = column("the stabilised computed loop: damping ratio",
+                                   "dimensionless", optional=True)
+    dissipation_loop: np.ndarray = column("the stabilised computed loop: dissipation",
+                                          "energy", optional=True)
+    dissipation_first_cycle: np.ndarray = column("the loop's first cycle's dissipation",
+                                                 "energy", optional=True)
+    loop_cycles: np.ndarray = column("cycles on the initial increments until the loop "
+                                     "settled (0: no loop)")
+    shakedown: np.ndarray = column("the first cycle or the first loadings differ from "
+                                   "the stabilised cycle")
+    tip_velocity: np.ndarray = column("peak tip velocity, w times the tip deflection",
+                                      "velocity", nan_when_flagged=True)
+    n_stuck: np.ndarray = column("pairs stuck on the +alpha backbone",
+                                 report=("stuck", "{}"))
+    n_slip: np.ndarray = column("pairs slipping on the +alpha backbone",
+                                report=("slip", "{}"))
+    n_open: np.ndarray = column("pairs open on the +alpha backbone",
+                                report=("open", "{}"))
+    iterations: np.ndarray = column("contact solver iterations of the level",
+                                    report=("iterations", "{}"), derived=True)
+    residual: np.ndarray = column("public residual of the level's contact solve",
+                                  "dimensionless", report=("residual", "{:.1e}"),
+                                  derived=True)
+    method_reason: np.ndarray = column("why the method was used")
+    flags: tuple = column("the level's flags (FAILURE_FLAGS are failures)")
+
+
+#: The per-level quantities, in the order of results.csv (docs/results.md has units).
+LEVEL_FIELDS = tuple(f.name for f in fields(LevelTable))
+#: Each per-level field's :func:`column` metadata, by name.
+LEVEL_COLUMNS = {f.name: f.metadata for f in fields(LevelTable)}
+#: The quantity of each per-level field (:data:`qsma.units.QUANTITIES`); ``None`` for
+#: counts, names and flags, which have no unit.
+LEVEL_QUANTITIES = {name: c["quantity"] for name, c in LEVEL_COLUMNS.items()}
+
+
+def level_units(units=SI, dim=3) -> dict:
+    """Per-level field name -> unit text (``None`` for counts, names and flags)."""
+    return {k: None if q is None else quantity_unit(q, units, dim)
+            for k, q in LEVEL_QUANTITIES.items()}
+
+
+def units_block(units=SI, dim=3) -> dict:
+    """The ``units`` block of results.json: the system's name, its base and derived
+    units (per depth in 2D), and the unit of every per-level field."""
+    u = unit_system(units)
+    base = {q: quantity_unit(q, u, dim) for q in QUANTITIES if q != "dimensionless"}
+    return {"system": u.name, "time": u.time, **base, "per_unit_depth": dim == 2,
+            "levels": level_units(u, dim)}
 
 
 @dataclass(frozen=True, eq=False)
@@ -113,8 +243,9 @@ class DirectLoop:
 
 
 @dataclass(frozen=True, eq=False)
-class QSMAResult:
-    """Everything a QSMA run produced.
+class QSMAResult(LevelTable):
+    """Everything a QSMA run produced: the per-level columns of :class:`LevelTable`
+    and the run's own fields below.
 
     Arrays under "levels" (:data:`LEVEL_FIELDS`) have one entry per solved level of the
     user's grid. The +alpha ramp was solved through ``backbone_alpha`` (the user's
@@ -132,32 +263,6 @@ class QSMAResult:
     mode_index: int
     omega0: float
     phi_tip: float
-    alpha: np.ndarray
-    tip_lin: np.ndarray
-    q: np.ndarray
-    tip: np.ndarray
-    q_neg: np.ndarray
-    asymmetry: np.ndarray
-    f_hz: np.ndarray
-    zeta: np.ndarray
-    dissipation: np.ndarray
-    dissipation_error: np.ndarray
-    dissipation_method: np.ndarray
-    method_reason: np.ndarray
-    f_hz_masing: np.ndarray
-    zeta_masing: np.ndarray
-    dissipation_masing: np.ndarray
-    f_hz_loop: np.ndarray
-    zeta_loop: np.ndarray
-    dissipation_loop: np.ndarray
-    dissipation_first_cycle: np.ndarray
-    loop_cycles: np.ndarray
-    shakedown: np.ndarray
-    tip_velocity: np.ndarray
-    n_stuck: np.ndarray
-    n_slip: np.ndarray
-    n_open: np.ndarray
-    flags: tuple[tuple[str, ...], ...]
     states: LevelStates
     loops: dict[int, Loop]
     backbone_alpha: np.ndarray
@@ -183,10 +288,20 @@ class QSMAResult:
     level_costs: LevelCosts | None = None
     version: str = __version__
 
+    def __post_init__(self):
+        """The derived columns of :class:`LevelTable` from the other fields."""
+        damping = getattr(self.model, "damping", None)
+        zeta = np.asarray(self.zeta, dtype=float)
+        structure = np.zeros_like(zeta) if damping is None else \
+            damping.zeta(2 * np.pi * np.asarray(self.f_hz, dtype=float))
+        for name, value in (("zeta_structure", structure), ("zeta_total", zeta + structure),
+                            ("iterations", self.states.iterations),
+                            ("residual", self.states.residual)):
+            object.__setattr__(self, name, value)
+
     @property
     def units(self):
         """The model's :class:`qsma.units.UnitSystem` (every result is in it)."""
-        from .units import unit_system
         return unit_system(getattr(self.model, "units", "SI"))
 
     @property
@@ -196,29 +311,6 @@ class QSMAResult:
     @property
     def n_levels(self):
         return len(self.alpha)
-
-    @property
-    def zeta_structure(self):
-        """Linear damping ratio of the structure besides the joint at each level's
-        frequency (``model.damping``; zero without it)."""
-        damping = getattr(self.model, "damping", None)
-        if damping is None:
-            return np.zeros_like(np.asarray(self.zeta, dtype=float))
-        return damping.zeta(2 * np.pi * np.asarray(self.f_hz, dtype=float))
-
-    @property
-    def zeta_total(self):
-        """The joint's damping ratio plus the structure's (``zeta + zeta_structure``):
-        what a test of the assembly measures."""
-        return np.asarray(self.zeta, dtype=float) + self.zeta_structure
-
-    @property
-    def iterations(self):
-        return self.states.iterations
-
-    @property
-    def residual(self):
-        return self.states.residual
 
     @property
     def failed_levels(self) -> list:
@@ -237,14 +329,6 @@ class QSMAResult:
         """Per-level arrays by name (the ``levels`` block of results.json)."""
         return {k: getattr(self, k) for k in LEVEL_FIELDS}
 
-
-#: The per-level quantities, in the order of results.csv (docs/results.md has units).
-LEVEL_FIELDS = ("alpha", "tip_lin", "q", "tip", "q_neg", "asymmetry", "f_hz", "zeta",
-                "zeta_structure", "zeta_total", "dissipation", "dissipation_error", "dissipation_method", "f_hz_masing",
-                "zeta_masing", "dissipation_masing", "f_hz_loop", "zeta_loop",
-                "dissipation_loop", "dissipation_first_cycle", "loop_cycles", "shakedown",
-                "tip_velocity", "n_stuck", "n_slip", "n_open", "iterations", "residual",
-                "method_reason", "flags")
 
 
 def load_factors(reduced, alpha) -> np.ndarray:

@@ -21,7 +21,8 @@ from ..options import RunOptions
 from ..progress import reporter
 from ..reduction.rigid import support_share
 from ..model.pairing import body_order
-from ..result import LevelCosts, LevelStates, QSMAResult, load_factors as _load_factors
+from ..result import (LEVEL_FIELDS, LevelCosts, LevelStates, QSMAResult,
+                      load_factors as _load_factors)
 from .checks import _flags, _outcome, _settle_dissipation
 from .clock import _Timer
 from .dissipation import _direct_loop, level_dissipation, _with_closed
@@ -177,24 +178,14 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
             release_zones(problem)  # not at the next collection of the cycle collector
 
     with clock.stage("postprocess"):
-        al = alpha[:n_ok]
-        q = pos.q[user]
-        tip = pos.tip[user]
-        q_neg = np.full(n_ok, np.nan)
-        nn = min(neg.n, pos.n)
-        good_neg = np.zeros(pos.n, bool)
-        good_neg[:nn] = neg.ok[:nn]
-        has_neg = good_neg[user]
-        q_neg[has_neg] = neg.q[user[has_neg]]
-        status = pos.status[user]
-        counts = np.array([_counts(s) for s in status]).reshape(n_ok, 3)
-        gross = [k for k in range(n_ok) if counts[k, 0] == 0 and counts[k, 1] > 0]
+        columns = _backbone_columns(alpha[:n_ok], pos, neg, user, hyst, omega0, phi_tip)
+        al, q = columns["alpha"], columns["q"]
+        gross = [k for k in range(n_ok)
+                 if columns["n_stuck"][k] == 0 and columns["n_slip"][k] > 0]
         shape = (n_ok, pairing.n_pairs, model.dim)
-        states = LevelStates(pos.d[user].reshape(shape), pos.lam[user].reshape(shape), status,
-                             pos.residual[user], pos.nit[user])
-        omega = np.where(hyst.use_loop, 2 * np.pi * hyst.f_hz_loop,
-                         2 * np.pi * hyst.f_hz_masing)
-        flags = _flags(al, q, tip, hyst, omega0, opts)
+        states = LevelStates(pos.d[user].reshape(shape), pos.lam[user].reshape(shape),
+                             pos.status[user], pos.residual[user], pos.nit[user])
+        flags = _flags(al, q, columns["tip"], hyst, omega0, opts)
         _settle_dissipation(hyst, flags, al, q)
         success, message = _outcome(pos, flags, hyst.loops)
 
@@ -218,19 +209,7 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
                         else model.damping.as_dict(),
                         **_rigid_info(reduced, modes, pos, grid, user)),
         mode_index=opts.mode, omega0=omega0, phi_tip=phi_tip,
-        alpha=al, tip_lin=al * phi_tip / omega0 ** 2, q=q, tip=tip,
-        q_neg=q_neg, asymmetry=(q + q_neg) / q,
-        f_hz=hyst.f_hz, zeta=hyst.zeta, dissipation=hyst.dissipation,
-        dissipation_error=hyst.dissipation_error,
-        dissipation_method=hyst.dissipation_method, method_reason=hyst.method_reason,
-        f_hz_masing=hyst.f_hz_masing, zeta_masing=hyst.zeta_masing,
-        dissipation_masing=hyst.dissipation_masing, f_hz_loop=hyst.f_hz_loop,
-        zeta_loop=hyst.zeta_loop, dissipation_loop=hyst.dissipation_loop,
-        dissipation_first_cycle=hyst.dissipation_first_cycle,
-        loop_cycles=hyst.loop_cycles,
-        shakedown=hyst.shakedown, tip_velocity=omega * np.abs(tip),
-        n_stuck=counts[:, 0], n_slip=counts[:, 1], n_open=counts[:, 2], flags=flags,
-        states=states, loops=hyst.loops, backbone_alpha=grid[:pos.n],
+        **columns, **hyst.columns(LEVEL_FIELDS), flags=flags, states=states, loops=hyst.loops, backbone_alpha=grid[:pos.n],
         backbone_states=LevelStates(pos.d, pos.lam, pos.status, pos.residual, pos.nit),
         backbone_index=user,
         preload=pre, modes=modes, reduced=reduced, pairing=pairing, model=model,
@@ -246,6 +225,26 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
         timings_s=timings, resources=_resources.snapshot(), direct_loop=loop,
         gross_slip_level=gross[0] if gross else None,
         level_costs=_level_costs(grid[user], pos.work, neg.work, hyst.loops))
+
+
+def _backbone_columns(alpha, pos, neg, user, hyst, omega0, phi_tip) -> dict:
+    """The level-table columns (:class:`qsma.result.LevelTable`) that come from the
+    ramps at the user's levels (``user``: their indices on the refined grid): the
+    load, the modal amplitudes of both backbones, the tip and the pair states."""
+    n = len(alpha)
+    q, tip = pos.q[user], pos.tip[user]
+    q_neg = np.full(n, np.nan)
+    nn = min(neg.n, pos.n)
+    good_neg = np.zeros(pos.n, bool)
+    good_neg[:nn] = neg.ok[:nn]
+    has_neg = good_neg[user]
+    q_neg[has_neg] = neg.q[user[has_neg]]
+    counts = np.array([_counts(s) for s in pos.status[user]]).reshape(n, 3)
+    omega = np.where(hyst.use_loop, 2 * np.pi * hyst.f_hz_loop,
+                     2 * np.pi * hyst.f_hz_masing)
+    return dict(alpha=alpha, tip_lin=alpha * phi_tip / omega0 ** 2, q=q, tip=tip,
+                q_neg=q_neg, asymmetry=(q + q_neg) / q, tip_velocity=omega * np.abs(tip),
+                n_stuck=counts[:, 0], n_slip=counts[:, 1], n_open=counts[:, 2])
 
 
 def _level_costs(levels, pos_work, neg_work, loops) -> LevelCosts:

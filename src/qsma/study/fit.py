@@ -530,7 +530,8 @@ def write_fit(fr: FitResult, out, start_prediction=None) -> FitResult:
     paths = {"json": out / "fit.json", "csv": out / "fit.csv"}
     atomic_write(paths["json"], json.dumps(fit_dict(fr), indent=1) + "\n")
     m = fr.measured
-    from ..units import column_label, level_units
+    from ..result import level_units
+    from ..units import column_label
     unit = level_units(fr.result.units, fr.result.model.dim)
     lines = [",".join(column_label(c, unit[c]) for c in (m.kind, "f_hz", "zeta"))
              + ",f_hz_fit [Hz],zeta_fit [-]"]
