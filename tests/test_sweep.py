@@ -397,6 +397,26 @@ def test_the_fingerprint_ignores_loop_workers_only():
     assert _fingerprint(model, RunOptions(dissipation_rtol=1e-3)) != base
 
 
+def test_the_execution_options_are_one_record_left_out_of_fingerprint_and_sweep():
+    """The options that change no result are named once (EXECUTION_FIELDS, read as an
+    Execution record); the fingerprint and the sweep leave out exactly those (and the
+    sweep the BLAS threads and the condensation backend it fixes), and every other
+    option is fingerprinted."""
+    import importlib
+    from qsma.options import EXECUTION_FIELDS, Execution, RunOptions
+    from qsma.study.cases import NOT_SWEPT
+    sweep_module = importlib.import_module("qsma.study.sweep")
+    assert EXECUTION_FIELDS == ("loop_workers", "loop_scheduler", "parallel_ramps")
+    assert sweep_module.NOT_FINGERPRINTED == EXECUTION_FIELDS
+    assert set(NOT_SWEPT) == set(EXECUTION_FIELDS) | {"blas_threads", "schur_backend"}
+    opts = RunOptions(loop_workers=2, parallel_ramps=False)
+    assert opts.execution == Execution(loop_workers=2, parallel_ramps=False)
+    assert opts.loop_worker_count == 2
+    assert set(opts.results_options()) == set(opts.as_dict()) - set(EXECUTION_FIELDS)
+    with pytest.raises(InputError, match="parallel_ramps must be true or false"):
+        RunOptions(parallel_ramps="yes")
+
+
 def test_a_case_computes_its_loops_itself_whatever_the_loop_scheduler():
     """The study's workers are its parallel part: a case on one of them that handed its
     loops to the same scheduler could wait for workers that all wait for loops."""

@@ -2,12 +2,21 @@
 
 :class:`RunOptions` is the single source of every option of :func:`qsma.run`: the
 TOML ``[analysis]`` table (:meth:`RunOptions.from_table`), the command-line
-overrides (:func:`dataclasses.replace`) and the ``solver`` block of results.json
+overrides (:func:`dataclasses.replace`) and the ``options`` block of results.json
 (:meth:`RunOptions.as_dict`) are all derived from its fields.
+
+Its fields are of two kinds. Most say *what* is computed (the physics and the
+numerics: mode, levels, contact solver and tolerances, dissipation model, ...); a
+change of one changes the results. The :data:`EXECUTION_FIELDS` say only *how* the
+run is executed (processes for the loops, a Dask scheduler, the -alpha ramp on a
+second process): the results are the same bits for any value of them, so a study's
+fingerprint leaves them out and a sweep does not vary them. They are read together as
+:attr:`RunOptions.execution`, an :class:`Execution` record. Both kinds stay keywords of
+the one constructor (and keys of one TOML table, flags of one command line).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, field, fields, replace
 import math
 import typing
 
@@ -26,9 +35,64 @@ MAX_LOOP_STEPS = 10000
 MAX_LOOP_WORKERS = 256
 
 
+def _execution(default):
+    """A field of :class:`RunOptions` that says how the run is executed, not what it
+    computes (one of :data:`EXECUTION_FIELDS`)."""
+    return field(default=default, metadata={"execution": True})
+
+
+@dataclass(frozen=True)
+class Execution:
+    """How a run is executed: settings that change no result (the same bits for any
+    value), read from :class:`RunOptions` as :attr:`RunOptions.execution`.
+
+    Attributes
+    ----------
+    loop_workers : int or None
+        Processes that compute the levels' loops (``None``: :attr:`loop_worker_count`).
+    loop_scheduler : str or None
+        Address of a Dask scheduler whose workers compute the loops.
+    parallel_ramps : bool
+        The -alpha ramp on a second process while the +alpha ramp's last round runs.
+    """
+
+    loop_workers: int | None = _execution(None)
+    loop_scheduler: str | None = _execution(None)
+    parallel_ramps: bool = _execution(True)
+
+    def __post_init__(self):
+        if self.loop_workers is not None:
+            _integer("loop_workers", self.loop_workers, minimum=1, maximum=MAX_LOOP_WORKERS)
+        if self.loop_scheduler is not None:
+            if not isinstance(self.loop_scheduler, str) or not self.loop_scheduler.strip():
+                raise InputError(f"loop_scheduler must be the address of a Dask scheduler "
+                                 f"(e.g. 'tcp://host:8786'), got {self.loop_scheduler!r}")
+            if self.loop_workers is not None:
+                raise InputError("loop_workers sets the local processes of the loops; with "
+                                 "loop_scheduler the scheduler's workers compute them: "
+                                 "give one of the two")
+        if not isinstance(self.parallel_ramps, (bool, np.bool_)):
+            raise InputError(f"parallel_ramps must be true or false, got "
+                             f"{self.parallel_ramps!r}")
+
+    @property
+    def loop_worker_count(self) -> int:
+        """``loop_workers``, or for ``None`` one process per core this one may use
+        (:func:`qsma._infra.threads.usable_cores`), on Linux (one elsewhere:
+        :func:`qsma._infra.forked.second_core_refusal`)."""
+        if self.loop_workers is not None:
+            return int(self.loop_workers)
+        from ._infra.forked import second_core_refusal
+        from ._infra.threads import usable_cores
+        return 1 if second_core_refusal() else min(usable_cores(), MAX_LOOP_WORKERS)
+
+
 @dataclass(frozen=True)
 class RunOptions:
     """Every option of a QSMA run, validated on creation.
+
+    Parameters that change the results (physics and numerics) come first; the last
+    three (:data:`EXECUTION_FIELDS`, read together as :attr:`execution`) change none.
 
     Parameters
     ----------
@@ -80,6 +144,9 @@ class RunOptions:
     eliminate_open : bool
         Solve the ramp on the pairs closed after the preload, the open ones eliminated
         exactly (a pair that would close joins the zone).
+
+    Execution (the same results for any value)
+
     loop_workers : int or None
         Processes that compute the levels' loops (1: in this process; ``None``, the
         default: one per core this process may use, on Linux, see
@@ -96,7 +163,7 @@ class RunOptions:
     parallel_ramps : bool
         Solve the -alpha ramp on a second process (forked, on Linux) while the
         last refinement round of the +alpha ramp runs in this one; the results are the
-        same bits either way (``qsma.analysis._NegativeRamp``).
+        same bits either way (``qsma.analysis.ramps._NegativeRamp``).
     """
 
     mode: int = 0
@@ -115,9 +182,9 @@ class RunOptions:
     schur_backend: str = "auto"
     blas_threads: typing.Any = "auto"
     eliminate_open: bool = True
-    loop_workers: int | None = None
-    loop_scheduler: str | None = None
-    parallel_ramps: bool = True
+    loop_workers: int | None = _execution(None)
+    loop_scheduler: str | None = _execution(None)
+    parallel_ramps: bool = _execution(True)
 
     def __post_init__(self):
         from .contact.registry import method_names
@@ -143,20 +210,10 @@ class RunOptions:
                              f"{self.dissipation_rtol:g}")
         _integer("max_cycles", self.max_cycles, minimum=1, maximum=MAX_CYCLES_LIMIT)
         _integer("loop_steps", self.loop_steps, minimum=2, maximum=MAX_LOOP_STEPS)
-        if self.loop_workers is not None:
-            _integer("loop_workers", self.loop_workers, minimum=1, maximum=MAX_LOOP_WORKERS)
-        if self.loop_scheduler is not None:
-            if not isinstance(self.loop_scheduler, str) or not self.loop_scheduler.strip():
-                raise InputError(f"loop_scheduler must be the address of a Dask scheduler "
-                                 f"(e.g. 'tcp://host:8786'), got {self.loop_scheduler!r}")
-            if self.loop_workers is not None:
-                raise InputError("loop_workers sets the local processes of the loops; with "
-                                 "loop_scheduler the scheduler's workers compute them: "
-                                 "give one of the two")
+        self.execution                   # validated there
         if self.n_modes is not None:
             _integer("n_modes", self.n_modes, minimum=1)
-        for name in ("refine_levels", "direct_loop", "continue_on_failure", "eliminate_open",
-                     "parallel_ramps"):
+        for name in ("refine_levels", "direct_loop", "continue_on_failure", "eliminate_open"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise InputError(f"{name} must be true or false, got {getattr(self, name)!r}")
         if not isinstance(self.schur_backend, str):
@@ -166,15 +223,19 @@ class RunOptions:
             _integer("blas_threads", bt, minimum=1)
 
     @property
+    def execution(self) -> Execution:
+        """The options that say how the run is executed (:data:`EXECUTION_FIELDS`)."""
+        return Execution(**{name: getattr(self, name) for name in EXECUTION_FIELDS})
+
+    @property
     def loop_worker_count(self) -> int:
-        """``loop_workers``, or for ``None`` one process per core this one may use
-        (:func:`qsma._infra.threads.usable_cores`), on Linux (one elsewhere:
-        :func:`qsma._infra.forked.second_core_refusal`)."""
-        if self.loop_workers is not None:
-            return int(self.loop_workers)
-        from ._infra.forked import second_core_refusal
-        from ._infra.threads import usable_cores
-        return 1 if second_core_refusal() else min(usable_cores(), MAX_LOOP_WORKERS)
+        """:attr:`Execution.loop_worker_count` of :attr:`execution`."""
+        return self.execution.loop_worker_count
+
+    def results_options(self) -> dict:
+        """The options that change the results (:meth:`as_dict` without the
+        :data:`EXECUTION_FIELDS`): what a study's fingerprint holds."""
+        return {k: v for k, v in self.as_dict().items() if k not in EXECUTION_FIELDS}
 
     @property
     def solver_options(self) -> dict:
@@ -231,4 +292,8 @@ def _positive(name, value):
         raise InputError(f"{name} must be a positive finite number, got {value!r}")
 
 
-__all__ = ["RunOptions", "DISSIPATION_METHODS"]
+#: The fields of :class:`RunOptions` that say how a run is executed, not what it
+#: computes: the results are the same bits for any value of them.
+EXECUTION_FIELDS = tuple(f.name for f in fields(RunOptions) if f.metadata.get("execution"))
+
+__all__ = ["RunOptions", "Execution", "EXECUTION_FIELDS", "DISSIPATION_METHODS"]

@@ -164,7 +164,8 @@ def level_dissipation(solver, response, grid, user, pos, neg, pre, opts, k_ref, 
     report = report or Progress()
     report.task("loops", len(todo))
     done = lambda j: report.advance("loops", j, len(todo))
-    loops = map_loops(job, todo, opts.loop_worker_count, done, opts.loop_scheduler)
+    run_on = opts.execution
+    loops = map_loops(job, todo, run_on.loop_worker_count, done, run_on.loop_scheduler)
     for i, lp in zip(todo, loops):
         out.loops[i] = lp
         out.n_solves += lp.n_solves

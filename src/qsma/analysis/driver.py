@@ -121,8 +121,8 @@ def run_prepared(prepared: Prepared, options: RunOptions | None = None, *, progr
 
 def _run(model, pairing, opts, progress, clock, prepared=None):
     report = clock.report = reporter(progress)
-    if opts.loop_scheduler is not None:    # a wrong address is told before the ramps
-        scheduler_client(opts.loop_scheduler).close()
+    if opts.execution.loop_scheduler is not None:   # a wrong address: told before the ramps
+        scheduler_client(opts.execution.loop_scheduler).close()
     order = body_order(model, pairing)
     sopts = opts.solver_options
     if prepared is None:
@@ -160,7 +160,8 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
             solver = _Solver(layer, reduced, opts.method, sopts,
                              zone_from_state(problem, pre.state) if opts.eliminate_open
                              else None)
-            negative = _NegativeRamp(solver, response, pre, opts.parallel_ramps)
+            negative = _NegativeRamp(solver, response, pre,
+                                     opts.execution.parallel_ramps)
             try:
                 grid, user, pos = _refined_backbone(solver, alpha, pre, opts, report,
                                                     response, k_ref, negative.start)

@@ -12,7 +12,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..levels import Levels
-from ..options import RunOptions
+from ..options import EXECUTION_FIELDS, RunOptions
 
 #: Parameters that change the model rather than the run options. ``E``, ``nu``, ``rho``
 #: may name a body (``E:bottom``); without a body they apply to every body.
@@ -31,8 +31,7 @@ CASES_MEMORY_SHARE, MAX_CASES_UNKNOWN_MEMORY = 0.5, 100_000
 #: loop scheduler and the parallel ramps do not change results (a sweep's workers
 #: compute their loops and ramps themselves: a daemonic process may not fork), the
 #: condensation backend is fixed when the shared preparation is made.
-NOT_SWEPT = ("blas_threads", "schur_backend", "loop_workers", "loop_scheduler",
-             "parallel_ramps")
+NOT_SWEPT = ("blas_threads", "schur_backend") + EXECUTION_FIELDS
 
 
 @dataclass(frozen=True)

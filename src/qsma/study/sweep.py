@@ -34,7 +34,7 @@ import time
 
 from ..errors import InputError
 from ..levels import Levels
-from ..options import RunOptions
+from ..options import EXECUTION_FIELDS, RunOptions
 from ..output.folders import MANIFEST, StudyFolder
 from .cases import Case, check_bodies, grid, material_key, parse_values
 from .runners import (DONE_SUFFIX, CaseOutcome, check_scheduler, check_workers,
@@ -49,9 +49,9 @@ STUDY_NAME = "study.json"
 #: ``--workers`` changes it, up to the usable cores.
 DEFAULT_WORKERS = 2
 CASE_FILES = ("plots", "vtu", "rom", "report")
-#: Run options left out of a study's fingerprint: they change no result, so a study
-#: resumes whatever they are.
-NOT_FINGERPRINTED = ("loop_workers", "loop_scheduler", "parallel_ramps")
+#: Run options left out of a study's fingerprint: they change no result
+#: (:data:`qsma.options.EXECUTION_FIELDS`), so a study resumes whatever they are.
+NOT_FINGERPRINTED = EXECUTION_FIELDS
 
 
 @dataclass(frozen=True, eq=False)
