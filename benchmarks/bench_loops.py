@@ -79,7 +79,7 @@ import qsma
 from qsma._infra.resources import cpu_with_children_s
 from qsma.cli.run import parse_levels_spec
 from qsma.examples import EXAMPLES
-from qsma.result import LEVEL_FIELDS
+from qsma.analysis.result import LEVEL_FIELDS
 
 #: A computed loop is an interpolation node if D exceeds this multiple of (its error
 #: estimate + the zero threshold zeta 1e-8): log D of a zero-to-its-error value is noise.

@@ -13,7 +13,7 @@ import pytest
 
 import qsma
 from qsma.cli import main
-from qsma.config import load_config
+from qsma.analysis.config import load_config
 from qsma.errors import AnalysisError, InputError
 from qsma.examples import stack_2d
 from qsma.model import Pressure
@@ -185,7 +185,7 @@ def test_negative_dissipation_beyond_round_off_fails_whatever_its_error_estimate
     (test_lap.py::test_a_negligible_negative_loop_within_its_estimate_is_zero_not_a_failure);
     one within the round-off bound is reported as exactly 0."""
     from qsma.analysis import _flags, _settle_dissipation
-    from qsma.options import RunOptions
+    from qsma.analysis.options import RunOptions
     args = (np.ones(1), np.ones(1), np.ones(1))          # alpha, q, tip: energy scale 1
     real = _level_columns(D=-1e-4, err=1e-3)
     flags = _flags(*args, real, 2 * np.pi, RunOptions())

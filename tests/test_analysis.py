@@ -6,7 +6,7 @@ import qsma
 from qsma.contact import METHODS, residual
 from qsma.examples import sandwich_2d
 from qsma.fe import assemble_body
-from qsma.levels import Levels
+from qsma.analysis.levels import Levels
 from qsma.modal import linear_modes
 from qsma.model import make_pairing
 

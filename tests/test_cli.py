@@ -215,7 +215,7 @@ def test_a_level_whose_loop_failed_is_written_as_null_beside_its_flag(tmp_path):
     import qsma
     from qsma.errors import AnalysisError
     from qsma.examples import sandwich_2d
-    from qsma.levels import Levels
+    from qsma.analysis.levels import Levels
     from qsma.output.files import results_dict, write_csv
 
     res = qsma.run(sandwich_2d(1), levels=Levels.log("tip", 1e-6, 1e-4, 4),

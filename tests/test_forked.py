@@ -12,7 +12,7 @@ from qsma import analysis
 from qsma._infra import forked as _forked
 from qsma.errors import ContactConvergenceWarning, InputError
 from qsma.examples import sandwich_2d
-from qsma.options import RunOptions
+from qsma.analysis.options import RunOptions
 
 pytestmark = pytest.mark.skipif(not _forked.parallel_available(),
                                 reason="no fork start method (Windows)")

@@ -30,7 +30,7 @@ from qsma.contact import OPEN, ContactProblem, solve
 from qsma.errors import InputError
 from qsma._infra.forked import parallel_available
 from qsma.hysteresis import compute_loop, cycle_area, map_loops, masing_checks, masing_estimate
-from qsma.options import RunOptions
+from qsma.analysis.options import RunOptions
 
 k0, k, ku, g, kn, mu, P0 = 1.0e6, 3.0e6, 4.0e6, 2.0e-4, 1.0e9, 0.5, 400.0
 Fs = mu * P0

@@ -10,8 +10,8 @@ import qsma
 from qsma.cli import main
 from qsma.examples import lap_2d, lap_3d
 from qsma._infra.forked import parallel_available
-from qsma.result import LEVEL_FIELDS
-from qsma.levels import Levels
+from qsma.analysis.result import LEVEL_FIELDS
+from qsma.analysis.levels import Levels
 from qsma.model import Mesh
 from helpers import in_forked_child
 

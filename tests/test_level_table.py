@@ -7,7 +7,7 @@ import re
 
 import pytest
 
-from qsma.result import LEVEL_COLUMNS, LEVEL_FIELDS, LevelTable, QSMAResult, level_units
+from qsma.analysis.result import LEVEL_COLUMNS, LEVEL_FIELDS, LevelTable, QSMAResult, level_units
 from qsma.units import QUANTITIES
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "results.md"

@@ -167,7 +167,7 @@ def _stack_2d_first_levels(**options):
     level 4 are those of the full 51-level run: same zeta to 4 digits, 10 cycles)."""
     import qsma
     from qsma.examples import stack_2d
-    from qsma.levels import Levels
+    from qsma.analysis.levels import Levels
     tips = 10.0 ** (-6 + 3 * np.arange(6) / 50)
     return qsma.run(stack_2d(), levels=Levels("tip", tuple(tips)), **options)
 

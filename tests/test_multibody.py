@@ -237,7 +237,7 @@ def test_stack_contact_forces_balance_each_body(stack_run):
     rm = res.reduced
     k = res.n_levels - 1
     lam = res.states.lam[k].ravel()
-    a = qsma.result.load_factors(rm, res.alpha[k])
+    a = qsma.analysis.result.load_factors(rm, res.alpha[k])
     fields = res.fields(k)
     A = [assemble_body(b) for b in res.model.bodies]
     f_if = rm.G.T @ lam

@@ -388,7 +388,7 @@ def test_the_fingerprint_ignores_loop_workers_only():
     """A study resumes whatever the number of loop workers (they change no result),
     but not after a change of an option that does."""
     from qsma.examples import sandwich_2d
-    from qsma.options import RunOptions
+    from qsma.analysis.options import RunOptions
     from qsma.study.sweep import _fingerprint
     model = sandwich_2d()
     base = _fingerprint(model, RunOptions())
@@ -403,7 +403,7 @@ def test_the_execution_options_are_one_record_left_out_of_fingerprint_and_sweep(
     sweep the BLAS threads and the condensation backend it fixes), and every other
     option is fingerprinted."""
     import importlib
-    from qsma.options import EXECUTION_FIELDS, Execution, RunOptions
+    from qsma.analysis.options import EXECUTION_FIELDS, Execution, RunOptions
     from qsma.study.cases import NOT_SWEPT
     sweep_module = importlib.import_module("qsma.study.sweep")
     assert EXECUTION_FIELDS == ("loop_workers", "loop_scheduler", "parallel_ramps")
@@ -420,7 +420,7 @@ def test_the_execution_options_are_one_record_left_out_of_fingerprint_and_sweep(
 def test_a_case_computes_its_loops_itself_whatever_the_loop_scheduler():
     """The study's workers are its parallel part: a case on one of them that handed its
     loops to the same scheduler could wait for workers that all wait for loops."""
-    from qsma.options import RunOptions
+    from qsma.analysis.options import RunOptions
     from qsma.study.cases import case_inputs
     _, opts = case_inputs(object(), {"mode": 1},
                           RunOptions(loop_scheduler="tcp://host:8786"))
@@ -432,7 +432,7 @@ def test_the_fingerprint_of_auto_is_the_method_it_runs_in_2d():
     versions, so their 2D studies still resume; in 3D the choice depends on the pair
     count, so auto is fingerprinted as itself and differs from an explicit method."""
     from qsma.examples import lap_3d, sandwich_2d
-    from qsma.options import RunOptions
+    from qsma.analysis.options import RunOptions
     from qsma.study.sweep import _fingerprint
     flat = sandwich_2d()
     assert _fingerprint(flat, RunOptions()) == _fingerprint(flat, RunOptions(method="basket"))

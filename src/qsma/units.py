@@ -200,6 +200,6 @@ __all__ = ["UnitSystem", "SI", "MM_N_S_TONNE", "UNIT_SYSTEMS", "unit_system",
            "unit_mismatches"]
 
 # the units of the per-level results moved beside the fields they describe
-forward(__name__, names={name: "qsma.result" for name in
+forward(__name__, names={name: "qsma.analysis.result" for name in
                          ("LEVEL_QUANTITIES", "level_units", "units_block")})
 

@@ -1,12 +1,12 @@
 """What the physics guarantees, checked per level: the flags of a level, the
 dissipation that is zero to the precision it was computed with, and the outcome of a
-run (:data:`qsma.result.FAILURE_FLAGS`)."""
+run (:data:`qsma.analysis.result.FAILURE_FLAGS`)."""
 from __future__ import annotations
 
 import numpy as np
 
 from ..hysteresis import SECANT_RTOL
-from ..result import FAILURE_FIXES, FAILURE_FLAGS
+from .result import FAILURE_FIXES, FAILURE_FLAGS
 
 #: A damping ratio below this in magnitude is zero to the precision of the contact
 #: solves (tol 1e-10 on forces; the stuck sandwich-2d levels give |zeta| ~ 1e-12).
@@ -102,7 +102,7 @@ def _flags(alpha, q, tip, hyst, omega0, opts):
 
 def _outcome(pos, flags, loops=None):
     """``(success, message)`` of the run from the ramp and the level flags: per failure
-    flag its levels and what to change (:data:`qsma.result.FAILURE_FIXES`), with the
+    flag its levels and what to change (:data:`qsma.analysis.result.FAILURE_FIXES`), with the
     message of the first loop that failed or did not stabilise (``loops``: level ->
     :class:`qsma.hysteresis.Loop`)."""
     parts = [] if pos.success else [pos.message]

@@ -13,10 +13,10 @@ from .._infra.threads import blas_threads as threads_limited
 from ..contact import OPEN, SLIPPING
 from ..contact.zone import ContactZone
 from ..hysteresis import compute_loop, loop_area, map_loops, masing_checks, masing_estimate
-from ..options import RunOptions
 from ..progress import Progress
-from ..result import DirectLoop
 from .checks import ZETA_ZERO
+from .options import RunOptions
+from .result import DirectLoop
 from .solves import _Solver
 
 log = logging.getLogger("qsma")
@@ -27,7 +27,7 @@ class Dissipation:
     """The dissipation per cycle at each of the user's levels, by Masing's rules and by
     the computed loop (NaN where not computed), and which of the two the level uses.
 
-    A field named like a column of the level table (:class:`qsma.result.LevelTable`)
+    A field named like a column of the level table (:class:`qsma.analysis.result.LevelTable`)
     is that column: the run takes it from here (:meth:`columns`). The arrays are
     settled in place where a value is zero to the precision it was computed with
     (:func:`qsma.analysis.checks._settle_dissipation`).
@@ -109,8 +109,9 @@ class Dissipation:
         chosen values above), by name."""
         return {name: getattr(self, name) for name in names if hasattr(self, name)}
 
-def level_dissipation(solver, response, grid, user, pos, neg, pre, opts, k_ref, report=None,
-                threads=None) -> Dissipation:
+
+def level_dissipation(solver, response, grid, user, pos, neg, pre, opts, k_ref,
+                      report=None, threads=None) -> Dissipation:
     """The :class:`Dissipation` at the user's levels: Masing's estimates and checks,
     and the loops where the checks fail or ``opts.dissipation`` asks for them;
     ``threads``: the BLAS thread limit of the loops' contact solves."""

@@ -16,20 +16,21 @@ from ..contact.registry import chosen_method
 from ..contact.zone import release_zones, zone_from_state
 from ..errors import InputError, QSMAWarning
 from ..hysteresis import scheduler_client
-from ..levels import spec_levels
-from ..options import RunOptions
+from ..model.pairing import body_order
 from ..progress import reporter
 from ..reduction.rigid import support_share
-from ..model.pairing import body_order
-from ..result import (LEVEL_FIELDS, LevelCosts, LevelStates, QSMAResult,
-                      load_factors as _load_factors)
 from .checks import _flags, _outcome, _settle_dissipation
 from .clock import _Timer
 from .dissipation import _direct_loop, level_dissipation, _with_closed
+from .levels import spec_levels
+from .options import RunOptions
 from .prepared import Prepared, _start
 from .ramps import _NegativeRamp, _refined_backbone
+from .result import (LEVEL_FIELDS, LevelCosts, LevelStates, QSMAResult,
+                     load_factors as _load_factors)
 from .solves import _contact_threads, _Response, _Solver
 from .stages import _assemble, _mode, preload
+
 
 def _counts(status):
     return [int(np.sum(status == s)) for s in (STUCK, SLIPPING, OPEN)]
@@ -43,7 +44,7 @@ def run(model, options: RunOptions | None = None, *, progress=None, **overrides)
     model : :class:`qsma.model.Model` with a tip probe: two bodies and one interface, or
         any number of bodies and interfaces (``Model(interfaces=...)``, one contact
         problem over all of them, :mod:`qsma.multibody`)
-    options : :class:`qsma.options.RunOptions`, optional
+    options : :class:`qsma.analysis.options.RunOptions`, optional
         Every option of the run (defaults: :class:`RunOptions` ``()``).
     progress : :class:`qsma.progress.Progress` or callable, optional
         Told of each stage and of the load levels, refinement rounds and loops as they
@@ -172,8 +173,8 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
             solver.zone = _with_closed(solver.zone, neg.status)
 
         with clock.stage("hysteresis"), threads_limited(contact_limit):
-            hyst = level_dissipation(solver, response, grid[:pos.n], user, pos, neg, pre, opts,
-                               k_ref, report, contact_limit)
+            hyst = level_dissipation(solver, response, grid[:pos.n], user, pos, neg, pre,
+                                     opts, k_ref, report, contact_limit)
     finally:
         if prepared is None:        # the problem dies with this run: free its zones now,
             release_zones(problem)  # not at the next collection of the cycle collector
@@ -210,7 +211,8 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
                         else model.damping.as_dict(),
                         **_rigid_info(reduced, modes, pos, grid, user)),
         mode_index=opts.mode, omega0=omega0, phi_tip=phi_tip,
-        **columns, **hyst.columns(LEVEL_FIELDS), flags=flags, states=states, loops=hyst.loops, backbone_alpha=grid[:pos.n],
+        **columns, **hyst.columns(LEVEL_FIELDS), flags=flags, states=states,
+        loops=hyst.loops, backbone_alpha=grid[:pos.n],
         backbone_states=LevelStates(pos.d, pos.lam, pos.status, pos.residual, pos.nit),
         backbone_index=user,
         preload=pre, modes=modes, reduced=reduced, pairing=pairing, model=model,
@@ -229,7 +231,7 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
 
 
 def _backbone_columns(alpha, pos, neg, user, hyst, omega0, phi_tip) -> dict:
-    """The level-table columns (:class:`qsma.result.LevelTable`) that come from the
+    """The level-table columns (:class:`qsma.analysis.result.LevelTable`) that come from the
     ramps at the user's levels (``user``: their indices on the refined grid): the
     load, the modal amplitudes of both backbones, the tip and the pair states."""
     n = len(alpha)

@@ -7,17 +7,16 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .._infra.threads import threads_for
+from .._infra.threads import blas_threads as threads_limited, threads_for
 from ..contact.layer import interface_springs
 from ..contact.registry import method_for
 from ..errors import InputError
 from ..model import Pressure
 from ..model.pairing import make_pairing, multi_pairing
-from ..options import RunOptions
 from ..reduction.condensation import refactorised_bodies
 from ..units import check_model_units
-from .._infra.threads import blas_threads as threads_limited
 from .clock import _Timer
+from .options import RunOptions
 from .solves import _contact_threads
 from .stages import _assemble, _condense, _mode, _warn_closed_gaps, preload
 

@@ -14,7 +14,8 @@ from ..contact.layer import MAX_LAW_ITERATIONS, Layer, solve_layered
 from ..contact.zone import solve_in_zone, solve_preload, zone_from_state
 from ..errors import ContactConvergenceWarning
 from ..reduction.rigid import held_by_joint
-from ..result import load_factors as _load_factors
+from .result import load_factors as _load_factors
+
 
 def _contact_threads(opts):
     """BLAS thread limit of the contact solves: one under ``blas_threads="auto"``

@@ -20,8 +20,8 @@ from ..reduction.multibody import reduce_model
 from ..reduction.pretension import lock
 from ..reduction.rigid import ANCHOR_ROUNDS, anchored, elastic_probe, held_by_joint
 from ..reduction.two_bodies import reduce_two_bodies
-from ..result import load_factors as _load_factors
 from .clock import _Timer
+from .result import load_factors as _load_factors
 from .solves import _solve
 
 #: Mortar surfaces closer than this fraction of the interface size count as coincident

@@ -24,13 +24,13 @@ import tempfile
 import numpy as np
 
 from ..mesh.celltypes import CELL_TYPES
-from ..result import FAILURE_FLAGS, LEVEL_COLUMNS, level_units
+from ..analysis.result import FAILURE_FLAGS, LEVEL_COLUMNS, level_units
 from ..units import column_label
 
 REPORT_NAME = "report.html"
 #: Columns of the per-level table of a run's report: (field, heading, format), the
-#: fields whose :func:`qsma.result.column` names a ``report`` column, in their order; the
-#: heading gets the field's unit in the model's system (:func:`qsma.result.level_units`).
+#: fields whose :func:`qsma.analysis.result.column` names a ``report`` column, in their order; the
+#: heading gets the field's unit in the model's system (:func:`qsma.analysis.result.level_units`).
 LEVEL_TABLE = tuple((name, *c["report"]) for name, c in LEVEL_COLUMNS.items()
                     if c["report"] is not None)
 

@@ -11,8 +11,8 @@ import itertools
 import numpy as np
 
 from ..errors import InputError
-from ..levels import Levels
-from ..options import EXECUTION_FIELDS, RunOptions
+from ..analysis.levels import Levels
+from ..analysis.options import EXECUTION_FIELDS, RunOptions
 
 #: Parameters that change the model rather than the run options. ``E``, ``nu``, ``rho``
 #: may name a body (``E:bottom``); without a body they apply to every body.
