@@ -13,13 +13,13 @@ try:
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
+from ..contact.laws import law_from_table
 from ..errors import InputError, MeshFileError
+from ..model import (Body, Bolt, Clamp, Interface, LinearDamping, Material, Model, NodalForce,
+                     PointMass, Pressure, Probe, Spring, read_gap_field)
+from ..units import unit_system
 from .levels import Levels, spec_levels
 from .options import RunOptions
-from ..units import unit_system
-from ..contact.laws import law_from_table
-from ..model import (Body, Bolt, Clamp, Interface, LinearDamping, Material, Model, NodalForce,
-                    PointMass, Pressure, Probe, Spring, read_gap_field)
 
 _NUM = (int, float)
 # section -> {key: (types, required)}

@@ -14,9 +14,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..contact import ContactState
-from .options import RunOptions
 from ..units import QUANTITIES, SI, quantity_unit, unit_system
 from ..version import __version__
+from .options import RunOptions
 
 if TYPE_CHECKING:  # types only: no import cost or cycle at run time
     from ..reduction.two_bodies import ReducedModel
