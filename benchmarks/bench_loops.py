@@ -200,15 +200,15 @@ def methods(args):
 def warm(args):
     """Loops warm-started from the cycle before against loops started from the previous
     point only, alternating in one process."""
-    from qsma import analysis
-    loop = analysis.compute_loop
+    from qsma.analysis import dissipation          # where the loops are computed
+    loop = dissipation.compute_loop
 
     def side(on):
-        analysis.compute_loop = lambda *a, **k: loop(*a, **{**k, "warm_start": on})
+        dissipation.compute_loop = lambda *a, **k: loop(*a, **{**k, "warm_start": on})
     try:
         _alternating(args, side, "from the cycle before", "from the previous point")
     finally:
-        analysis.compute_loop = loop
+        dissipation.compute_loop = loop
 
 
 def settle(args):
