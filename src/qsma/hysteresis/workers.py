@@ -8,8 +8,8 @@ import queue
 import time
 import warnings
 
-from .._infra.forked import default_signals, fork_refusal, quiet_fork, raise_again, \
-    recorded_warnings
+from .._infra.forked import (default_signals, fork_refusal, quiet_fork, raise_again,
+                             recorded_warnings)
 from ..errors import InputError
 
 log = logging.getLogger("qsma")
