@@ -27,10 +27,11 @@ CASE_BYTES, LEVEL_BYTES = 4096, 2048
 #: Share of the free memory (:func:`qsma._infra.resources.free_memory`) a study's cases may
 #: take; where the system does not say, :data:`MAX_CASES_UNKNOWN_MEMORY` cases.
 CASES_MEMORY_SHARE, MAX_CASES_UNKNOWN_MEMORY = 0.5, 100_000
-#: Run options a sweep does not vary: the BLAS thread count, the loop workers, the
-#: loop scheduler and the parallel ramps do not change results (a sweep's workers
-#: compute their loops and ramps themselves: a daemonic process may not fork), the
-#: condensation backend is fixed when the shared preparation is made.
+#: Run options a sweep does not vary: the execution options change no result
+#: (:data:`qsma.analysis.options.EXECUTION_FIELDS`; a sweep's workers compute their
+#: loops and ramps themselves: a daemonic process may not fork), the BLAS thread count
+#: is the machine's business, and the condensation backend is fixed when the shared
+#: preparation is made.
 NOT_SWEPT = ("blas_threads", "schur_backend") + EXECUTION_FIELDS
 
 
