@@ -42,7 +42,7 @@ from qsma.deck.calculix_output import run_calculix as run_ccx
 from qsma.examples.bolted import stack_3d_bolted
 from qsma.fe import assemble_body
 from qsma.fe.bolts import washer_weights
-from qsma.options import RunOptions
+from qsma.analysis.options import RunOptions
 
 #: sigma_inf of CalculiX's linear pressure-overclosure law (Pa): the tension a
 #: node-to-face spring carries at a clearance below c0 sqrt(area). CalculiX's default,

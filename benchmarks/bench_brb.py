@@ -32,7 +32,7 @@ import numpy as np
 from qsma.analysis import _Timer, prepare
 from qsma.contact import OPEN
 from qsma.examples.brb import brb
-from qsma.options import RunOptions
+from qsma.analysis.options import RunOptions
 
 
 def one(refine):

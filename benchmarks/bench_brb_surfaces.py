@@ -19,7 +19,7 @@ import numpy as np
 
 from qsma.analysis import prepare, run_prepared
 from qsma.examples.brb import BRB_MESOSCALE_GAP, brb
-from qsma.levels import Levels
+from qsma.analysis.levels import Levels
 from qsma.model.gapfield import GapField
 
 

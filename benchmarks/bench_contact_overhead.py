@@ -65,11 +65,11 @@ def recorded_calls(case):
         calls.append((zone, np.array(lam_w), state, options, res))
         return res, grown
 
-    analysis.solve_in_zone = recording
+    analysis.solves.solve_in_zone = recording
     try:
         run_prepared(prepared, dissipation="masing")
     finally:
-        analysis.solve_in_zone = original
+        analysis.solves.solve_in_zone = original
     return calls
 
 

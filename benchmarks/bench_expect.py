@@ -60,16 +60,18 @@ def main():
         solves[0] += 1
         return inner(*a, **k)
     zone.solve = counted
-    loop = analysis.compute_loop
-    # the part measured is switched off on the "without" side, the other stays on
+    loop = analysis.dissipation.compute_loop
+    # the part measured is switched off on the "without" side, the other stays on; each
+    # name is patched in the module that calls it
+    where = analysis.ramps if args.part == "ramps" else analysis.dissipation
     off = (dict(_expected_closing=lambda *a: None) if args.part == "ramps" else
            dict(compute_loop=lambda *a, **k: loop(*a, **{**k, "expect_closing": False})))
-    sides = {"without": off, "with": {name: getattr(analysis, name) for name in off}}
+    sides = {"without": off, "with": {name: getattr(where, name) for name in off}}
     rows, last = {name: [] for name in sides}, {}
     for _ in range(args.repeat):
         for name, patch in sides.items():
             for attr, value in patch.items():
-                setattr(analysis, attr, value)
+                setattr(where, attr, value)
             solves[0] = 0
             t0 = time.perf_counter()
             res = analysis.run_prepared(replace(prepared, cache=dict(modes)), **options)
@@ -80,7 +82,7 @@ def main():
                   f"{rows[name][-1][1]:.2f} s, hysteresis {rows[name][-1][2]:.2f} s, "
                   f"zone solves {solves[0]}, success {res.success}", flush=True)
     for attr, value in sides["with"].items():
-        setattr(analysis, attr, value)
+        setattr(where, attr, value)
     print()
     print(f"{model.name}, part {args.part}: medians of {args.repeat}")
     print("| side | wall [s] | contact [s] | hysteresis [s] | zone solves |")

@@ -33,8 +33,8 @@ from qsma.deck.calculix import PENALTY_FACTOR, _default_penalty
 from qsma.deck.calculix_output import displacements, eigenfrequencies, run_calculix
 from qsma.examples import EXAMPLES
 from qsma.fe import assemble_body
-from qsma.levels import Levels
-from qsma.options import RunOptions
+from qsma.analysis.levels import Levels
+from qsma.analysis.options import RunOptions
 
 
 def contact_forces(model, deck, u_body, assembled, pairing):

@@ -51,7 +51,7 @@ from qsma.deck.calculix_output import displacements
 from qsma.contact.laws import ElasticStick, ExponentialPressure, InterfaceLaw, LinearPressure
 from qsma.examples.lap import lap_3d
 from qsma.fe import assemble_body
-from qsma.levels import Levels
+from qsma.analysis.levels import Levels
 
 #: The tension CalculiX's node-to-face linear law carries at small clearances (Pa):
 #: 1 Pa, against tens of MPa of contact pressure, leaves the law bilinear (qsma's).

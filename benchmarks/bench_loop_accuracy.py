@@ -19,9 +19,9 @@ import time
 import numpy as np
 
 import qsma
-from qsma import hysteresis
+from qsma.hysteresis import refinement as hysteresis
 from qsma.examples import EXAMPLES
-from qsma.levels import Levels
+from qsma.analysis.levels import Levels
 
 #: The reference's settings (its loop refinement rounds: hysteresis.REFINE_ROUNDS).
 REFERENCE = dict(dissipation_rtol=2e-4, loop_steps=64, max_cycles=40)

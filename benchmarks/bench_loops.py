@@ -79,7 +79,7 @@ import qsma
 from qsma._infra.resources import cpu_with_children_s
 from qsma.cli.run import parse_levels_spec
 from qsma.examples import EXAMPLES
-from qsma.result import LEVEL_FIELDS
+from qsma.analysis.result import LEVEL_FIELDS
 
 #: A computed loop is an interpolation node if D exceeds this multiple of (its error
 #: estimate + the zero threshold zeta 1e-8): log D of a zero-to-its-error value is noise.
@@ -200,22 +200,22 @@ def methods(args):
 def warm(args):
     """Loops warm-started from the cycle before against loops started from the previous
     point only, alternating in one process."""
-    from qsma import analysis
-    loop = analysis.compute_loop
+    from qsma.analysis import dissipation          # where the loops are computed
+    loop = dissipation.compute_loop
 
     def side(on):
-        analysis.compute_loop = lambda *a, **k: loop(*a, **{**k, "warm_start": on})
+        dissipation.compute_loop = lambda *a, **k: loop(*a, **{**k, "warm_start": on})
     try:
         _alternating(args, side, "from the cycle before", "from the previous point")
     finally:
-        analysis.compute_loop = loop
+        dissipation.compute_loop = loop
 
 
 def settle(args):
     """Refinement rounds that stop halving the intervals whose share of the loop has
     settled (the default ``LOCAL_SHARE``) against rounds that halve every interval
     where a pair changes state (``LOCAL_SHARE = 0``), alternating in one process."""
-    from qsma import hysteresis
+    from qsma.hysteresis import refinement as hysteresis
     share = hysteresis.LOCAL_SHARE
 
     def side(on):

@@ -17,7 +17,7 @@ import time
 
 import qsma
 from qsma.examples import EXAMPLES
-from qsma.levels import Levels
+from qsma.analysis.levels import Levels
 from qsma.output.files import write_fields, write_vtu
 
 

@@ -14,7 +14,7 @@ import numpy as np
 
 import qsma
 from qsma.examples import lap_2d
-from qsma.levels import Levels
+from qsma.analysis.levels import Levels
 
 SETTINGS = ((5e-3, 16), (5e-3, 32), (1e-3, 64))
 

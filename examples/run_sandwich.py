@@ -6,7 +6,7 @@ import sys
 
 import qsma
 from qsma.examples import sandwich_2d
-from qsma.levels import Levels
+from qsma.analysis.levels import Levels
 from qsma.output.files import prepare_output_dir, write_all
 
 

@@ -24,7 +24,7 @@ import qsma.output.folders as folders
 from qsma.cli import main
 from qsma.errors import InputError, OutputFolderBusy
 from qsma.examples import sandwich_2d
-from qsma.levels import Levels
+from qsma.analysis.levels import Levels
 from qsma.output.folders import RunFolder, verify_run_folder
 from qsma.examples import example_dir
 
@@ -315,7 +315,7 @@ def test_toml_not_utf8(tmp_path, capsys, encoding, match):
 
 
 def test_toml_utf8_with_bom_is_read(tmp_path):
-    from qsma.config import load_config
+    from qsma.analysis.config import load_config
     cfg = tmp_path / "c.toml"
     cfg.write_bytes(b"\xef\xbb\xbf" + _toml(tmp_path).encode())
     assert load_config(cfg).model.mu == 0.6
@@ -341,7 +341,7 @@ def test_nonsense_pairing_tolerance(tmp_path, capsys, tol, match):
 
 
 def test_sensible_pairing_tolerance_is_accepted(tmp_path):
-    from qsma.config import load_config
+    from qsma.analysis.config import load_config
     cfg = tmp_path / "c.toml"
     cfg.write_text(_toml(tmp_path, **{"# tol = 1e-9": "tol = 1e-9"}))
     assert load_config(cfg).model.interface.tol == 1e-9

@@ -13,7 +13,7 @@ import pytest
 
 import qsma
 from qsma.cli import main
-from qsma.config import load_config
+from qsma.analysis.config import load_config
 from qsma.errors import AnalysisError, InputError
 from qsma.examples import stack_2d
 from qsma.model import Pressure
@@ -164,14 +164,18 @@ def test_a_cycle_in_which_no_pair_rubs_dissipates_exactly_nothing(mu):
 
 
 def _level_columns(D, err, use_loop=False, n=1):
-    """The per-level columns :func:`qsma.analysis._flags` reads, for one dissipation."""
+    """The :class:`qsma.analysis.Dissipation` :func:`qsma.analysis._flags` reads, for
+    one dissipation."""
+    from qsma.analysis import Dissipation
     col = lambda v: np.full(n, v, float)
-    return dict(use_loop=np.full(n, use_loop), f_hz_loop=col(np.nan), f_hz_masing=col(0.9),
-                zeta_loop=col(np.nan), zeta_masing=col(D / (2 * np.pi)),
-                loop_error=col(np.nan), masing_error=col(err),
-                dissipation_loop=col(np.nan), dissipation_masing=col(D), loops={},
-                shakedown=np.zeros(n, bool), no_slip=np.zeros(n, bool),
-                linear=np.zeros(n, bool))
+    return Dissipation(use_loop=np.full(n, use_loop), f_hz_loop=col(np.nan),
+                       f_hz_masing=col(0.9), zeta_loop=col(np.nan),
+                       zeta_masing=col(D / (2 * np.pi)), loop_error=col(np.nan),
+                       masing_error=col(err), dissipation_loop=col(np.nan),
+                       dissipation_masing=col(D), dissipation_first_cycle=col(np.nan),
+                       loop_cycles=np.zeros(n, int), method_reason=np.full(n, "", object),
+                       shakedown=np.zeros(n, bool), no_slip=np.zeros(n, bool),
+                       linear=np.zeros(n, bool))
 
 
 def test_negative_dissipation_beyond_round_off_fails_whatever_its_error_estimate():
@@ -181,18 +185,18 @@ def test_negative_dissipation_beyond_round_off_fails_whatever_its_error_estimate
     (test_lap.py::test_a_negligible_negative_loop_within_its_estimate_is_zero_not_a_failure);
     one within the round-off bound is reported as exactly 0."""
     from qsma.analysis import _flags, _settle_dissipation
-    from qsma.options import RunOptions
+    from qsma.analysis.options import RunOptions
     args = (np.ones(1), np.ones(1), np.ones(1))          # alpha, q, tip: energy scale 1
     real = _level_columns(D=-1e-4, err=1e-3)
     flags = _flags(*args, real, 2 * np.pi, RunOptions())
     assert "negative_dissipation" in flags[0]
     _settle_dissipation(real, flags, np.ones(1), np.ones(1))
-    assert real["dissipation_masing"][0] == -1e-4          # kept beside its flag
+    assert real.dissipation_masing[0] == -1e-4          # kept beside its flag
     noise = _level_columns(D=-3e-13, err=1e-14)
     flags = _flags(*args, noise, 2 * np.pi, RunOptions())
     assert "negative_dissipation" not in flags[0]
     _settle_dissipation(noise, flags, np.ones(1), np.ones(1))
-    assert noise["dissipation_masing"][0] == 0.0 and noise["zeta_masing"][0] == 0.0
+    assert noise.dissipation_masing[0] == 0.0 and noise.zeta_masing[0] == 0.0
 
 
 def test_masing_needs_backbones_that_mirror_not_only_equal_dissipations():

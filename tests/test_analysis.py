@@ -6,7 +6,7 @@ import qsma
 from qsma.contact import METHODS, residual
 from qsma.examples import sandwich_2d
 from qsma.fe import assemble_body
-from qsma.levels import Levels
+from qsma.analysis.levels import Levels
 from qsma.modal import linear_modes
 from qsma.model import make_pairing
 
@@ -117,7 +117,7 @@ def test_methods_agree_on_the_backbone(result, method):
     other = qsma.run(sandwich_2d(1), levels=levels, method=method, refine_levels=False)
     assert other.success
     assert np.allclose(other.q, result.q[::5], rtol=1e-7)
-    from qsma.masing import masing
+    from qsma.hysteresis.masing import masing
     ref = masing(result.alpha[::5], result.q[::5])      # same levels, same quadrature
     assert np.allclose(other.zeta, ref.zeta, rtol=1e-5, atol=1e-9)
 
@@ -215,15 +215,16 @@ def test_auto_blas_threads_keep_the_contact_stage_on_one_thread(monkeypatch):
     import qsma.analysis as analysis
     import qsma._infra.threads as threads
     seen = {"condensation": [], "contact": []}
-    solve, reduce = analysis._solve, analysis.reduce_two_bodies
+    solve, reduce = analysis.solves._solve, analysis.stages.reduce_two_bodies
 
     def counted(stage, function):
         def wrapper(*args, **kwargs):
             seen[stage].append(_blas_threads())
             return function(*args, **kwargs)
         return wrapper
-    monkeypatch.setattr(analysis, "_solve", counted("contact", solve))
-    monkeypatch.setattr(analysis, "reduce_two_bodies", counted("condensation", reduce))
+    monkeypatch.setattr(analysis.solves, "_solve", counted("contact", solve))
+    monkeypatch.setattr(analysis.stages, "_solve", counted("contact", solve))
+    monkeypatch.setattr(analysis.stages, "reduce_two_bodies", counted("condensation", reduce))
     monkeypatch.setattr(threads, "SMALL_PROBLEM", 0)       # sandwich-2d counts as large
     levels = qsma.Levels.log("tip", 1e-6, 1e-4, 3)
     with threadpool_limits(limits=2, user_api="blas"):
@@ -306,8 +307,8 @@ def test_loops_told_the_pairs_closed_a_cycle_before_give_the_same_loops(monkeypa
                    parallel_ramps=False, loop_workers=1)
     told = analysis.run_prepared(prepared, **options)
     n_told, calls[0] = calls[0], 0
-    loop = analysis.compute_loop
-    monkeypatch.setattr(analysis, "compute_loop",
+    loop = analysis.dissipation.compute_loop
+    monkeypatch.setattr(analysis.dissipation, "compute_loop",
                         lambda *a, **k: loop(*a, **{**k, "expect_closing": False}))
     plain = analysis.run_prepared(prepared, **options)
     assert told.success and plain.success and told.solver["loop_solves"] > 0

@@ -5,7 +5,7 @@ import scipy.sparse.linalg as spla
 
 import qsma
 from qsma.cli import main
-from qsma.config import load_config
+from qsma.analysis.config import load_config
 from qsma.errors import InputError, MeshFileError
 from qsma.examples import STACK_2D, sandwich_2d, stack_2d
 from qsma.fe import assemble_body

@@ -13,8 +13,8 @@ from qsma.errors import InputError
 from qsma.examples.bolted import BOLT_2D, lap_2d_bolted
 from qsma.model import Bolt
 from qsma.fe.bolts import bolt_vectors
-from qsma.options import RunOptions
-from qsma.result import load_factors
+from qsma.analysis.options import RunOptions
+from qsma.analysis.result import load_factors
 
 
 def _preload(model):

@@ -15,8 +15,8 @@ from qsma.examples import EXAMPLES
 from qsma.examples.brb import BRB, brb, brb_bolt_stiffness, brb_pretension
 from qsma.fe import assemble_body
 from qsma.model import Bolt
-from qsma.options import RunOptions
-from qsma.result import load_factors
+from qsma.analysis.options import RunOptions
+from qsma.analysis.result import load_factors
 
 
 @pytest.fixture(scope="module")

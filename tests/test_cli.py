@@ -215,7 +215,7 @@ def test_a_level_whose_loop_failed_is_written_as_null_beside_its_flag(tmp_path):
     import qsma
     from qsma.errors import AnalysisError
     from qsma.examples import sandwich_2d
-    from qsma.levels import Levels
+    from qsma.analysis.levels import Levels
     from qsma.output.files import results_dict, write_csv
 
     res = qsma.run(sandwich_2d(1), levels=Levels.log("tip", 1e-6, 1e-4, 4),
@@ -248,11 +248,11 @@ def test_a_level_whose_loop_failed_fails_the_run_even_with_continue(tmp_path, ca
     """Loops that cannot stabilise (one cycle allowed, no repeat or agreement counts,
     no extension): every file is written, the levels are flagged, and the CLI exits 1
     with or without --continue (which covers failed contact solves only)."""
-    import qsma.hysteresis as hysteresis
-    cycles = hysteresis._cycles
-    monkeypatch.setattr(hysteresis, "CONTRACTION", 0.0)
-    monkeypatch.setattr(hysteresis, "_same", lambda *args: False)
-    monkeypatch.setattr(hysteresis, "_cycles",
+    from qsma.hysteresis import cycles as driver, refinement
+    cycles = driver._cycles
+    monkeypatch.setattr(driver, "CONTRACTION", 0.0)
+    monkeypatch.setattr(driver, "_same", lambda *args: False)
+    monkeypatch.setattr(refinement, "_cycles",
                         lambda step, modal, A, start, u, k_ref, max_cycles, rtol, atol,
                         closings=None:
                         cycles(step, modal, A, start, u, k_ref, 1, 0.0, 0.0, closings))

@@ -3,7 +3,7 @@ import copy
 import shutil
 import subprocess
 import sys
-from qsma.config import tomllib
+from qsma.analysis.config import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -11,10 +11,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 import qsma
-from qsma.config import load_config, parse_config
+from qsma.analysis.config import load_config, parse_config
 from qsma.errors import InputError, QSMAError
 from qsma.examples import sandwich_2d
-from qsma.levels import Levels
+from qsma.analysis.levels import Levels
 from qsma.examples import example_dir
 
 EXAMPLES = example_dir()        # the example files shipped with qsma
@@ -230,7 +230,7 @@ def test_several_modes_in_toml(base, tmp_path):
     """[analysis] modes = [0, 1]: the configuration keeps them, qsma run writes one folder
     per mode as with --modes; mode and modes together are refused."""
     from qsma.cli import main
-    from qsma.config import config_modes
+    from qsma.analysis.config import config_modes
     cfg = copy.deepcopy(base)
     cfg["analysis"]["modes"] = [0, 1]
     with pytest.raises(InputError, match="either mode = K"):

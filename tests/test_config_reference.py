@@ -9,9 +9,9 @@ import typing
 
 import pytest
 
-from qsma.config import SCHEMA, parse_config, tomllib
+from qsma.analysis.config import SCHEMA, parse_config, tomllib
 from qsma.model import Interface, Pressure
-from qsma.options import RunOptions
+from qsma.analysis.options import RunOptions
 from qsma.examples import example_dir
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -10,10 +10,10 @@ import pytest
 
 import qsma
 from qsma.cli import main
-from qsma.config import load_config, parse_config, tomllib
+from qsma.analysis.config import load_config, parse_config, tomllib
 from qsma.examples import sandwich_2d
 from qsma.fe import assemble_body
-from qsma.levels import Levels
+from qsma.analysis.levels import Levels
 from qsma.model import write_mesh
 from qsma.deck import read_deck
 from helpers import bodies_in_one_mesh

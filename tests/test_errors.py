@@ -16,7 +16,7 @@ import qsma
 from qsma.cli import main
 from qsma.errors import AnalysisError, ContactConvergenceWarning, InputError
 from qsma.examples import sandwich_2d
-from qsma.levels import Levels
+from qsma.analysis.levels import Levels
 from qsma.model import Body, Clamp, Interface, Material, Mesh, Model, Pressure
 
 
@@ -155,7 +155,7 @@ def starved_solver(monkeypatch):
     iteration of the nodal Gauss-Seidel, which cannot converge on this problem."""
     import qsma.analysis as analysis
     import qsma.contact.zone as zone
-    real = analysis.contact_solve
+    real = analysis.solves.contact_solve
     calls = {"n": 0}
 
     def starved(problem, lam_w, state=None, **kw):
@@ -163,7 +163,7 @@ def starved_solver(monkeypatch):
         if calls["n"] > 1:
             kw.update(method="nodal_gs", maxiter=1)
         return real(problem, lam_w, state, **kw)
-    monkeypatch.setattr(analysis, "contact_solve", starved)
+    monkeypatch.setattr(analysis.solves, "contact_solve", starved)
     monkeypatch.setattr(zone, "solve", starved)       # the ramp solves on the zone
     return calls
 
@@ -444,7 +444,7 @@ def test_clamp_check_is_independent_of_units(scale):
 
 
 def test_level_and_mode_counts_are_bounded():
-    from qsma.levels import MAX_LEVELS
+    from qsma.analysis.levels import MAX_LEVELS
     from qsma.modal import MAX_MODES, check_n_modes
     with pytest.raises(InputError, match=f"at most {MAX_LEVELS}"):
         Levels.log("tip", 1e-6, 1e-3, 10_000_000_000)     # used to allocate 74.5 GiB
@@ -479,7 +479,7 @@ def test_a_friction_coefficient_past_no_slip_is_refused_with_the_fix():
     at 1e4 a joint runs and its stuck levels are those of any large mu."""
     import dataclasses
     import qsma
-    from qsma.levels import Levels
+    from qsma.analysis.levels import Levels
     with pytest.raises(InputError, match="mu = 1e\\+20 is above 10000.*give mu = 10000"):
         sandwich_2d(1, mu=1e20)
     model = sandwich_2d(1)

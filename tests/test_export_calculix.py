@@ -13,14 +13,14 @@ import pytest
 
 import qsma
 from qsma.cli import main
-from qsma.config import parse_config
+from qsma.analysis.config import parse_config
 from qsma.contact.laws import (ElasticStick, ExponentialPressure, InterfaceLaw,
                                LinearPressure, TabularPressure)
 from qsma.deck import CalculixRefusal, calculix_deck, export_calculix, read_deck
 from qsma.deck.calculix import PENALTY_FACTOR, _default_penalty
 from qsma.errors import InputError
 from qsma.examples import lap_2d, lap_2d_bolted, lap_3d, sandwich_2d
-from qsma.levels import Levels
+from qsma.analysis.levels import Levels
 from qsma.model.mass import PointMass
 from qsma.model.spring import Spring
 

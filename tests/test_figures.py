@@ -13,7 +13,7 @@ import pytest
 import qsma
 import qsma.output.plots as plots
 from qsma.examples import lap_2d, lap_3d, sandwich_2d
-from qsma.levels import Levels, spec_levels
+from qsma.analysis.levels import Levels, spec_levels
 
 #: An axis label names its unit in brackets, e.g. "modal amplitude q [kg$^{1/2}$ m]";
 #: a dimensionless quantity says "[-]".

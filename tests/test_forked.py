@@ -12,7 +12,7 @@ from qsma import analysis
 from qsma._infra import forked as _forked
 from qsma.errors import ContactConvergenceWarning, InputError
 from qsma.examples import sandwich_2d
-from qsma.options import RunOptions
+from qsma.analysis.options import RunOptions
 
 pytestmark = pytest.mark.skipif(not _forked.parallel_available(),
                                 reason="no fork start method (Windows)")
@@ -46,14 +46,14 @@ def serial():
 def forks_by_default(monkeypatch):
     """The -alpha ramp forked as on Linux with two usable cores, whatever the machine
     running the tests (macOS, one core): what is tested is the forked path."""
-    monkeypatch.setattr(analysis, "second_core_refusal", lambda: None)
+    monkeypatch.setattr(analysis.ramps, "second_core_refusal", lambda: None)
 
 
 def test_forked_negative_ramp_gives_the_serial_bits(serial, monkeypatch, forks_by_default):
     """sandwich-2d refines its backbone three times; the -alpha ramp of the final grid
     is solved by a child while the third round runs, and every result is the serial
     one bit for bit (q_neg and the asymmetry come from the child)."""
-    monkeypatch.setattr(analysis, "ForkedCall", _Counted)
+    monkeypatch.setattr(analysis.ramps, "ForkedCall", _Counted)
     _Counted.made.clear()
     here = []                            # -alpha ramps solved in this process
     solved = analysis._NegativeRamp._solved
@@ -90,7 +90,7 @@ class _Raising(_forked.ForkedCall):
 @pytest.mark.parametrize("child", [_Dying, _Raising])
 def test_a_failed_child_is_replaced_by_the_serial_ramp(serial, monkeypatch, caplog, child,
                                                        forks_by_default):
-    monkeypatch.setattr(analysis, "ForkedCall", child)
+    monkeypatch.setattr(analysis.ramps, "ForkedCall", child)
     with caplog.at_level("WARNING", logger="qsma"):
         res = qsma.run(sandwich_2d(1))
     assert "negative ramp solved again in this process" in caplog.text
@@ -98,7 +98,7 @@ def test_a_failed_child_is_replaced_by_the_serial_ramp(serial, monkeypatch, capl
 
 
 def test_no_fork_outside_the_main_thread(serial, monkeypatch):
-    monkeypatch.setattr(analysis, "ForkedCall", _Counted)
+    monkeypatch.setattr(analysis.ramps, "ForkedCall", _Counted)
     _Counted.made.clear()
     out = {}
     t = threading.Thread(target=lambda: out.update(res=qsma.run(sandwich_2d(1))))

@@ -30,7 +30,7 @@ from qsma.contact import OPEN, ContactProblem, solve
 from qsma.errors import InputError
 from qsma._infra.forked import parallel_available
 from qsma.hysteresis import compute_loop, cycle_area, map_loops, masing_checks, masing_estimate
-from qsma.options import RunOptions
+from qsma.analysis.options import RunOptions
 
 k0, k, ku, g, kn, mu, P0 = 1.0e6, 3.0e6, 4.0e6, 2.0e-4, 1.0e9, 0.5, 400.0
 Fs = mu * P0
@@ -162,7 +162,8 @@ def test_settled_intervals_are_those_whose_share_of_the_loop_did_not_change():
     those of the coarser cycle (here the first) is settled and its fine intervals with
     it; one whose share changed (a kink inside it, here the second) is not, unless the
     budget holds its change; the bound is the sum of the settled changes."""
-    from qsma.hysteresis import Loop, _settled_intervals, cycle_path
+    from qsma.hysteresis import Loop, cycle_path
+    from qsma.hysteresis.estimates import _settled_intervals
     A, k = 2.0, 3.0
     coarse_u, fine_u = np.array([0.5, 1.0]), np.array([0.25, 0.5, 0.75, 1.0])
     loop = lambda u, q: Loop(A, cycle_path(A, u), q, cycle_area(cycle_path(A, u), q, k),
@@ -187,7 +188,7 @@ def test_settled_intervals_are_not_halved_again_and_the_estimate_holds(monkeypat
     changes (LOCAL_SHARE), the refinement rounds halve fewer intervals, and the loop
     stays within its error estimate of the closed form (the Jenkins element with its
     stop, increments that miss the kinks)."""
-    from qsma import hysteresis
+    from qsma.hysteresis import refinement
     A = 1600.0
     problem, lam_w = _problem()
     step = _stepper(problem, lam_w)
@@ -195,7 +196,7 @@ def test_settled_intervals_are_not_halved_again_and_the_estimate_holds(monkeypat
     D = _exact(A)[0]
     loops = {}
     for share in (0.0, 0.25):
-        monkeypatch.setattr(hysteresis, "LOCAL_SHARE", share)
+        monkeypatch.setattr(refinement, "LOCAL_SHARE", share)
         loops[share] = compute_loop(step, _modal, A, res[-1].state, np.linspace(0, 1, 6)[1:],
                                     k_ref=kt, rtol=3e-3, refine_rounds=3)
     for lp in loops.values():
@@ -467,7 +468,8 @@ def test_a_warm_started_loop_starts_each_solve_from_the_state_a_cycle_before():
 
 
 def test_closings_of_a_refined_cycle_come_from_the_next_coarse_point():
-    from qsma.hysteresis import _Closings, cycle_path
+    from qsma.hysteresis import cycle_path
+    from qsma.hysteresis.cycles import _Closings
     A = 2.0
     coarse = cycle_path(A, [0.5, 1.0])            # A, 0, -A, 0, A
     status = [np.array([0]), np.array([2]), np.array([0]), np.array([2]), np.array([0])]
@@ -553,7 +555,7 @@ def test_a_slow_shakedown_is_not_taken_for_settled_after_two_agreeing_cycles():
 
 
 def test_the_path_error_still_to_come_after_a_refinement_round():
-    from qsma.hysteresis import _path_error
+    from qsma.hysteresis.estimates import _path_error
     assert _path_error(1.0, None) == 1.0                 # first round: the change
     assert _path_error(0.5, 1.0) == 0.5                  # halved: first order
     assert _path_error(0.2, 1.0) == 0.2

@@ -10,10 +10,10 @@ import pytest
 
 import qsma
 from qsma.cli import main
-from qsma.config import load_config
+from qsma.analysis.config import load_config
 from qsma.deck.skeleton import facing_surfaces
 from qsma.examples import sandwich_2d
-from qsma.levels import Levels
+from qsma.analysis.levels import Levels
 from qsma.model import write_mesh
 from helpers import bodies_in_one_mesh
 

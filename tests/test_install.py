@@ -29,7 +29,7 @@ def test_example_files_are_package_data():
     assert Path(qsma.__file__).parent in example_dir().parents
     with pytest.raises(InputError, match="no example file 'nope.toml'"):
         example_file("nope.toml")
-    from qsma.config import load_config
+    from qsma.analysis.config import load_config
     cfg = load_config(example_file("sandwich-2d.toml"))
     assert cfg.model.n_nodes == 2250
 

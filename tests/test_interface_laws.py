@@ -252,7 +252,7 @@ def _sandwich(law, **kw):
 
 def _run(model, levels="tip:log:1e-6:1e-3:7"):
     import qsma
-    from qsma.levels import Levels
+    from qsma.analysis.levels import Levels
     kind, spacing, a, b, n = levels.split(":")
     return qsma.run(model, dissipation="masing",
                     levels=Levels.log(kind, float(a), float(b), int(n)))
@@ -292,7 +292,7 @@ def test_tied_modes_with_springs_substructured_and_assembled_agree():
     from qsma.analysis import prepare
     from qsma.modal import linear_modes
     from qsma.contact.layer import interface_springs
-    from qsma.options import RunOptions
+    from qsma.analysis.options import RunOptions
     from qsma.analysis import _Timer
     law = InterfaceLaw(LinearPressure(5e13), ElasticStick(2e13))
     p = prepare(_sandwich(law))
@@ -445,7 +445,7 @@ def test_nonlinear_layer_is_linear_about_the_preload_in_the_ramps():
     preload itself follows the law exactly): the run succeeds without the flags a
     nonlinear elastic layer raises in the ramps."""
     import qsma
-    from qsma.levels import Levels
+    from qsma.analysis.levels import Levels
     law = InterfaceLaw(ExponentialPressure(2e-6, 1e7), ElasticStick(1e13))
     res = qsma.run(dataclasses.replace(_sandwich(law), mu=2.0),
                    levels=Levels.log("tip", 1e-6, 1e-3, 7))

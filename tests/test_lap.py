@@ -10,8 +10,8 @@ import qsma
 from qsma.cli import main
 from qsma.examples import lap_2d, lap_3d
 from qsma._infra.forked import parallel_available
-from qsma.result import LEVEL_FIELDS
-from qsma.levels import Levels
+from qsma.analysis.result import LEVEL_FIELDS
+from qsma.analysis.levels import Levels
 from qsma.model import Mesh
 from helpers import in_forked_child
 
@@ -114,10 +114,10 @@ def test_loops_on_a_dask_cluster_give_the_results_of_this_process_bit_for_bit():
 def test_an_unreachable_loop_scheduler_is_named_with_the_fix(tmp_path, capsys, monkeypatch):
     """Before the ramps: a wrong address costs no computing."""
     pytest.importorskip("distributed")
-    import qsma.hysteresis
+    import qsma.hysteresis.workers
     from qsma.errors import InputError
     from qsma.progress import Progress
-    monkeypatch.setattr(qsma.hysteresis, "SCHEDULER_TIMEOUT", "2s")
+    monkeypatch.setattr(qsma.hysteresis.workers, "SCHEDULER_TIMEOUT", "2s")
     stages = []
 
     class Stages(Progress):

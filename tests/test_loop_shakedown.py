@@ -167,7 +167,7 @@ def _stack_2d_first_levels(**options):
     level 4 are those of the full 51-level run: same zeta to 4 digits, 10 cycles)."""
     import qsma
     from qsma.examples import stack_2d
-    from qsma.levels import Levels
+    from qsma.analysis.levels import Levels
     tips = 10.0 ** (-6 + 3 * np.arange(6) / 50)
     return qsma.run(stack_2d(), levels=Levels("tip", tuple(tips)), **options)
 
@@ -204,8 +204,8 @@ def test_stack_2d_level_is_flagged_when_convergence_is_not_accepted(monkeypatch)
     contraction) the loop cannot settle on any increments, and the level is flagged
     loop_not_stabilised and the run fails: the flag still says when a loop has not
     settled."""
-    import qsma.hysteresis
-    monkeypatch.setattr(qsma.hysteresis, "CONTRACTION", 0.0)
+    import qsma.hysteresis.cycles
+    monkeypatch.setattr(qsma.hysteresis.cycles, "CONTRACTION", 0.0)
     r = _stack_2d_first_levels()
     assert r.success and r.zeta[4] == pytest.approx(2.7142e-5, rel=5e-3)
     r = _stack_2d_first_levels(max_cycles=2)

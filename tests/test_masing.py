@@ -4,7 +4,7 @@ A lumped system with a known backbone: unit mass (mass-normalised mode phi = 1, 
 modal force is alpha) held by a linear spring k0 to ground and, in parallel, by a
 Jenkins element (spring k in series with a frictional contact pair, slip force
 F_s = mu P0). The Jenkins pair is solved by ``qsma.contact`` on the statically
-condensed problem and the backbone goes through the same ``qsma.masing`` as QSMA.
+condensed problem and the backbone goes through the same ``qsma.hysteresis.masing`` as QSMA.
 
 Closed forms: stuck while alpha <= alpha_s = F_s (k + k0)/k, q = alpha/(k + k0);
 beyond, q = (alpha - F_s)/k0. Masing loop area D = 4 F_s (q_a - F_s/k).
@@ -14,7 +14,7 @@ import pytest
 
 from qsma.contact import METHODS, ContactProblem, solve
 from qsma.errors import InputError
-from qsma.masing import loop_area, masing, masing_loop
+from qsma.hysteresis.masing import loop_area, masing, masing_loop
 
 k, k0, kn, mu, P0 = 3.0e6, 1.0e6, 1.0e9, 0.5, 200.0
 Fs = mu * P0

@@ -341,7 +341,7 @@ def test_qsma_run_on_mixed_bodies_writes_every_cell(tmp_path):
     import json
     import meshio
     import qsma
-    from qsma.levels import Levels
+    from qsma.analysis.levels import Levels
     from qsma.output.files import write_all
     model = _mixed_sandwich(3)
     res = qsma.run(model, levels=Levels.log("tip", 1e-5, 1e-3, 4))

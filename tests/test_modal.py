@@ -78,7 +78,7 @@ from qsma.examples import lap_2d, lap_2d_free  # noqa: E402
 from qsma.examples.bolted import BOLT_2D, lap_2d_bolted  # noqa: E402
 from qsma.modal import identity_rows, substructured_inverse, tie_transform  # noqa: E402
 from qsma.model import Bolt  # noqa: E402
-from qsma.options import RunOptions  # noqa: E402
+from qsma.analysis.options import RunOptions  # noqa: E402
 
 
 def _mortar_lap(free=(), bolt=False):

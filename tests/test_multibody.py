@@ -171,7 +171,7 @@ def test_two_body_run_through_the_general_code_equals_the_two_body_run(coupling,
     m = dataclasses.replace(m, interface=dataclasses.replace(m.interface, coupling=coupling))
     levels = qsma.Levels.log("tip", 1e-6, 1e-4, 6)
     two = qsma.run(m, levels=levels)
-    monkeypatch.setattr(analysis, "make_pairing", multi_pairing)
+    monkeypatch.setattr(analysis.prepared, "make_pairing", multi_pairing)
     general = qsma.run(m, levels=levels)
     assert isinstance(general.pairing, MultiPairing)
     assert two.success and general.success
@@ -237,7 +237,7 @@ def test_stack_contact_forces_balance_each_body(stack_run):
     rm = res.reduced
     k = res.n_levels - 1
     lam = res.states.lam[k].ravel()
-    a = qsma.result.load_factors(rm, res.alpha[k])
+    a = qsma.analysis.result.load_factors(rm, res.alpha[k])
     fields = res.fields(k)
     A = [assemble_body(b) for b in res.model.bodies]
     f_if = rm.G.T @ lam

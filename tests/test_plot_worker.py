@@ -18,7 +18,7 @@ import qsma.output.plotworker as pw
 import qsma.output.plots as plots
 from qsma.errors import InputError
 from qsma.examples import lap_3d, sandwich_2d
-from qsma.levels import Levels, spec_levels
+from qsma.analysis.levels import Levels, spec_levels
 from qsma.output.files import write_all
 from qsma.output.folders import verify_run_folder
 

@@ -10,7 +10,7 @@ import pytest
 import qsma
 from qsma.errors import InputError
 from qsma.examples import sandwich_2d
-from qsma.levels import Levels
+from qsma.analysis.levels import Levels
 from qsma.model import Clamp
 
 LEVELS = Levels("alpha", (20.0, 200.0, 2000.0))

@@ -9,7 +9,7 @@ import pytest
 import qsma
 from qsma.cli import main
 from qsma.examples import lap_2d
-from qsma.levels import Levels
+from qsma.analysis.levels import Levels
 from qsma.progress import Progress
 from qsma.output.folders import verify_run_folder
 

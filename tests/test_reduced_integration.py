@@ -17,7 +17,7 @@ from qsma.errors import InputError
 from qsma.examples import sandwich_2d
 from qsma.fe import assemble_body
 from qsma.fe.formulation import resolve_formulation
-from qsma.levels import Levels
+from qsma.analysis.levels import Levels
 from qsma.mesh.generate import structured_mesh
 from qsma.model import Body, Clamp, Interface, Material, Model, Probe
 

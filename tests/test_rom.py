@@ -9,7 +9,7 @@ from scipy.integrate import quad
 import qsma
 from qsma.errors import InputError
 from qsma.examples import sandwich_2d
-from qsma.masing import masing
+from qsma.hysteresis.masing import masing
 from qsma.study.rom import (Iwan4, JenkinsSeries, ModalIwan, export_rom, fit_iwan,
                             fit_jenkins, read_rom)
 
@@ -105,7 +105,7 @@ def test_jenkins_fit_recovers_a_known_series():
 
 def test_jenkins_dissipation_is_masing_of_its_backbone():
     """On a grid holding every slip amplitude the backbone is piecewise linear, so the
-    trapezoidal Masing integral of qsma.masing is exact."""
+    trapezoidal Masing integral of qsma.hysteresis.masing is exact."""
     known = JenkinsSeries(4e5, tuple(K_SERIES), tuple(SLIP))
     q = np.union1d(np.logspace(-6.5, -2.5, 30), SLIP)
     D = masing(known.alpha(q), q).dissipation

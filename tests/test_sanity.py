@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 import qsma
-from qsma.result import FAILURE_FLAGS
+from qsma.analysis.result import FAILURE_FLAGS
 from qsma.examples import sandwich_2d
-from qsma.levels import Levels
+from qsma.analysis.levels import Levels
 from qsma.model import Material, Pressure
 
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import qsma
-from qsma.config import parse_config, tomllib
+from qsma.analysis.config import parse_config, tomllib
 from qsma.errors import InputError
 from qsma.examples import lap_2d, lap_2d_cantilever
 from qsma.fe import assemble_body

@@ -160,8 +160,9 @@ def test_shipped_preparation_arrives_condensed_and_runs_as_the_original(model, m
     def condensing(*args, **kwargs):
         raise AssertionError("condensed again")
 
-    monkeypatch.setattr(qsma.analysis, "_condense", condensing)
-    monkeypatch.setattr(qsma.analysis, "reduce_two_bodies", condensing)
+    monkeypatch.setattr(qsma.analysis.prepared, "_condense", condensing)
+    monkeypatch.setattr(qsma.analysis.stages, "_condense", condensing)
+    monkeypatch.setattr(qsma.analysis.stages, "reduce_two_bodies", condensing)
     back = pickle.loads(pickle.dumps(prep))
     again = pickle.loads(pickle.dumps(back.with_mu(0.4)))        # worker to worker
     assert again.model.mu == 0.4 and np.array_equal(again.reduced.K, prep.reduced.K)
@@ -387,7 +388,7 @@ def test_the_fingerprint_ignores_loop_workers_only():
     """A study resumes whatever the number of loop workers (they change no result),
     but not after a change of an option that does."""
     from qsma.examples import sandwich_2d
-    from qsma.options import RunOptions
+    from qsma.analysis.options import RunOptions
     from qsma.study.sweep import _fingerprint
     model = sandwich_2d()
     base = _fingerprint(model, RunOptions())
@@ -396,10 +397,30 @@ def test_the_fingerprint_ignores_loop_workers_only():
     assert _fingerprint(model, RunOptions(dissipation_rtol=1e-3)) != base
 
 
+def test_the_execution_options_are_one_record_left_out_of_fingerprint_and_sweep():
+    """The options that change no result are named once (EXECUTION_FIELDS, read as an
+    Execution record); the fingerprint and the sweep leave out exactly those (and the
+    sweep the BLAS threads and the condensation backend it fixes), and every other
+    option is fingerprinted."""
+    import importlib
+    from qsma.analysis.options import EXECUTION_FIELDS, Execution, RunOptions
+    from qsma.study.cases import NOT_SWEPT
+    sweep_module = importlib.import_module("qsma.study.sweep")
+    assert EXECUTION_FIELDS == ("loop_workers", "loop_scheduler", "parallel_ramps")
+    assert sweep_module.NOT_FINGERPRINTED == EXECUTION_FIELDS
+    assert set(NOT_SWEPT) == set(EXECUTION_FIELDS) | {"blas_threads", "schur_backend"}
+    opts = RunOptions(loop_workers=2, parallel_ramps=False)
+    assert opts.execution == Execution(loop_workers=2, parallel_ramps=False)
+    assert opts.loop_worker_count == 2
+    assert set(opts.results_options()) == set(opts.as_dict()) - set(EXECUTION_FIELDS)
+    with pytest.raises(InputError, match="parallel_ramps must be true or false"):
+        RunOptions(parallel_ramps="yes")
+
+
 def test_a_case_computes_its_loops_itself_whatever_the_loop_scheduler():
     """The study's workers are its parallel part: a case on one of them that handed its
     loops to the same scheduler could wait for workers that all wait for loops."""
-    from qsma.options import RunOptions
+    from qsma.analysis.options import RunOptions
     from qsma.study.cases import case_inputs
     _, opts = case_inputs(object(), {"mode": 1},
                           RunOptions(loop_scheduler="tcp://host:8786"))
@@ -411,7 +432,7 @@ def test_the_fingerprint_of_auto_is_the_method_it_runs_in_2d():
     versions, so their 2D studies still resume; in 3D the choice depends on the pair
     count, so auto is fingerprinted as itself and differs from an explicit method."""
     from qsma.examples import lap_3d, sandwich_2d
-    from qsma.options import RunOptions
+    from qsma.analysis.options import RunOptions
     from qsma.study.sweep import _fingerprint
     flat = sandwich_2d()
     assert _fingerprint(flat, RunOptions()) == _fingerprint(flat, RunOptions(method="basket"))

@@ -13,11 +13,12 @@ import qsma
 from qsma.cli import main
 from qsma.errors import InputError, UnitSystemWarning
 from qsma.examples import sandwich_2d
-from qsma.levels import Levels
+from qsma.analysis.levels import Levels
 from qsma.model import Material, Pressure
 from qsma.output.files import column_name, write_all
 from qsma.units import (MM_N_S_TONNE, SI, check_model_units, quantity_unit,
-                        unit_mismatches, unit_system, units_block)
+                        unit_mismatches, unit_system)
+from qsma.analysis.result import units_block
 
 LEVELS_M = (1e-6, 1e-5, 3e-4, 1e-3)
 
@@ -175,7 +176,7 @@ def test_numbers_of_another_system_are_warned_about():
 
 
 def test_toml_units_key_is_checked(tmp_path):
-    from qsma.config import parse_config
+    from qsma.analysis.config import parse_config
     with pytest.raises(InputError, match="units: unknown unit system 'inch'"):
         parse_config({"units": "inch", "bodies": [], "tip": {}}, where="cfg")
 

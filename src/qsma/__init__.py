@@ -6,8 +6,8 @@ Pipeline: :mod:`qsma.model` -> :mod:`qsma.fe` -> :mod:`qsma.reduction` ->
 :mod:`qsma.output.files`.
 """
 from .version import __version__
-from .levels import Levels
-from .options import RunOptions
+from .analysis.levels import Levels
+from .analysis.options import RunOptions
 
 
 def run(model, options=None, **overrides):
@@ -31,7 +31,7 @@ def fit(model_or_config, measured, params, options=None, **kwargs):
 def __getattr__(name):
     """Lazy access to the heavier public names (they import scikit-fem, meshio)."""
     if name == "QSMAResult":
-        from .result import QSMAResult
+        from .analysis.result import QSMAResult
         return QSMAResult
     if name in ("Model", "read_mesh"):
         from . import model

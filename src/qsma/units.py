@@ -18,6 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 import warnings
 
+from ._infra.deprecation import forward
 from .errors import InputError, UnitSystemWarning
 
 
@@ -127,37 +128,6 @@ def quantity_unit(quantity, units=SI, dim=3, pretty=False) -> str:
     }[quantity]
 
 
-#: The quantity of each per-level result (:data:`qsma.result.LEVEL_FIELDS`); ``None``
-#: for counts, names and flags, which have no unit.
-LEVEL_QUANTITIES = {
-    "alpha": "modal_force", "tip_lin": "length", "q": "modal_amplitude", "tip": "length",
-    "q_neg": "modal_amplitude", "asymmetry": "dimensionless", "f_hz": "frequency",
-    "zeta": "dimensionless", "zeta_structure": "dimensionless",
-    "zeta_total": "dimensionless", "dissipation": "energy", "dissipation_error": "energy",
-    "dissipation_method": None, "f_hz_masing": "frequency", "zeta_masing": "dimensionless",
-    "dissipation_masing": "energy", "f_hz_loop": "frequency", "zeta_loop": "dimensionless",
-    "dissipation_loop": "energy", "dissipation_first_cycle": "energy", "loop_cycles": None,
-    "shakedown": None, "tip_velocity": "velocity", "n_stuck": None, "n_slip": None,
-    "n_open": None, "iterations": None, "residual": "dimensionless",
-    "method_reason": None, "flags": None,
-}
-
-
-def level_units(units=SI, dim=3) -> dict:
-    """Per-level field name -> unit text (``None`` for counts, names and flags)."""
-    return {k: None if q is None else quantity_unit(q, units, dim)
-            for k, q in LEVEL_QUANTITIES.items()}
-
-
-def units_block(units=SI, dim=3) -> dict:
-    """The ``units`` block of results.json: the system's name, its base and derived
-    units (per depth in 2D), and the unit of every per-level field."""
-    u = unit_system(units)
-    base = {q: quantity_unit(q, u, dim) for q in QUANTITIES if q != "dimensionless"}
-    return {"system": u.name, "time": u.time, **base, "per_unit_depth": dim == 2,
-            "levels": level_units(u, dim)}
-
-
 def column_label(name, unit) -> str:
     """A table heading: ``name [unit]``, or the bare name of a field without a unit."""
     return name if unit is None else f"{name} [{unit}]"
@@ -226,6 +196,10 @@ def to_model_length(metres, units) -> float:
 
 
 __all__ = ["UnitSystem", "SI", "MM_N_S_TONNE", "UNIT_SYSTEMS", "unit_system",
-           "quantity_unit", "level_units", "units_block", "column_label",
-           "display_stress", "check_model_units", "unit_mismatches", "LEVEL_QUANTITIES"]
+           "quantity_unit", "column_label", "display_stress", "check_model_units",
+           "unit_mismatches"]
+
+# the units of the per-level results moved beside the fields they describe
+forward(__name__, names={name: "qsma.analysis.result" for name in
+                         ("LEVEL_QUANTITIES", "level_units", "units_block")})
 

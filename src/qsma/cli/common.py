@@ -3,7 +3,7 @@ flag, the levels."""
 from __future__ import annotations
 
 from ..errors import InputError
-from ..options import RunOptions
+from ..analysis.options import RunOptions
 from ..units import UNIT_SYSTEMS
 
 #: RunOptions fields that have a command-line flag of the same name.
@@ -68,7 +68,7 @@ def deck_refusal(deck) -> InputError:
 def _load_deck(args):
     """``(model, RunOptions)`` of a deck; its notes as warnings."""
     import warnings
-    from ..config import parse_config
+    from ..analysis.config import parse_config
     from ..errors import QSMAWarning
     deck = read_deck_args(args)
     if deck.refusals:
@@ -112,7 +112,7 @@ def load_model(args):
                              ".inp decks; a configuration file gives the probe in its [tip] "
                              "table, the density per body and its unit system as `units` "
                              "at its top")
-        from ..config import load_config
+        from ..analysis.config import load_config
         cfg = load_config(args.config)
     model = cfg.model
     if args.mu is not None:
@@ -123,7 +123,7 @@ def load_model(args):
 
 def parse_levels_spec(spec: str):
     """``KIND:log|linear:START:STOP:N`` or ``KIND:list:V1,V2,...`` -> Levels."""
-    from ..config import parse_levels
+    from ..analysis.config import parse_levels
     parts = spec.split(":")
     try:
         if len(parts) == 3 and parts[1] == "list":

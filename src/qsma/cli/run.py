@@ -64,7 +64,7 @@ def execute(args) -> int:
     from ..output.folders import RunFolder
     if args.modes is None and args.mode is None and args.config is not None \
             and not is_deck(args.config):
-        from ..config import config_modes
+        from ..analysis.config import config_modes
         modes = config_modes(args.config)          # [analysis] modes = [...]
         if modes is not None:
             args.modes = ",".join(map(str, modes))
@@ -146,7 +146,7 @@ def _written(res) -> str:
     """What the result folder holds of a failed run: the levels solved (all of them
     unless a contact solve stopped the ramp), those with a failure flag named as such.
     ``--continue`` covers failed contact solves only: a level with a failure flag
-    (:data:`qsma.result.FAILURE_FLAGS`) makes the run fail with it too."""
+    (:data:`qsma.analysis.result.FAILURE_FLAGS`) makes the run fail with it too."""
     if res.failed_levels:
         return f"the {res.n_levels} levels solved, the failing ones flagged ('flags'), are"
     return f"the {res.n_levels} levels solved before the failure are"
@@ -191,7 +191,7 @@ def _with_progress(args, log, call):
 
 def _loop_costs(costs) -> str:
     """``": N loop solves, T s; the costliest at level k (n solves in c cycles, t s)"``
-    of :class:`qsma.result.LevelCosts`, or "" without loops."""
+    of :class:`qsma.analysis.result.LevelCosts`, or "" without loops."""
     if costs is None or not np.any(costs.loop_solves):
         return ""
     k = int(np.argmax(costs.loop_seconds))

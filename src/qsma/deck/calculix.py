@@ -127,7 +127,7 @@ def export_calculix(model, path, *, options=None, amplitudes=None, penalty=None,
 def calculix_deck(model, *, options=None, amplitudes=None, penalty=None,
                   steps: int = LOOP_STEPS, tied: bool = False) -> CalculixDeck:
     """The deck (and tied deck) of :func:`export_calculix`, not written."""
-    from ..options import RunOptions
+    from ..analysis.options import RunOptions
     opts = options or RunOptions()
     _refuse_what_calculix_cannot_hold(model)
     if not (isinstance(steps, (int, np.integer)) and not isinstance(steps, bool)

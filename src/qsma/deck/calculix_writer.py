@@ -402,7 +402,7 @@ def _qsma_mode(model, opts) -> dict:
 def _modal_forces(amplitudes, mode) -> tuple:
     """The modal forces of the cyclic steps: ``amplitudes`` as given, or a
     :class:`qsma.levels.Levels` converted through qsma's tied mode."""
-    from ..levels import Levels
+    from ..analysis.levels import Levels
     if isinstance(amplitudes, Levels):
         return tuple(float(a) for a in amplitudes.alpha(mode["omega0"], mode["phi_tip"]))
     try:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..config import parse_config
+from ..analysis.config import parse_config
 from ..errors import InputError
 from ..fe import assemble_body
 from ..mesh.celltypes import CELL_TYPES

@@ -10,7 +10,7 @@ import re
 
 import numpy as np
 
-from ..options import RunOptions
+from ..analysis.options import RunOptions
 from ..version import __version__
 from .records import Deck
 

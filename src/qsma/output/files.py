@@ -16,8 +16,8 @@ import numpy as np
 from ..errors import AnalysisError
 from ..fe import stress_at_nodes
 from ..model.pairing import body_order, contact_sides
-from ..result import LEVEL_FIELDS
-from ..units import column_label, level_units, units_block
+from ..analysis.result import LEVEL_COLUMNS, LEVEL_FIELDS, level_units, units_block
+from ..units import column_label
 from .folders import (TMP_PREFIX, RunFolder, atomic_path, atomic_write,  # noqa: F401
                      prepare_output_dir, write_error)
 
@@ -42,9 +42,9 @@ def _clean(x, where="results"):
 
 
 #: Per-level quantities that are NaN where they were not computed (a loop at a level
-#: that used Masing, the -alpha ramp beyond a failure): written as null / empty.
-OPTIONAL_FIELDS = ("q_neg", "asymmetry", "f_hz_loop", "zeta_loop", "dissipation_loop",
-                   "dissipation_first_cycle", "dissipation_error")
+#: that used Masing, the -alpha ramp beyond a failure): written as null / empty
+#: (``optional`` of :func:`qsma.analysis.result.column`).
+OPTIONAL_FIELDS = tuple(k for k, c in LEVEL_COLUMNS.items() if c["optional"])
 
 
 #: Flags of a level whose frequency and damping could not be computed (its loop did
@@ -53,10 +53,10 @@ OPTIONAL_FIELDS = ("q_neg", "asymmetry", "f_hz_loop", "zeta_loop", "dissipation_
 #: other levels kept.
 NAN_FLAGS = ("not_finite", "loop_failed", "loop_not_stabilised")
 #: The per-level columns that come from the frequency, the damping or the loop, and so
-#: may be NaN at a level flagged with one of :data:`NAN_FLAGS`; the backbone (alpha,
-#: q, tip, residual) and the Masing values never may.
-LOOP_DERIVED = ("f_hz", "zeta", "zeta_structure", "zeta_total", "dissipation",
-                "tip_velocity")
+#: may be NaN at a level flagged with one of :data:`NAN_FLAGS` (``nan_when_flagged`` of
+#: :func:`qsma.analysis.result.column`); the backbone (alpha, q, tip, residual) and the Masing
+#: values never may.
+LOOP_DERIVED = tuple(k for k, c in LEVEL_COLUMNS.items() if c["nan_when_flagged"])
 
 
 def _level_columns(res) -> dict:
@@ -84,17 +84,17 @@ def results_dict(res) -> dict:
 
     Parameters
     ----------
-    res : :class:`qsma.result.QSMAResult`
+    res : :class:`qsma.analysis.result.QSMAResult`
 
     Returns
     -------
     dict
         ``schema_version``, ``success``, ``message``, ``failed_levels``, the
-        ``units`` of every quantity (:func:`qsma.units.units_block`), the model
+        ``units`` of every quantity (:func:`qsma.analysis.result.units_block`), the model
         summary, the analysed mode (``f0_hz = omega0 / 2 pi``), the preload solve, the
-        per-level columns :data:`qsma.result.LEVEL_FIELDS` (NaN of optional fields as
+        per-level columns :data:`qsma.analysis.result.LEVEL_FIELDS` (NaN of optional fields as
         ``None``), timings, the solves, cycles and seconds per level
-        (:class:`qsma.result.LevelCosts`), solver statistics and the options of the run. Every field,
+        (:class:`qsma.analysis.result.LevelCosts`), solver statistics and the options of the run. Every field,
         its unit and its meaning: docs/results.md.
 
     Raises
@@ -147,7 +147,7 @@ def write_json(res, path):
 
 
 def csv_columns() -> tuple[str, ...]:
-    """Columns of results.csv: the level index, then :data:`qsma.result.LEVEL_FIELDS`."""
+    """Columns of results.csv: the level index, then :data:`qsma.analysis.result.LEVEL_FIELDS`."""
     return ("level",) + LEVEL_FIELDS
 
 
@@ -204,7 +204,7 @@ def write_vtu(res, path, levels=None):
 
     Parameters
     ----------
-    res : :class:`qsma.result.QSMAResult`
+    res : :class:`qsma.analysis.result.QSMAResult`
     path : file to write (``.vtu``)
     levels : level indices to write; default :func:`vtu_levels`.
     """
@@ -426,7 +426,7 @@ def write_all(res, out, plots=True, vtu=True, folder=None, report=None,
 
     Parameters
     ----------
-    res : :class:`qsma.result.QSMAResult`
+    res : :class:`qsma.analysis.result.QSMAResult`
     out : result folder (replaced as a whole)
     plots, vtu : also write the PNG figures / the VTU fields
     folder : a :class:`~qsma.output.folders.RunFolder` already entered for ``out`` (the CLI

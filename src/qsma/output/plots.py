@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..masing import masing_loop
+from ..hysteresis import masing_loop
 from .folders import atomic_write
 from ..units import SI, display_stress, quantity_unit
 
@@ -121,7 +121,7 @@ def draw_backbone(res):
 
     Parameters
     ----------
-    res : :class:`qsma.result.QSMAResult` or its :class:`PlotData`
+    res : :class:`qsma.analysis.result.QSMAResult` or its :class:`PlotData`
 
     Returns
     -------
@@ -303,7 +303,7 @@ def draw_interface(res, levels=None):
 
     Parameters
     ----------
-    res : :class:`qsma.result.QSMAResult` of a 2D model or its :class:`PlotData`
+    res : :class:`qsma.analysis.result.QSMAResult` of a 2D model or its :class:`PlotData`
     levels : level indices; default the first, middle, three-quarter and last level
 
     Returns
@@ -423,7 +423,7 @@ class LoopCurve:
 
 @dataclass(frozen=True)
 class DirectCurve:
-    """The directly computed loop (:class:`qsma.result.DirectLoop`) as drawn."""
+    """The directly computed loop (:class:`qsma.analysis.result.DirectLoop`) as drawn."""
 
     q: np.ndarray
     alpha: np.ndarray
@@ -459,7 +459,7 @@ class ModelView:
 
 @dataclass(frozen=True)
 class PlotData:
-    """Everything the figures read of a :class:`qsma.result.QSMAResult`, under the same
+    """Everything the figures read of a :class:`qsma.analysis.result.QSMAResult`, under the same
     attribute names, and nothing else: small, picklable without the model, the
     condensed matrices or the solver objects, so that another process can draw the
     figures (:mod:`qsma.output.plotworker`). :func:`write_plots` draws from it in-process

@@ -24,19 +24,15 @@ import tempfile
 import numpy as np
 
 from ..mesh.celltypes import CELL_TYPES
-from ..result import FAILURE_FLAGS
-from ..units import column_label, level_units
+from ..analysis.result import FAILURE_FLAGS, LEVEL_COLUMNS, level_units
+from ..units import column_label
 
 REPORT_NAME = "report.html"
-#: Columns of the per-level table of a run's report: (field, heading, format); the
-#: heading gets the field's unit in the model's system (:func:`qsma.units.level_units`).
-LEVEL_TABLE = (("tip_lin", "linear tip", "{:.3e}"), ("tip", "peak tip", "{:.3e}"),
-               ("f_hz", "f", "{:.4f}"), ("zeta", "zeta", "{:.3e}"),
-               ("dissipation", "dissipation", "{:.3e}"),
-               ("dissipation_method", "dissipation by", "{}"),
-               ("n_stuck", "stuck", "{}"), ("n_slip", "slip", "{}"),
-               ("n_open", "open", "{}"), ("iterations", "iterations", "{}"),
-               ("residual", "residual", "{:.1e}"))
+#: Columns of the per-level table of a run's report: (field, heading, format), the
+#: fields whose :func:`qsma.analysis.result.column` names a ``report`` column, in their order; the
+#: heading gets the field's unit in the model's system (:func:`qsma.analysis.result.level_units`).
+LEVEL_TABLE = tuple((name, *c["report"]) for name, c in LEVEL_COLUMNS.items()
+                    if c["report"] is not None)
 
 _STYLE = """
 body { font-family: sans-serif; font-size: 16px; line-height: 1.4; margin: 1.5em auto;
@@ -395,7 +391,9 @@ def run_report_html(res, figures=None, amplitude=None) -> str:
     unit = level_units(res.units, res.model.dim)
     parts.append("<h2>Levels</h2>" + _table(
         ["level"] + [column_label(h, unit[name]) for name, h, _ in LEVEL_TABLE]
-        + ["flags"], rows, text_columns=(6, len(LEVEL_TABLE) + 1)))
+        + ["flags"], rows, text_columns=tuple(
+            1 + k for k, (name, _, _) in enumerate(LEVEL_TABLE)
+            if name == "dissipation_method") + (len(LEVEL_TABLE) + 1,)))
     pre = res.preload
     stats = {"gross slip from level": res.gross_slip_level,
              "preload: stuck / slip / open": f"{pre.n_stuck} / {pre.n_slipping} / "

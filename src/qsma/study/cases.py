@@ -11,8 +11,8 @@ import itertools
 import numpy as np
 
 from ..errors import InputError
-from ..levels import Levels
-from ..options import RunOptions
+from ..analysis.levels import Levels
+from ..analysis.options import EXECUTION_FIELDS, RunOptions
 
 #: Parameters that change the model rather than the run options. ``E``, ``nu``, ``rho``
 #: may name a body (``E:bottom``); without a body they apply to every body.
@@ -27,12 +27,12 @@ CASE_BYTES, LEVEL_BYTES = 4096, 2048
 #: Share of the free memory (:func:`qsma._infra.resources.free_memory`) a study's cases may
 #: take; where the system does not say, :data:`MAX_CASES_UNKNOWN_MEMORY` cases.
 CASES_MEMORY_SHARE, MAX_CASES_UNKNOWN_MEMORY = 0.5, 100_000
-#: Run options a sweep does not vary: the BLAS thread count, the loop workers, the
-#: loop scheduler and the parallel ramps do not change results (a sweep's workers
-#: compute their loops and ramps themselves: a daemonic process may not fork), the
-#: condensation backend is fixed when the shared preparation is made.
-NOT_SWEPT = ("blas_threads", "schur_backend", "loop_workers", "loop_scheduler",
-             "parallel_ramps")
+#: Run options a sweep does not vary: the execution options change no result
+#: (:data:`qsma.analysis.options.EXECUTION_FIELDS`; a sweep's workers compute their
+#: loops and ramps themselves: a daemonic process may not fork), the BLAS thread count
+#: is the machine's business, and the condensation backend is fixed when the shared
+#: preparation is made.
+NOT_SWEPT = ("blas_threads", "schur_backend") + EXECUTION_FIELDS
 
 
 @dataclass(frozen=True)

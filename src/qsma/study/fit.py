@@ -45,8 +45,8 @@ import numpy as np
 
 from ..analysis import STUDY_MU_FIX
 from ..errors import AnalysisError, InputError
-from ..levels import Levels
-from ..options import RunOptions
+from ..analysis.levels import Levels
+from ..analysis.options import RunOptions
 from ..output.folders import RunFolder
 from .cases import (MATERIAL_PARAMETERS, Case, case_inputs, check_bodies, material_key,
                     model_with_materials, parameter_kind)
@@ -132,7 +132,7 @@ def read_measured(path) -> Measured:
     frequency) and/or ``zeta`` (damping ratio of the joint); empty cells are missing
     values.
     """
-    from ..config import decode_utf8
+    from ..analysis.config import decode_utf8
     from ..mesh.io.common import read_regular
     path = Path(path)
     text = decode_utf8(read_regular(path, "a CSV of measured data"), str(path),
@@ -346,7 +346,7 @@ def fit(model_or_config, measured, params, options: RunOptions | None = None, *,
 
     Parameters
     ----------
-    model_or_config : :class:`qsma.model.Model` or :class:`qsma.config.RunConfig`
+    model_or_config : :class:`qsma.model.Model` or :class:`qsma.analysis.config.RunConfig`
     measured : :class:`Measured` or path of a CSV (:func:`read_measured`)
     params : sequence of str
         Parameters to fit: ``mu``, ``preload`` (scale of the 'preload' pattern),
@@ -372,7 +372,7 @@ def fit(model_or_config, measured, params, options: RunOptions | None = None, *,
     FitResult
     """
     from scipy.optimize import least_squares
-    from ..config import RunConfig
+    from ..analysis.config import RunConfig
     if isinstance(model_or_config, RunConfig):
         model = model_or_config.model
         options = model_or_config.options if options is None else options
@@ -530,7 +530,8 @@ def write_fit(fr: FitResult, out, start_prediction=None) -> FitResult:
     paths = {"json": out / "fit.json", "csv": out / "fit.csv"}
     atomic_write(paths["json"], json.dumps(fit_dict(fr), indent=1) + "\n")
     m = fr.measured
-    from ..units import column_label, level_units
+    from ..analysis.result import level_units
+    from ..units import column_label
     unit = level_units(fr.result.units, fr.result.model.dim)
     lines = [",".join(column_label(c, unit[c]) for c in (m.kind, "f_hz", "zeta"))
              + ",f_hz_fit [Hz],zeta_fit [-]"]

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError, QSMAError
-from ..options import RunOptions
+from ..analysis.options import RunOptions
 
 #: Name of the folder of mode ``k`` inside the output folder.
 MODE_FOLDER = "mode-{k}"
@@ -34,7 +34,7 @@ MODES_JSON, MODES_VTU = "modes.json", "modes.vtu"
 @dataclass(frozen=True, eq=False)
 class ModesResult:
     """Outcome of :func:`run_modes`: ``results`` maps each mode that ran to its
-    :class:`qsma.result.QSMAResult`; ``summary`` has one entry per mode asked for
+    :class:`qsma.analysis.result.QSMAResult`; ``summary`` has one entry per mode asked for
     (``mode``, ``f0_hz``, ``success``, ``message``, ``folder``), as in modes.json."""
 
     success: bool

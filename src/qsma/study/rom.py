@@ -297,7 +297,7 @@ def _rom_units(res) -> dict:
 
 
 def rom_dict(res, fit: IwanFit) -> dict:
-    """The content of rom.json for a :class:`qsma.result.QSMAResult` and its fit."""
+    """The content of rom.json for a :class:`qsma.analysis.result.QSMAResult` and its fit."""
     from ..output.files import _clean
     m = fit.model
     q, alpha = np.asarray(res.q, float), np.asarray(res.alpha, float)

@@ -13,7 +13,7 @@ import time
 import warnings
 
 from ..errors import InputError, QSMAError, SerialSweepWarning
-from ..options import RunOptions
+from ..analysis.options import RunOptions
 from .cases import Case, case_inputs, material_key, model_with_materials
 
 log = logging.getLogger("qsma")

@@ -33,8 +33,8 @@ import re
 import time
 
 from ..errors import InputError
-from ..levels import Levels
-from ..options import RunOptions
+from ..analysis.levels import Levels
+from ..analysis.options import EXECUTION_FIELDS, RunOptions
 from ..output.folders import MANIFEST, StudyFolder
 from .cases import Case, check_bodies, grid, material_key, parse_values
 from .runners import (DONE_SUFFIX, CaseOutcome, check_scheduler, check_workers,
@@ -49,9 +49,9 @@ STUDY_NAME = "study.json"
 #: ``--workers`` changes it, up to the usable cores.
 DEFAULT_WORKERS = 2
 CASE_FILES = ("plots", "vtu", "rom", "report")
-#: Run options left out of a study's fingerprint: they change no result, so a study
-#: resumes whatever they are.
-NOT_FINGERPRINTED = ("loop_workers", "loop_scheduler", "parallel_ramps")
+#: Run options left out of a study's fingerprint: they change no result
+#: (:data:`qsma.analysis.options.EXECUTION_FIELDS`), so a study resumes whatever they are.
+NOT_FINGERPRINTED = EXECUTION_FIELDS
 
 
 @dataclass(frozen=True, eq=False)
@@ -79,7 +79,7 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
 
     Parameters
     ----------
-    model_or_config : :class:`qsma.model.Model` or :class:`qsma.config.RunConfig`
+    model_or_config : :class:`qsma.model.Model` or :class:`qsma.analysis.config.RunConfig`
     vary : dict
         Parameter name -> values (list) or spec (``"0.2:0.8:10"``, ``"0.3,0.5"``); names:
         ``mu``, ``preload`` (scale of every 'preload' pressure), ``E``/``nu``/``rho``
@@ -115,7 +115,7 @@ def sweep(model_or_config, vary: dict, options: RunOptions | None = None, *, out
     -------
     SweepResult
     """
-    from ..config import RunConfig
+    from ..analysis.config import RunConfig
     t0 = time.perf_counter()
     if isinstance(model_or_config, RunConfig):
         model = model_or_config.model
@@ -206,7 +206,7 @@ def _study(folder, model, vary, options, cases, scheduler, workers, files, plots
 
 def _most_levels(vary, options) -> int:
     """The most load levels a case of the study has (its levels, or the default 51)."""
-    from ..levels import spec_levels
+    from ..analysis.levels import spec_levels
     given = [v for v in vary.get("levels", ()) if isinstance(v, Levels)] \
         if not isinstance(vary.get("levels", ()), str) else []
     levels = given + [options.levels or spec_levels()]

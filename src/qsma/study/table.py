@@ -54,7 +54,8 @@ def write_table(table, out, units="SI", dim=3) -> dict:
     the CSV header names the units of the level columns in the model's system
     (``tip [m]``, as results.csv)."""
     from ..output.files import atomic_path, atomic_write, _csv_cell
-    from ..units import column_label, level_units
+    from ..analysis.result import level_units
+    from ..units import column_label
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     names = list(table)
