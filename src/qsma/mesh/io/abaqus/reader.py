@@ -29,6 +29,11 @@ _ABAQUS_REFUSED = {
     "C3D27": "its optional face and centre nodes (21-27) have no node order qsma has "
              "checked; use C3D20",
 }
+#: element types that are no part of a mesh (one- and two-node connectors, couplings,
+#: point masses): skipped here, read by the deck reader (:mod:`qsma.deck`), which uses
+#: or names them
+_CONNECTOR_TYPES = frozenset({"DCOUP3D", "SPRINGA", "SPRING1", "SPRING2", "DASHPOTA",
+                              "MASS"})
 #: most ids one GENERATE row may produce
 _MAX_GENERATED = 10**8
 
@@ -350,6 +355,8 @@ def _inp_element(r: _InpReader, card: _Card):
     etype = card.params.get("TYPE")
     if not isinstance(etype, str) or not etype:
         raise _inp_error(card.where, "*ELEMENT without TYPE=", "give the element type")
+    if etype.upper() in _CONNECTOR_TYPES:
+        return
     cell_type = _abaqus_cell_type(etype)
     base = etype.upper().rstrip("RIHT")
     if base in _ABAQUS_REFUSED:
