@@ -33,10 +33,13 @@ from qsma.contact.laws import ElasticStick, InterfaceLaw, LinearPressure
 from qsma.deck import export_calculix
 from qsma.deck.calculix_bolts import NODES_PER_BOLT, spring_forces
 from qsma.deck.calculix import PENALTY_FACTOR, _default_penalty
-from qsma.deck.calculix_output import displacements, eigenfrequencies, run_calculix
+from qsma.deck.calculix_output import (contact_stresses, displacements, eigenfrequencies,
+                                       run_calculix)
 from qsma.examples import EXAMPLES, brb
+from qsma.examples.bolted import stack_3d_bolted
 from qsma.fe import assemble_body
 from qsma.levels import Levels
+from qsma.model.body import Probe
 from qsma.options import RunOptions
 
 
@@ -44,7 +47,12 @@ from qsma.options import RunOptions
 #: interface (the measured one has a gap field) and trilinear hexahedra (CalculiX's
 #: C3D8I is another incompatible-modes element than qsma's: its tied f0 of brb is
 #: 175.7951 Hz against qsma's 175.8743).
-VARIANTS = {"brb-flat": lambda refine: brb(refine, surfaces="flat", element="hexahedron")}
+#: The bolted square stack (its interface slips a little under the pretension) with a
+#: probe: the mean vertical displacement of the top washer.
+VARIANTS = {"brb-flat": lambda refine: brb(refine, surfaces="flat", element="hexahedron"),
+            "stack-3d-bolted": lambda refine: replace(
+                stack_3d_bolted(refine),
+                tip=Probe(sets=(("top", "washer"),), direction=(0.0, 1.0, 0.0)))}
 
 
 def contact_forces(model, deck, u_body, assembled, pairing):
@@ -85,10 +93,14 @@ def compare(model, folder: Path, penalty=None, amplitudes=None, steps=20, opts=N
     assembled = [assemble_body(b) for b in model.bodies]
     lam_c = contact_forces(model, deck, u_pre, assembled, pairing)
     lam_q = mode["lam"][:, -1]
+    itf = model.interface
+    mu = itf.mu if itf.mu is not None else model.mu
     out = dict(model=model.name, pairs=pairing.n_pairs, penalty=deck.penalty[0][0],
                f0_qsma=f0, f0_tied=at(f_tied), f0_ccx=at(f_ccx),
                closed_qsma=int(mode["closed"].sum()),
                closed_ccx=int((lam_c > 1e-6 * np.abs(lam_q).max()).sum()),
+               slip_qsma=int(mode["slipping"].sum()),
+               slip_ccx=_slipping(_preload_cstr(text), mu, 1e-5),
                total_qsma=float(lam_q.sum()), total_ccx=float(lam_c.sum()),
                max_diff=float(np.abs(lam_q - lam_c).max() / np.abs(lam_q).max()),
                t_qsma=t_qsma, t_ccx=t_ccx,
@@ -97,6 +109,22 @@ def compare(model, folder: Path, penalty=None, amplitudes=None, steps=20, opts=N
     if amplitudes is not None:
         out.update(_loops(model, deck, blocks[n_pre:], u_pre, opts))
     return out
+
+
+def _slipping(forces, mu, tol) -> int:
+    """Contact points whose tangential force reached ``mu`` times the normal one
+    (``forces``: tangential components, normal last; ``tol`` the relative round-off
+    of the numbers: CalculiX prints 7 digits)."""
+    f = np.asarray(forces, float)
+    t, n = np.linalg.norm(f[:, :-1], axis=1), f[:, -1]
+    return int(((n > 0) & (t >= (1 - tol) * mu * n)).sum())
+
+
+def _preload_cstr(text):
+    """``(shear 1, shear 2, pressure)`` of CalculiX's contact stresses at the end of
+    the preload (its last block at time <= 1)."""
+    blocks = [rows for t, rows in contact_stresses(text) if t <= 1.0 + 1e-9]
+    return blocks[-1][:, [2, 3, 1]] if blocks else np.zeros((0, 3))
 
 
 def _preload_times(blocks):
@@ -152,7 +180,7 @@ def main(argv=None):
         print("ccx not found (apt-get install calculix-ccx)")
         return 1
     print(f"| model | K (Pa/m) | f0 qsma (Hz) | f0 ccx tied deck | rel. diff | f0 ccx "
-          f"perturbation | rel. diff | closed qsma / ccx | contact force qsma / ccx (N) | "
+          f"perturbation | rel. diff | closed (slipping) qsma / ccx | contact force qsma / ccx (N) | "
           f"largest nodal diff | bolt force ccx / N0 - 1 | t qsma / ccx (s) |")
     print("|---" * 12 + "|")
     loops = []
@@ -173,8 +201,8 @@ def main(argv=None):
             K = r["penalty"]
             print(f"| {name} | {K:.3g} | {r['f0_qsma']:.6f} | {r['f0_tied']:.6f} | "
                   f"{rel(r['f0_tied']):+.2e} | {r['f0_ccx']:.6f} | {rel(r['f0_ccx']):+.2e} | "
-                  f"{r['closed_qsma']} / "
-                  f"{r['closed_ccx']} | {r['total_qsma']:.6g} / {r['total_ccx']:.6g} | "
+                  f"{r['closed_qsma']} ({r['slip_qsma']}) / "
+                  f"{r['closed_ccx']} ({r['slip_ccx']}) | {r['total_qsma']:.6g} / {r['total_ccx']:.6g} | "
                   f"{r['max_diff']:.2e} | {_bolt_error(r)} | {r['t_qsma']:.1f} / "
                   f"{r['t_ccx']:.1f} |", flush=True)
             if "D_ccx" in r:

@@ -404,11 +404,11 @@ def _shortest_edge(mesh, name) -> float:
 def _qsma_mode(model, opts) -> dict:
     """qsma's preload and loaded mode: the contact forces of the preload (``lam``, local
     axes, normal last), the contact points it closed (``closed``, with the
-    ``pairing``), the tied ``f0_hz``, ``omega0``, ``phi_tip`` and
+    ``pairing``) and those slipping (``slipping``), the tied ``f0_hz``, ``omega0``, ``phi_tip`` and
     per body ``phi`` and ``mphi`` ((n_nodes, dim) arrays, mass-normalised, the sign of
     a run)."""
     from ..analysis import _Timer, prepare
-    from ..contact import OPEN
+    from ..contact import OPEN, SLIPPING
     p = prepare(model, opts)
     clock = _Timer()
     reduced, layer, pre = p.preloaded(opts, clock)
@@ -418,7 +418,8 @@ def _qsma_mode(model, opts) -> dict:
     phis = [phi[off[k]:off[k + 1]].reshape(-1, model.dim) for k in range(len(model.bodies))]
     mphi = [(a.M @ f.ravel()).reshape(-1, model.dim) for a, f in zip(p.assembled, phis)]
     return dict(f0_hz=omega0 / (2 * np.pi), omega0=omega0, phi_tip=phi_tip, phi=phis,
-                mphi=mphi, closed=closed, pairing=p.pairing, lam=pre.lam)
+                mphi=mphi, closed=closed, slipping=pre.status == SLIPPING,
+                pairing=p.pairing, lam=pre.lam)
 
 
 def _modal_forces(amplitudes, mode) -> tuple:
