@@ -119,6 +119,20 @@ def test_init_writes_the_bolts_table(linear_brb, tmp_path):
     assert [b.stiffness for b in model.bolts] == [b.stiffness for b in _brb().bolts]
 
 
+def test_element_sets_may_hold_the_connectors(linear_brb, tmp_path):
+    """An element set that lists a bolt's coupling and spring elements with the cells
+    (a deck's 'all elements' set) reads: the mesh reader leaves the connectors out of
+    it instead of calling them undefined."""
+    _, deck, _, _ = linear_brb
+    lay = deck.bolts[0]
+    path = tmp_path / "all.inp"
+    path.write_text(deck.text.replace("*STEP", f"*ELSET, ELSET=EVERYTHING\n1, 2, "
+                                      f"{lay.elements[0]}, {lay.elements[3]}\n*STEP", 1))
+    read, back = _reread(path)
+    assert back.bodies[0].mesh.cell_sets["EVERYTHING"].tolist() == [0, 1]
+    assert len(back.bolts) == 3
+
+
 def test_2d_bolts_are_refused_for_calculix():
     with pytest.raises(CalculixRefusal, match="of a 2D model: CalculiX 2.20 expands 2D"):
         calculix_deck(lap_2d_bolted(1))

@@ -27,6 +27,9 @@ import numpy as np
 from ..mesh.celltypes import abaqus_faces
 from .records import _number, _row_where, _rows_of, _where
 
+#: keywords whose cards a bolt may use
+_INDEXED = {"NSET", "ELSET", "ELEMENT", "DISTRIBUTING COUPLING", "COUPLING", "SPRING",
+            "EQUATION"}
 #: member element types and what they are
 _MEMBERS = {"B31": "beam", "B31R": "beam", "T3D2": "truss", "T3D2H": "truss",
             "SPRINGA": "spring"}
@@ -59,6 +62,8 @@ class DeckBolts:
     def _bolts(self, bodies, preload) -> list:
         """``[(table, comment)]`` of the bolts; notes for the pieces of none."""
         self._bolt_cards, self._bolt_refs = set(), set()
+        if not any(c.keyword == "PRE-TENSION SECTION" for c in self.cards):
+            return []                  # no bolt: the deck's sets need not be indexed
         self._index_cards()
         out = []
         for card in self.cards:
@@ -81,13 +86,16 @@ class DeckBolts:
         self._xyz = {int(i): p for i, p in zip(fm.labels, fm.points)}
         for k, card in enumerate(self.cards):
             kw, p = card.keyword, card.params
+            etype = str(p.get("TYPE", "")).upper()
+            if kw not in _INDEXED or (kw == "ELEMENT" and etype not in _MEMBERS
+                                      and etype != "DCOUP3D"):
+                continue                   # e.g. nodes and the bodies' cells
             rows = [(w, t) for w, t, _ in _rows_of(card)]
             if kw in ("NSET", "ELSET"):
                 name = str(p.get(kw, "")).upper()
                 (self._nsets if kw == "NSET" else self._elsets).setdefault(name, []).extend(
                     _ids(rows, "GENERATE" in p, self._nsets if kw == "NSET" else self._elsets))
             elif kw == "ELEMENT":
-                etype = str(p.get("TYPE", "")).upper()
                 ids = [int(t[0]) for _, t in rows if t and t[0].strip().lstrip("-").isdigit()]
                 if "ELSET" in p:
                     self._elsets.setdefault(str(p["ELSET"]).upper(), []).extend(ids)

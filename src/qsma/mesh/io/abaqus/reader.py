@@ -72,6 +72,7 @@ class _InpReader:
         self.interaction = None     # the *SURFACE INTERACTION being defined
         self.boundaries = []        # (node set or node id, first dof, last dof, where)
         self.load_ids = {"NSET": set(), "ELSET": set()}   # ids a *CLOAD / *DLOAD names
+        self.connectors = []        # ids of the skipped connector elements (arrays)
 
     def skips(self, card: _Card) -> bool:
         """Definitions at assembly level (reference points, connectors) are not the mesh."""
@@ -103,7 +104,9 @@ class _InpReader:
         self._check_node_rows(CELL_TYPES[vtypes[0]].dim)
         elements = self._element_lookup()
         index = _Elements(blocks)
-        elsets = {k: self._element_indices(s, elements) for k, s in self.sets["ELSET"].items()}
+        skipped = np.concatenate(self.connectors + [np.zeros(0, np.int64)])
+        elsets = {k: self._element_indices(s, elements, skipped)
+                  for k, s in self.sets["ELSET"].items()}
         names = {t: self._element(t) for t in vtypes}
         fm = _FileMesh(self.source, xyz, node_ids, blocks, element=names[vtypes[0]],
                        block_elements=names, element_ids=[b.ids for b in self.blocks])
@@ -232,10 +235,15 @@ class _InpReader:
         return lookup
 
     @staticmethod
-    def _element_indices(s: _InpSet, elements: _IdLookup) -> np.ndarray:
+    def _element_indices(s: _InpSet, elements: _IdLookup, skipped=()) -> np.ndarray:
+        """Element indices of set ``s``; ids of ``skipped`` (connector elements, no part
+        of the mesh) are left out."""
         parts = [np.zeros(0, np.int64)]
         for ids, where in s.chunks:
             idx = elements(ids)
+            if (idx < 0).any() and len(skipped):
+                keep = (idx >= 0) | ~np.isin(ids, skipped)
+                ids, idx = ids[keep], idx[keep]
             if (idx < 0).any():
                 raise _inp_error(where, f"element set {s.name!r} refers to element "
                                  f"{ids[idx < 0][0]}, which no *ELEMENT defines",
@@ -356,6 +364,9 @@ def _inp_element(r: _InpReader, card: _Card):
     if not isinstance(etype, str) or not etype:
         raise _inp_error(card.where, "*ELEMENT without TYPE=", "give the element type")
     if etype.upper() in _CONNECTOR_TYPES:
+        r.connectors.append(np.array([int(t[0]) for _, t, _ in _rows(card)
+                                      if t and t[0].strip().lstrip("-").isdigit()],
+                                     dtype=np.int64))
         return
     cell_type = _abaqus_cell_type(etype)
     base = etype.upper().rstrip("RIHT")
