@@ -147,6 +147,29 @@ def _lap_deck(tmp_path, edit):
     return read_deck(path)
 
 
+def test_abaqus_couplings_on_surfaces_read_as_the_same_bolt(tmp_path):
+    """``*COUPLING, REF NODE=, SURFACE=`` with ``*DISTRIBUTING`` (Abaqus' distributing
+    coupling) instead of CalculiX's ``*DISTRIBUTING COUPLING``: the same bolt, its
+    washers the surfaces named."""
+    def abaqus(text):
+        for end, surface in (("A", "BOTTOM_BOLT"), ("B", "TOP_BOLT")):
+            block = re.search(rf"\*ELEMENT, TYPE=DCOUP3D, ELSET=BOLT_bolt_{end}\n\d+, (\d+)\n"
+                              rf"\*DISTRIBUTING COUPLING, ELSET=BOLT_bolt_{end}\n"
+                              rf"(\d+, [^\n]+\n)+", text)
+            text = text.replace(block.group(0), f"*COUPLING, REF NODE={block.group(1)}, "
+                                f"SURFACE={surface}, CONSTRAINT NAME=C{end}\n"
+                                f"*DISTRIBUTING\n1, 3\n")
+        return text
+    deck = _lap_deck(tmp_path, abaqus)
+    assert "*DISTRIBUTING COUPLING" not in deck.source.read_text()
+    assert not deck.refusals
+    (bolt,) = deck.config["bolts"]
+    original = lap_3d_bolted(1).bolts[0]
+    assert (bolt["set_a"], bolt["set_b"]) == ("BOTTOM_BOLT", "TOP_BOLT")
+    assert (bolt["pretension"], bolt["stiffness"]) == (original.pretension,
+                                                       original.stiffness)
+
+
 def test_a_bolt_without_its_pretension_load_is_refused(tmp_path):
     deck = _lap_deck(tmp_path, lambda t: re.sub(r"\*CLOAD\n\d+, 1, 8000.0\n", "", t))
     (note,) = deck.refusals
@@ -219,6 +242,55 @@ def test_a_meshed_bolt_is_refused_with_its_stiffness(tmp_path):
     assert A == pytest.approx(0.010 * 0.008)          # the grid lines next to 10 x 10 mm
     k = LAP_3D["E"] * A / LAP_3D["t"]
     assert f"cut area A = {A:.6g}" in note.fix and f"E A / L = {k:.6g}" in note.fix
+
+
+BAR = """*NODE
+1, 0., 0., 0.
+2, 1., 0., 0.
+3, 1., 1., 0.
+4, 0., 1., 0.
+5, 0., 0., 1.
+6, 1., 0., 1.
+7, 1., 1., 1.
+8, 0., 1., 1.
+9, 0., 0., 2.
+10, 1., 0., 2.
+11, 1., 1., 2.
+12, 0., 1., 2.
+*ELEMENT, TYPE=C3D8, ELSET=BOLT
+1, 1, 2, 3, 4, 5, 6, 7, 8
+2, 5, 6, 7, 8, 9, 10, 11, 12
+*MATERIAL, NAME=STEEL
+*ELASTIC
+210000., 0.3
+*DENSITY
+7.85e-9
+*SOLID SECTION, ELSET=BOLT, MATERIAL=STEEL
+*SURFACE, NAME=CUT
+1, S2
+*PRE-TENSION SECTION, SURFACE=CUT, NODE=99
+0., 0., 1.
+*STEP
+*STATIC
+*CLOAD
+99, 1, 1000.
+*END STEP
+"""
+
+
+def test_a_cut_through_a_meshed_bolt_is_measured(tmp_path):
+    """The pretension surface of a meshed bolt lies inside it (here the face between
+    the two elements of a 1 x 1 x 2 bar): the mesh reader leaves it out of the facet
+    sets instead of refusing the file, the deck reader measures it (A = 1, L = 2,
+    E = 210000: E A / L = 105000) and names the pretension's load with it."""
+    path = tmp_path / "bar.inp"
+    path.write_text(BAR)
+    deck = read_deck(path)
+    (note,) = [n for n in deck.refusals if "PRE-TENSION" in n.what]
+    assert note.where == "bar.inp, line 25"
+    assert "cut area A = 1, length along the section normal L = 2, E = 210000: " \
+           "stiffness = E A / L = 105000" in note.fix
+    assert not any("'99'" in n.what for n in deck.notes)
 
 
 # --- with CalculiX --------------------------------------------------------------------

@@ -170,9 +170,10 @@ class DeckBolts:
                       f"{len(refs)} coupling reference node(s)"
                       + (" and branches" if chain["branched"] else ""), fix, True)
             return None
-        # a bolt's cards: named by this one card's notes from here on
+        # a bolt's cards and its pretension node: named by this card's notes from here on
         self._bolt_cards |= {id(c) for r in refs for c in self._couplings[r].cards}
         self._bolt_cards |= {id(card)} | chain["cards"]
+        self._bolt_refs |= {n.upper() for n in self._node_names(node)}
         ends = [self._washer(self._couplings[r], bodies) for r in refs]
         if any(e is None for e in ends):
             return None
@@ -271,9 +272,13 @@ class DeckBolts:
                   "force over it as a uniform traction)", True)
         return None
 
+    def _node_names(self, node) -> set:
+        """How load rows name ``node``: its id and the node sets of it alone."""
+        return {str(node)} | {n for n, ids in self._nsets.items() if ids == [node]}
+
     def _pretension(self, node, preload, where):
         """The pretension: the ``*CLOAD`` on DOF 1 of ``node`` in the preload step."""
-        names = {str(node)} | {n for n, ids in self._nsets.items() if ids == [node]}
+        names = self._node_names(node)
         total, found = 0.0, False
         for card in (preload.cards if preload is not None else []):
             if card.keyword not in ("CLOAD", "BOUNDARY"):
@@ -290,7 +295,6 @@ class DeckBolts:
                 if len(t) > 2 and t[1].strip() == "1" and scale is not None:
                     total += scale * _number(t[2], w, "the pretension")
                     found = True
-        self._bolt_refs |= {n.upper() for n in names}
         if not found or total <= 0:
             self.note(where, f"*PRE-TENSION SECTION with node {node}: "
                       + ("no *CLOAD on its DOF 1 in the first *STATIC step" if not found
@@ -356,6 +360,9 @@ class DeckBolts:
         """A pretension section cutting a meshed bolt: refused with the pattern to write
         instead and, where the surface can be measured, ``E A / L`` of the cut."""
         surface = str(card.params["SURFACE"])
+        node = self._one_node(card.params.get("NODE"))
+        if node is not None:               # its load is named by this note
+            self._bolt_refs |= {n.upper() for n in self._node_names(node)}
         measured = self._cut(surface)
         hint = ""
         if measured is not None:

@@ -73,6 +73,7 @@ class _InpReader:
         self.boundaries = []        # (node set or node id, first dof, last dof, where)
         self.load_ids = {"NSET": set(), "ELSET": set()}   # ids a *CLOAD / *DLOAD names
         self.connectors = []        # ids of the skipped connector elements (arrays)
+        self.cuts = set()           # surfaces of *PRE-TENSION SECTION (upper case)
 
     def skips(self, card: _Card) -> bool:
         """Definitions at assembly level (reference points, connectors) are not the mesh."""
@@ -122,7 +123,8 @@ class _InpReader:
             elif not s.internal:
                 fm.empty_sets[s.name] = "cell"
         for name, rows in self.surfaces.values():
-            self._surface(fm, name, rows, vtypes, elements, elsets, index)
+            if name.upper() not in self.cuts:     # a cut through a body is no facet set
+                self._surface(fm, name, rows, vtypes, elements, elsets, index)
         fm.node_surfaces = {s.name for s in self.node_surfaces.values()}
         fm.contact_pairs = [_ContactPair(self._surface_name(slave), self._surface_name(master),
                                          self.friction.get((inter or "").upper()), kind, where)
@@ -568,6 +570,14 @@ def _inp_load_ids(kind: str):
 
 
 #: keyword -> handler; other keywords (materials, steps, loads, ...) are skipped
+def _inp_pretension(r: _InpReader, card: _Card):
+    """The surface of a pretension section cuts a (meshed) bolt: internal faces, which
+    the deck reader measures (:mod:`qsma.deck.bolts`) and no facet set holds."""
+    surface = card.params.get("SURFACE")
+    if isinstance(surface, str):
+        r.cuts.add(surface.upper())
+
+
 _INP_KEYWORDS = {
     "NODE": _inp_node, "ELEMENT": _inp_element, "NSET": _inp_set("NSET"),
     "ELSET": _inp_set("ELSET"), "SURFACE": _inp_surface,
@@ -577,6 +587,7 @@ _INP_KEYWORDS = {
     "CONTACT PAIR": _inp_contact_pair, "SURFACE INTERACTION": _inp_interaction,
     "FRICTION": _inp_friction, "BOUNDARY": _inp_boundary,
     "CLOAD": _inp_load_ids("NSET"), "DLOAD": _inp_load_ids("ELSET"),
+    "PRE-TENSION SECTION": _inp_pretension,
 }
 
 
