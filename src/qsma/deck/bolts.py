@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from ..mesh.celltypes import abaqus_faces
+from ..mesh.celltypes import CELL_TYPES, abaqus_faces
 from .records import _number, _row_where, _rows_of, _where
 
 #: keywords whose cards a bolt may use
@@ -84,6 +84,7 @@ class DeckBolts:
         self._couplings, self._equations = {}, []
         fm = self.asm.file_mesh
         self._xyz = {int(i): p for i, p in zip(fm.labels, fm.points)}
+        couplings = []                  # read once every element set is known
         for k, card in enumerate(self.cards):
             kw, p = card.keyword, card.params
             etype = str(p.get("TYPE", "")).upper()
@@ -96,19 +97,9 @@ class DeckBolts:
                 (self._nsets if kw == "NSET" else self._elsets).setdefault(name, []).extend(
                     _ids(rows, "GENERATE" in p, self._nsets if kw == "NSET" else self._elsets))
             elif kw == "ELEMENT":
-                ids = [int(t[0]) for _, t in rows if t and t[0].strip().lstrip("-").isdigit()]
-                if "ELSET" in p:
-                    self._elsets.setdefault(str(p["ELSET"]).upper(), []).extend(ids)
-                for w, t in rows:
-                    if etype in _MEMBERS and len(t) >= 3:
-                        self._members[int(t[0])] = _Member(
-                            int(t[0]), _MEMBERS[etype], (int(t[1]), int(t[2])),
-                            _row_where(w), p.get("ELSET") if len(rows) == 1 else None)
-                    elif etype == "DCOUP3D" and len(t) >= 2:
-                        self._members[int(t[0])] = _Member(int(t[0]), "dcoup",
-                                                           (int(t[1]),), _row_where(w))
+                self._elements(card, etype, rows)
             elif kw == "DISTRIBUTING COUPLING":
-                self._distributing(card, rows)
+                couplings.append((card, rows))
             elif kw == "COUPLING":
                 follow = self.cards[k + 1] if k + 1 < len(self.cards) else None
                 if follow is not None and follow.keyword == "DISTRIBUTING":
@@ -116,10 +107,33 @@ class DeckBolts:
                     if ref is not None and isinstance(p.get("SURFACE"), str):
                         self._couplings[ref] = _Coupling(ref, _where(card), [card, follow],
                                                          surface=p["SURFACE"])
-            elif kw == "SPRING" and "NONLINEAR" not in p and rows:
-                self._springs[str(p.get("ELSET", "")).upper()] = (rows[-1], card)
+            elif kw == "SPRING" and "NONLINEAR" not in p:
+                constants = [(w, t) for w, t in rows if t and _int(t[0]) is None]
+                if constants:          # SPRING1/2 have a line of DOFs (integers) first
+                    self._springs[str(p.get("ELSET", "")).upper()] = (constants[0], card)
             elif kw == "EQUATION":
                 self._equations += [(eq, card) for eq in _equations(rows)]
+        for card, rows in couplings:
+            self._distributing(card, rows)
+
+    def _elements(self, card, etype, rows):
+        """Members and coupling elements of an ``*ELEMENT`` card (rows of other than
+        integers are the mesh reader's to refuse)."""
+        ids = []
+        for w, t in rows:
+            numbers = [_int(x) for x in t if x.strip()]
+            if not numbers or None in numbers:
+                continue
+            ids.append(numbers[0])
+            if etype in _MEMBERS and len(numbers) >= 3:
+                self._members[numbers[0]] = _Member(
+                    numbers[0], _MEMBERS[etype], tuple(numbers[1:3]), _row_where(w),
+                    card.params.get("ELSET") if len(rows) == 1 else None)
+            elif etype == "DCOUP3D" and len(numbers) >= 2:
+                self._members[numbers[0]] = _Member(numbers[0], "dcoup", (numbers[1],),
+                                                    _row_where(w))
+        if "ELSET" in card.params:
+            self._elsets.setdefault(str(card.params["ELSET"]).upper(), []).extend(ids)
 
     def _distributing(self, card, rows):
         elems = self._elsets.get(str(card.params.get("ELSET", "")).upper(), [])
@@ -129,8 +143,8 @@ class DeckBolts:
             return
         nodes = []
         for w, t in rows:
-            ref = t[0].strip()
-            nodes += [int(ref)] if ref.lstrip("-").isdigit() else \
+            ref = t[0].strip() if t else ""
+            nodes += [_int(ref)] if _int(ref) is not None else \
                 self._nsets.get(ref.upper(), [])
         self._couplings[refs[0]] = _Coupling(refs[0], _where(card), [card], nodes=nodes)
 
@@ -397,7 +411,11 @@ class DeckBolts:
                 continue
             b, r = where[int(t[0])]
             ctype, _, conn, _ = fm.blocks[b]
-            face = abaqus_faces(ctype)[int(t[1].strip().upper().lstrip("S")) - 1]
+            number = _int(t[1].strip().upper().lstrip("S"))
+            faces = abaqus_faces(ctype) if ctype in CELL_TYPES else ()
+            if number is None or not 1 <= number <= len(faces):
+                continue                   # not a face of a cell: not measured
+            face = faces[number - 1]
             x = fm.points[conn[r][list(face)]]
             corners = x[:4] if len(face) >= 8 else x[:3] if len(face) == 6 else x
             n = 0.5 * np.cross(corners[2] - corners[0], corners[-1] - corners[1]) \
@@ -422,17 +440,25 @@ class DeckBolts:
         return area, float(s.max() - s.min()), float(self._body_list[body]["table"]["E"])
 
 
+def _int(token):
+    """An integer token as an int, else None."""
+    token = token.strip()
+    return int(token) if token.lstrip("-").isdigit() else None
+
+
 def _ids(rows, generate, sets) -> list:
-    """Ids of ``*NSET``/``*ELSET`` rows (numbers, GENERATE ranges, names of sets)."""
+    """Ids of ``*NSET``/``*ELSET`` rows (numbers, GENERATE ranges, names of sets);
+    what is none of them is the mesh reader's to refuse."""
     out = []
     for _, t in rows:
         vals = [x.strip() for x in t if x.strip()]
-        if generate and len(vals) >= 2:
-            step = int(vals[2]) if len(vals) > 2 else 1
-            out += list(range(int(vals[0]), int(vals[1]) + 1, step))
+        if generate:
+            first, last, step = ([_int(v) for v in vals] + [1, 1, 1])[:3]
+            if None not in (first, last, step) and step > 0 and len(vals) >= 2:
+                out += list(range(first, last + 1, step))
             continue
         for v in vals:
-            out += [int(v)] if v.lstrip("-").isdigit() else sets.get(v.upper(), [])
+            out += [_int(v)] if _int(v) is not None else sets.get(v.upper(), [])
     return out
 
 
@@ -442,12 +468,14 @@ def _equations(rows) -> list:
     for w, t in rows:
         vals = [x for x in t if x.strip()]
         if count is None:
-            count = int(vals[0])
+            count = _int(vals[0]) if vals else None
+            if count is None:
+                return out             # not an equation qsma can read: named as such
             continue
         for k in range(0, len(vals) - 2, 3):
-            node = vals[k].strip()
-            pending.append((int(node) if node.lstrip("-").isdigit() else -1,
-                            int(vals[k + 1]), _number(vals[k + 2], w, "a coefficient")))
+            node, dof = _int(vals[k]), _int(vals[k + 1])
+            pending.append((-1 if node is None else node, dof or 0,
+                            _number(vals[k + 2], w, "a coefficient")))
         if len(pending) >= count:
             out.append(pending)
             pending, count = [], None
