@@ -3,6 +3,7 @@
     python benchmarks/bench_export_calculix.py [--example sandwich-2d lap-3d]
                                                [--penalty-factor 1e3 1e4]
                                                [--amplitudes 1e-6 1e-5] [--steps 20]
+                                               [--mu 0.1]
 
 Per example and penalty: the deck of :func:`qsma.deck.export_calculix` is solved by
 ``ccx`` and compared with qsma's run of the model: the tied frequency f0 (CalculiX's
@@ -172,6 +173,8 @@ def main(argv=None):
     ap.add_argument("--amplitudes", type=float, nargs="*", default=None,
                     help="linear tied tip deflections of the cyclic steps")
     ap.add_argument("--steps", type=int, default=20)
+    ap.add_argument("--mu", type=float, default=None,
+                    help="the friction coefficient of the model (default: the example's)")
     ap.add_argument("--linear", type=float, nargs=2, metavar=("KN", "KT"),
                     help="a linear law (normal and stick slopes, Pa/m) on the interface "
                          "instead of the hard one: both codes then solve the same law")
@@ -186,6 +189,8 @@ def main(argv=None):
     loops = []
     for name in args.example:
         model = {**EXAMPLES, **VARIANTS}[name](refine=1)
+        if args.mu is not None:
+            model = replace(model, mu=args.mu)
         if args.linear:
             law = InterfaceLaw(LinearPressure(args.linear[0]), ElasticStick(args.linear[1]))
             model = replace(model, interface=replace(model.interface, law=law))

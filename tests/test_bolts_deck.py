@@ -331,3 +331,16 @@ def test_calculix_holds_the_locked_stiffness(tmp_path):
     (q1, c1), (q2, c2) = out
     assert c1 == pytest.approx(q1, rel=1e-6) and c2 == pytest.approx(q2, rel=1e-6)
     assert q2 / q1 - 1 > 100 * 1e-6
+
+
+@needs_ccx
+def test_calculix_slips_in_the_same_pairs_under_the_pretension(bench, tmp_path):
+    """The bolted stack at mu = 0.1 slips under its pretension: the same 37 pairs closed
+    and the same 12 slipping in both codes (measured), CalculiX's bolt force N0 to
+    5e-8 (measured 8000.000375 N), the contact force through the joint N0."""
+    model = dataclasses.replace(bench.VARIANTS["stack-3d-bolted"](1), mu=0.1)
+    r = bench.compare(model, tmp_path)
+    assert r["closed_ccx"] == r["closed_qsma"] == 37
+    assert r["slip_ccx"] == r["slip_qsma"] == 12
+    np.testing.assert_allclose(r["bolt_ccx"], r["bolt_qsma"], rtol=1e-6)
+    assert r["total_ccx"] == pytest.approx(8000.0, rel=1e-6)
