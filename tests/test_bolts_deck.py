@@ -200,21 +200,29 @@ def test_couplings_of_no_bolt_are_refused_with_the_pattern(tmp_path):
     assert "qsma has no rigid (kinematic) couplings" in note.fix
 
 
-def test_a_beam_alone_is_a_bolt_of_its_own_stiffness(tmp_path):
-    """Abaqus' pattern (the member carries the pretension and the stiffness): the B31
-    from coupling to coupling, no spring; its E A / L is the bolt's stiffness, with a
-    note that CalculiX would hold it rigid."""
-    def beam_alone(text):
+@pytest.mark.parametrize("member", ["B31", "T3D2"])
+def test_a_member_alone_is_a_bolt_of_its_own_stiffness(tmp_path, member):
+    """Abaqus' pattern (the member carries the pretension and the stiffness): a B31
+    beam or a T3D2 truss from coupling to coupling, no spring; its E A / L is the
+    bolt's stiffness (the section written is a square shank of E A / L = k over the
+    bolt's length: the bolt's own k), with a note that CalculiX would hold it rigid."""
+    def member_alone(text):
         beam = re.search(r"\*ELEMENT, TYPE=B31, ELSET=bolt\n(\d+), (\d+), (\d+)\n", text)
         spring = re.search(r"\*ELEMENT, TYPE=SPRINGA, ELSET=BOLT_bolt_K\n\d+, \d+, (\d+)\n"
                            r"\*SPRING, ELSET=BOLT_bolt_K\n\n[^\n]+\n", text)
-        text = text.replace(beam.group(0), f"*ELEMENT, TYPE=B31, ELSET=bolt\n"
+        text = text.replace(beam.group(0), f"*ELEMENT, TYPE={member}, ELSET=bolt\n"
                             f"{beam.group(1)}, {beam.group(2)}, {spring.group(1)}\n")
+        if member == "T3D2":       # a truss: its area on a solid section
+            section = re.search(r"\*BEAM SECTION, ELSET=bolt, MATERIAL=(\w+), SECTION=RECT"
+                                r"\n([^,]+), [^\n]+\n[^\n]+\n", text)
+            area = float(section.group(2)) ** 2
+            text = text.replace(section.group(0), f"*SOLID SECTION, ELSET=bolt, MATERIAL="
+                                f"{section.group(1)}\n{area!r}\n")
         return re.sub(r"\*EQUATION\n\d\n[^\n]+\n", "", text.replace(spring.group(0), ""))
-    deck = _lap_deck(tmp_path, beam_alone)
+    deck = _lap_deck(tmp_path, member_alone)
     assert not deck.refusals
     (bolt,) = deck.config["bolts"]
-    # the section written is a square shank of E A / L = k over the bolt's length
+    assert bolt["name"] == "bolt"
     assert bolt["stiffness"] == pytest.approx(lap_3d_bolted(1).bolts[0].stiffness,
                                               rel=1e-12)
     assert any("CalculiX deletes a beam" in n.fix for n in deck.notes)
