@@ -129,8 +129,9 @@ def model_cards(layouts, first_node, clamped, material, E, taken=()) -> list:
 
     ``first_node``: per body its first deck node; ``clamped``: per body the set of its
     nodes some clamp holds; ``material``, ``E``: a material of the deck and its modulus
-    (the beam's section needs one: a square shank of ``E A / L = k`` over the bolt's
-    length, for the reader; CalculiX deletes the beam); ``taken``: element set names
+    (CalculiX asks a section of the beam it deletes: a square shank whose ``E A / L``
+    over the bolt's length is ``k``, the bolt's stiffness for a reader that takes the
+    beam alone as the member); ``taken``: element set names
     in use (upper case). The beam's element set is the bolt's name, which the deck
     reader gives the bolt back (CalculiX 2.20 reads ``ELEMENT=`` as a number only)."""
     out = []

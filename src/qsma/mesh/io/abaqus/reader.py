@@ -21,19 +21,15 @@ from ...mesh import Mesh
 from ..common import (_MAX_ID, _cell_type_of, _ContactPair, _Elements, _FileMesh, _IdLookup,
                       _to_mesh)
 from .instances import check_instances_closed, flatten_instances, needs_flattening, placement
-from .lexer import (ABAQUS_ELEMENT_TYPES, _Card, _abaqus_cell_type, _abaqus_float,
-                    _inp_cards, _inp_error, _integer, _is_continuum, _rows)
+from .lexer import (ABAQUS_ELEMENT_TYPES, CONNECTOR_TYPES, _Card, _abaqus_cell_type,
+                    _abaqus_float, _connector_ids, _inp_cards, _inp_error, _integer,
+                    _is_continuum, _rows)
 
 #: element types refused with a reason of their own
 _ABAQUS_REFUSED = {
     "C3D27": "its optional face and centre nodes (21-27) have no node order qsma has "
              "checked; use C3D20",
 }
-#: element types that are no part of a mesh (one- and two-node connectors, couplings,
-#: point masses): skipped here, read by the deck reader (:mod:`qsma.deck`), which uses
-#: or names them
-_CONNECTOR_TYPES = frozenset({"DCOUP3D", "SPRINGA", "SPRING1", "SPRING2", "DASHPOTA",
-                              "MASS"})
 #: most ids one GENERATE row may produce
 _MAX_GENERATED = 10**8
 
@@ -105,9 +101,7 @@ class _InpReader:
         self._check_node_rows(CELL_TYPES[vtypes[0]].dim)
         elements = self._element_lookup()
         index = _Elements(blocks)
-        skipped = np.concatenate(self.connectors + [np.zeros(0, np.int64)])
-        elsets = {k: self._element_indices(s, elements, skipped)
-                  for k, s in self.sets["ELSET"].items()}
+        elsets = {k: self._element_indices(s, elements) for k, s in self.sets["ELSET"].items()}
         names = {t: self._element(t) for t in vtypes}
         fm = _FileMesh(self.source, xyz, node_ids, blocks, element=names[vtypes[0]],
                        block_elements=names, element_ids=[b.ids for b in self.blocks])
@@ -236,10 +230,9 @@ class _InpReader:
                              "give every element a distinct id")
         return lookup
 
-    @staticmethod
-    def _element_indices(s: _InpSet, elements: _IdLookup, skipped=()) -> np.ndarray:
-        """Element indices of set ``s``; ids of ``skipped`` (connector elements, no part
-        of the mesh) are left out."""
+    def _element_indices(self, s: _InpSet, elements: _IdLookup) -> np.ndarray:
+        """Element indices of set ``s``, without the ids of the skipped connectors."""
+        skipped = np.concatenate(self.connectors + [np.zeros(0, np.int64)])
         parts = [np.zeros(0, np.int64)]
         for ids, where in s.chunks:
             idx = elements(ids)
@@ -365,10 +358,8 @@ def _inp_element(r: _InpReader, card: _Card):
     etype = card.params.get("TYPE")
     if not isinstance(etype, str) or not etype:
         raise _inp_error(card.where, "*ELEMENT without TYPE=", "give the element type")
-    if etype.upper() in _CONNECTOR_TYPES:
-        r.connectors.append(np.array([int(t[0]) for _, t, _ in _rows(card)
-                                      if t and t[0].strip().lstrip("-").isdigit()],
-                                     dtype=np.int64))
+    if etype.upper() in CONNECTOR_TYPES:           # no part of a mesh (lexer.py)
+        r.connectors.append(_connector_ids(card))
         return
     cell_type = _abaqus_cell_type(etype)
     base = etype.upper().rstrip("RIHT")
@@ -569,15 +560,13 @@ def _inp_load_ids(kind: str):
     return handler
 
 
-#: keyword -> handler; other keywords (materials, steps, loads, ...) are skipped
 def _inp_pretension(r: _InpReader, card: _Card):
-    """The surface of a pretension section cuts a (meshed) bolt: internal faces, which
-    the deck reader measures (:mod:`qsma.deck.bolts`) and no facet set holds."""
-    surface = card.params.get("SURFACE")
-    if isinstance(surface, str):
-        r.cuts.add(surface.upper())
+    """A pretension section's surface cuts a meshed bolt (internal faces): no facet set."""
+    if isinstance(card.params.get("SURFACE"), str):
+        r.cuts.add(card.params["SURFACE"].upper())        # qsma.deck.bolts measures it
 
 
+#: keyword -> handler; other keywords (materials, steps, loads, ...) are skipped
 _INP_KEYWORDS = {
     "NODE": _inp_node, "ELEMENT": _inp_element, "NSET": _inp_set("NSET"),
     "ELSET": _inp_set("ELSET"), "SURFACE": _inp_surface,
