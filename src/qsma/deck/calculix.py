@@ -5,11 +5,15 @@ result of qsma can be checked by another code (:func:`export_calculix`; the comm
 The deck holds the same discrete problem as qsma: every body's nodes and elements (the
 element qsma computes, by its Abaqus name), one material and solid section per body,
 the clamps as ``*BOUNDARY``, grounded springs as ``SPRING1`` and point masses as
-``MASS`` elements (each node with its share), one ``*CONTACT PAIR`` per interface with
-its ``*SURFACE INTERACTION`` (the interface law and ``*FRICTION``), and the steps
+``MASS`` elements (each node with its share), the bolts of a 3D model as distributing
+couplings, a pretension section and a spring (:mod:`qsma.deck.calculix_bolts`), one
+``*CONTACT PAIR`` per interface with its ``*SURFACE INTERACTION`` (the interface law
+and ``*FRICTION``), and the steps
 
 1. the preload: the pressures (``*DSLOAD``) and nodal forces (``*CLOAD``) of the
-   ``preload`` pattern, nonlinear static with frictional contact;
+   ``preload`` pattern and the bolts' pretensions, nonlinear static with frictional
+   contact; the bolts are locked (``*BOUNDARY, FIXED`` on their pretension nodes) in
+   the steps after it;
 2. the tied modes: ``*FREQUENCY, PERTURBATION`` about the preloaded state. CalculiX
    keeps the contact elements of the end of step 1 in the stiffness: a closed pair is
    held by its normal penalty and its stick slope, an open one is free, which is qsma's
@@ -68,6 +72,9 @@ class CalculixDeck:
         ``mphi`` per body ((n_nodes, dim) arrays), else None
     path : the deck written (None: not written)
     tied_text, tied_path : the tied deck (:func:`tied_deck`), where written
+    bolts : per bolt its :class:`qsma.deck.calculix_bolts.BoltLayout` (deck nodes and
+        elements, axis; :func:`qsma.deck.calculix_bolts.spring_forces` reads the bolt
+        forces from CalculiX's displacements)
     """
 
     text: str
@@ -80,6 +87,7 @@ class CalculixDeck:
     path: Path | None = None
     tied_text: str | None = field(default=None, repr=False)
     tied_path: Path | None = None
+    bolts: tuple = ()
 
     def per_body(self, u: np.ndarray) -> list:
         """Split nodal rows of the whole deck (``u[i]`` of node ``i + 1``) per body."""
@@ -146,7 +154,7 @@ def calculix_deck(model, *, options=None, amplitudes=None, penalty=None,
     tied_text = _Writer(model, penalty).tied_deck(opts, mode) if tied else None
     return CalculixDeck(text, tuple(writer.first_node), tuple(writer.first_element),
                         tuple(writer.slopes), tuple(alphas), int(steps), mode,
-                        tied_text=tied_text)
+                        tied_text=tied_text, bolts=tuple(writer.bolts))
 
 
 __all__ = ["CalculixDeck", "CalculixRefusal", "export_calculix", "calculix_deck", "calculix_number",

@@ -129,15 +129,6 @@ def _refuse_what_calculix_cannot_hold(model):
                 f"ones and stops on one-node SPRING1 / MASS elements at their nodes: "
                 f"'add_bo_st: coefficient should be 0'): export the model without them, "
                 f"or model it in 3D")
-    if model.bolts:
-        names = ", ".join(repr(b.name) for b in model.bolts)
-        raise CalculixRefusal(
-            f"bolt(s) {names}: a qsma bolt is force-controlled in the preload and a spring "
-            f"locked at the preloaded length afterwards, which a CalculiX deck does not "
-            f"express in one element; export the model with each bolt's pretension as "
-            f"washer pressures (Pressure on set_a and set_b, p = N0 / washer area) to "
-            f"check the joint, or compare the bolt preload alone with "
-            f"benchmarks/bench_bolt_calculix.py")
     for itf in model.interface_list:
         if itf.gap is not None:
             raise CalculixRefusal(

@@ -11,6 +11,8 @@ from ..errors import InputError
 from ..mesh.io.abaqus.writer import _inp_number
 from ..model.pairing import make_pairing
 from ..model.spring import set_shares
+from .calculix_bolts import (ELEMENTS_PER_BOLT, bolt_layouts, locked_cards, model_cards,
+                             node_rows, preload_cards, tied_cards)
 from .calculix_cards import (FIELD_CONTROLS, PENALTY_FACTOR, CalculixRefusal,
                              _surface_behavior, calculix_element, calculix_numbering,
                              surface_rows)
@@ -30,7 +32,8 @@ class _Writer:
     def __init__(self, model, penalty):
         self.model = model
         self.first_node, self.first_element = calculix_numbering(model)
-        self.next_element = self.first_element[-1]
+        self.bolts = bolt_layouts(model, self.first_node[-1], self.first_element[-1])
+        self.next_element = self.first_element[-1] + ELEMENTS_PER_BOLT * len(self.bolts)
         self.sets = {}                 # (body index, set, kind) -> deck name
         self.taken = set()
         self.penalty = penalty
@@ -51,6 +54,7 @@ class _Writer:
         body_cards = []
         for k, b in enumerate(m.bodies):
             body_cards += self.material(k, b) + self.springs_and_masses(k, b)
+        body_cards += self.bolt_cards()
         clamps, interaction = self.clamps(), self.interfaces()
         steps_cards = self.preload_step()
         if alphas:
@@ -81,7 +85,8 @@ class _Writer:
         body_cards = []
         for k, b in enumerate(m.bodies):
             body_cards += self.material(k, b) + self.springs_and_masses(k, b)
-        clamps = self.clamps()
+        body_cards += self.bolt_cards()
+        clamps = self.clamps() + tied_cards(self.bolts)
         lines += self.set_cards() + body_cards + clamps + self.ties(mode)
         lines += ["** the tied modes (linear, about the unstressed state)", "*STEP",
                   "*FREQUENCY", f"{self.n_modes(opts)}", "*END STEP"]
@@ -162,7 +167,21 @@ class _Writer:
             out.append(f"** body {b.name!r}: nodes {n0}..{n0 + b.mesh.n_nodes - 1}")
             out += [", ".join([str(n0 + i)] + [_inp_number(v) for v in p])
                     for i, p in enumerate(b.mesh.points.tolist())]
-        return out
+        return out + node_rows(self.bolts)
+
+    def bolt_cards(self) -> list:
+        """The bolts' couplings, members and ties (:mod:`qsma.deck.calculix_bolts`)."""
+        if not self.bolts:
+            return []
+        m = self.model
+        for lay in self.bolts:        # the washers as surfaces, for a reader of the deck
+            for (k, *_), name in zip(lay.ends, (lay.bolt.set_a, lay.bolt.set_b)):
+                self.set_name(k, name, "facet")
+        clamped = [set((b.clamped_dofs() // b.dim).tolist()) for b in m.bodies]
+        k = m.body_index(m.bolts[0].body_a)
+        taken = {self.body_set(j).upper() for j in range(len(m.bodies))}
+        return model_cards(self.bolts, self.first_node, clamped, f"M_{self.body_set(k)}",
+                           m.bodies[k].material.E, taken)
 
     def elements(self) -> list:
         out = []
@@ -299,6 +318,7 @@ class _Writer:
                         f"{f.set!r}", "*CLOAD"]
                 out += [f"{name}, {c + 1}, {_inp_number(v)}" for c, v in enumerate(f.force)
                         if v != 0.0]
+        out += preload_cards(self.bolts)
         out += ["*NODE PRINT, NSET=NALL", "U", "*CONTACT PRINT", "CSTR", "*END STEP"]
         return out
 
@@ -309,7 +329,8 @@ class _Writer:
                 "which qsma's tied modes (and the tied deck) leave out",
                 f"** qsma loads its elastic mode {opts.mode} (RunOptions.mode; rigid-body "
                 f"modes come first in both codes)",
-                "*STEP, PERTURBATION", "*FREQUENCY", f"{self.n_modes(opts)}", "*END STEP"]
+                "*STEP, PERTURBATION", "*FREQUENCY", f"{self.n_modes(opts)}",
+                *locked_cards(self.bolts), "*END STEP"]
 
     def cyclic_steps(self, mode, alphas, steps) -> list:
         """Per amplitude three static steps of the modal load (module docstring), each
@@ -328,7 +349,8 @@ class _Writer:
                 out += [f"** modal force {prev:.10g} -> {target:.10g}",
                         f"*STEP, INC={100 * steps}", "*STATIC",
                         f"{inc}, 1., 1e-8, {inc}", "*CONTROLS, PARAMETERS=FIELD",
-                        FIELD_CONTROLS, "*CLOAD"]
+                        FIELD_CONTROLS, *(locked_cards(self.bolts) if prev == 0.0 else []),
+                        "*CLOAD"]
                 for n0, mphi in zip(self.first_node, mode["mphi"]):
                     for i, row in enumerate(mphi):
                         out += [f"{n0 + i}, {c + 1}, {_inp_number(target * v)}"
@@ -382,11 +404,11 @@ def _shortest_edge(mesh, name) -> float:
 def _qsma_mode(model, opts) -> dict:
     """qsma's preload and loaded mode: the contact forces of the preload (``lam``, local
     axes, normal last), the contact points it closed (``closed``, with the
-    ``pairing``), the tied ``f0_hz``, ``omega0``, ``phi_tip`` and
+    ``pairing``) and those slipping (``slipping``), the tied ``f0_hz``, ``omega0``, ``phi_tip`` and
     per body ``phi`` and ``mphi`` ((n_nodes, dim) arrays, mass-normalised, the sign of
     a run)."""
     from ..analysis import _Timer, prepare
-    from ..contact import OPEN
+    from ..contact import OPEN, SLIPPING
     p = prepare(model, opts)
     clock = _Timer()
     reduced, layer, pre = p.preloaded(opts, clock)
@@ -396,7 +418,8 @@ def _qsma_mode(model, opts) -> dict:
     phis = [phi[off[k]:off[k + 1]].reshape(-1, model.dim) for k in range(len(model.bodies))]
     mphi = [(a.M @ f.ravel()).reshape(-1, model.dim) for a, f in zip(p.assembled, phis)]
     return dict(f0_hz=omega0 / (2 * np.pi), omega0=omega0, phi_tip=phi_tip, phi=phis,
-                mphi=mphi, closed=closed, pairing=p.pairing, lam=pre.lam)
+                mphi=mphi, closed=closed, slipping=pre.status == SLIPPING,
+                pairing=p.pairing, lam=pre.lam)
 
 
 def _modal_forces(amplitudes, mode) -> tuple:

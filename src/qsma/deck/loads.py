@@ -41,6 +41,8 @@ class SupportsAndLoads:
         the preload step; named per card by the caller)."""
         w = _row_where(where)
         ref = tokens[0]
+        if ref.upper() in self._bolt_refs:
+            return None                        # a bolt's pretension node (deck.bolts)
         kind = tokens[1].upper() if len(tokens) > 1 else ""
         value = 0.0
         if kind in _BOUNDARY_TYPES:
@@ -127,6 +129,8 @@ class SupportsAndLoads:
                       "magnitude'", True)
             return
         ref = tokens[0]
+        if ref.upper() in self._bolt_refs:
+            return                             # a bolt's pretension (deck.bolts)
         owners = self._owners(bodies, ref, "_N")
         for k, found in owners:
             b = bodies[k]

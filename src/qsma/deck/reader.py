@@ -13,6 +13,7 @@ from ..mesh.io.abaqus.lexer import _inp_cards
 from ..mesh.io.assembly import read_assembly
 from ..model.friction import MU_NO_SLIP
 from ..units import SI, UNIT_SYSTEMS, plausible, unit_system
+from .bolts import DeckBolts
 from .loads import SupportsAndLoads
 from .probe import ProbeAndLevels
 from .records import (LAW_NOTES, Deck, DeckInterface, DeckNote, SurfaceInteraction,
@@ -53,7 +54,7 @@ def read_deck(path, *, mode: int = 0, tip_node: int | None = None,
     return reader.deck(mode, tip_node, tip_direction, levels, units)
 
 
-class _DeckReader(SupportsAndLoads, ProbeAndLevels):
+class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts):
     """What :func:`read_deck` builds, step by step."""
 
     def __init__(self, path, cards, assembly, density=None):
@@ -202,6 +203,7 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels):
     def deck(self, mode, tip_node, tip_direction, levels, units=None) -> Deck:
         bodies = self._body_list = self._bodies()
         preload = self._preload_step()
+        bolts = self._bolts(bodies, preload)
         self._frequency = self._frequency_step()
         self._model_data()
         clamps = self._clamps(bodies, preload)
@@ -225,6 +227,10 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels):
             config["interfaces"] = [t for t, _ in interfaces]
             for j, (_, c) in enumerate(interfaces):
                 self.comments[("interfaces", j)] = c
+        if bolts:
+            config["bolts"] = [t for t, _ in bolts]
+            for j, (_, c) in enumerate(bolts):
+                self.comments[("bolts", j)] = c
         config["analysis"] = {"mode": mode}
         if self._frequency is None:
             self.note(self.path.name, "no *FREQUENCY step", f"qsma loads mode {mode} of "
@@ -279,7 +285,7 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels):
         cards = list(self.model_cards) + (list(preload.cards) if preload else [])
         for card in cards:
             kw = card.keyword
-            if kw in _SILENT or kw in _USED:
+            if kw in _SILENT or kw in _USED or id(card) in self._bolt_cards:
                 continue
             if kw == "INITIAL CONDITIONS" and \
                     str(card.params.get("TYPE", "")).upper() == "TEMPERATURE":

@@ -32,18 +32,31 @@ _HARMLESS = {
     "DAMPING": "material damping: qsma's damping is the joint's friction",
 }
 
+#: How a bolt is written in a deck, for the notes on couplings, springs and beams that
+#: belong to none.
+_BOLT_ONLY = ("qsma reads couplings, beams and springs only as a bolt: two distributing "
+              "couplings on washer faces of two bodies, an axial member (B31 or T3D2, "
+              "SPRINGA in series) with *PRE-TENSION SECTION, ELEMENT= between their "
+              "reference nodes, and *CLOAD on DOF 1 of the section's node in the first "
+              "*STATIC step (docs/mesh-io.md); complete the bolt, or write a [[bolts]] "
+              "table (qsma init)")
+
 #: Keywords that change the structure, its material or its supports in a way qsma does
 #: not model: running without them answers another problem. Value: what to do.
 _REFUSED = {
-    "EQUATION": "qsma has no linear constraints between DOFs",
+    "EQUATION": "qsma has no linear constraints between DOFs (ties between a bolt's own "
+                "nodes, which belong to no body, are read with the bolt)",
     "MPC": "qsma has no multi-point constraints",
     "TIE": "qsma has no tied surfaces (a TIE is not a frictional contact); mesh the two "
            "parts as one body, or make it a *CONTACT PAIR with a high mu",
     "RIGID BODY": "qsma has no rigid bodies",
-    "COUPLING": "qsma has no couplings (a bolt between washer faces is a [[bolts]] table)",
-    "DISTRIBUTING COUPLING": "qsma has no couplings (a bolt between washer faces is a "
-                             "[[bolts]] table)",
-    "KINEMATIC COUPLING": "qsma has no couplings",
+    "COUPLING": _BOLT_ONLY,
+    "DISTRIBUTING": _BOLT_ONLY,
+    "DISTRIBUTING COUPLING": _BOLT_ONLY,
+    "KINEMATIC": "qsma has no rigid (kinematic) couplings; a bolt's washers are "
+                 "distributing couplings (*DISTRIBUTING COUPLING, or *COUPLING with "
+                 "*DISTRIBUTING): " + _BOLT_ONLY,
+    "KINEMATIC COUPLING": "qsma has no rigid (kinematic) couplings; " + _BOLT_ONLY,
     "CYCLIC SYMMETRY MODEL": "qsma models the whole structure, no cyclic symmetry",
     "TRANSFORM": "qsma's supports and loads are in global directions",
     "PLASTIC": "qsma's bodies are linear elastic: the preload would differ where the "
@@ -52,14 +65,15 @@ _REFUSED = {
     "DEFORMATION PLASTICITY": "qsma's bodies are linear elastic",
     "CREEP": "qsma's bodies are linear elastic",
     "USER MATERIAL": "qsma's bodies are linear elastic",
-    "SPRING": "spring elements are not read; a spring to the ground is a springs table",
+    "SPRING": "spring elements are read only as a bolt's member (a SPRINGA in series with "
+              "its pretension section); a spring to the ground is a springs table",
     "DASHPOT": "dashpot elements are not read",
     "MASS": "mass elements are not read; a lumped mass is a masses table",
     "SHELL SECTION": "qsma reads continuum (solid) elements only",
-    "BEAM SECTION": "qsma reads continuum (solid) elements only",
+    "BEAM SECTION": "qsma reads continuum (solid) elements, and a B31 beam only as a "
+                    "bolt's member carrying its *PRE-TENSION SECTION",
     "MEMBRANE SECTION": "qsma reads continuum (solid) elements only",
-    "PRE-TENSION SECTION": "a pretension section cuts a meshed bolt; qsma's bolts join two "
-                           "washer faces: write a [[bolts]] table (qsma init)",
+    "PRE-TENSION SECTION": "qsma's bolts join two washer faces: " + _BOLT_ONLY,
     "CLEARANCE": "qsma takes the gaps from the geometry",
     "MODEL CHANGE": "qsma keeps every element and contact pair",
     "TEMPERATURE": "qsma applies no temperature field",
@@ -246,7 +260,10 @@ def _rows_of(card):
 
 
 def _loads_in(step) -> bool:
-    return any(c.keyword in ("CLOAD", "DLOAD", "DSLOAD", "BOUNDARY") for c in step.cards)
+    """Whether a step loads or moves the structure (a ``*BOUNDARY, FIXED`` holds what
+    the step before left, e.g. a bolt locked after its pretension)."""
+    return any(c.keyword in ("CLOAD", "DLOAD", "DSLOAD", "BOUNDARY")
+               and "FIXED" not in c.params for c in step.cards)
 
 
 #: procedure keywords that open a step

@@ -56,6 +56,9 @@ def deck_toml(deck: Deck, folder=None) -> str:
         for j, t in enumerate(config["interfaces"]):
             out += ["", _line("[[interfaces]]", c.get(("interfaces", j)))]
             out += [f"{key} = {_toml(v)}" for key, v in t.items()]
+    for j, t in enumerate(config.get("bolts", [])):
+        out += ["", _line("[[bolts]]", c.get(("bolts", j)))]
+        out += [f"{key} = {_toml(v)}" for key, v in t.items()]
     out += ["", _line("[tip]", c.get(("tip",)))]
     out += [f"{key} = {_toml(v)}" for key, v in config["tip"].items()]
     out += ["", "[analysis]"] + _analysis_lines(config["analysis"])

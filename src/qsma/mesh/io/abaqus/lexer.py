@@ -8,6 +8,8 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from ....errors import MeshFileError
 from ...celltypes import abaqus_element_types
 from ..common import _MAX_ID, _line_of, _read_bytes
@@ -187,3 +189,17 @@ def _abaqus_cell_type(name: str):
 
 def _is_continuum(abaqus_type: str) -> bool:
     return abaqus_type.upper().startswith(("C3D", "CPE", "CPS", "CAX"))
+
+
+#: element types that are no part of a mesh (one- and two-node connectors, couplings,
+#: point masses): the mesh reader skips them (leaving their ids out of element sets),
+#: the deck reader (:mod:`qsma.deck`) reads a bolt's and names the others
+CONNECTOR_TYPES = frozenset({"DCOUP3D", "SPRINGA", "SPRING1", "SPRING2", "DASHPOTA",
+                             "MASS"})
+
+
+def _connector_ids(card: _Card) -> np.ndarray:
+    """The element ids of an ``*ELEMENT`` card of connectors (rows of other than an
+    integer id left out)."""
+    return np.array([int(t[0]) for _, t, _ in _rows(card)
+                     if t and t[0].strip().lstrip("-").isdigit()], dtype=np.int64)

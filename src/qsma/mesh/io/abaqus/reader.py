@@ -21,8 +21,9 @@ from ...mesh import Mesh
 from ..common import (_MAX_ID, _cell_type_of, _ContactPair, _Elements, _FileMesh, _IdLookup,
                       _to_mesh)
 from .instances import check_instances_closed, flatten_instances, needs_flattening, placement
-from .lexer import (ABAQUS_ELEMENT_TYPES, _Card, _abaqus_cell_type, _abaqus_float,
-                    _inp_cards, _inp_error, _integer, _is_continuum, _rows)
+from .lexer import (ABAQUS_ELEMENT_TYPES, CONNECTOR_TYPES, _Card, _abaqus_cell_type,
+                    _abaqus_float, _connector_ids, _inp_cards, _inp_error, _integer,
+                    _is_continuum, _rows)
 
 #: element types refused with a reason of their own
 _ABAQUS_REFUSED = {
@@ -67,6 +68,8 @@ class _InpReader:
         self.interaction = None     # the *SURFACE INTERACTION being defined
         self.boundaries = []        # (node set or node id, first dof, last dof, where)
         self.load_ids = {"NSET": set(), "ELSET": set()}   # ids a *CLOAD / *DLOAD names
+        self.connectors = []        # ids of the skipped connector elements (arrays)
+        self.cuts = set()           # surfaces of *PRE-TENSION SECTION (upper case)
 
     def skips(self, card: _Card) -> bool:
         """Definitions at assembly level (reference points, connectors) are not the mesh."""
@@ -114,7 +117,8 @@ class _InpReader:
             elif not s.internal:
                 fm.empty_sets[s.name] = "cell"
         for name, rows in self.surfaces.values():
-            self._surface(fm, name, rows, vtypes, elements, elsets, index)
+            if name.upper() not in self.cuts:     # a cut through a body is no facet set
+                self._surface(fm, name, rows, vtypes, elements, elsets, index)
         fm.node_surfaces = {s.name for s in self.node_surfaces.values()}
         fm.contact_pairs = [_ContactPair(self._surface_name(slave), self._surface_name(master),
                                          self.friction.get((inter or "").upper()), kind, where)
@@ -226,11 +230,15 @@ class _InpReader:
                              "give every element a distinct id")
         return lookup
 
-    @staticmethod
-    def _element_indices(s: _InpSet, elements: _IdLookup) -> np.ndarray:
+    def _element_indices(self, s: _InpSet, elements: _IdLookup) -> np.ndarray:
+        """Element indices of set ``s``, without the ids of the skipped connectors."""
+        skipped = np.concatenate(self.connectors + [np.zeros(0, np.int64)])
         parts = [np.zeros(0, np.int64)]
         for ids, where in s.chunks:
             idx = elements(ids)
+            if (idx < 0).any() and len(skipped):
+                keep = (idx >= 0) | ~np.isin(ids, skipped)
+                ids, idx = ids[keep], idx[keep]
             if (idx < 0).any():
                 raise _inp_error(where, f"element set {s.name!r} refers to element "
                                  f"{ids[idx < 0][0]}, which no *ELEMENT defines",
@@ -350,6 +358,9 @@ def _inp_element(r: _InpReader, card: _Card):
     etype = card.params.get("TYPE")
     if not isinstance(etype, str) or not etype:
         raise _inp_error(card.where, "*ELEMENT without TYPE=", "give the element type")
+    if etype.upper() in CONNECTOR_TYPES:           # no part of a mesh (lexer.py)
+        r.connectors.append(_connector_ids(card))
+        return
     cell_type = _abaqus_cell_type(etype)
     base = etype.upper().rstrip("RIHT")
     if base in _ABAQUS_REFUSED:
@@ -549,6 +560,12 @@ def _inp_load_ids(kind: str):
     return handler
 
 
+def _inp_pretension(r: _InpReader, card: _Card):
+    """A pretension section's surface cuts a meshed bolt (internal faces): no facet set."""
+    if isinstance(card.params.get("SURFACE"), str):
+        r.cuts.add(card.params["SURFACE"].upper())        # qsma.deck.bolts measures it
+
+
 #: keyword -> handler; other keywords (materials, steps, loads, ...) are skipped
 _INP_KEYWORDS = {
     "NODE": _inp_node, "ELEMENT": _inp_element, "NSET": _inp_set("NSET"),
@@ -559,6 +576,7 @@ _INP_KEYWORDS = {
     "CONTACT PAIR": _inp_contact_pair, "SURFACE INTERACTION": _inp_interaction,
     "FRICTION": _inp_friction, "BOUNDARY": _inp_boundary,
     "CLOAD": _inp_load_ids("NSET"), "DLOAD": _inp_load_ids("ELSET"),
+    "PRE-TENSION SECTION": _inp_pretension,
 }
 
 
