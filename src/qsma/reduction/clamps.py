@@ -128,21 +128,22 @@ def pivot_dofs(G, slave, dim):
     if len(slave) == len(rows):
         return fixed, slave
     rest = np.setdiff1d(np.arange(A.shape[1]), slave)
-    Q = sla.qr(A[:, slave], mode="full")[0]
-    left = Q[:, len(slave):].T @ A[:, rest]           # what the slave DOFs cannot reach
+    Q = sla.qr(A[:, slave], mode="full")[0][:, len(slave):]
+    left = Q.T @ A[:, rest]                           # what the slave DOFs cannot reach
     if left.shape[0] > left.shape[1]:
-        raise dependent(_dependent_points(left, rows, dim))
+        raise dependent(_dependent_points(Q, left, rows, dim))
     _, R2, perm = sla.qr(left, mode="economic", pivoting=True)
     r = np.abs(np.diag(R2))[:left.shape[0]]
     if r.size and r.min() <= DEPENDENT_RTOL * scale:
-        raise dependent(_dependent_points(left, rows, dim))
+        raise dependent(_dependent_points(Q, left, rows, dim))
     return fixed, np.concatenate([slave, rest[perm[:left.shape[0]]]])
 
 
-def _dependent_points(left, rows, dim):
-    """Contact points of the rows in the dependent combination of ``left``."""
-    null = np.linalg.svd(left, full_matrices=True)[0][:, -1]    # least reached
-    return np.unique(rows[np.abs(null) > 1e-6 * np.abs(null).max()] // dim)
+def _dependent_points(Q, left, rows, dim):
+    """Contact points of the ``rows`` in the combination ``Q y`` that ``left = Q^T A``
+    reaches least (``y`` its last left singular vector)."""
+    y = Q @ np.linalg.svd(left, full_matrices=True)[0][:, -1]
+    return np.unique(rows[np.abs(y) > 1e-6 * np.abs(y).max()] // dim)
 
 
 def fixed_normal(points) -> InputError:
