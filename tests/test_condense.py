@@ -254,12 +254,13 @@ def test_tied_solver_equals_the_sparse_solve_of_the_tied_assembly(setup, fractio
     assert np.abs(u - T @ x).max() < 1e-9 * np.abs(T @ x).max()
 
 
-def test_body_with_nothing_inside_to_condense_is_refused_by_name():
+def test_body_with_nothing_inside_is_its_own_condensed_stiffness():
     """Two one-element cubes (CalculiX's changefric deck): every free DOF of each lies on
-    the interface. The message says so and how to mesh it, instead of the Schur
-    complement's own check ('C must hold between 1 and n - 1 DOFs')."""
+    the interface, nothing is inside to condense, so the condensed stiffness is
+    ``K_CC`` itself (no Schur complement), in the pair frames. The tied static solve
+    of the two cubes through the reduced model then equals the solve of the assembled
+    tied stiffness (a plain sparse solve, no condensation)."""
     from qsma.analysis import prepare
-    from qsma.errors import InputError
     from qsma.model import Body, Clamp, Interface, Material, Model
     from qsma.mesh.generate import structured_mesh
     bodies = []
@@ -273,6 +274,21 @@ def test_body_with_nothing_inside_to_condense_is_refused_by_name():
                             lambda p, z=at[face]: p[:, 2] == z)})
         bodies.append(Body(name, m, Material(2e11, 0.3, 7800.0), (Clamp("clamp"),)))
     model = Model(tuple(bodies), Interface("lower", "face", "upper", "face"))
-    with pytest.raises(InputError, match=r"body 'lower': every DOF that is not clamped lies "
-                       r"on the interface \(12 DOFs\), none inside the body"):
-        prepare(model)
+    prep = prepare(model)
+    for b, a in zip(prep.reduced.bodies, prep.assembled):
+        assert len(b.E) == 0
+        R = b.R.toarray()
+        K_CC = a.K.tocsr()[b.C][:, b.C].toarray()
+        assert np.allclose(np.asarray(b.Kc), R.T @ K_CC @ R, rtol=0, atol=1e-12 * np.abs(K_CC).max())
+    # tied solve under a load on the upper cube's face nodes against the full solve
+    A, p = prep.assembled, prep.pairing
+    T = tie_transform(model, A, p, np.ones(p.n_pairs, bool))
+    rng = np.random.default_rng(3)
+    off = model.dof_offsets()
+    f = rng.standard_normal(off[-1])
+    x = T @ spla.spsolve((T.T @ stacked([a.K for a in A]) @ T).tocsc(), T.T @ f)
+    from qsma.reduction.two_bodies import tied_solver
+    u = np.concatenate(tied_solver(prep.reduced, np.ones(p.n_pairs, bool))(
+        f[off[0]:off[1]], f[off[1]:off[2]]))
+    assert np.abs(u - x).max() < 1e-9 * np.abs(x).max()
+

@@ -13,7 +13,7 @@ from ..model.spring import spring_matrix
 from ..reduction.rigid import assembly_free_motions
 from .substructured import _substructured_modes, substructured_inverse
 from .tied import (Modes, _check_free_rigid, _check_rigid, _checked_springs, _factor,
-                   _lanczos, _spring_stiffness, check_n_modes, free_shift, stacked,
+                   _lanczos, _spring_stiffness, check_n_modes, free_shift, partly_tied, stacked,
                    tie_transform)
 
 def linear_modes(model, assembled, pairing, tied=None, n_modes=6, reduced=None,
@@ -55,6 +55,9 @@ def linear_modes(model, assembled, pairing, tied=None, n_modes=6, reduced=None,
     if inverse is not None:
         return _check_hourglass(
             _substructured_modes(inverse, M, T, tied, n_modes, model, assembled), assembled)
+    if springs is not None:
+        T = partly_tied(T, model, pairing, springs, held)
+        M = (T.T @ stacked([a.M for a in assembled]) @ T).tocsc()
     K = stacked([a.K for a in assembled])
     if getattr(model, "bolts", ()):
         K = K + bolt_stiffness(model)                  # the bolts locked after preload

@@ -123,22 +123,34 @@ def _checked_springs(springs, n_pairs, dim):
 def _spring_stiffness(model, pairing, springs, held):
     """``G^T S G`` over the stacked DOFs: ``G`` the relative displacement of the contact
     points in their local frames, ``S`` the finite springs of the points not tied in
-    every component. A point tied in some components only is refused here (the
-    substructured solve, :func:`substructured_inverse`, takes it)."""
-    partial = ~held & np.any(np.isinf(springs), axis=1)
-    if partial.any():
-        raise InputError(f"{int(partial.sum())} contact point(s) have an interface law "
-                         f"that is rigid in some directions and compliant in others "
-                         f"(e.g. hard normal contact with an elastic stick); the tied "
-                         f"modes of such a law need a model of two bodies and one "
-                         f"interface. Fix: give the law a compliance in every direction "
-                         f"(a normal stiffness and a tangential one)")
+    every component (a component tied at a point tied in some components only is
+    :func:`partly_tied`'s)."""
+    G = _relative_operator(model, pairing)
+    s = np.where(np.isinf(springs) | held[:, None], 0.0, springs).ravel()
+    return (G.T @ sp.diags(s) @ G).tocsr()
+
+
+def partly_tied(T, model, pairing, springs, held):
+    """``T`` restricted to the motions that keep the tied components of the points tied
+    in some components only (an infinite spring beside finite ones: hard normal
+    contact with an elastic stick): their relative displacement in the local frame,
+    ``G_k T x = 0``, is eliminated by a pivoted QR
+    (:func:`qsma.reduction.multibody.constrained_basis`)."""
+    partial = ~held[:, None] & np.isinf(springs) & ~np.all(np.isinf(springs), axis=1)[:, None]
+    if not partial.any():
+        return T
+    A = _relative_operator(model, pairing)[np.flatnonzero(partial.ravel())] @ T
+    return (T @ multibody.constrained_basis(A)).tocsr()
+
+
+def _relative_operator(model, pairing):
+    """The relative displacement of every contact point in its local frame over the
+    stacked DOFs of the model (rows contact-point-major)."""
     couplings = pairing.couplings if isinstance(pairing, MultiPairing) else \
         (Coupling(pairing, *body_order(model, pairing)),)
     nodes = [np.arange(b.mesh.n_nodes) for b in model.bodies]
     G, _ = relative_displacement_operator(couplings, nodes, model.dim)
-    s = np.where(np.isinf(springs) | held[:, None], 0.0, springs).ravel()
-    return (G.T @ sp.diags(s) @ G).tocsr()
+    return G
 
 
 def _lanczos(A, k, M, sigma, matvec, matmat):

@@ -86,21 +86,26 @@ def pair_rotation(frames: np.ndarray) -> sp.csr_matrix:
 def condense_body(assembled, nodes, frames, backend="auto") -> CondensedBody:
     """Condense one assembled body onto the interface ``nodes`` (pair order, frames).
 
+    ``frames`` None: the interface DOFs are the global components of ``nodes`` that no
+    clamp holds (``R`` the identity), as the several-body reduction
+    (:mod:`.multibody`) takes them; a clamped component is no unknown of the
+    condensed body. With pair frames every component of every node is an unknown
+    (local frames mix them), so a clamped one is refused: the reduction routes
+    interfaces with clamped nodes to :mod:`.multibody`.
+
     A body whose clamps leave rigid motions free is held through the interface: its
     ``Kc`` is singular along them; ``rigid`` holds their basis on the interface DOFs
     (:func:`qsma.reduction.rigid.interface_basis`; docs/theory.md section 10)."""
     body = assembled.body
-    C, bad = _interface_dofs(assembled, nodes)
+    C, bad = _interface_dofs(assembled, nodes, keep_clamped=frames is not None)
     if len(bad):
         raise InputError(f"body {body.name!r}: interface node(s) {bad[:10].tolist()} are "
-                         f"clamped; remove them from the interface set or from the clamp")
+                         f"clamped and cannot be condensed in the pair frames; condense "
+                         f"them in global components (frames=None)")
     free = assembled.free
-    if len(C) >= len(free):
-        raise InputError(f"body {body.name!r}: every DOF that is not clamped lies on the "
-                         f"interface ({len(C)} DOFs), none inside the body to condense; "
-                         f"mesh it with more elements (at least two layers of cells "
-                         f"through its thickness)")
     K = assembled.K.tocsr()
+    if len(C) >= len(free) or not len(C):    # nothing inside, or nothing on the interface
+        return _without_interior(assembled, C, frames, K, backend)
     Kf = K[free][:, free]
     try:
         Kc_glob, solve = schur_complement(Kf, np.searchsorted(free, C), backend=backend)
@@ -111,13 +116,30 @@ def condense_body(assembled, nodes, frames, backend="auto") -> CondensedBody:
     t0 = time.perf_counter()
     E = free[solve.E]
     K_EC = K[E][:, C].tocsc()
-    R = pair_rotation(frames)
+    R = sp.identity(len(C), format="csr") if frames is None else pair_rotation(frames)
     Kc = np.asarray(R.T @ Kc_glob)
     del Kc_glob
     Kc = symmetrised(np.ascontiguousarray(R.T @ Kc.T))  # R^T Kc R, Kc_glob symmetric
     rigid = interface_basis(assembled, C, R)
     timings = dict(solve.timings, rotation=time.perf_counter() - t0, backend=solve.backend)
     return CondensedBody(body.name, body.n_dofs, C, E, R, Kc, solve, K_EC, timings, rigid)
+
+
+def _without_interior(assembled, C, frames, K, backend) -> CondensedBody:
+    """A body whose every unclamped DOF lies on the interface (one layer of cells, or
+    every other node clamped): its condensed stiffness is ``K_CC`` itself, ``E`` is
+    empty. A body whose interface is clamped all over: ``C`` is empty, the clamps
+    alone hold it there (its interior, if any, is solved in the recovery)."""
+    t0 = time.perf_counter()
+    R = sp.identity(len(C), format="csr") if frames is None else pair_rotation(frames)
+    Kc = symmetrised(np.ascontiguousarray(R.T @ (R.T @ K[C][:, C].toarray()).T))
+    E = np.setdiff1d(assembled.free, C)
+    solve = RefactorisedEE(assembled, E, backend)
+    rigid = interface_basis(assembled, C, R) if len(C) else None
+    return CondensedBody(assembled.body.name, assembled.body.n_dofs, C, E, R, Kc, solve,
+                         K[E][:, C].tocsc(), dict(rotation=time.perf_counter() - t0,
+                                                  backend="none (no interior DOFs)"),
+                         rigid)
 
 
 def congruent_body(base: CondensedBody, assembled, nodes, frames, congruence
@@ -140,7 +162,7 @@ def congruent_body(base: CondensedBody, assembled, nodes, frames, congruence
     two bodies do not correspond (then B is condensed on its own)."""
     t0 = time.perf_counter()
     body = assembled.body
-    C, bad = _interface_dofs(assembled, nodes)
+    C, bad = _interface_dofs(assembled, nodes, keep_clamped=frames is not None)
     if len(bad):
         return None                          # condense_body names the clamped nodes
     E = np.setdiff1d(assembled.free, C)
@@ -150,7 +172,7 @@ def congruent_body(base: CondensedBody, assembled, nodes, frames, congruence
     T_E, T_C = T[E][:, base.E].tocsr(), T[C][:, base.C].tocsr()
     if not (_orthogonal_block(T_E) and _orthogonal_block(T_C)):
         return None
-    R = pair_rotation(frames)
+    R = sp.identity(len(C), format="csr") if frames is None else pair_rotation(frames)
     G = (R.T @ T_C @ base.R).tocsr()                 # A's local frames -> B's
     Kc = CongruentMatrix(np.asarray(base.Kc), G)     # G Kc_A G^T, not held densely
     K_EC = assembled.K.tocsr()[E][:, C].tocsc()
@@ -161,14 +183,17 @@ def congruent_body(base: CondensedBody, assembled, nodes, frames, congruence
     return CondensedBody(body.name, body.n_dofs, C, E, R, Kc, solve, K_EC, timings, rigid)
 
 
-def _interface_dofs(assembled, nodes):
+def _interface_dofs(assembled, nodes, keep_clamped=True):
     """``(C, clamped)``: the interface DOFs of ``nodes`` (node by node, in their order)
-    and those of ``nodes`` that a clamp holds in some direction."""
+    and those of ``nodes`` that a clamp holds in some direction. ``keep_clamped``
+    False: ``C`` without the clamped DOFs, and no node reported."""
     nodes = np.asarray(nodes)
     dim = assembled.body.dim
     C = (dim * nodes[:, None] + np.arange(dim)[None, :]).ravel()
     fixed = np.zeros(assembled.body.n_dofs, dtype=bool)
     fixed[assembled.fixed] = True
+    if not keep_clamped:
+        return C[~fixed[C]], nodes[:0]
     return C, nodes[np.any(fixed[C].reshape(-1, dim), axis=1)]
 
 

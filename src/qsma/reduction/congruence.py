@@ -372,4 +372,4 @@ def solved_together(solvers, rhs) -> list:
 
 
 def _as_columns(b):
-    return b.reshape(b.shape[0], -1)
+    return b.reshape(b.shape[0], int(np.prod(b.shape[1:])))

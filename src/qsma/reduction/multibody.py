@@ -45,6 +45,9 @@ from .._infra.dense import cho_solved
 from ..errors import InputError
 from .condensation import (condense_bodies, condensed_loads, extended_prescribed,
                            prescribed_patterns, with_prescribed)
+from .clamps import (constrained_basis, decoupled, local_rows, pivot_dofs,
+                     symmetry_components)
+from .rigid import ghost
 
 
 @dataclass(frozen=True, eq=False)
@@ -79,6 +82,11 @@ class MultiReducedModel:
     functionals: dict
     definitions: dict
     prescribed: tuple | None = None     # as ReducedModel.prescribed
+    #: the :class:`qsma.reduction.rigid.Ghost` spring of bodies held only by the joint
+    ghost: object = None
+    #: contact components clamped on every side (``d = 0``, the clamps carry the force;
+    #: ``K`` holds a spring of its own there, :func:`_decoupled`)
+    fixed: np.ndarray = None
 
     @property
     def n_pairs(self):
@@ -193,36 +201,39 @@ def _terms(c, nodes):
 def reduce_bodies(assembled, couplings, patterns=("preload",), backend="auto",
                   names=None) -> MultiReducedModel:
     """Condense every body onto its interface nodes and combine all interfaces into one
-    relative-displacement problem by eliminating the slave DOFs (module docstring)."""
+    relative-displacement problem by eliminating the pivot DOFs (module docstring;
+    clamped interface DOFs: :func:`pivot_dofs`)."""
     dim = assembled[0].body.dim
-    nodes = interface_nodes(len(assembled), couplings,
-                            names or [a.body.name for a in assembled])
-    bodies = condense_bodies(assembled, nodes,
-                             [np.broadcast_to(np.eye(dim), (len(n), dim, dim)) for n in nodes],
-                             backend)
+    names = names or [a.body.name for a in assembled]
+    nodes = interface_nodes(len(assembled), couplings, names)
+    bodies = condense_bodies(assembled, nodes, [None] * len(nodes), backend)
     loads = tuple(np.column_stack([a.loads.get(p, np.zeros(a.n_dofs)) for p in patterns])
                   for a in assembled)
     Fc = np.vstack(condensed_loads(bodies, loads))
-    Kc = sla.block_diag(*[b.Kc for b in bodies])
-    G, offsets = relative_displacement_operator(couplings, nodes, dim)
-    slave = _slave_dofs(couplings, nodes, offsets, dim)
-    rest = np.setdiff1d(np.arange(offsets[-1]), slave)
-    Gs, Gr = G[:, slave].toarray(), G[:, rest].toarray()
+    Kc = sla.block_diag(*[np.asarray(b.Kc) for b in bodies])
+    G_all, full = relative_displacement_operator(couplings, nodes, dim)
+    unknown = _unknown_columns(bodies, nodes, full, dim)
+    G = _symmetry_rows_zeroed(G_all[:, unknown].tocsr(), couplings, assembled)
+    offsets = np.concatenate([[0], np.cumsum([len(b.C) for b in bodies])])
+    fixed, pivots = pivot_dofs(G, _slave_dofs(couplings, nodes, full, dim, unknown), dim)
+    n_u, n_c = offsets[-1], G.shape[0]
+    rows = np.setdiff1d(np.arange(n_c), fixed)
+    rest = np.setdiff1d(np.arange(n_u), pivots)
+    Gs, Gr = G[rows][:, pivots].toarray(), G[rows][:, rest].toarray()
     singular = InputError("the contact points do not determine their slave nodes (a node "
                           "is the slave of two interfaces?)")
     try:
         lu = sla.lu_factor(Gs, check_finite=True)
     except (np.linalg.LinAlgError, ValueError) as exc:
         raise singular from exc
-    pivots = np.abs(np.diag(lu[0]))       # lu_factor only warns on a singular matrix
-    if pivots.size and pivots.min() <= 1e3 * np.finfo(float).eps * pivots.max():
+    diag = np.abs(np.diag(lu[0]))         # lu_factor only warns on a singular matrix
+    if diag.size and diag.min() <= 1e3 * np.finfo(float).eps * diag.max():
         raise singular
-    n_u, n_c = offsets[-1], G.shape[0]
     T_r = np.zeros((n_u, len(rest)))
-    T_r[slave] = -sla.lu_solve(lu, Gr)
+    T_r[pivots] = -sla.lu_solve(lu, Gr)
     T_r[rest, np.arange(len(rest))] = 1.0
     T_d = np.zeros((n_u, n_c))
-    T_d[slave] = sla.lu_solve(lu, np.eye(n_c))
+    T_d[np.ix_(pivots, rows)] = sla.lu_solve(lu, np.eye(len(rows)))
     KT_r = Kc @ T_r
     S = T_r.T @ KT_r
     try:
@@ -231,28 +242,74 @@ def reduce_bodies(assembled, couplings, patterns=("preload",), backend="auto",
         raise InputError("the welded assembly is not held against rigid-body motion; add "
                          "clamps") from exc
     KT_d = Kc @ T_d
-    # lam = Q^T (Kc u - Fc)_s = T_d^T (Kc u - Fc): T_d is zero outside the slave rows
+    # lam = Q^T (Kc u - Fc)_s = T_d^T (Kc u - Fc): T_d is zero outside the pivot rows
     K = T_d.T @ (KT_d - KT_r @ cho_solved(S_cho, KT_r.T @ T_d))
     K = 0.5 * (K + K.T)
     W = T_d.T @ (KT_r @ cho_solved(S_cho, T_r.T @ Fc) - Fc)
-    rows = np.concatenate([[0], np.cumsum([c.pairing.n_pairs for c in couplings])])
-    return MultiReducedModel(K, W, tuple(patterns), bodies, loads, Fc, G, offsets, rows,
+    K = decoupled(K, fixed)
+    K, g = _ghost(K, [None if b.rigid is None else G[:, offsets[j]:offsets[j + 1]] @ b.rigid
+                      for j, b in enumerate(bodies)])
+    starts = np.concatenate([[0], np.cumsum([c.pairing.n_pairs for c in couplings])])
+    return MultiReducedModel(K, W, tuple(patterns), bodies, loads, Fc, G, offsets, starts,
                              T_r, T_d, S_cho, Kc, dim, {}, {},
-                             prescribed_patterns(assembled, patterns))
+                             prescribed_patterns(assembled, patterns), ghost=g,
+                             fixed=fixed)
 
 
-def _slave_dofs(couplings, nodes, offsets, dim):
-    """Positions in ``u`` of the DOFs of every contact point's node (each once)."""
+def _symmetry_rows_zeroed(G, couplings, assembled):
+    """``G`` with the rows of the mortar components clamped on both sides
+    (:func:`qsma.reduction.clamps.symmetry_components`) set to zero."""
+    rows, start = [], 0
+    for c in couplings:
+        p = c.pairing
+        sym = symmetry_components(p, assembled[c.slave], assembled[c.master])
+        rows.append(start + local_rows(p.frames, sym))
+        start += p.frames.shape[1] * p.n_pairs
+    rows = np.concatenate(rows)
+    if not len(rows):
+        return G
+    keep = np.ones(G.shape[0])
+    keep[rows] = 0.0
+    return sp.csr_matrix(sp.diags(keep) @ G)
+
+
+def _unknown_columns(bodies, nodes, full, dim):
+    """Positions, among the columns of the operator over every component of every
+    interface node (``full``: each body's start there), of the bodies' unknowns: the
+    components no clamp holds (:attr:`CondensedBody.C`, node by node)."""
+    cols = []
+    for j, b in enumerate(bodies):
+        every = (dim * np.asarray(nodes[j])[:, None] + np.arange(dim)).ravel()
+        cols.append(full[j] + np.flatnonzero(np.isin(every, b.C)))
+    return np.concatenate(cols)
+
+
+def _ghost(K, images):
+    """``(K + k N N^T, Ghost)`` along the relative rigid motions, or ``(K, None)``."""
+    g = ghost(K, images)
+    if g is None:
+        return K, None
+    return K + g.k * (g.N @ g.N.T), g
+
+
+def _slave_dofs(couplings, nodes, full, dim, unknown=None):
+    """Positions of the DOFs of every contact point's node (each once): among the
+    columns over every component (``full``: each body's start there), or with
+    ``unknown`` (those of the columns that are unknowns) among the unknowns, the
+    clamped ones left out."""
     dofs = []
     for c in couplings:
         pos = np.searchsorted(nodes[c.slave], c.pairing.contact_nodes)
-        dofs.append((offsets[c.slave] + dim * pos[:, None] + np.arange(dim)).ravel())
+        dofs.append((full[c.slave] + dim * pos[:, None] + np.arange(dim)).ravel())
     dofs = np.concatenate(dofs)
     if len(np.unique(dofs)) != len(dofs):
         raise InputError("a node is the slave of two interfaces; choose the slave sides "
                          "(Interface(slave=...)) so that each node carries at most one "
                          "interface's contact unknowns")
-    return dofs
+    if unknown is None:
+        return dofs
+    where = np.minimum(np.searchsorted(unknown, dofs), len(unknown) - 1)
+    return where[unknown[where] == dofs]
 
 
 def reduce_model(model, assembled, pairing, backend="auto",
@@ -272,8 +329,12 @@ def tie_transform(model, assembled, pairing, tied) -> sp.csr_matrix:
     slave of another interface (a washer between two plates) is replaced in turn, so
     ``T`` is the product of the substitutions; a chain that closes on itself is refused.
 
-    A clamped slave DOF of a node-to-node pair clamps its partner; a clamped slave node
-    of a mortar interface is refused (the projection would clamp a master patch).
+    A clamped slave DOF of a node-to-node pair clamps its partner. A clamped slave DOF
+    of a mortar interface holds the master's interpolation there at zero,
+    ``sum_k N_ik u_m,k = 0``: these constraints are eliminated after the substitution
+    (:func:`qsma.reduction.clamps.constrained_basis`), except where the master is clamped
+    there too (:func:`qsma.reduction.clamps.symmetry_components`: the slave DOF is then
+    only clamped).
     """
     off = model.dof_offsets()
     dim = model.dim
@@ -283,22 +344,23 @@ def tie_transform(model, assembled, pairing, tied) -> sp.csr_matrix:
         fixed[off[k] + a.fixed] = True
     tied = np.asarray(tied, dtype=bool)
     rows, cols, vals, slaves = [], [], [], []
-    for itf, c, sl in zip(pairing.interfaces, pairing.couplings, _row_slices(pairing)):
+    held = ([], [], [])                       # mortar: rows sum_k N_ik u_m,k = 0
+    for c, sl in zip(pairing.couplings, _row_slices(pairing)):
         p, t = c.pairing, tied[sl]
-        N = c.projection[t].tocoo()
+        sym = symmetry_components(p, assembled[c.slave], assembled[c.master])[t]
         snodes, mnodes = p.contact_nodes[t], p.master_nodes
         for comp in range(dim):
-            sd = off[c.slave] + dim * snodes + comp
+            N = c.projection[t][~sym[:, comp]].tocoo()    # a symmetry: clamped only
+            sd = off[c.slave] + dim * snodes[~sym[:, comp]] + comp
             md = off[c.master] + dim * mnodes[N.col] + comp
             if fixed[sd].any():
-                if p.projection is not None:
-                    bad = snodes[fixed[sd]]
-                    raise InputError(f"interface {itf.label}: slave node(s) "
-                                     f"{bad[:10].tolist()} of body "
-                                     f"{model.bodies[c.slave].name!r} are clamped and "
-                                     f"cannot be tied to the master surface; remove them "
-                                     f"from the interface set or from the clamp")
-                fixed[md[fixed[sd][N.row]]] = True
+                on = fixed[sd][N.row]
+                if p.projection is None:
+                    fixed[md[on]] = True
+                else:
+                    held[0].append(sd[N.row][on])
+                    held[1].append(md[on])
+                    held[2].append(N.data[on])
             slaves.append(sd)
             rows.append(sd[N.row])
             cols.append(md)
@@ -316,7 +378,13 @@ def tie_transform(model, assembled, pairing, tied) -> sp.csr_matrix:
                       shape=(n, n)).tocsr()
     B = _substitute(B, is_slave, len(pairing.couplings))
     keep = np.flatnonzero(~fixed & ~is_slave)
-    return B[:, keep].tocsr()
+    T = B[:, keep].tocsr()
+    if not held[0]:
+        return T
+    r = np.unique(np.concatenate(held[0]), return_inverse=True)[1]
+    A = sp.coo_matrix((np.concatenate(held[2]), (r, np.concatenate(held[1]))),
+                      shape=(r.max() + 1, n)).tocsr() @ T
+    return (T @ constrained_basis(A)).tocsr()
 
 
 def _row_slices(pairing):

@@ -23,6 +23,9 @@ from .._infra.dense import cho_solved, mirror_triangle, symmetrised
 from ..errors import InputError
 from .condensation import (condense_bodies, condensed_loads, extended_prescribed,
                            prescribed_patterns, recovered, with_prescribed)
+from ..model.pairing import Coupling
+from .multibody import reduce_bodies
+from .clamps import clamped_interface
 from .rigid import assembly_gauge, ghost, regularised_S
 
 
@@ -255,8 +258,16 @@ def reduce_two_bodies(assembled1, assembled2, pairing, patterns=("preload",),
     the slave on its contact points (local frames) and the master on its own interface
     nodes (global components), joined by the projection (:func:`combine`).
     ``backend`` chooses the Schur-complement method (:data:`qsma.reduction.schur.SCHUR_BACKENDS`).
+
+    An interface node that a clamp holds in some direction makes the relative
+    displacement partly prescribed; such a pair is reduced in global components with
+    the clamped DOFs left out (:func:`qsma.reduction.multibody.reduce_bodies`, which
+    returns a :class:`~qsma.reduction.multibody.MultiReducedModel` of the same use).
     """
     asm = (assembled1, assembled2)
+    if any(clamped_interface(a, n) for a, n in zip(asm, (pairing.nodes1, pairing.nodes2))):
+        return reduce_bodies(asm, [Coupling(pairing, 0, 1)], patterns=patterns,
+                             backend=backend)
     loads = tuple(np.column_stack([a.loads.get(p, np.zeros(a.n_dofs)) for p in patterns])
                   for a in asm)
     dim = assembled1.body.dim
