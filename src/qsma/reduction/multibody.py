@@ -180,14 +180,20 @@ def relative_displacement_operator(couplings, nodes, dim):
 
 
 def _terms(c, nodes):
-    """(body, (contact point, node position in the body's set), weight) of ``d``."""
+    """(body, (contact point, node position in the body's set), weight) of ``d``; on
+    mixed quadratic slave facets the slave term is the contact coefficient
+    ``u~ = from_nodes @ u_s`` (:class:`qsma.model.coupling.SlaveBasis`)."""
     p = c.pairing
     n = p.n_pairs
     s_pos = np.searchsorted(nodes[c.slave], p.contact_nodes)
     N = c.projection.tocoo()
     m_pos = np.searchsorted(nodes[c.master], p.master_nodes)[N.col]
-    return [(c.slave, (np.arange(n), s_pos), np.full(n, c.sigma)),
-            (c.master, (N.row, m_pos), -c.sigma * N.data)]
+    if p.slave_basis is None:
+        slave = (c.slave, (np.arange(n), s_pos), np.full(n, c.sigma))
+    else:
+        Bi = p.slave_basis.from_nodes.tocoo()
+        slave = (c.slave, (Bi.row, s_pos[Bi.col]), c.sigma * Bi.data)
+    return [slave, (c.master, (N.row, m_pos), -c.sigma * N.data)]
 
 
 def reduce_bodies(assembled, couplings, patterns=("preload",), backend="auto",
@@ -268,7 +274,8 @@ def tie_transform(model, assembled, pairing, tied) -> sp.csr_matrix:
     r"""``T`` with ``x_all = T x_reduced`` for the contact points in mask ``tied`` of
     every interface tied: Dirichlet DOFs dropped, and per tied contact point, component
     by component, the slave node's DOFs replaced by the interpolation of the master's,
-    ``u_s = sum_k N_ik u_m,k`` (``N = I`` node-to-node). A master DOF that is itself a
+    ``u_s = sum_k N_ik u_m,k`` (``N = I`` node-to-node; on mixed quadratic slave facets
+    the coefficients ``u~`` of the mixed functions, :func:`_coefficient_change`). A master DOF that is itself a
     slave of another interface (a washer between two plates) is replaced in turn, so
     ``T`` is the product of the substitutions; a chain that closes on itself is refused.
 
@@ -311,12 +318,41 @@ def tie_transform(model, assembled, pairing, tied) -> sp.csr_matrix:
     is_slave = np.zeros(n, dtype=bool)
     is_slave[slaves] = True
     free = np.flatnonzero(~is_slave)
-    B = sp.coo_matrix((np.concatenate([np.ones(len(free))] + vals),
-                       (np.concatenate([free] + rows), np.concatenate([free] + cols))),
-                      shape=(n, n)).tocsr()
-    B = _substitute(B, is_slave, len(pairing.couplings))
+    ties = sp.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                         shape=(n, n)).tocsr()
+    change = _coefficient_change(pairing, off, dim, n)
+    if change is not None:                 # the ties hold the coefficients u~
+        ties = ties @ change
+    B = sp.csr_matrix((np.ones(len(free)), (free, free)), shape=(n, n)) + ties
+    B = _substitute(B.tocsr(), is_slave, len(pairing.couplings))
     keep = np.flatnonzero(~fixed & ~is_slave)
-    return B[:, keep].tocsr()
+    return (B[:, keep] if change is None else change @ B[:, keep]).tocsr()
+
+
+def _coefficient_change(pairing, off, dim, n):
+    """``C`` with ``x = C x~``: the DOFs of every mortar slave on mixed quadratic facets
+    replaced by the coefficients of its mixed functions (``u_s = to_nodes @ u~``,
+    :class:`qsma.model.coupling.SlaveBasis`), the others kept; None if there are none.
+    A tied contact point ties its coefficient, ``u~_i = sum_k N_ik u_m,k``; an open one
+    leaves it free."""
+    rows, cols, vals, mixed = [], [], [], []
+    for c in pairing.couplings:
+        basis = c.pairing.slave_basis
+        if basis is None:
+            continue
+        B = basis.to_nodes.tocoo()
+        nodes = off[c.slave] + dim * c.pairing.contact_nodes
+        for comp in range(dim):
+            rows.append(nodes[B.row] + comp)
+            cols.append(nodes[B.col] + comp)
+            vals.append(B.data)
+            mixed.append(nodes + comp)
+    if not rows:
+        return None
+    other = np.setdiff1d(np.arange(n), np.concatenate(mixed))
+    return sp.coo_matrix((np.concatenate([np.ones(len(other))] + vals),
+                          (np.concatenate([other] + rows), np.concatenate([other] + cols))),
+                         shape=(n, n)).tocsr()
 
 
 def _row_slices(pairing):

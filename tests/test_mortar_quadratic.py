@@ -1,0 +1,183 @@
+"""The dual mortar coupling on quadratic facets (line3, triangle6, quad8, quad9) of two
+blocks meshed on different grids, against exact answers: the projection partitions
+unity and reproduces linear fields, a welded pressure passes with the consistent nodal
+forces of both sides, and an interference gives the uniform contact pressure."""
+import dataclasses
+
+import numpy as np
+import pytest
+import scipy.sparse.linalg as spla
+
+from qsma.contact import ContactProblem, solve as contact_solve
+from qsma.fe import assemble_body
+from qsma.mesh.generate import structured_mesh
+from qsma.modal import stacked, tie_transform
+from qsma.model import Body, Clamp, Interface, Material, Mesh, Model, Pressure, make_pairing
+from qsma.model.dual_basis import MIXING
+from qsma.reduction.two_bodies import reduce_two_bodies
+
+STEEL = Material(200e9, 0.3, 7800.0)
+W, H = 0.04, 0.01          # block width and height [m] (any size: the answers are exact)
+HEX_TO_TETS = [(0, 1, 2, 6), (0, 2, 3, 6), (0, 3, 7, 6), (0, 7, 4, 6), (0, 4, 5, 6),
+               (0, 5, 1, 6)]
+
+
+def _tetra10(mesh):
+    """A hexahedral mesh split into tetrahedra (Kuhn), midside nodes added."""
+    tets = np.concatenate([mesh.cells[:, list(t)] for t in HEX_TO_TETS])
+    q = mesh.points[tets]
+    vol = np.einsum("ij,ij->i", np.cross(q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]),
+                    q[:, 3] - q[:, 0])
+    tets[vol < 0] = tets[vol < 0][:, [0, 2, 1, 3]]
+    pairs = [(0, 1), (1, 2), (2, 0), (0, 3), (1, 3), (2, 3)]       # tetra10 edge order
+    edges = np.sort(np.stack([tets[:, list(p)] for p in pairs], axis=1), axis=2)
+    unique, inverse = np.unique(edges.reshape(-1, 2), axis=0, return_inverse=True)
+    mids = len(mesh.points) + inverse.reshape(len(tets), 6)
+    points = np.vstack([mesh.points, mesh.points[unique].mean(axis=1)])
+    return Mesh(points, np.hstack([tets, mids]), "tetra10")
+
+
+def _block(y0, n, dim, held, cell_type):
+    """A block ``[0, W] x [y0, y0 + H] (x [0, W])`` of ``n`` cells per direction;
+    ``held`` as in tests/test_nonmatching.py (clamps on its outer face, none on the
+    interface)."""
+    ax = [np.linspace(0.0, e, k + 1) for e, k in zip([W, H, W][:dim], n)]
+    ax[1] = ax[1] + y0
+    if cell_type == "tetra10":
+        m = _tetra10(structured_mesh(*ax))
+    else:
+        m = structured_mesh(*ax, cell_type=cell_type)
+    x = m.points
+    e = 1e-9 * W
+    lo, hi = np.abs(x[:, 1] - y0) < e, np.abs(x[:, 1] - y0 - H) < e
+    face = lo if held == "bottom" else hi
+    sets = {"yface": np.flatnonzero(face), "xline": np.flatnonzero(face & (x[:, 0] < e))}
+    clamps = [Clamp("yface", (1,)), Clamp("xline", (0,))] if held else []
+    if dim == 3 and held:
+        sets["zline"] = np.flatnonzero(face & (x[:, 2] < e))
+        clamps.append(Clamp("zline", (2,)))
+    facets = {"lower": m.boundary_facets_where(lambda p: np.abs(p[:, 1] - y0) < e),
+              "upper": m.boundary_facets_where(lambda p: np.abs(p[:, 1] - y0 - H) < e)}
+    return m.with_sets(node_sets=sets, facet_sets=facets), clamps
+
+
+def _stack(case, slave, top_held=False, p=0.0):
+    (nb, tb), (nt, tt) = case
+    dim = len(nb)
+    mb, cb = _block(0.0, nb, dim, "bottom", tb)
+    mt, ct = _block(H, nt, dim, "top" if top_held else "", tt)
+    bottom = Body("bottom", mb, STEEL, clamps=cb)
+    top = Body("top", mt, STEEL, clamps=ct, pressures=(Pressure("upper", p),) if p else ())
+    return Model((bottom, top), Interface("bottom", "upper", "top", "lower",
+                                          coupling="mortar", slave=slave))
+
+
+# (bottom cells, type), (top cells, type): different grids, mixed kinds
+CASES = {
+    "quad8": (((5, 2), "quad8"), ((3, 2), "quad8")),
+    "quad9-quad8": (((4, 2), "quad9"), ((7, 2), "quad8")),
+    "hex20": (((3, 1, 2), "hexahedron20"), ((2, 1, 3), "hexahedron20")),
+    "hex27-hex20": (((2, 1, 3), "hexahedron27"), ((3, 1, 2), "hexahedron20")),
+    "tet10-hex20": (((2, 1, 2), "tetra10"), ((3, 1, 2), "hexahedron20")),
+    "hex8-tet10": (((3, 1, 2), None), ((2, 1, 2), "tetra10")),
+}
+PARAMS = [(k, s) for k in CASES for s in ("bottom", "top")]
+
+
+@pytest.mark.parametrize("case, slave", PARAMS)
+def test_projection_partitions_unity_and_reproduces_linear_fields(case, slave):
+    """Rows of P sum to one, P maps the master coordinates onto the slave's (a linear
+    field; on straight / flat facets its mixed coefficients are its nodal values), the
+    areas D are positive and add up to the interface, and the gap is zero."""
+    m = _stack(CASES[case], slave)
+    p = make_pairing(m)
+    assert p.coupling == "mortar" and p.slave == (1 if slave == "bottom" else 2)
+    smesh, mmesh = m.bodies[p.slave - 1].mesh, m.bodies[2 - p.slave].mesh
+    assert (p.slave_basis is not None) == (smesh.facet_type in MIXING)
+    N = p.projection
+    np.testing.assert_allclose(N.sum(axis=1).A1, 1.0, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(N @ mmesh.points[p.master_nodes],
+                               smesh.points[p.contact_nodes], rtol=0, atol=1e-14 * W)
+    assert p.area.min() > 0
+    assert p.area.sum() == pytest.approx(W ** (len(CASES[case][0][0]) - 1), rel=1e-13)
+    assert np.abs(p.gap).max() < 1e-14 * W
+
+
+def _consistent(body, name, pressure):
+    """Consistent nodal forces of a pressure on facet set ``name`` of ``body``."""
+    b = dataclasses.replace(body, clamps=(), pressures=(Pressure(name, pressure),))
+    return assemble_body(b).loads["preload"].reshape(b.mesh.n_nodes, -1)
+
+
+@pytest.mark.parametrize("case, slave", PARAMS)
+def test_welded_pressure_gives_the_consistent_forces_of_both_sides(case, slave):
+    """Pressure on top, bottom held, the interface tied by the mortar constraint: the
+    stress is uniform, so the force each body gets at its interface nodes is the
+    consistent nodal force of the pressure on its own facets (negative at quad8
+    corners), and the contact forces of the coefficients ``lam~ = B^T f`` are the
+    pressure times D at every contact point, to round-off."""
+    pressure = 3e6
+    m = _stack(CASES[case], slave, p=pressure)
+    pr = make_pairing(m)
+    dim = m.dim
+    A = [assemble_body(b) for b in m.bodies]
+    T = tie_transform(m, A, pr, np.ones(pr.n_pairs, bool))
+    K = (T.T @ stacked([a.K for a in A]) @ T).tocsc()
+    F = np.concatenate([a.loads.get("preload", np.zeros(a.n_dofs)) for a in A])
+    x = T @ spla.spsolve(K, T.T @ F)
+    off = m.dof_offsets()
+    forces = [(a.K @ x[off[k]:off[k + 1]] - a.loads.get("preload", np.zeros(a.n_dofs)))
+              .reshape(-1, dim) for k, a in enumerate(A)]
+    s, mst = pr.slave - 1, 2 - pr.slave
+    sets = ("upper", "lower")
+    scale = pressure * W ** (dim - 1)
+    for k, nodes in ((s, pr.contact_nodes), (mst, pr.master_nodes)):
+        expected = _consistent(m.bodies[k], sets[k], pressure)[nodes]
+        np.testing.assert_allclose(forces[k][nodes], expected, rtol=0, atol=1e-10 * scale)
+    f_s = forces[s][pr.contact_nodes]
+    lam = f_s if pr.slave_basis is None else pr.slave_basis.to_nodes.T @ f_s
+    sign = -1.0 if s == 0 else 1.0                  # bottom is pushed down, top up
+    np.testing.assert_allclose(lam[:, 1] / pr.area, sign * pressure, rtol=1e-9)
+
+
+@pytest.mark.parametrize("case, slave", PARAMS[::3])
+def test_interference_gives_uniform_contact_pressure(case, slave):
+    """Both blocks held on their outer faces and pressed together by an interference
+    delta, through the condensed mortar problem (the slave condensed on the mixed
+    coefficients) and the contact solver: uniform pressure E_u delta / (2 H) at every
+    contact point, no shear (tests/test_nonmatching.py, linear facets)."""
+    m = _stack(CASES[case], slave, top_held=True)
+    dim = m.dim
+    pr = make_pairing(m)
+    A = [assemble_body(b) for b in m.bodies]
+    rm = reduce_two_bodies(A[0], A[1], pr)
+    delta = 1e-6
+    prob = ContactProblem(rm.K, 0.3, gap0=np.full(pr.n_pairs, -delta), dim=dim)
+    res = contact_solve(prob, rm.welded_contact_force([1.0]))
+    assert res.success
+    E_u = STEEL.E / (1 - STEEL.nu ** 2) if dim == 2 else STEEL.E
+    traction = res.lam / pr.area[:, None]
+    np.testing.assert_allclose(traction[:, -1], E_u * delta / (2 * H), rtol=1e-8)
+    assert np.abs(traction[:, :-1]).max() < 1e-8 * E_u * delta / H
+    # the recovered fields: the interference closed at every slave node
+    u1, u2 = rm.recover(res.d, [1.0])
+    s = pr.slave - 1
+    us = (u1, u2)[s].reshape(-1, dim)[pr.contact_nodes, 1]
+    np.testing.assert_allclose(np.abs(us), delta / 2, rtol=1e-8)
+
+
+@pytest.mark.parametrize("case", ["hex20", "tet10-hex20"])
+def test_several_body_reduction_agrees_with_the_two_body_one(case):
+    """The reduction over several interfaces (the slave's mixed coefficients in the
+    relative-displacement operator) gives the two-body problem's K and welded force."""
+    from qsma.model.pairing import Coupling
+    from qsma.reduction.multibody import reduce_bodies
+    m = _stack(CASES[case], "top", top_held=True, p=1e6)
+    pr = make_pairing(m)
+    assert pr.slave_basis is not None
+    A = [assemble_body(b) for b in m.bodies]
+    rm = reduce_two_bodies(A[0], A[1], pr)
+    mm = reduce_bodies(A, [Coupling(pr, 0, 1)])
+    scale = np.abs(rm.K).max()
+    np.testing.assert_allclose(mm.K, rm.K, rtol=0, atol=1e-9 * scale)
+    np.testing.assert_allclose(mm.W, rm.W, rtol=0, atol=1e-9 * np.abs(rm.W).max())
