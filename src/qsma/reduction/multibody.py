@@ -275,7 +275,7 @@ def tie_transform(model, assembled, pairing, tied) -> sp.csr_matrix:
     every interface tied: Dirichlet DOFs dropped, and per tied contact point, component
     by component, the slave node's DOFs replaced by the interpolation of the master's,
     ``u_s = sum_k N_ik u_m,k`` (``N = I`` node-to-node; on mixed quadratic slave facets
-    the coefficients ``u~`` of the mixed functions, :func:`_coefficient_change`). A master DOF that is itself a
+    the coefficients of the mixed functions, :func:`_tie_rows`). A master DOF that is itself a
     slave of another interface (a washer between two plates) is replaced in turn, so
     ``T`` is the product of the substitutions; a chain that closes on itself is refused.
 
@@ -292,7 +292,7 @@ def tie_transform(model, assembled, pairing, tied) -> sp.csr_matrix:
     rows, cols, vals, slaves = [], [], [], []
     for itf, c, sl in zip(pairing.interfaces, pairing.couplings, _row_slices(pairing)):
         p, t = c.pairing, tied[sl]
-        N = c.projection[t].tocoo()
+        N, corner = _tie_rows(c, t)
         snodes, mnodes = p.contact_nodes[t], p.master_nodes
         for comp in range(dim):
             sd = off[c.slave] + dim * snodes + comp
@@ -307,9 +307,9 @@ def tie_transform(model, assembled, pairing, tied) -> sp.csr_matrix:
                                      f"from the interface set or from the clamp")
                 fixed[md[fixed[sd][N.row]]] = True
             slaves.append(sd)
-            rows.append(sd[N.row])
-            cols.append(md)
-            vals.append(N.data)
+            rows += [sd[N.row], sd[corner.row]]
+            cols += [md, off[c.slave] + dim * p.contact_nodes[corner.col] + comp]
+            vals += [N.data, corner.data]
     slaves = np.concatenate(slaves)
     if len(np.unique(slaves)) != len(slaves):
         raise InputError("a node is the slave of two interfaces; choose the slave sides "
@@ -318,41 +318,34 @@ def tie_transform(model, assembled, pairing, tied) -> sp.csr_matrix:
     is_slave = np.zeros(n, dtype=bool)
     is_slave[slaves] = True
     free = np.flatnonzero(~is_slave)
-    ties = sp.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                         shape=(n, n)).tocsr()
-    change = _coefficient_change(pairing, off, dim, n)
-    if change is not None:                 # the ties hold the coefficients u~
-        ties = ties @ change
-    B = sp.csr_matrix((np.ones(len(free)), (free, free)), shape=(n, n)) + ties
-    B = _substitute(B.tocsr(), is_slave, len(pairing.couplings))
+    B = sp.coo_matrix((np.concatenate([np.ones(len(free))] + vals),
+                       (np.concatenate([free] + rows), np.concatenate([free] + cols))),
+                      shape=(n, n)).tocsr()
+    B = _substitute(B, is_slave, len(pairing.couplings) + 1)
     keep = np.flatnonzero(~fixed & ~is_slave)
-    return (B[:, keep] if change is None else change @ B[:, keep]).tocsr()
+    return B[:, keep].tocsr()
 
 
-def _coefficient_change(pairing, off, dim, n):
-    """``C`` with ``x = C x~``: the DOFs of every mortar slave on mixed quadratic facets
-    replaced by the coefficients of its mixed functions (``u_s = to_nodes @ u~``,
-    :class:`qsma.model.coupling.SlaveBasis`), the others kept; None if there are none.
-    A tied contact point ties its coefficient, ``u~_i = sum_k N_ik u_m,k``; an open one
-    leaves it free."""
-    rows, cols, vals, mixed = [], [], [], []
-    for c in pairing.couplings:
-        basis = c.pairing.slave_basis
-        if basis is None:
-            continue
-        B = basis.to_nodes.tocoo()
-        nodes = off[c.slave] + dim * c.pairing.contact_nodes
-        for comp in range(dim):
-            rows.append(nodes[B.row] + comp)
-            cols.append(nodes[B.col] + comp)
-            vals.append(B.data)
-            mixed.append(nodes + comp)
-    if not rows:
-        return None
-    other = np.setdiff1d(np.arange(n), np.concatenate(mixed))
-    return sp.coo_matrix((np.concatenate([np.ones(len(other))] + vals),
-                          (np.concatenate([other] + rows), np.concatenate([other] + cols))),
-                         shape=(n, n)).tocsr()
+def _tie_rows(c, t):
+    """``(N, corner)``: the rows ``u_s,i = sum_k N_ik u_m,k + sum_j corner_ij u_s,j`` of
+    the contact points in mask ``t``. ``N`` is the projection and ``corner`` empty,
+    except on mixed quadratic slave facets (:class:`qsma.model.coupling.SlaveBasis`,
+    ``u_s = B u~``): there the coefficient is tied, ``u~_i = (P u_m)_i``, and since a
+    midside row of ``B`` reaches only corners, whose coefficients are their nodal
+    values, ``u_s,i = B_ii (P u_m)_i + sum_{j != i} B_ij u_s,j`` (the corners' own rows
+    substituted in turn where they are tied). An open contact point keeps its node's
+    DOFs as unknowns."""
+    N = c.projection[t]
+    basis = c.pairing.slave_basis
+    if basis is None:
+        return N.tocoo(), sp.coo_matrix((int(t.sum()), c.pairing.n_pairs))
+    B = basis.to_nodes[t].tocsr()
+    diagonal = B[:, np.flatnonzero(t)].diagonal()
+    corner = B.tolil()
+    corner[np.arange(len(diagonal)), np.flatnonzero(t)] = 0.0
+    corner = corner.tocsr()
+    corner.eliminate_zeros()
+    return (sp.diags(diagonal) @ N).tocoo(), corner.tocoo()
 
 
 def _row_slices(pairing):
