@@ -149,7 +149,7 @@ def mortar_operator(slave_mesh, slave_facets, master_mesh, master_facets,
         When no part of the slave surface projects onto the master, when the facing
         facets have normals pointing the same way (a set on the wrong face), or when the
         surfaces are farther apart or overlap more than :data:`GAP_FRACTION` of an element,
-        and for quadratic facets (the projection is built for linear ones).
+        and for facet rows that are not the mesh's facets (corners only, say).
     """
     kinds = [_facet_kind(mesh, facets, body, name, names) for mesh, facets, body, name
              in ((slave_mesh, slave_facets, names[0], names[1]),
