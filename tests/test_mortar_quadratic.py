@@ -13,14 +13,11 @@ from qsma.contact import ContactProblem, solve as contact_solve
 from qsma.fe import assemble_body
 from qsma.mesh.generate import structured_mesh
 from qsma.modal import stacked, tie_transform
-from qsma.model import Body, Clamp, Interface, Material, Mesh, Model, Pressure, make_pairing
+from qsma.model import Body, Interface, Mesh, Model, Pressure, make_pairing
 from qsma.model.dual_basis import MIXING
 from qsma.reduction.two_bodies import reduce_two_bodies
-
-STEEL = Material(200e9, 0.3, 7800.0)
-W, H = 0.04, 0.01          # block width and height [m] (any size: the answers are exact)
-HEX_TO_TETS = [(0, 1, 2, 6), (0, 2, 3, 6), (0, 3, 7, 6), (0, 7, 4, 6), (0, 4, 5, 6),
-               (0, 5, 1, 6)]
+from test_nonmatching import (HEX_TO_TETS, H, STEEL, W, _block_sets, _jitter,
+                              _ring_interface_pressure, _shifted_top)
 
 
 def _tetra10(mesh):
@@ -39,27 +36,15 @@ def _tetra10(mesh):
 
 
 def _block(y0, n, dim, held, cell_type):
-    """A block ``[0, W] x [y0, y0 + H] (x [0, W])`` of ``n`` cells per direction;
-    ``held`` as in tests/test_nonmatching.py (clamps on its outer face, none on the
-    interface)."""
+    """A block ``[0, W] x [y0, y0 + H] (x [0, W])`` of ``n`` cells per direction of
+    ``cell_type``, sets and clamps as in tests/test_nonmatching.py."""
     ax = [np.linspace(0.0, e, k + 1) for e, k in zip([W, H, W][:dim], n)]
     ax[1] = ax[1] + y0
     if cell_type == "tetra10":
         m = _tetra10(structured_mesh(*ax))
     else:
         m = structured_mesh(*ax, cell_type=cell_type)
-    x = m.points
-    e = 1e-9 * W
-    lo, hi = np.abs(x[:, 1] - y0) < e, np.abs(x[:, 1] - y0 - H) < e
-    face = lo if held == "bottom" else hi
-    sets = {"yface": np.flatnonzero(face), "xline": np.flatnonzero(face & (x[:, 0] < e))}
-    clamps = [Clamp("yface", (1,)), Clamp("xline", (0,))] if held else []
-    if dim == 3 and held:
-        sets["zline"] = np.flatnonzero(face & (x[:, 2] < e))
-        clamps.append(Clamp("zline", (2,)))
-    facets = {"lower": m.boundary_facets_where(lambda p: np.abs(p[:, 1] - y0) < e),
-              "upper": m.boundary_facets_where(lambda p: np.abs(p[:, 1] - y0 - H) < e)}
-    return m.with_sets(node_sets=sets, facet_sets=facets), clamps
+    return _block_sets(m, y0, dim, held)
 
 
 def _stack(case, slave, top_held=False, p=0.0):
@@ -210,7 +195,6 @@ def test_quad8_parts_meshed_apart_give_the_conforming_answer():
     measured 1.0 %) and 1 % at gross slip (measured 0.2 %)."""
     import qsma
     from qsma.examples import sandwich_2d
-    from test_nonmatching import _jitter, _shifted_top
     m = sandwich_2d(1, element="quad8")
     j = _shifted_top(dataclasses.replace(
         m, interface=dataclasses.replace(m.interface, coupling="mortar")), _jitter)
@@ -275,37 +259,6 @@ def _annulus(r0, r1, nr, nt, ct):
                                       "out": mesh.boundary_facets_where(on(r1))})
 
 
-def _ring_pressure(refine, n_outer, ct, n_inner=48):
-    """Inner ring (a..b) welded by the mortar constraint to an outer ring (b..c, rim
-    clamped), pressure p inside: the radial interface traction (dual traction on mixed
-    facets) and Lame's value (tests/test_nonmatching.py)."""
-    a, b, c, p = 0.02, 0.03, 0.045, 1e7
-    inner = Body("inner", _annulus(a, b, 3 * refine, n_inner * refine // 2, ct), STEEL,
-                 pressures=(Pressure("in", p),))
-    outer = Body("outer", _annulus(b, c, 3 * refine, n_outer * refine // 2, ct), STEEL,
-                 clamps=(Clamp("rim"),))
-    m = Model((inner, outer), Interface("inner", "out", "outer", "in", coupling="auto"))
-    pr = make_pairing(m)
-    A = [assemble_body(bd) for bd in m.bodies]
-    T = tie_transform(m, A, pr, np.ones(pr.n_pairs, bool))
-    K = (T.T @ stacked([x.K for x in A]) @ T).tocsc()
-    F = np.concatenate([x.loads.get("preload", np.zeros(x.n_dofs)) for x in A])
-    x = T @ spla.spsolve(K, T.T @ F)
-    k = pr.slave - 1
-    off = m.dof_offsets()
-    load = A[k].loads.get("preload", np.zeros(A[k].n_dofs))
-    f = (A[k].K @ x[off[k]:off[k + 1]] - load).reshape(-1, 2)[pr.contact_nodes]
-    if pr.slave_basis is not None:
-        f = pr.slave_basis.to_nodes.T @ f
-    radial = np.einsum("ij,ij->i", f, pr.x / np.linalg.norm(pr.x, axis=1)[:, None])
-    lam, mu = STEEL.lame
-    A_ = -p / (2 * (lam + mu) + 2 * mu * c ** 2 / a ** 2)
-    exact = -(2 * (lam + mu) * A_ + 2 * mu * A_ * c ** 2 / b ** 2)
-    pres = np.abs(radial) / pr.area
-    return pr, pres, exact
-
-
-
 @pytest.mark.parametrize("cell_type", ["quad8", "quad9"])
 def test_curved_quadratic_facets_meshed_apart_converge_to_lame(cell_type):
     """Rings of quadratic cells (24 and 17 cells around at refine 1, midside nodes on
@@ -315,7 +268,8 @@ def test_curved_quadratic_facets_meshed_apart_converge_to_lame(cell_type):
     on 24 / 24 cells: 0.07 %)."""
     errors = []
     for refine in (1, 2):
-        pr, pres, exact = _ring_pressure(refine, 35, cell_type)
+        pr, pres, exact = _ring_interface_pressure(
+            refine, 35, lambda r0, r1, nr, nt: _annulus(r0, r1, nr // 2, nt // 2, cell_type))
         assert pr.coupling == "mortar"
         errors.append((abs(pres.mean() / exact - 1), np.abs(pres / exact - 1).max()))
     assert errors[0][0] < 6e-3 and errors[0][1] < 0.025
