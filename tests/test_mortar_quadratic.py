@@ -274,3 +274,31 @@ def test_curved_quadratic_facets_meshed_apart_converge_to_lame(cell_type):
         errors.append((abs(pres.mean() / exact - 1), np.abs(pres / exact - 1).max()))
     assert errors[0][0] < 6e-3 and errors[0][1] < 0.025
     assert errors[1][0] < errors[0][0] / 3.5 and errors[1][1] < errors[0][1] / 3.5
+
+
+@pytest.mark.parametrize("case", ["hex20", "tet10-hex20"])
+def test_slave_held_only_by_the_joint_carries_its_pressure(case):
+    """The top block unclamped (held only through the interface, its rigid motions
+    expressed in the mixed coefficients through the inverse of the slave's R) and
+    pressed by p on its upper face: the contact solver gives the dual traction p at
+    every contact point and no shear."""
+    pressure = 2e6
+    m = _stack(CASES[case], "top", p=pressure)
+    pr = make_pairing(m)
+    assert pr.slave_basis is not None and pr.slave == 2
+    A = [assemble_body(b) for b in m.bodies]
+    rm = reduce_two_bodies(A[0], A[1], pr)
+    top = rm.bodies[1]
+    assert top.rigid is not None and top.R_inv is not None
+    # its rigid-motion basis, taken back to nodal values, moves the nodes rigidly
+    x = m.bodies[1].mesh.points[pr.contact_nodes]
+    Z = np.concatenate([np.tile(np.eye(3), (len(x), 1))] + [
+        np.cross(np.eye(3)[k], x).reshape(-1, 1) for k in range(3)], axis=1)
+    moved = top.R @ top.rigid
+    coef = np.linalg.lstsq(Z, moved, rcond=None)[0]
+    assert np.abs(Z @ coef - moved).max() < 1e-10 * np.abs(moved).max()
+    res = contact_solve(ContactProblem(rm.K, 0.3, dim=m.dim), rm.welded_contact_force([1.0]))
+    assert res.success
+    traction = res.lam / pr.area[:, None]
+    np.testing.assert_allclose(traction[:, -1], pressure, rtol=1e-7)
+    assert np.abs(traction[:, :-1]).max() < 1e-7 * pressure
