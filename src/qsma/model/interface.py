@@ -393,7 +393,9 @@ def _warn_quad8(itf, *bodies):
             f"interface {itf.label}: body {on[0]!r} meets it with quad8 facets "
             f"(hexahedron20 cells); the corner pairs of such facets open under a uniform "
             f"pressure and the midside pairs carry the load. Prefer hexahedron27 or "
-            f"incompatible-mode hexahedra (C3D8I) at contact surfaces"),
+            f"incompatible-mode hexahedra (C3D8I) at contact surfaces, or set coupling = "
+            f"\"mortar\" on the interface (its dual basis gives every contact point a "
+            f"positive share of a pressure)"),
         stacklevel=4)                        # the caller of make_pairing
 
 
