@@ -97,7 +97,7 @@ class _Writer:
         master = m.body_index(names[2 - pairing.slave])
         held = {(k, int(d)) for k in (slave, master) for d in m.bodies[k].clamped_dofs()}
         P = pairing.projection.tocsr() if pairing.projection is not None else None
-        basis = getattr(pairing, "slave_basis", None)
+        basis = pairing.slave_basis
         dim, used, out = m.dim, set(), ["** ties of the closed contact points"]
         for i in np.flatnonzero(mode["closed"]):
             s = int(pairing.contact_nodes[i])
