@@ -136,7 +136,7 @@ class Pairing:
     projection : (n_pairs, n_master) sparse ``P = D^-1 M`` or None
     gap : (n_pairs,) weighted normal gap of the undeformed mortar surfaces (reported,
         taken as zero), None for node-to-node
-    slave_basis : None, or the :class:`qsma.model.coupling.SlaveBasis` of a mortar slave
+    slave_basis : None, or the :class:`qsma.model.dual_basis.SlaveBasis` of a mortar slave
         on mixed quadratic facets: the contact point's displacement is then the
         coefficient ``u~_i`` of its mixed function, ``u_slave = to_nodes @ u~``, and
         ``projection @ u_master`` is what ``u~`` is tied to

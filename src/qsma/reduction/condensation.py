@@ -88,7 +88,7 @@ class CondensedBody:
 def pair_rotation(frames: np.ndarray, basis=None) -> sp.csr_matrix:
     """Sparse block-diagonal ``R`` with ``u_C = R u_local`` (pair-major): block i is
     ``frames[i].T``, its columns the local axes of pair i. With the ``basis``
-    (:class:`qsma.model.coupling.SlaveBasis`) of a mortar slave whose contact unknowns
+    (:class:`qsma.model.dual_basis.SlaveBasis`) of a mortar slave whose contact unknowns
     are coefficients ``u~`` of mixed quadratic functions, ``u_C = (B kron I) R u~_local``
     with ``B = basis.to_nodes``."""
     R = sp.block_diag(np.swapaxes(frames, 1, 2), format="csr")

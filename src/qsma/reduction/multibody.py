@@ -182,7 +182,7 @@ def relative_displacement_operator(couplings, nodes, dim):
 def _terms(c, nodes):
     """(body, (contact point, node position in the body's set), weight) of ``d``; on
     mixed quadratic slave facets the slave term is the contact coefficient
-    ``u~ = from_nodes @ u_s`` (:class:`qsma.model.coupling.SlaveBasis`)."""
+    ``u~ = from_nodes @ u_s`` (:class:`qsma.model.dual_basis.SlaveBasis`)."""
     p = c.pairing
     n = p.n_pairs
     s_pos = np.searchsorted(nodes[c.slave], p.contact_nodes)
@@ -329,7 +329,7 @@ def tie_transform(model, assembled, pairing, tied) -> sp.csr_matrix:
 def _tie_rows(c, t):
     """``(N, corner)``: the rows ``u_s,i = sum_k N_ik u_m,k + sum_j corner_ij u_s,j`` of
     the contact points in mask ``t``. ``N`` is the projection and ``corner`` empty,
-    except on mixed quadratic slave facets (:class:`qsma.model.coupling.SlaveBasis`,
+    except on mixed quadratic slave facets (:class:`qsma.model.dual_basis.SlaveBasis`,
     ``u_s = B u~``): there the coefficient is tied, ``u~_i = (P u_m)_i``, and since a
     midside row of ``B`` reaches only corners, whose coefficients are their nodal
     values, ``u_s,i = B_ii (P u_m)_i + sum_{j != i} B_ij u_s,j`` (the corners' own rows
