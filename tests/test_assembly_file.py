@@ -243,15 +243,6 @@ def test_contact_pairs_and_connected_bodies_of_a_flat_deck(tmp_path):
     assert modes.f_hz[0] > 0
 
 
-def test_mortar_refuses_quadratic_facets_by_name():
-    from qsma.examples import sandwich_2d as s2d
-    import dataclasses
-    m = s2d(1, element="quad8")
-    m = dataclasses.replace(m, interface=dataclasses.replace(m.interface, coupling="mortar"))
-    with pytest.raises(InputError, match="mortar coupling is built for linear facets.*line3"):
-        make_pairing(m)
-
-
 PARTS_DECK = """\
 *Heading
 *Part, name=Beam

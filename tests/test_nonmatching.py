@@ -33,7 +33,11 @@ def _block(y0, n, dim, held):
     (no interface node), "top" the same on its upper face, "" nothing."""
     ax = _axes(n, *([W, H, W] if dim == 3 else [W, H]))
     ax[1] = ax[1] + y0
-    m = structured_mesh(*ax)
+    return _block_sets(structured_mesh(*ax), y0, dim, held)
+
+
+def _block_sets(m, y0, dim, held):
+    """The sets and clamps of :func:`_block` on the block mesh ``m``."""
     x = m.points
     e = 1e-9 * W
     lo, hi = np.abs(x[:, 1] - y0) < e, np.abs(x[:, 1] - y0 - H) < e
@@ -260,14 +264,16 @@ def _annulus(r0, r1, nr, nt):
                                       "out": mesh.boundary_facets_where(on(r1))})
 
 
-def _ring_interface_pressure(refine, n_outer):
+def _ring_interface_pressure(refine, n_outer, ring=None):
     """Inner ring (a..b, 48 refine elements around) welded by the mortar constraint to
     an outer ring (b..c, ``n_outer`` refine around, outer rim clamped), pressure p inside.
-    Returns the radial interface traction at the slave nodes and the Lame value."""
+    Returns the radial interface traction at the slave nodes and the Lame value.
+    ``ring(r0, r1, nr, nt)``: the ring's mesh (default :func:`_annulus`)."""
+    ring = ring or _annulus
     a, b, c, p = 0.02, 0.03, 0.045, 1e7
-    inner = Body("inner", _annulus(a, b, 6 * refine, 48 * refine), STEEL,
+    inner = Body("inner", ring(a, b, 6 * refine, 48 * refine), STEEL,
                  pressures=(Pressure("in", p),))
-    outer = Body("outer", _annulus(b, c, 6 * refine, n_outer * refine), STEEL,
+    outer = Body("outer", ring(b, c, 6 * refine, n_outer * refine), STEEL,
                  clamps=(Clamp("rim"),))
     m = Model((inner, outer), Interface("inner", "out", "outer", "in", coupling="auto"))
     pr = make_pairing(m)

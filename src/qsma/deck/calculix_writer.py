@@ -102,6 +102,7 @@ class _Writer:
         master = m.body_index(names[2 - pairing.slave])
         held = {(k, int(d)) for k in (slave, master) for d in m.bodies[k].clamped_dofs()}
         P = pairing.projection.tocsr() if pairing.projection is not None else None
+        basis = pairing.slave_basis
         dim, used, out = m.dim, set(), ["** ties of the closed contact points"]
         for i in np.flatnonzero(mode["closed"]):
             s = int(pairing.contact_nodes[i])
@@ -111,8 +112,10 @@ class _Writer:
                 row = P.getrow(i)
                 partners = [(int(pairing.master_nodes[j]), float(w))
                             for j, w in zip(row.indices, row.data) if w != 0.0]
+            own = [(slave, s, 1.0)] if basis is None else _coefficient_terms(
+                basis, pairing.contact_nodes, i, slave)
             for c in range(dim):
-                terms = [(slave, s, 1.0)] + [(master, n, -w) for n, w in partners]
+                terms = own + [(master, n, -w) for n, w in partners]
                 free = [t for t in terms if (t[0], dim * t[1] + c) not in held
                         and (t[0], t[1], c) not in used]
                 if not free:
@@ -449,3 +452,12 @@ def _refuse_tied(model):
             f"interface {model.interface.label}: its {law.normal.name} law holds the "
             f"closed pairs by springs, not by a tie: export without tied; the deck's "
             f"perturbation frequency step holds them by the same law")
+
+
+def _coefficient_terms(basis, nodes, i, body):
+    """The slave side of the tie of contact point ``i`` on mixed quadratic facets: the
+    coefficient ``u~_i = sum_j from_nodes[i, j] u_j`` (:class:`qsma.model.dual_basis.
+    SlaveBasis`), its own node first (the dependent DOF where no clamp holds it)."""
+    row = basis.from_nodes.getrow(i)
+    terms = [(body, int(nodes[j]), float(w)) for j, w in zip(row.indices, row.data)]
+    return sorted(terms, key=lambda t: t[1] != int(nodes[i]))

@@ -33,6 +33,23 @@ plane of the slave facet along the slave facet normal and clipped against it
 The pieces (2D and 3D) and the assembly are computed for all facet pairs at once
 (numpy arrays; the clipped polygons in fixed vertex slots, :func:`clip_polygons`),
 not pair by pair (a Gmsh lap joint of 800 slave nodes: 0.3-0.5 s).
+
+Quadratic facets (line3, triangle6, quad8, quad9; docs/theory.md section 9). The
+pieces are found on each facet's corners (its chord or flat polygon) and the
+quadratic shape functions are evaluated at the pieces' points in the facet's own
+reference coordinates; exact for straight / flat facets with their midside nodes at
+the edge midpoints, the chord approximation (relative area error of order
+``(h / R)^2``) for curved ones. The corner functions of triangle6 and quad8 facets
+integrate to zero or less, so ``D`` would be singular: the dual basis is built on
+the slave functions mixed with their neighbours (:mod:`qsma.model.dual_basis`),
+``N~_c = N_c + a sum_m N_m`` over the midside nodes ``m`` next to corner ``c`` and
+``N~_m = (1 - 2a) N_m`` (Popp, Wohlmuth, Gee and Wall 2012), whose integrals are
+positive. The contact unknowns then belong to the coefficients ``u~`` of the slave
+displacement in the mixed functions, ``u_s = B u~`` (``B = T^T``,
+:class:`qsma.model.dual_basis.SlaveBasis`), so ``(P u_m)_i`` is what ``u~_i`` is tied to; the three
+properties above hold for ``u~`` (on straight / flat facets ``u~ = u`` for every
+linear field), and the consistent slave forces of a uniform traction are
+``B^-T lam = t int N_i``.
 """
 from __future__ import annotations
 
@@ -46,6 +63,8 @@ from scipy.spatial import cKDTree
 from ..errors import InputError
 from ..mesh.celltypes import TYPES
 from ..mesh.facets import facet_normals
+from .dual_basis import (SlaveBasis, dual_basis, facet_values, mixing_matrix, shape_values,
+                         slave_basis, weak_shares)
 
 #: Gauss-Legendre points per direction: 4 points integrate degree 7 on a segment and,
 #: collapsed onto a triangle (Duffy), total degree 6 exactly; the integrands of a flat
@@ -87,6 +106,8 @@ class MortarOperator:
     slave_area : area of the slave facet set (length per unit depth in 2D)
     unmatched_area : the part of it that faces no master facet (left out of the
         coupling: holes, curved or offset edges of two discretisations)
+    basis : :class:`qsma.model.dual_basis.SlaveBasis` of mixed quadratic slave facets, or
+        None (the contact unknowns are the nodal values)
     """
 
     slave_nodes: np.ndarray
@@ -97,6 +118,7 @@ class MortarOperator:
     gap: np.ndarray
     slave_area: float = 0.0
     unmatched_area: float = 0.0
+    basis: SlaveBasis | None = None
 
     @property
     def unmatched_fraction(self) -> float:
@@ -127,25 +149,35 @@ def mortar_operator(slave_mesh, slave_facets, master_mesh, master_facets,
         When no part of the slave surface projects onto the master, when the facing
         facets have normals pointing the same way (a set on the wrong face), or when the
         surfaces are farther apart or overlap more than :data:`GAP_FRACTION` of an element,
-        and for quadratic facets (the projection is built for linear ones).
+        and for facet rows that are not the mesh's facets (corners only, say).
     """
-    for mesh, facets, body, name in ((slave_mesh, slave_facets, names[0], names[1]),
-                                     (master_mesh, master_facets, names[2], names[3])):
-        if facets.shape[1] != TYPES[mesh.facet_type].corners:
-            raise InputError(
-                f"interface body {names[0]!r} set {names[1]!r} / body {names[2]!r} set "
-                f"{names[3]!r}: the mortar coupling is built for linear facets, and body "
-                f"{body!r} set {name!r} has {mesh.facet_type} facets ({mesh.cell_type} "
-                f"cells). Fix: mesh the two sides with coincident nodes (node-to-node "
-                f"coupling handles quadratic cells) or use linear cells at the interface")
+    kinds = [_facet_kind(mesh, facets, body, name, names) for mesh, facets, body, name
+             in ((slave_mesh, slave_facets, names[0], names[1]),
+                 (master_mesh, master_facets, names[2], names[3]))]
     xs, xm = slave_mesh.points, master_mesh.points
     dim = xs.shape[1]
     ns = _outward(slave_mesh, slave_facets)
     nm = _outward(master_mesh, master_facets)
     build = _pieces_2d if dim == 2 else _pieces_3d
-    # same_way: slave facets facing a master facet whose normal points the same way
-    pieces, same_way = build(xs, slave_facets, ns, xm, master_facets, nm)
-    return _assemble(xs, slave_facets, ns, xm, pieces, names, same_way)
+    # the pieces on the facets' corners; same_way: slave facets facing a master facet
+    # whose normal points the same way
+    sc, mc = (f[:, :TYPES[k].corners] for f, k in zip((slave_facets, master_facets), kinds))
+    pieces, same_way = build(xs, sc, ns, xm, mc, nm)
+    return _assemble(xs, (slave_facets, kinds[0]), ns, xm, (master_facets, kinds[1]),
+                     pieces, names, same_way)
+
+
+def _facet_kind(mesh, facets, body, name, names):
+    """The facet type of ``facets`` (rows of every node of the mesh's facet type)."""
+    kind = mesh.facet_type
+    if facets.shape[1] != TYPES[kind].n_nodes:
+        raise InputError(
+            f"interface body {names[0]!r} set {names[1]!r} / body {names[2]!r} set "
+            f"{names[3]!r}: body {body!r} set {name!r} has facets of {facets.shape[1]} "
+            f"nodes, its {mesh.cell_type} cells have {kind} facets of "
+            f"{TYPES[kind].n_nodes}. Fix: give the facet set as facets of the body's own "
+            f"cells (every node of each face)")
+    return kind
 
 
 def _outward(mesh, facets):
@@ -167,19 +199,6 @@ def _facet_size(x, facets):
     return np.linalg.norm(p - np.roll(p, 1, axis=1), axis=2).max(axis=1)
 
 
-# ---------------------------------------------------------------- shape functions
-def _shape(kind, r):
-    """Shape functions at local coordinates ``r`` (n, k): line ``xi in [0, 1]``,
-    triangle ``(r, s)`` barycentric, quad ``(xi, eta) in [-1, 1]^2`` (cyclic nodes)."""
-    if kind == 2:
-        return np.stack([1.0 - r[:, 0], r[:, 0]], axis=1)
-    if kind == 3:
-        return np.stack([1.0 - r[:, 0] - r[:, 1], r[:, 0], r[:, 1]], axis=1)
-    a, b = r[:, 0], r[:, 1]
-    return 0.25 * np.stack([(1 - a) * (1 - b), (1 + a) * (1 - b), (1 + a) * (1 + b),
-                            (1 - a) * (1 + b)], axis=1)
-
-
 def _inverse_map(polys, q):
     """Local coordinates of the points ``q`` (n, 2), point i in the planar facet
     ``polys[i]`` (n, k, 2): barycentric for triangles, Newton on the bilinear map for
@@ -195,7 +214,7 @@ def _inverse_map(polys, q):
         dNb = 0.25 * np.stack([-(1 - a), -(1 + a), 1 + a, 1 - a], axis=1)
         J = np.stack([np.einsum("nk,nkd->nd", dNa, polys),
                       np.einsum("nk,nkd->nd", dNb, polys)], axis=2)     # dx/d(a, b)
-        res = q - np.einsum("nk,nkd->nd", _shape(4, r), polys)
+        res = q - np.einsum("nk,nkd->nd", shape_values(4, r), polys)
         if np.abs(res).max() <= 1e-15 * scale:
             break
         r += _solve_2x2(J, res)
@@ -288,7 +307,7 @@ class _Pieces:
         local coordinates refer to (3D: counter-clockwise seen from the master side)
     piece : (n_points,) piece of each point (non-decreasing)
     r_slave, r_master : (n_points, dim - 1) local coordinates of the points in the two
-        facets (:func:`_shape`)
+        facets (:func:`qsma.model.dual_basis.shape_values`)
     weight : (n_points,) integration weights (area; length per unit depth in 2D)
     """
 
@@ -461,9 +480,12 @@ def _fan_points(piece, count):
 
 
 # ---------------------------------------------------------------- assembly
-def _assemble(xs, sf, ns, xm, pieces, names, same_way):
+def _assemble(xs, slave, ns, xm, master, pieces, names, same_way):
     """Dual basis per slave facet, then ``D``, ``M`` and the weighted gap, batched over
-    the facets (stacked dense solves of the small facet mass matrices)."""
+    the facets (stacked dense solves of the small facet mass matrices). ``slave``,
+    ``master``: (facet rows, facet type)."""
+    (sf, skind), (mf, mkind) = slave, master
+    corners = sf[:, :TYPES[skind].corners]
     # covered fraction of each slave facet (the clipped pieces' area over the facet's,
     # exact for planar polygons), and of each node: the least of its facets
     facet_area = np.linalg.norm(ns, axis=1)
@@ -472,30 +494,35 @@ def _assemble(xs, sf, ns, xm, pieces, names, same_way):
     node_cover = np.full(len(xs), np.inf)
     np.minimum.at(node_cover, sf.ravel(), np.repeat(covered, sf.shape[1]))
     keep = covered >= MIN_FACET_COVER
+    mixing = mixing_matrix(skind)
+    if not TYPES[skind].is_linear:
+        keep &= ~weak_shares(pieces, sf, skind, mixing, covered * facet_area)
     _check_coverage(xs, np.unique(sf), node_cover, names, np.unique(sf[same_way]),
                     keep.any())
     pc = pieces if keep.all() else _only_facets(pieces, keep)
     unmatched = max(float(facet_area.sum() - (covered * facet_area)[keep].sum()), 0.0)
     point_facet = pc.facet[pc.piece]
     snodes = np.unique(sf[keep])
-    Ns = _shape(sf.shape[1], pc.r_slave)
-    Nm = _shape(pc.master_nodes.shape[1], pc.r_master)
+    Ns, s_rows = facet_values(skind, sf, pc.facet, pc.slave_nodes, pc.piece, pc.r_slave)
+    Nm, m_rows = facet_values(mkind, mf, pc.master, pc.master_nodes, pc.piece,
+                               pc.r_master)
     w = pc.weight
-    D, psi = _dual_basis(Ns, w, point_facet, pc.slave_nodes[pc.piece], len(xs))
-    point_nodes = pc.slave_nodes[pc.piece]
+    point_nodes = s_rows[pc.piece]
+    D, psi = dual_basis(Ns if mixing is None else Ns @ mixing.T, w, point_facet,
+                         point_nodes, len(xs))
     # the gap along the slave normal at every point, the worst one against the size
     normal = ns / np.linalg.norm(ns, axis=1, keepdims=True)
     xg_s = np.einsum("pk,pkd->pd", Ns, xs[point_nodes])
-    xg_m = np.einsum("pk,pkd->pd", Nm, xm[pc.master_nodes[pc.piece]])
+    xg_m = np.einsum("pk,pkd->pd", Nm, xm[m_rows[pc.piece]])
     gap = np.einsum("pd,pd->p", xg_m - xg_s, normal[point_facet])
-    _check_gap(gap, xg_s, _facet_size(xs, sf)[point_facet], names)
+    _check_gap(gap, xg_s, _facet_size(xs, corners)[point_facet], names)
     weighted_gap = np.bincount(point_nodes.ravel(), minlength=len(xs),
                                weights=(psi * (w * gap)[:, None]).ravel())
     # M_ik = int psi_i N_k^m per piece: rows the slave facet's nodes, columns the master's
     starts = np.flatnonzero(np.r_[True, np.diff(pc.piece) != 0])
     vals = np.add.reduceat((psi * w[:, None])[:, :, None] * Nm[:, None, :], starts, axis=0)
-    rows = np.broadcast_to(pc.slave_nodes[:, :, None], vals.shape)
-    cols = np.broadcast_to(pc.master_nodes[:, None, :], vals.shape)
+    rows = np.broadcast_to(s_rows[:, :, None], vals.shape)
+    cols = np.broadcast_to(m_rows[:, None, :], vals.shape)
     order = snodes[np.lexsort(xs[snodes].T[::-1])]
     M = sp.coo_matrix((vals.ravel(), (rows.ravel(), cols.ravel())),
                       shape=(len(xs), len(xm))).tocsr()
@@ -504,9 +531,10 @@ def _assemble(xs, sf, ns, xm, pieces, names, same_way):
     P = sp.diags(1.0 / D[order]) @ M[:, mnodes]
     P.eliminate_zeros()
     nrm = _nodal_normals(len(xs), sf, ns)[order]
+    basis = None if mixing is None else slave_basis(sf[keep], skind, order, len(xs))
     return MortarOperator(order, mnodes, P.tocsr(), D[order], nrm,
                           weighted_gap[order] / D[order], float(facet_area.sum()),
-                          unmatched)
+                          unmatched, basis)
 
 
 def _only_facets(pc, keep):
@@ -517,24 +545,6 @@ def _only_facets(pc, keep):
     return _Pieces(pc.facet[kept], pc.master[kept], pc.slave_nodes[kept],
                    pc.master_nodes[kept], number[pc.piece[point]], pc.r_slave[point],
                    pc.r_master[point], pc.weight[point])
-
-
-def _dual_basis(Ns, w, point_facet, point_nodes, n_points):
-    r"""``(D, psi)``: the tributary areas ``D_i = int N_i`` (over all nodes) and the
-    dual basis at every point, per slave facet ``e`` (the points come sorted by facet)
-
-    .. math:: M_e = \int N N^T, \quad D_e = \mathrm{diag}(M_e \mathbf{1}), \quad
-              \psi = A N, \quad A = D_e M_e^{-1}
-
-    so that :math:`\int \psi_i N_j = \delta_{ij} D_i` (``M_e`` symmetric:
-    :math:`A^T = M_e^{-1} D_e`, one stacked solve for all facets)."""
-    first = np.flatnonzero(np.r_[True, np.diff(point_facet) != 0])
-    slot = np.repeat(np.arange(len(first)), np.diff(np.r_[first, len(w)]))
-    Me = np.add.reduceat((Ns * w[:, None])[:, :, None] * Ns[:, None, :], first, axis=0)
-    rowsum = Me.sum(axis=2)
-    D = np.bincount(point_nodes[first].ravel(), weights=rowsum.ravel(), minlength=n_points)
-    A = np.linalg.solve(Me, rowsum[:, :, None] * np.eye(Ns.shape[1])).transpose(0, 2, 1)
-    return D, np.einsum("pk,pik->pi", Ns, A[slot])
 
 
 def _check_gap(gap, x, size, names):

@@ -136,6 +136,10 @@ class Pairing:
     projection : (n_pairs, n_master) sparse ``P = D^-1 M`` or None
     gap : (n_pairs,) weighted normal gap of the undeformed mortar surfaces (reported,
         taken as zero), None for node-to-node
+    slave_basis : None, or the :class:`qsma.model.dual_basis.SlaveBasis` of a mortar slave
+        on mixed quadratic facets: the contact point's displacement is then the
+        coefficient ``u~_i`` of its mixed function, ``u_slave = to_nodes @ u~``, and
+        ``projection @ u_master`` is what ``u~`` is tied to
     """
 
     nodes1: np.ndarray
@@ -147,6 +151,7 @@ class Pairing:
     slave: int = 1
     projection: sp.csr_matrix | None = None
     gap: np.ndarray | None = None
+    slave_basis: object = None
 
     @property
     def n_pairs(self):
@@ -365,7 +370,7 @@ def mortar_pairing(model, interface=None) -> Pairing:
     nodes = (op.slave_nodes, op.master_nodes) if k == 1 else (op.master_nodes,
                                                               op.slave_nodes)
     return Pairing(nodes[0], nodes[1], sb.mesh.points[op.slave_nodes].copy(),
-                   local_frames(normals), op.area, "mortar", k, op.P, op.gap)
+                   local_frames(normals), op.area, "mortar", k, op.P, op.gap, op.basis)
 
 
 def _warn_partial(itf, op, body, name):
@@ -388,7 +393,9 @@ def _warn_quad8(itf, *bodies):
             f"interface {itf.label}: body {on[0]!r} meets it with quad8 facets "
             f"(hexahedron20 cells); the corner pairs of such facets open under a uniform "
             f"pressure and the midside pairs carry the load. Prefer hexahedron27 or "
-            f"incompatible-mode hexahedra (C3D8I) at contact surfaces"),
+            f"incompatible-mode hexahedra (C3D8I) at contact surfaces, or set coupling = "
+            f"\"mortar\" on the interface (its dual basis gives every contact point a "
+            f"positive share of a pressure)"),
         stacklevel=4)                        # the caller of make_pairing
 
 

@@ -38,7 +38,9 @@ class CondensedBody:
     Attributes
     ----------
     C, E : positions of interface / other DOFs in the body's DOF numbering
-    R : sparse block-diagonal rotation, ``u_C = R @ u_local``, ``u_local = R.T @ u_C``
+    R : sparse block-diagonal rotation, ``u_C = R @ u_local``, ``u_local = R.T @ u_C``;
+        on the slave of mixed quadratic mortar facets, the rotation after the change to
+        the contact coefficients (:func:`pair_rotation`), and ``R_inv`` its inverse
     Kc : condensed stiffness in local frames
     solve_EE : factorised ``K_EE^-1`` (callable on vectors or matrices)
     K_EC : sparse coupling block
@@ -54,6 +56,12 @@ class CondensedBody:
     K_EC: object
     timings: dict = None
     rigid: np.ndarray = None     # orthonormal free rigid motions on C (local), or None
+    R_inv: object = None         # inverse of R where R is not a rotation, else None
+
+    @property
+    def to_local(self):
+        """The map ``u_local = to_local @ u_C`` (``R.T`` for a rotation)."""
+        return self.R.T if self.R_inv is None else self.R_inv
 
     def condensed_load(self, F: np.ndarray) -> np.ndarray:
         """``Fc = R^T (F_C - K_CE K_EE^-1 F_E)`` for full-length load(s) ``F``."""
@@ -77,14 +85,27 @@ class CondensedBody:
         return h, e
 
 
-def pair_rotation(frames: np.ndarray) -> sp.csr_matrix:
+def pair_rotation(frames: np.ndarray, basis=None) -> sp.csr_matrix:
     """Sparse block-diagonal ``R`` with ``u_C = R u_local`` (pair-major): block i is
-    ``frames[i].T``, its columns the local axes of pair i."""
-    return sp.block_diag(np.swapaxes(frames, 1, 2), format="csr")
+    ``frames[i].T``, its columns the local axes of pair i. With the ``basis``
+    (:class:`qsma.model.dual_basis.SlaveBasis`) of a mortar slave whose contact unknowns
+    are coefficients ``u~`` of mixed quadratic functions, ``u_C = (B kron I) R u~_local``
+    with ``B = basis.to_nodes``."""
+    R = sp.block_diag(np.swapaxes(frames, 1, 2), format="csr")
+    if basis is None:
+        return R
+    return sp.csr_matrix(sp.kron(basis.to_nodes, sp.identity(frames.shape[1])) @ R)
 
 
-def condense_body(assembled, nodes, frames, backend="auto") -> CondensedBody:
-    """Condense one assembled body onto the interface ``nodes`` (pair order, frames).
+def _pair_rotation_inverse(frames, basis):
+    """``R^-1`` of :func:`pair_rotation` with a ``basis``: ``R0^T (B^-1 kron I)``."""
+    R0 = sp.block_diag(np.swapaxes(frames, 1, 2), format="csr")
+    return sp.csr_matrix(R0.T @ sp.kron(basis.from_nodes, sp.identity(frames.shape[1])))
+
+
+def condense_body(assembled, nodes, frames, backend="auto", basis=None) -> CondensedBody:
+    """Condense one assembled body onto the interface ``nodes`` (pair order, frames;
+    ``basis``: the contact coefficients of a mixed quadratic mortar slave, :func:`pair_rotation`).
 
     ``frames`` None: the interface DOFs are the global components of ``nodes`` that no
     clamp holds (``R`` the identity), as the several-body reduction
@@ -105,7 +126,7 @@ def condense_body(assembled, nodes, frames, backend="auto") -> CondensedBody:
     free = assembled.free
     K = assembled.K.tocsr()
     if len(C) >= len(free) or not len(C):    # nothing inside, or nothing on the interface
-        return _without_interior(assembled, C, frames, K, backend)
+        return _without_interior(assembled, C, frames, K, backend, basis)
     Kf = K[free][:, free]
     try:
         Kc_glob, solve = schur_complement(Kf, np.searchsorted(free, C), backend=backend)
@@ -116,30 +137,34 @@ def condense_body(assembled, nodes, frames, backend="auto") -> CondensedBody:
     t0 = time.perf_counter()
     E = free[solve.E]
     K_EC = K[E][:, C].tocsc()
-    R = sp.identity(len(C), format="csr") if frames is None else pair_rotation(frames)
+    R = sp.identity(len(C), format="csr") if frames is None else pair_rotation(frames, basis)
     Kc = np.asarray(R.T @ Kc_glob)
     del Kc_glob
     Kc = symmetrised(np.ascontiguousarray(R.T @ Kc.T))  # R^T Kc R, Kc_glob symmetric
-    rigid = interface_basis(assembled, C, R)
+    R_inv = None if basis is None else _pair_rotation_inverse(frames, basis)
+    rigid = interface_basis(assembled, C, R.T if R_inv is None else R_inv)
     timings = dict(solve.timings, rotation=time.perf_counter() - t0, backend=solve.backend)
-    return CondensedBody(body.name, body.n_dofs, C, E, R, Kc, solve, K_EC, timings, rigid)
+    return CondensedBody(body.name, body.n_dofs, C, E, R, Kc, solve, K_EC, timings, rigid,
+                         R_inv)
 
 
-def _without_interior(assembled, C, frames, K, backend) -> CondensedBody:
+def _without_interior(assembled, C, frames, K, backend, basis=None) -> CondensedBody:
     """A body whose every unclamped DOF lies on the interface (one layer of cells, or
     every other node clamped): its condensed stiffness is ``K_CC`` itself, ``E`` is
     empty. A body whose interface is clamped all over: ``C`` is empty, the clamps
     alone hold it there (its interior, if any, is solved in the recovery)."""
     t0 = time.perf_counter()
-    R = sp.identity(len(C), format="csr") if frames is None else pair_rotation(frames)
+    R = sp.identity(len(C), format="csr") if frames is None else pair_rotation(frames, basis)
     Kc = symmetrised(np.ascontiguousarray(R.T @ (R.T @ K[C][:, C].toarray()).T))
     E = np.setdiff1d(assembled.free, C)
     solve = RefactorisedEE(assembled, E, backend)
-    rigid = interface_basis(assembled, C, R) if len(C) else None
+    R_inv = None if basis is None else _pair_rotation_inverse(frames, basis)
+    rigid = (interface_basis(assembled, C, R.T if R_inv is None else R_inv) if len(C)
+             else None)
     return CondensedBody(assembled.body.name, assembled.body.n_dofs, C, E, R, Kc, solve,
                          K[E][:, C].tocsc(), dict(rotation=time.perf_counter() - t0,
                                                   backend="none (no interior DOFs)"),
-                         rigid)
+                         rigid, R_inv)
 
 
 def congruent_body(base: CondensedBody, assembled, nodes, frames, congruence
@@ -177,7 +202,7 @@ def congruent_body(base: CondensedBody, assembled, nodes, frames, congruence
     Kc = CongruentMatrix(np.asarray(base.Kc), G)     # G Kc_A G^T, not held densely
     K_EC = assembled.K.tocsr()[E][:, C].tocsc()
     solve = MappedSolver(base.solve_EE, T_E, base.name)
-    rigid = interface_basis(assembled, C, R)
+    rigid = interface_basis(assembled, C, R.T)
     timings = dict(congruent_with=base.name, mapped=time.perf_counter() - t0,
                    backend=base.timings.get("backend") if base.timings else None)
     return CondensedBody(body.name, body.n_dofs, C, E, R, Kc, solve, K_EC, timings, rigid)
@@ -205,16 +230,18 @@ def _orthogonal_block(T) -> bool:
     return one(sq.sum(axis=0)) and one(sq.sum(axis=1))
 
 
-def condense_bodies(assembled, nodes, frames, backend="auto") -> tuple:
+def condense_bodies(assembled, nodes, frames, backend="auto", bases=None) -> tuple:
     """:func:`condense_body` for every body (``nodes[j]``, ``frames[j]`` its interface
-    nodes and pair frames), except that a body congruent to an earlier one
+    nodes and pair frames, ``bases[j]`` None or the basis of a mixed quadratic mortar
+    slave), except that a body congruent to an earlier one
     (:func:`qsma.reduction.congruence.find_congruence`, checked before any factorisation) is
     derived from that one's condensation (:func:`congruent_body`): one factor for
-    both."""
+    both (bodies without a basis only: the derivation maps rotations)."""
+    bases = bases or (None,) * len(assembled)
     own = {}                                  # body j -> (base body k, congruence)
     for j in range(len(assembled)):
         for k in range(j):
-            if k in own:
+            if k in own or bases[j] is not None or bases[k] is not None:
                 continue
             cong = find_congruence(assembled[k], assembled[j], nodes[k], nodes[j])
             if cong is not None:
@@ -229,7 +256,8 @@ def condense_bodies(assembled, nodes, frames, backend="auto") -> tuple:
             if b is None:
                 log.info("body %r is condensed on its own: its interface or other DOFs "
                          "do not correspond to those of %r", a.body.name, bodies[k].name)
-        bodies.append(condense_body(a, nodes[j], frames[j], backend) if b is None else b)
+        bodies.append(condense_body(a, nodes[j], frames[j], backend, bases[j])
+                      if b is None else b)
     return tuple(bodies)
 
 

@@ -188,14 +188,20 @@ def relative_displacement_operator(couplings, nodes, dim):
 
 
 def _terms(c, nodes):
-    """(body, (contact point, node position in the body's set), weight) of ``d``."""
+    """(body, (contact point, node position in the body's set), weight) of ``d``; on
+    mixed quadratic slave facets the slave term is the contact coefficient
+    ``u~ = from_nodes @ u_s`` (:class:`qsma.model.dual_basis.SlaveBasis`)."""
     p = c.pairing
     n = p.n_pairs
     s_pos = np.searchsorted(nodes[c.slave], p.contact_nodes)
     N = c.projection.tocoo()
     m_pos = np.searchsorted(nodes[c.master], p.master_nodes)[N.col]
-    return [(c.slave, (np.arange(n), s_pos), np.full(n, c.sigma)),
-            (c.master, (N.row, m_pos), -c.sigma * N.data)]
+    if p.slave_basis is None:
+        slave = (c.slave, (np.arange(n), s_pos), np.full(n, c.sigma))
+    else:
+        Bi = p.slave_basis.from_nodes.tocoo()
+        slave = (c.slave, (Bi.row, s_pos[Bi.col]), c.sigma * Bi.data)
+    return [slave, (c.master, (N.row, m_pos), -c.sigma * N.data)]
 
 
 def reduce_bodies(assembled, couplings, patterns=("preload",), backend="auto",
@@ -325,7 +331,8 @@ def tie_transform(model, assembled, pairing, tied) -> sp.csr_matrix:
     r"""``T`` with ``x_all = T x_reduced`` for the contact points in mask ``tied`` of
     every interface tied: Dirichlet DOFs dropped, and per tied contact point, component
     by component, the slave node's DOFs replaced by the interpolation of the master's,
-    ``u_s = sum_k N_ik u_m,k`` (``N = I`` node-to-node). A master DOF that is itself a
+    ``u_s = sum_k N_ik u_m,k`` (``N = I`` node-to-node; on mixed quadratic slave facets
+    the coefficients of the mixed functions, :func:`_tie_rows`). A master DOF that is itself a
     slave of another interface (a washer between two plates) is replaced in turn, so
     ``T`` is the product of the substitutions; a chain that closes on itself is refused.
 
@@ -348,23 +355,26 @@ def tie_transform(model, assembled, pairing, tied) -> sp.csr_matrix:
     for c, sl in zip(pairing.couplings, _row_slices(pairing)):
         p, t = c.pairing, tied[sl]
         sym = symmetry_components(p, assembled[c.slave], assembled[c.master])[t]
+        N_t, corner_t = (m.tocsr() for m in _tie_rows(c, t))
         snodes, mnodes = p.contact_nodes[t], p.master_nodes
         for comp in range(dim):
-            N = c.projection[t][~sym[:, comp]].tocoo()    # a symmetry: clamped only
-            sd = off[c.slave] + dim * snodes[~sym[:, comp]] + comp
+            free_rows = ~sym[:, comp]                    # a symmetry: clamped only
+            N, corner = N_t[free_rows].tocoo(), corner_t[free_rows].tocoo()
+            sd = off[c.slave] + dim * snodes[free_rows] + comp
             md = off[c.master] + dim * mnodes[N.col] + comp
+            cd = off[c.slave] + dim * p.contact_nodes[corner.col] + comp
             if fixed[sd].any():
-                on = fixed[sd][N.row]
+                on, on_c = fixed[sd][N.row], fixed[sd][corner.row]
                 if p.projection is None:
                     fixed[md[on]] = True
                 else:
-                    held[0].append(sd[N.row][on])
-                    held[1].append(md[on])
-                    held[2].append(N.data[on])
+                    held[0].extend([sd[N.row][on], sd[corner.row][on_c]])
+                    held[1].extend([md[on], cd[on_c]])
+                    held[2].extend([N.data[on], corner.data[on_c]])
             slaves.append(sd)
-            rows.append(sd[N.row])
-            cols.append(md)
-            vals.append(N.data)
+            rows += [sd[N.row], sd[corner.row]]
+            cols += [md, cd]
+            vals += [N.data, corner.data]
     slaves = np.concatenate(slaves)
     if len(np.unique(slaves)) != len(slaves):
         raise InputError("a node is the slave of two interfaces; choose the slave sides "
@@ -376,7 +386,7 @@ def tie_transform(model, assembled, pairing, tied) -> sp.csr_matrix:
     B = sp.coo_matrix((np.concatenate([np.ones(len(free))] + vals),
                        (np.concatenate([free] + rows), np.concatenate([free] + cols))),
                       shape=(n, n)).tocsr()
-    B = _substitute(B, is_slave, len(pairing.couplings))
+    B = _substitute(B, is_slave, len(pairing.couplings) + 1)
     keep = np.flatnonzero(~fixed & ~is_slave)
     T = B[:, keep].tocsr()
     if not held[0]:
@@ -385,6 +395,28 @@ def tie_transform(model, assembled, pairing, tied) -> sp.csr_matrix:
     A = sp.coo_matrix((np.concatenate(held[2]), (r, np.concatenate(held[1]))),
                       shape=(r.max() + 1, n)).tocsr() @ T
     return (T @ constrained_basis(A)).tocsr()
+
+
+def _tie_rows(c, t):
+    """``(N, corner)``: the rows ``u_s,i = sum_k N_ik u_m,k + sum_j corner_ij u_s,j`` of
+    the contact points in mask ``t``. ``N`` is the projection and ``corner`` empty,
+    except on mixed quadratic slave facets (:class:`qsma.model.dual_basis.SlaveBasis`,
+    ``u_s = B u~``): there the coefficient is tied, ``u~_i = (P u_m)_i``, and since a
+    midside row of ``B`` reaches only corners, whose coefficients are their nodal
+    values, ``u_s,i = B_ii (P u_m)_i + sum_{j != i} B_ij u_s,j`` (the corners' own rows
+    substituted in turn where they are tied). An open contact point keeps its node's
+    DOFs as unknowns."""
+    N = c.projection[t]
+    basis = c.pairing.slave_basis
+    if basis is None:
+        return N.tocoo(), sp.coo_matrix((int(t.sum()), c.pairing.n_pairs))
+    B = basis.to_nodes[t].tocsr()
+    diagonal = B[:, np.flatnonzero(t)].diagonal()
+    corner = B.tolil()
+    corner[np.arange(len(diagonal)), np.flatnonzero(t)] = 0.0
+    corner = corner.tocsr()
+    corner.eliminate_zeros()
+    return (sp.diags(diagonal) @ N).tocoo(), corner.tocoo()
 
 
 def _row_slices(pairing):

@@ -112,9 +112,10 @@ def assembly_motions(model, assembled) -> np.ndarray:
     return free_motions(points, fixed)
 
 
-def interface_basis(assembled, C: np.ndarray, R) -> np.ndarray | None:
+def interface_basis(assembled, C: np.ndarray, to_local) -> np.ndarray | None:
     """Orthonormal basis ``B_j`` of the body's free rigid motions on its interface DOFs
-    (local frames: ``u_C = R u_local``), or None for a body its clamps hold.
+    (local frames: ``u_local = to_local @ u_C``, ``R^T`` of a rotation ``u_C = R
+    u_local``), or None for a body its clamps hold.
 
     Raises :class:`InputError` naming the body if a free motion does not move the
     interface (then nothing can hold it: its ``K_EE`` would be singular)."""
@@ -122,7 +123,7 @@ def interface_basis(assembled, C: np.ndarray, R) -> np.ndarray | None:
     free = free_motions(body.mesh.points, held(assembled))
     if free.shape[1] == 0:
         return None
-    B, r = np.linalg.qr(np.asarray(R.T @ free[C]))
+    B, r = np.linalg.qr(np.asarray(to_local @ free[C]))
     if np.min(np.abs(np.diag(r))) < CLAMP_RANK_TOL * np.abs(np.diag(r)).max():
         raise InputError(f"body {body.name!r} is held neither by its clamps nor by its "
                          f"interface nodes (free motion: "
@@ -168,7 +169,7 @@ def assembly_gauge(assembled, bodies, index, loads=None) -> np.ndarray | None:
                 f"body): it would accelerate as a rigid body. Load it with balanced pairs "
                 f"(bolts, equal pressures on both bodies) or clamp it")
     b = bodies[index]
-    return orthonormal([np.asarray(b.R.T @ free[starts[index]:starts[index + 1]][b.C])])
+    return orthonormal([np.asarray(b.to_local @ free[starts[index]:starts[index + 1]][b.C])])
 
 
 def regularised_S(S, Z):

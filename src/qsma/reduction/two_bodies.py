@@ -22,7 +22,7 @@ import scipy.sparse as sp
 from .._infra.dense import cho_solved, mirror_triangle, symmetrised
 from ..errors import InputError
 from .condensation import (condense_bodies, condensed_loads, extended_prescribed,
-                           prescribed_patterns, recovered, with_prescribed)
+                           pair_rotation, prescribed_patterns, recovered, with_prescribed)
 from ..model.pairing import Coupling
 from .multibody import reduce_bodies
 from .clamps import clamped_interface
@@ -215,13 +215,14 @@ def minus_gram(A, S_cho, B) -> np.ndarray:
     return symmetrised(G)
 
 
-def projection_matrix(pairing, R_slave) -> sp.csr_matrix:
+def projection_matrix(pairing) -> sp.csr_matrix:
     """Sparse ``P`` over DOFs: ``(P u_m)`` in the slave's local frames from master global
-    components, ``P = R_s^T (N kron I_dim)`` with ``N`` the pairing's projection (a slave
-    DOF couples to the master DOFs of the few facets it faces)."""
+    components, ``P = R_s^T (N kron I_dim)`` with ``N`` the pairing's projection and
+    ``R_s`` the rotation into the contact points' frames (a slave DOF couples to the
+    master DOFs of the few facets it faces)."""
     dim = pairing.frames.shape[1]
     N = sp.kron(pairing.projection, sp.identity(dim), format="csr")
-    return sp.csr_matrix(R_slave.T @ N)
+    return sp.csr_matrix(pair_rotation(pairing.frames).T @ N)
 
 
 def combine(slave, master, P, Z=None):
@@ -255,8 +256,9 @@ def reduce_two_bodies(assembled1, assembled2, pairing, patterns=("preload",),
     """Condense both bodies and combine them into the relative-displacement problem.
 
     Node-to-node pairings use the pair frames on both sides; a mortar pairing condenses
-    the slave on its contact points (local frames) and the master on its own interface
-    nodes (global components), joined by the projection (:func:`combine`).
+    the slave on its contact points (local frames; on mixed quadratic facets the
+    coefficients of the mixed functions, ``pairing.slave_basis``) and the master on its
+    own interface nodes (global components), joined by the projection (:func:`combine`).
     ``backend`` chooses the Schur-complement method (:data:`qsma.reduction.schur.SCHUR_BACKENDS`).
 
     An interface node that a clamp holds in some direction makes the relative
@@ -286,9 +288,11 @@ def reduce_two_bodies(assembled1, assembled2, pairing, patterns=("preload",),
     nodes = (pairing.nodes1, pairing.nodes2)
     eye = np.broadcast_to(np.eye(dim), (len(nodes[m]), dim, dim))
     framed = (pairing.frames, eye) if s == 0 else (eye, pairing.frames)
-    bodies = condense_bodies(asm, nodes, framed, backend)
+    bases = [None, None]
+    bases[s] = pairing.slave_basis            # mixed quadratic slave facets: u_s = B u~
+    bodies = condense_bodies(asm, nodes, framed, backend, bases)
     bs, bm = bodies[s], bodies[m]
-    P = projection_matrix(pairing, bs.R)
+    P = projection_matrix(pairing)
     sigma = 1.0 if s == 1 else -1.0
     Fc = tuple(condensed_loads(bodies, loads))
     Z = _gauge(asm, bodies, m, loads)
