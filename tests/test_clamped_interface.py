@@ -293,3 +293,47 @@ def test_clamp_oblique_to_the_contact_frame_on_both_sides_is_refused():
     with pytest.raises(InputError, match=r"the clamps hold a combination of the relative "
                        r"displacements of contact points \[0\]"):
         reduce_two_bodies(A[0], A[1], make_pairing(model))
+
+
+def test_interface_node_pinned_on_one_side():
+    """sandwich-2d with one interface node of the top beam pinned (both components, the
+    bottom beam's partner free): the run goes through, and at that pair the relative
+    displacement is the bottom node's displacement with its sign turned, the pinned node
+    staying at zero, for the preload and at every level."""
+    import dataclasses
+    from qsma.examples import sandwich_2d
+    m = sandwich_2d(1)
+    top = m.bodies[1]
+    node = int(top.mesh.nodes("interface")[3])
+    mesh = top.mesh.with_sets(node_sets={"pin": [node]})
+    top = dataclasses.replace(top, mesh=mesh, clamps=(Clamp("clamp"), Clamp("pin")))
+    model = dataclasses.replace(m, bodies=(m.bodies[0], top))
+    res = qsma.run(model, levels=qsma.Levels("tip", (1e-6, 1e-5)), refine_levels=False)
+    assert res.success
+    p = res.pairing
+    i = int(np.flatnonzero(p.nodes2 == node)[0])
+    a = np.zeros(len(res.reduced.patterns))
+    a[res.reduced.patterns.index("preload")] = 1.0
+    u1, u2 = res.reduced.recover(res.preload.d, a)
+    assert np.all(u2[2 * node:2 * node + 2] == 0.0)
+    partner = p.nodes1[i]
+    d_i = res.preload.d.reshape(-1, 2)[i]
+    assert np.allclose(d_i, -p.frames[i] @ u1[2 * partner:2 * partner + 2],
+                       rtol=1e-9, atol=1e-12 * np.abs(res.preload.d).max())
+
+
+@pytest.mark.skipif(__import__("shutil").which("ccx") is None,
+                    reason="CalculiX (ccx) not installed (apt-get install calculix-ccx)")
+def test_calculix_agrees_on_the_half_model(tmp_path):
+    """The half beams (:func:`_beams`, symmetry clamps on the interface of both bodies)
+    written as a CalculiX deck (``qsma export --calculix``) and run by ccx, which
+    models the clamped contact nodes itself: its tied frequency equals qsma's to the 7
+    digits it prints, its preload contact forces equal qsma's to the penalty
+    (benchmarks/bench_export_calculix.py; measured with ccx 2.20: 4.3e-6 of the largest
+    force, the sums to 1.3e-8; the whole model: 3.8e-6)."""
+    from helpers import load_benchmark
+    r = load_benchmark("bench_export_calculix").compare(_beams(True), tmp_path)
+    assert r["f0_tied"] == pytest.approx(r["f0_qsma"], rel=1e-6)
+    assert r["closed_ccx"] == r["closed_qsma"]
+    assert r["max_diff"] < 5e-5
+    assert r["total_ccx"] == pytest.approx(r["total_qsma"], rel=1e-6)

@@ -284,15 +284,6 @@ def test_mode_without_tip_motion():
         qsma.run(sideways, mode=0)        # first bending: no mean x motion of the tip
 
 
-def test_clamped_interface_node():
-    m = sandwich_2d(1)
-    node = int(m.bodies[1].mesh.nodes("interface")[3])
-    mesh = m.bodies[1].mesh.with_sets(node_sets={"pin": [node]})
-    bad = _replace_body(m, 1, mesh=mesh, clamps=(Clamp("clamp"), Clamp("pin")))
-    with pytest.raises(InputError, match=f"interface node.*{node}.*clamped"):
-        qsma.run(bad)
-
-
 def test_failed_preload_is_an_analysis_error():
     with pytest.warns(ContactConvergenceWarning):
         with pytest.raises(AnalysisError, match="preload contact solve failed"):

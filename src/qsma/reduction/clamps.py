@@ -116,17 +116,18 @@ def pivot_dofs(G, slave, dim):
     (the rows projected onto the orthogonal complement of the slave columns). A normal
     component fixed on both sides, and rows that stay dependent, are refused
     (:func:`fixed_normal`, :func:`dependent`)."""
-    A = G.toarray()
-    norms = np.abs(A).max(axis=1) if A.size else np.zeros(A.shape[0])
+    G = sp.csr_matrix(G)
+    norms = np.asarray(abs(G).max(axis=1).todense()).ravel() if G.nnz \
+        else np.zeros(G.shape[0])
     scale = max(norms.max(initial=0.0), np.finfo(float).tiny)
     fixed = np.flatnonzero(norms <= FIXED_RTOL * scale)
     normal = fixed[fixed % dim == dim - 1]
     if len(normal):
         raise fixed_normal(normal // dim)
-    rows = np.setdiff1d(np.arange(A.shape[0]), fixed)
-    A = A[rows]
+    rows = np.setdiff1d(np.arange(G.shape[0]), fixed)
     if len(slave) == len(rows):
         return fixed, slave
+    A = G[rows].toarray()
     rest = np.setdiff1d(np.arange(A.shape[1]), slave)
     Q = sla.qr(A[:, slave], mode="full")[0][:, len(slave):]
     left = Q.T @ A[:, rest]                           # what the slave DOFs cannot reach

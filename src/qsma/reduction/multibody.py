@@ -26,6 +26,12 @@ node), ``Q = G_s^-1``. Then ``u = T_r u_r + T_d d`` with ``T_r = [-Q G_r; I]``,
     K     = Q^T [Kc T_d - Kc T_r S^-1 T_r^T Kc T_d]_s
     lam_w = Q^T [Kc T_r S^-1 T_r^T Fc - Fc]_s
 
+Interface nodes held by clamps (:mod:`.clamps`): each body's unknowns are its
+unclamped interface DOFs, the columns of clamped DOFs leave ``G``, and the DOFs
+eliminated by ``d`` (the pivots) are the slave DOFs where they are free, else DOFs of
+the master; a component clamped on both sides (a zero row of ``G``) is fixed,
+``d = 0``.
+
 Only ``S`` is factorised (Cholesky): a body need not be held on its own as long as
 the welded assembly is (the contact problem then still needs ``K`` positive definite).
 For two bodies these are the formulas of :func:`qsma.reduction.two_bodies.combine`. (Not
