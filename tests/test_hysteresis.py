@@ -157,6 +157,22 @@ def test_refinement_converges_to_the_closed_form():
     assert errors[-1] < 0.1 * errors[0] and errors[-1] < 2e-3 * D
 
 
+def test_the_default_refinement_rounds_are_read_when_a_loop_is_computed(monkeypatch):
+    """REFINE_ROUNDS changed at run time (as benchmarks/bench_loop_accuracy.py does for
+    its reference) reaches the loops of a run, which leave refine_rounds at its
+    default: no refinement cycles with 0 rounds, some with the default 3."""
+    from qsma.hysteresis import refinement
+    A = 1600.0
+    problem, lam_w = _problem()
+    step = _stepper(problem, lam_w)
+    _, res = _ramp(problem, lam_w, [A])
+    loop = lambda: compute_loop(step, _modal, A, res[-1].state, np.linspace(0, 1, 6)[1:],
+                                k_ref=kt, rtol=1e-12)
+    assert loop().refinement_cycles > 0
+    monkeypatch.setattr(refinement, "REFINE_ROUNDS", 0)
+    assert loop().refinement_cycles == 0
+
+
 def test_settled_intervals_are_those_whose_share_of_the_loop_did_not_change():
     """An interval of a refinement round whose trapezoids of D and increments of q are
     those of the coarser cycle (here the first) is settled and its fine intervals with

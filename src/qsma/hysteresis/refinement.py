@@ -32,7 +32,7 @@ LOCAL_SHARE = 0.25
 
 
 def compute_loop(step, modal, amplitude, start, fractions, *, k_ref, max_cycles=8,
-                 rtol=5e-3, atol=0.0, refine_rounds=REFINE_ROUNDS,
+                 rtol=5e-3, atol=0.0, refine_rounds=None,
                  expect_closing=False, warm_start=False) -> Loop:
     """The stabilised loop at ``amplitude``, with the increments refined to ``rtol``.
 
@@ -59,7 +59,8 @@ def compute_loop(step, modal, amplitude, start, fractions, *, k_ref, max_cycles=
         ``CYCLE_CEILING max_cycles``.
     rtol, atol : float
         Refine until the error estimate is ``<= rtol |D| + atol`` (at most
-        ``refine_rounds`` rounds, each halving the increments where pair states change).
+        ``refine_rounds`` rounds, each halving the increments where pair states change;
+        ``None``: :data:`REFINE_ROUNDS` as it is at the call).
     expect_closing : bool
         Call ``step(alpha, state, closing)`` from the second cycle on, ``closing`` the
         pairs closed at the same point of the cycle before (:class:`_Closings`), the
@@ -88,6 +89,7 @@ def compute_loop(step, modal, amplitude, start, fractions, *, k_ref, max_cycles=
     (:func:`_path_error`). The estimate is the largest of the three; with
     ``refine_rounds = 0`` only the quadrature estimate and the transient are.
     """
+    refine_rounds = REFINE_ROUNDS if refine_rounds is None else refine_rounds
     u = np.unique(np.clip(np.asarray(fractions, dtype=float), 0.0, 1.0))
     u = np.union1d(u[u > 0], [1.0])
     closings = _Closings(warm_start) if expect_closing else None
