@@ -25,9 +25,6 @@ LAYERS = (
     ("output", ("qsma.output",)),
     ("applications", ("qsma.study", "qsma.examples", "qsma.cli", "qsma.__main__", "qsma")),
 )
-#: Not checked yet: the contact zone is restructured with the contact package; until
-#: then its imports, and imports of it, are left out.
-NOT_YET = ("qsma.contact.zone",)
 
 
 def _modules():
@@ -98,8 +95,7 @@ def _imports(name):
 
 
 def _checked(name) -> bool:
-    return not any(name == m or name.startswith(m + ".") for m in NOT_YET) \
-        and name not in OLD_PATHS
+    return name not in OLD_PATHS
 
 
 GRAPH = {name: [e for e in _imports(name) if _checked(e[0])]
@@ -164,14 +160,11 @@ def test_no_import_cycle():
 
 #: Most lines a module of ours may have: past it a module holds more than one concern.
 MAX_MODULE_LINES = 600
-#: Modules still longer, split with the contact package (docs/architecture.md).
-LONG_YET = ("qsma.contact.layer",)
 
 
 def test_no_module_is_longer_than_the_limit():
     long = {name: n for name, (path, _) in MODULES.items()
-            if (n := len(path.read_text().splitlines())) > MAX_MODULE_LINES
-            and name not in LONG_YET}
+            if (n := len(path.read_text().splitlines())) > MAX_MODULE_LINES}
     assert not long, f"modules over {MAX_MODULE_LINES} lines: {long}; split them"
 
 
@@ -209,7 +202,7 @@ def _resolved(name, node):
 
 def test_our_modules_import_the_new_paths():
     """An old path (a module that moved, or a name that did) is for code outside qsma: no
-    module of ours imports one (the run's modules that move next, NOT_YET, still do)."""
+    module of ours imports one."""
     old = []
     for name, (path, _) in MODULES.items():
         if not _checked(name):

@@ -13,7 +13,8 @@ from qsma.reduction.two_bodies import reduce_two_bodies
 from qsma.contact import ContactProblem, ContactState, solve
 from qsma.contact.laws import (ElasticStick, ExponentialPressure, InterfaceLaw,
                                LinearPressure, TabularPressure, law_from_table)
-from qsma.contact.layer import Layer, PairLaws, series_stiffness, solve_layered
+from qsma.contact.layer import Layer, series_stiffness, solve_layered
+from qsma.contact.pairlaws import PairLaws
 from qsma.errors import InputError
 from qsma.fe import assemble_body
 from qsma.model import Body, Clamp, Interface, LinearDamping, Material, Model, make_pairing

@@ -9,7 +9,8 @@ import numpy as np
 
 from .._infra.threads import CONTACT_BLAS_THREADS, blas_threads as threads_limited
 from ..contact import ContactProblem, OPEN
-from ..contact.layer import LOW_PRESSURE, LOW_SECANT, Anderson, Layer, interface_springs
+from ..contact.layer import Anderson, Layer, interface_springs
+from ..contact.pairlaws import LOW_PRESSURE, LOW_SECANT
 from ..errors import AnalysisError, ContactConvergenceWarning, InputError
 from ..fe import assemble_body
 from ..fe.bolts import bolt_functionals, with_bolt_loads
@@ -119,7 +120,7 @@ def _preload_solve(layer, reduced, method, opts, zone):
     update of its normal compliance, the tangential one kept from the first, which the
     tangent's chord then makes exact). Pairs below a floor pressure are linearised at
     the floor, lowered tenfold each time the law's residual stalls, from
-    :data:`qsma.contact.layer.LOW_PRESSURE` to :data:`qsma.contact.layer.LOW_SECANT`
+    :data:`qsma.contact.pairlaws.LOW_PRESSURE` to :data:`qsma.contact.pairlaws.LOW_SECANT`
     of the mean pressure. Once the law's residual is below :data:`PRELOAD_SWITCH`, the
     tangent's chord is tried from the secant's state (converging quadratically there).
     (A tangent linearisation started from the undeformed state shifts the unloaded

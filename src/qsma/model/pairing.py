@@ -10,7 +10,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..contact.laws import InterfaceLaw
-from ..contact.layer import PairLaws
+from ..contact.pairlaws import PairLaws
 from ..errors import InputError, InterfaceGapWarning
 from .interface import Pairing, pair_interface
 
@@ -133,7 +133,7 @@ def pair_mu(model, pairing) -> np.ndarray | float:
 
 
 def pair_laws(model, pairing):
-    """The :class:`qsma.contact.layer.PairLaws` of the contact points (each interface's
+    """The :class:`qsma.contact.pairlaws.PairLaws` of the contact points (each interface's
     ``law``), or None where every interface is rigid (hard contact, rigid stick)."""
     laws, index = [], []
     for itf, p in interface_pairings(model, pairing):
