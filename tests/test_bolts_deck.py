@@ -8,6 +8,7 @@ forces, contact forces and the tied frequency equal qsma's
 from __future__ import annotations
 
 import dataclasses
+import json
 import re
 import shutil
 
@@ -131,6 +132,19 @@ def test_element_sets_may_hold_the_connectors(linear_brb, tmp_path):
     read, back = _reread(path)
     assert back.bodies[0].mesh.cell_sets["EVERYTHING"].tolist() == [0, 1]
     assert len(back.bolts) == 3
+
+
+def test_qsma_runs_the_exported_deck_with_its_bolts(linear_brb, tmp_path):
+    """``qsma run deck.inp`` of the exported deck: the same f0 and backbone as the
+    model it was written from (its bolts read from the deck)."""
+    model, deck, _, _ = linear_brb
+    out = tmp_path / "out"
+    assert main(["run", str(deck.path), "--out", str(out), "--levels",
+                 "alpha:list:10,100", "--no-plots"]) == 0
+    result = json.loads((out / "results.json").read_text())
+    direct = qsma.run(model, levels=Levels("alpha", (10.0, 100.0)))
+    assert result["mode"]["f0_hz"] == pytest.approx(direct.f0_hz, rel=1e-10)
+    np.testing.assert_allclose(result["levels"]["q"], direct.q, rtol=1e-9)
 
 
 def test_2d_bolts_are_refused_for_calculix():
