@@ -214,6 +214,22 @@ def test_couplings_of_no_bolt_are_refused_with_the_pattern(tmp_path):
     assert "qsma has no rigid (kinematic) couplings" in note.fix
 
 
+def test_an_abaqus_connector_bolt_is_refused_with_the_pattern(tmp_path):
+    """Abaqus' connector bolt (a CONN3D2 with an AXIAL *CONNECTOR SECTION and a
+    *CONNECTOR LOAD): the mesh still reads, the connector's cards are refused with the
+    pattern qsma reads."""
+    def connector(text):
+        return text.replace("*STEP", "*ELEMENT, TYPE=CONN3D2, ELSET=CONN\n99001, 1, 2\n"
+                            "*CONNECTOR SECTION, ELSET=CONN\nAXIAL\n*STEP", 1).replace(
+            "*STATIC\n", "*STATIC\n*CONNECTOR LOAD\n99001, 1, 8000.\n", 1)
+    deck = _lap_deck(tmp_path, connector)
+    what = {n.what for n in deck.refusals}
+    assert {"*CONNECTOR SECTION", "*CONNECTOR LOAD"} <= what
+    note = next(n for n in deck.refusals if n.what == "*CONNECTOR SECTION")
+    assert note.fix.startswith("qsma reads no connector elements (CONN3D2); qsma reads "
+                               "couplings, beams and springs only as a bolt")
+
+
 @pytest.mark.parametrize("member", ["B31", "T3D2"])
 def test_a_member_alone_is_a_bolt_of_its_own_stiffness(tmp_path, member):
     """Abaqus' pattern (the member carries the pretension and the stiffness): a B31
