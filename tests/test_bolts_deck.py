@@ -8,6 +8,7 @@ forces, contact forces and the tied frequency equal qsma's
 from __future__ import annotations
 
 import dataclasses
+import json
 import re
 import shutil
 
@@ -133,6 +134,19 @@ def test_element_sets_may_hold_the_connectors(linear_brb, tmp_path):
     assert len(back.bolts) == 3
 
 
+def test_qsma_runs_the_exported_deck_with_its_bolts(linear_brb, tmp_path):
+    """``qsma run deck.inp`` of the exported deck: the same f0 and backbone as the
+    model it was written from (its bolts read from the deck)."""
+    model, deck, _, _ = linear_brb
+    out = tmp_path / "out"
+    assert main(["run", str(deck.path), "--out", str(out), "--levels",
+                 "alpha:list:10,100", "--no-plots"]) == 0
+    result = json.loads((out / "results.json").read_text())
+    direct = qsma.run(model, levels=Levels("alpha", (10.0, 100.0)))
+    assert result["mode"]["f0_hz"] == pytest.approx(direct.f0_hz, rel=1e-10)
+    np.testing.assert_allclose(result["levels"]["q"], direct.q, rtol=1e-9)
+
+
 def test_2d_bolts_are_refused_for_calculix():
     with pytest.raises(CalculixRefusal, match="of a 2D model: CalculiX 2.20 expands 2D"):
         calculix_deck(lap_2d_bolted(1))
@@ -198,6 +212,22 @@ def test_couplings_of_no_bolt_are_refused_with_the_pattern(tmp_path):
         "\n1, 3\n*STEP", 1))
     (note,) = [n for n in kinematic.refusals if n.what == "*KINEMATIC"]
     assert "qsma has no rigid (kinematic) couplings" in note.fix
+
+
+def test_an_abaqus_connector_bolt_is_refused_with_the_pattern(tmp_path):
+    """Abaqus' connector bolt (a CONN3D2 with an AXIAL *CONNECTOR SECTION and a
+    *CONNECTOR LOAD): the mesh still reads, the connector's cards are refused with the
+    pattern qsma reads."""
+    def connector(text):
+        return text.replace("*STEP", "*ELEMENT, TYPE=CONN3D2, ELSET=CONN\n99001, 1, 2\n"
+                            "*CONNECTOR SECTION, ELSET=CONN\nAXIAL\n*STEP", 1).replace(
+            "*STATIC\n", "*STATIC\n*CONNECTOR LOAD\n99001, 1, 8000.\n", 1)
+    deck = _lap_deck(tmp_path, connector)
+    what = {n.what for n in deck.refusals}
+    assert {"*CONNECTOR SECTION", "*CONNECTOR LOAD"} <= what
+    note = next(n for n in deck.refusals if n.what == "*CONNECTOR SECTION")
+    assert note.fix.startswith("qsma reads no connector elements (CONN3D2); qsma reads "
+                               "couplings, beams and springs only as a bolt")
 
 
 @pytest.mark.parametrize("member", ["B31", "T3D2"])

@@ -41,6 +41,9 @@ _BOLT_ONLY = ("qsma reads couplings, beams and springs only as a bolt: two distr
               "*STATIC step (docs/mesh-io.md); complete the bolt, or write a [[bolts]] "
               "table (qsma init)")
 
+#: Abaqus' connector elements (an AXIAL connector with a CONNECTOR LOAD is a bolt there).
+_NO_CONNECTORS = "qsma reads no connector elements (CONN3D2); " + _BOLT_ONLY
+
 #: Keywords that change the structure, its material or its supports in a way qsma does
 #: not model: running without them answers another problem. Value: what to do.
 _REFUSED = {
@@ -57,6 +60,11 @@ _REFUSED = {
                  "distributing couplings (*DISTRIBUTING COUPLING, or *COUPLING with "
                  "*DISTRIBUTING): " + _BOLT_ONLY,
     "KINEMATIC COUPLING": "qsma has no rigid (kinematic) couplings; " + _BOLT_ONLY,
+    "CONNECTOR SECTION": _NO_CONNECTORS,
+    "CONNECTOR BEHAVIOR": _NO_CONNECTORS,
+    "CONNECTOR ELASTICITY": _NO_CONNECTORS,
+    "CONNECTOR LOAD": _NO_CONNECTORS,
+    "CONNECTOR MOTION": _NO_CONNECTORS,
     "CYCLIC SYMMETRY MODEL": "qsma models the whole structure, no cyclic symmetry",
     "TRANSFORM": "qsma's supports and loads are in global directions",
     "PLASTIC": "qsma's bodies are linear elastic: the preload would differ where the "

@@ -195,7 +195,7 @@ def _is_continuum(abaqus_type: str) -> bool:
 #: point masses): the mesh reader skips them (leaving their ids out of element sets),
 #: the deck reader (:mod:`qsma.deck`) reads a bolt's and names the others
 CONNECTOR_TYPES = frozenset({"DCOUP3D", "SPRINGA", "SPRING1", "SPRING2", "DASHPOTA",
-                             "MASS"})
+                             "MASS", "CONN3D2", "CONN2D2"})
 
 
 def _connector_ids(card: _Card) -> np.ndarray:
