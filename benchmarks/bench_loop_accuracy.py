@@ -60,9 +60,10 @@ def main(argv=None):
         costs = run.level_costs
         for j, k in enumerate(levels):
             D, est, R = run.dissipation[k], run.dissipation_error[k], ref.dissipation[j]
+            relative = f"{abs(D - R) / abs(R):.1e}" if R != 0 else "- (D_ref = 0)"
             print(f"| {case} | {k} | {run.alpha[k]:.4g} | {D:.5e} | {est:.1e} | {R:.5e} | "
                   f"{ref.dissipation_error[j]:.1e} | {abs(D - R) / est:.2f} | "
-                  f"{abs(D - R) / abs(R):.1e} | {costs.loop_solves[k]} | "
+                  f"{relative} | {costs.loop_solves[k]} | "
                   f"{costs.loop_seconds[k]:.2f} |", flush=True)
         print(f"\n{case}: default run {wall:.1f} s wall, hysteresis "
               f"{run.timings_s['hysteresis']:.1f} s, {int(np.sum(costs.loop_solves))} loop "
