@@ -299,8 +299,56 @@ def pair_interface(model, interface=None) -> Pairing:
         np.add.at(area, facets1.ravel(),
                   facet_node_weights(b1.mesh.points, facets1, b1.mesh.facet_type).ravel())
     _check_opposed(b2, facets2, nodes2, normal_sum[nodes1], itf)
-    frames = local_frames(normal_sum[nodes1])
+    planes = _clamped_axes(b1, nodes1) & _clamped_axes(b2, nodes2)
+    frames = local_frames(on_symmetry_planes(normal_sum[nodes1], planes))
     return Pairing(nodes1, nodes2, b1.mesh.points[nodes1].copy(), frames, area[nodes1])
+
+
+#: A clamped axis counts as cutting the contact face (a symmetry plane) where the
+#: normal's component along it is at most this fraction of the normal: the normal
+#: averaged from the facets on one side of the plane leans by half a facet's turn.
+SYMMETRY_LEAN = 0.5
+#: Distance, relative to the interface's extent, within which a master node lies on
+#: the plane of a clamped slave node.
+PLANE_RTOL = 1e-6
+
+
+def on_symmetry_planes(normals, planes):
+    """``normals`` with their component along each axis in ``planes`` ((n, dim) mask:
+    the node is clamped along that axis on both sides, the plane normal to the axis
+    cuts the contact face) removed where it is small (:data:`SYMMETRY_LEAN`). On a
+    symmetry plane the whole structure's normal lies in the plane; the cut model
+    averages the facets of one side only, and its normal would lean out of the plane,
+    making the clamp oblique to the contact frame (docs/theory.md section 13)."""
+    n = np.array(normals, dtype=float)
+    size = np.linalg.norm(n, axis=1)
+    lean = planes & (np.abs(n) <= SYMMETRY_LEAN * size[:, None])
+    n[lean] = 0.0
+    return n
+
+
+def _clamped_axes(body, nodes) -> np.ndarray:
+    """(len(nodes), dim) mask of the axes a clamp of ``body`` holds at ``nodes``."""
+    dim = body.dim
+    held = np.zeros(body.n_dofs, dtype=bool)
+    held[body.clamped_dofs()] = True
+    return held[(dim * np.asarray(nodes)[:, None] + np.arange(dim)).ravel()].reshape(-1, dim)
+
+
+def _mortar_planes(slave, snodes, master, mnodes) -> np.ndarray:
+    """The axes along which a mortar slave node and the master's nodes on the plane
+    through it normal to that axis are clamped (a symmetry plane through both)."""
+    cs = _clamped_axes(slave, snodes)
+    if not cs.any():
+        return cs
+    cm = _clamped_axes(master, mnodes)
+    xs, xm = slave.mesh.points[snodes], master.mesh.points[mnodes]
+    tol = PLANE_RTOL * max(float(np.ptp(xs, axis=0).max(initial=0.0)), 1e-300)
+    out = np.zeros_like(cs)
+    for i, c in zip(*np.nonzero(cs)):
+        on = np.abs(xm[:, c] - xs[i, c]) <= tol
+        out[i, c] = bool(on.any() and cm[on, c].all())
+    return out
 
 
 def _check_opposed(body2, facets2, nodes2, normals1, itf):
@@ -362,6 +410,9 @@ def mortar_pairing(model, interface=None) -> Pairing:
     if not op.fully_covered:
         _warn_partial(itf, op, sb.name, ss)
     normals = op.normals if k == 1 else -op.normals            # from body 1 into body 2
+    mb = model.body(itf.body2 if k == 1 else itf.body1)
+    normals = on_symmetry_planes(normals, _mortar_planes(sb, op.slave_nodes, mb,
+                                                         op.master_nodes))
     nodes = (op.slave_nodes, op.master_nodes) if k == 1 else (op.master_nodes,
                                                               op.slave_nodes)
     return Pairing(nodes[0], nodes[1], sb.mesh.points[op.slave_nodes].copy(),
