@@ -300,30 +300,43 @@ def pair_interface(model, interface=None) -> Pairing:
                   facet_node_weights(b1.mesh.points, facets1, b1.mesh.facet_type).ravel())
     _check_opposed(b2, facets2, nodes2, normal_sum[nodes1], itf)
     planes = _clamped_axes(b1, nodes1) & _clamped_axes(b2, nodes2)
-    frames = local_frames(on_symmetry_planes(normal_sum[nodes1], planes))
+    frames = local_frames(on_symmetry_planes(normal_sum[nodes1], b1.mesh.points[nodes1],
+                                             planes))
     return Pairing(nodes1, nodes2, b1.mesh.points[nodes1].copy(), frames, area[nodes1])
 
 
-#: A clamped axis counts as cutting the contact face (a symmetry plane) where the
-#: normal's component along it is at most this fraction of the normal: the normal
-#: averaged from the facets on one side of the plane leans by half a facet's turn.
-SYMMETRY_LEAN = 0.5
-#: Distance, relative to the interface's extent, within which a master node lies on
-#: the plane of a clamped slave node.
+#: A node on a plane clamped on both sides has its normal taken in that plane when the
+#: normal's lean out of the plane is at most this many times the turn of the normals
+#: to the nearest node off the plane: on a smooth surface cut by a symmetry plane the
+#: lean of the one-sided average is about that turn (the two are equal on a uniform
+#: mesh, twice as large where the facets shrink away from the plane), on a face that
+#: is inclined to the clamp the turn is nothing and the normal is kept.
+SYMMETRY_LEAN = 2.5
+#: Distance, relative to the interface's extent, within which a node lies on a plane.
 PLANE_RTOL = 1e-6
 
 
-def on_symmetry_planes(normals, planes):
-    """``normals`` with their component along each axis in ``planes`` ((n, dim) mask:
-    the node is clamped along that axis on both sides, the plane normal to the axis
-    cuts the contact face) removed where it is small (:data:`SYMMETRY_LEAN`). On a
-    symmetry plane the whole structure's normal lies in the plane; the cut model
-    averages the facets of one side only, and its normal would lean out of the plane,
-    making the clamp oblique to the contact frame (docs/theory.md section 13)."""
+def on_symmetry_planes(normals, points, planes):
+    """``normals`` (at ``points``) with their component along each axis in ``planes``
+    ((n, dim) mask: the node is clamped along that axis on both sides, the plane normal
+    to the axis cuts the contact face) removed where it is the lean of a one-sided
+    average (:data:`SYMMETRY_LEAN`). On a symmetry plane the whole structure's normal
+    lies in the plane; the cut model averages the facets of one side only, and its
+    normal would lean out of the plane, making the clamp oblique to the contact frame
+    (docs/theory.md section 13)."""
     n = np.array(normals, dtype=float)
-    size = np.linalg.norm(n, axis=1)
-    lean = planes & (np.abs(n) <= SYMMETRY_LEAN * size[:, None])
-    n[lean] = 0.0
+    if not planes.any():
+        return n
+    unit = n / np.linalg.norm(n, axis=1, keepdims=True)
+    tol = PLANE_RTOL * max(float(np.ptp(points, axis=0).max(initial=0.0)), 1e-300)
+    for i, c in zip(*np.nonzero(planes)):
+        off = np.flatnonzero(np.abs(points[:, c] - points[i, c]) > tol)
+        if not off.size:
+            continue
+        j = off[np.argmin(np.linalg.norm(points[off] - points[i], axis=1))]
+        turn = np.linalg.norm(unit[j] - unit[i])
+        if abs(unit[i, c]) <= SYMMETRY_LEAN * turn:
+            n[i, c] = 0.0
     return n
 
 
@@ -411,8 +424,8 @@ def mortar_pairing(model, interface=None) -> Pairing:
         _warn_partial(itf, op, sb.name, ss)
     normals = op.normals if k == 1 else -op.normals            # from body 1 into body 2
     mb = model.body(itf.body2 if k == 1 else itf.body1)
-    normals = on_symmetry_planes(normals, _mortar_planes(sb, op.slave_nodes, mb,
-                                                         op.master_nodes))
+    normals = on_symmetry_planes(normals, sb.mesh.points[op.slave_nodes],
+                                 _mortar_planes(sb, op.slave_nodes, mb, op.master_nodes))
     nodes = (op.slave_nodes, op.master_nodes) if k == 1 else (op.master_nodes,
                                                               op.slave_nodes)
     return Pairing(nodes[0], nodes[1], sb.mesh.points[op.slave_nodes].copy(),
