@@ -329,7 +329,7 @@ def on_symmetry_planes(normals, points, planes):
         return n
     unit = n / np.linalg.norm(n, axis=1, keepdims=True)
     tol = PLANE_RTOL * max(float(np.ptp(points, axis=0).max(initial=0.0)), 1e-300)
-    for i, c in zip(*np.nonzero(planes)):
+    for i, c in zip(*np.nonzero(planes & (unit != 0.0))):
         off = np.flatnonzero(np.abs(points[:, c] - points[i, c]) > tol)
         if not off.size:
             continue
