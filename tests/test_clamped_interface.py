@@ -393,3 +393,21 @@ def test_hertz_on_a_quarter_model():
     edge_out = r[~closed][r[~closed] > edge_in].min()
     a_fe = 0.5 * (edge_in + edge_out)
     assert abs(a_fe - a_th) < 0.04 * a_th
+
+
+def test_prescribed_displacement_on_an_interface_node_is_refused():
+    """A clamp that moves an interface node (a displacement other than zero) would give
+    the relative displacement a prescribed part that the contact problem, written over
+    the unclamped DOFs, does not see: refused, naming the body, the nodes and the fix."""
+    model = _blocks_2d(True, 24)
+    top = model.bodies[1]
+    edge = np.flatnonzero((np.abs(top.mesh.points[:, 0] - W) < EPS)
+                          & (np.abs(top.mesh.points[:, 1]) < EPS))
+    mesh = top.mesh.with_sets(node_sets=dict(top.mesh.node_sets, edge=edge))
+    top = Body("top", mesh, top.material, top.clamps
+               + (Clamp("edge", (0,), displacement=(1e-6,)),), top.pressures)
+    model = Model((model.bodies[0], top), model.interface, mu=MU)
+    A = [assemble_body(b) for b in model.bodies]
+    with pytest.raises(InputError, match=r"body 'top': interface node\(s\) \[\d+(, \d+)*\] "
+                       r"have a prescribed displacement other than zero"):
+        reduce_two_bodies(A[0], A[1], make_pairing(model))

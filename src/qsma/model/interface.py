@@ -348,19 +348,24 @@ def _clamped_axes(body, nodes) -> np.ndarray:
     return held[(dim * np.asarray(nodes)[:, None] + np.arange(dim)).ravel()].reshape(-1, dim)
 
 
-def _mortar_planes(slave, snodes, master, mnodes) -> np.ndarray:
-    """The axes along which a mortar slave node and the master's nodes on the plane
-    through it normal to that axis are clamped (a symmetry plane through both)."""
+def symmetry_axes(slave, snodes, master, mnodes, projection=None) -> np.ndarray:
+    """(len(snodes), dim) mask of the axes along which a mortar slave node and the master
+    surface at its place are clamped (a symmetry plane through both bodies): the slave
+    node is clamped along axis c, and the master's nodes on the plane through it normal
+    to c (those of its row of ``projection`` if given, else any interface node; at least
+    one) are all clamped along c (docs/theory.md section 13)."""
     cs = _clamped_axes(slave, snodes)
+    out = np.zeros_like(cs)
     if not cs.any():
-        return cs
+        return out
     cm = _clamped_axes(master, mnodes)
     xs, xm = slave.mesh.points[snodes], master.mesh.points[mnodes]
     tol = PLANE_RTOL * max(float(np.ptp(xs, axis=0).max(initial=0.0)), 1e-300)
-    out = np.zeros_like(cs)
+    N = None if projection is None else sp.csr_matrix(projection)
     for i, c in zip(*np.nonzero(cs)):
-        on = np.abs(xm[:, c] - xs[i, c]) <= tol
-        out[i, c] = bool(on.any() and cm[on, c].all())
+        near = np.arange(len(mnodes)) if N is None else N.indices[N.indptr[i]:N.indptr[i + 1]]
+        on = near[np.abs(xm[near, c] - xs[i, c]) <= tol]
+        out[i, c] = bool(len(on) and cm[on, c].all())
     return out
 
 
@@ -425,7 +430,7 @@ def mortar_pairing(model, interface=None) -> Pairing:
     normals = op.normals if k == 1 else -op.normals            # from body 1 into body 2
     mb = model.body(itf.body2 if k == 1 else itf.body1)
     normals = on_symmetry_planes(normals, sb.mesh.points[op.slave_nodes],
-                                 _mortar_planes(sb, op.slave_nodes, mb, op.master_nodes))
+                                 symmetry_axes(sb, op.slave_nodes, mb, op.master_nodes, op.P))
     nodes = (op.slave_nodes, op.master_nodes) if k == 1 else (op.master_nodes,
                                                               op.slave_nodes)
     return Pairing(nodes[0], nodes[1], sb.mesh.points[op.slave_nodes].copy(),
