@@ -411,3 +411,24 @@ def test_prescribed_displacement_on_an_interface_node_is_refused():
     with pytest.raises(InputError, match=r"body 'top': interface node\(s\) \[\d+(, \d+)*\] "
                        r"have a prescribed displacement other than zero"):
         reduce_two_bodies(A[0], A[1], make_pairing(model))
+
+
+def test_partly_tied_modes_by_the_full_solve_equal_the_substructured_ones():
+    """Tied modes with an interface law rigid in one local direction and compliant in
+    the other (a spring k normal to the face, the tangent tied): the factorised tied
+    stiffness (which a clamped interface's reduced model leaves to it) eliminates the
+    tied components by constraints and gives the frequencies the condensed two-body
+    solve gives, to 1e-8 (sandwich-2d)."""
+    from qsma.examples import sandwich_2d
+    from qsma.modal import linear_modes
+    m = sandwich_2d(1)
+    p = make_pairing(m)
+    A = [assemble_body(b) for b in m.bodies]
+    rm = reduce_two_bodies(A[0], A[1], p)
+    springs = np.column_stack([np.full(p.n_pairs, np.inf), np.full(p.n_pairs, 1e12) * p.area])
+    tied = np.ones(p.n_pairs, bool)
+    sub = linear_modes(m, A, p, tied=tied, n_modes=4, reduced=rm, springs=springs)
+    full = linear_modes(m, A, p, tied=tied, n_modes=4, reduced=None, springs=springs)
+    assert np.allclose(full.omega, sub.omega, rtol=1e-8, atol=0)
+    free = linear_modes(m, A, p, tied=~tied, n_modes=4)
+    assert sub.omega[0] > 1.01 * free.omega[0]        # the springs matter
