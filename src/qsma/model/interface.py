@@ -304,8 +304,74 @@ def pair_interface(model, interface=None) -> Pairing:
         np.add.at(area, facets1.ravel(),
                   facet_node_weights(b1.mesh.points, facets1, b1.mesh.facet_type).ravel())
     _check_opposed(b2, facets2, nodes2, normal_sum[nodes1], itf)
-    frames = local_frames(normal_sum[nodes1])
+    planes = _clamped_axes(b1, nodes1) & _clamped_axes(b2, nodes2)
+    frames = local_frames(on_symmetry_planes(normal_sum[nodes1], b1.mesh.points[nodes1],
+                                             planes))
     return Pairing(nodes1, nodes2, b1.mesh.points[nodes1].copy(), frames, area[nodes1])
+
+
+#: A node on a plane clamped on both sides has its normal taken in that plane when the
+#: normal's lean out of the plane is at most this many times the turn of the normals
+#: to the nearest node off the plane: on a smooth surface cut by a symmetry plane the
+#: lean of the one-sided average is about that turn (the two are equal on a uniform
+#: mesh, twice as large where the facets shrink away from the plane), on a face that
+#: is inclined to the clamp the turn is nothing and the normal is kept.
+SYMMETRY_LEAN = 2.5
+#: Distance, relative to the interface's extent, within which a node lies on a plane.
+PLANE_RTOL = 1e-6
+
+
+def on_symmetry_planes(normals, points, planes):
+    """``normals`` (at ``points``) with their component along each axis in ``planes``
+    ((n, dim) mask: the node is clamped along that axis on both sides, the plane normal
+    to the axis cuts the contact face) removed where it is the lean of a one-sided
+    average (:data:`SYMMETRY_LEAN`). On a symmetry plane the whole structure's normal
+    lies in the plane; the cut model averages the facets of one side only, and its
+    normal would lean out of the plane, making the clamp oblique to the contact frame
+    (docs/theory.md section 13)."""
+    n = np.array(normals, dtype=float)
+    if not planes.any():
+        return n
+    unit = n / np.linalg.norm(n, axis=1, keepdims=True)
+    tol = PLANE_RTOL * max(float(np.ptp(points, axis=0).max(initial=0.0)), 1e-300)
+    for i, c in zip(*np.nonzero(planes & (unit != 0.0))):
+        off = np.flatnonzero(np.abs(points[:, c] - points[i, c]) > tol)
+        if not off.size:
+            continue
+        j = off[np.argmin(np.linalg.norm(points[off] - points[i], axis=1))]
+        turn = np.linalg.norm(unit[j] - unit[i])
+        if abs(unit[i, c]) <= SYMMETRY_LEAN * turn:
+            n[i, c] = 0.0
+    return n
+
+
+def _clamped_axes(body, nodes) -> np.ndarray:
+    """(len(nodes), dim) mask of the axes a clamp of ``body`` holds at ``nodes``."""
+    dim = body.dim
+    held = np.zeros(body.n_dofs, dtype=bool)
+    held[body.clamped_dofs()] = True
+    return held[(dim * np.asarray(nodes)[:, None] + np.arange(dim)).ravel()].reshape(-1, dim)
+
+
+def symmetry_axes(slave, snodes, master, mnodes, projection=None) -> np.ndarray:
+    """(len(snodes), dim) mask of the axes along which a mortar slave node and the master
+    surface at its place are clamped (a symmetry plane through both bodies): the slave
+    node is clamped along axis c, and the master's nodes on the plane through it normal
+    to c (those of its row of ``projection`` if given, else any interface node; at least
+    one) are all clamped along c (docs/theory.md section 13)."""
+    cs = _clamped_axes(slave, snodes)
+    out = np.zeros_like(cs)
+    if not cs.any():
+        return out
+    cm = _clamped_axes(master, mnodes)
+    xs, xm = slave.mesh.points[snodes], master.mesh.points[mnodes]
+    tol = PLANE_RTOL * max(float(np.ptp(xs, axis=0).max(initial=0.0)), 1e-300)
+    N = None if projection is None else sp.csr_matrix(projection)
+    for i, c in zip(*np.nonzero(cs)):
+        near = np.arange(len(mnodes)) if N is None else N.indices[N.indptr[i]:N.indptr[i + 1]]
+        on = near[np.abs(xm[near, c] - xs[i, c]) <= tol]
+        out[i, c] = bool(len(on) and cm[on, c].all())
+    return out
 
 
 def _check_opposed(body2, facets2, nodes2, normals1, itf):
@@ -367,6 +433,9 @@ def mortar_pairing(model, interface=None) -> Pairing:
     if not op.fully_covered:
         _warn_partial(itf, op, sb.name, ss)
     normals = op.normals if k == 1 else -op.normals            # from body 1 into body 2
+    mb = model.body(itf.body2 if k == 1 else itf.body1)
+    normals = on_symmetry_planes(normals, sb.mesh.points[op.slave_nodes],
+                                 symmetry_axes(sb, op.slave_nodes, mb, op.master_nodes, op.P))
     nodes = (op.slave_nodes, op.master_nodes) if k == 1 else (op.master_nodes,
                                                               op.slave_nodes)
     return Pairing(nodes[0], nodes[1], sb.mesh.points[op.slave_nodes].copy(),

@@ -31,6 +31,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from ..errors import InputError
+from ..model.interface import symmetry_axes
 
 #: Relative size below which a row of the relative-displacement operator over the
 #: bodies' unknowns counts as zero (its component clamped on both sides).
@@ -41,9 +42,6 @@ DEPENDENT_RTOL = 1e-10
 #: Relative size below which a pivot of homogeneous constraints counts as zero (the
 #: constraint repeats others).
 CONSTRAINT_RTOL = 1e-10
-#: Distance, relative to the interface's extent, within which a master node lies on
-#: the plane of a clamped slave node (:func:`symmetry_components`).
-PLANE_RTOL = 1e-6
 #: Smallest |cosine| between a clamped axis and a local axis of the contact frame for
 #: the two to count as the same direction.
 AXIS_COS = 1.0 - 1e-9
@@ -56,39 +54,33 @@ def clamped_interface(assembled, nodes) -> bool:
     return bool(np.isin(dofs, assembled.fixed).any())
 
 
-def clamped_components(assembled, nodes) -> np.ndarray:
-    """(len(nodes), dim) mask of the components of ``nodes`` a clamp holds."""
+def check_prescribed(assembled, nodes):
+    """Refuse a clamp with a displacement other than zero on an interface node: the
+    relative displacement would then carry a prescribed part that the contact problem,
+    written over the unclamped DOFs, does not see."""
     dim = assembled.body.dim
-    fixed = np.zeros(assembled.body.n_dofs, dtype=bool)
-    fixed[assembled.fixed] = True
-    return fixed[(dim * np.asarray(nodes)[:, None] + np.arange(dim)).ravel()].reshape(-1, dim)
+    dofs = (dim * np.asarray(nodes)[:, None] + np.arange(dim)).ravel()
+    for name, u in (getattr(assembled, "prescribed", None) or {}).items():
+        moved = dofs[np.asarray(u)[dofs] != 0.0]
+        if len(moved):
+            raise InputError(
+                f"body {assembled.body.name!r}: interface node(s) "
+                f"{np.unique(moved // dim)[:10].tolist()} have a prescribed displacement "
+                f"other than zero ({name!r}); qsma holds clamped interface nodes at zero "
+                f"only (the relative displacement there would carry the prescribed part). "
+                f"Fix: prescribe the displacement on nodes off the contact face, or leave "
+                f"these nodes out of the interface set")
 
 
 def symmetry_components(pairing, slave, master) -> np.ndarray:
     """(n_pairs, dim) mask, in global components, of the mortar contact points clamped
-    on both sides (module docstring): the slave node clamped in component ``c`` and
-    the master nodes of its projection that lie on the plane ``x_c = x_c(slave node)``
-    (there is at least one) all clamped in ``c``. ``slave``, ``master``: the assembled
-    bodies. Node-to-node pairings give all False (their zero rows say it already)."""
-    dim = pairing.frames.shape[1]
-    n = pairing.n_pairs
-    out = np.zeros((n, dim), dtype=bool)
+    on both sides (module docstring; :func:`qsma.model.interface.symmetry_axes` on the
+    rows of the projection). ``slave``, ``master``: the assembled bodies. Node-to-node
+    pairings give all False (their zero rows say it already)."""
     if pairing.projection is None:
-        return out
-    cs = clamped_components(slave, pairing.contact_nodes)
-    if not cs.any():
-        return out
-    mnodes = pairing.master_nodes
-    cm = clamped_components(master, mnodes)
-    xm = master.body.mesh.points[mnodes]
-    xs = slave.body.mesh.points[pairing.contact_nodes]
-    tol = PLANE_RTOL * max(float(np.ptp(xs, axis=0).max(initial=0.0)), 1e-300)
-    N = sp.csr_matrix(pairing.projection)
-    for i, c in zip(*np.nonzero(cs)):
-        row = N.indices[N.indptr[i]:N.indptr[i + 1]]
-        on = row[np.abs(xm[row, c] - xs[i, c]) <= tol]
-        out[i, c] = len(on) > 0 and bool(np.all(cm[on, c]))
-    return out
+        return np.zeros((pairing.n_pairs, pairing.frames.shape[1]), dtype=bool)
+    return symmetry_axes(slave.body, pairing.contact_nodes, master.body,
+                         pairing.master_nodes, pairing.projection)
 
 
 def local_rows(frames, components) -> np.ndarray:

@@ -51,8 +51,8 @@ from .._infra.dense import cho_solved
 from ..errors import InputError
 from .condensation import (condense_bodies, condensed_loads, extended_prescribed,
                            prescribed_patterns, with_prescribed)
-from .clamps import (constrained_basis, decoupled, local_rows, pivot_dofs,
-                     symmetry_components)
+from .clamps import (check_prescribed, constrained_basis, decoupled, local_rows,
+                     pivot_dofs, symmetry_components)
 from .rigid import ghost
 
 
@@ -218,6 +218,8 @@ def reduce_bodies(assembled, couplings, patterns=("preload",), backend="auto",
     dim = assembled[0].body.dim
     names = names or [a.body.name for a in assembled]
     nodes = interface_nodes(len(assembled), couplings, names)
+    for a, n in zip(assembled, nodes):
+        check_prescribed(a, n)
     bodies = condense_bodies(assembled, nodes, [None] * len(nodes), backend)
     loads = tuple(np.column_stack([a.loads.get(p, np.zeros(a.n_dofs)) for p in patterns])
                   for a in assembled)
