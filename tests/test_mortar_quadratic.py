@@ -18,6 +18,7 @@ from qsma.model import Body, Interface, Mesh, Model, Pressure, make_pairing
 from qsma.model.dual_basis import MIXING
 from qsma.reduction.two_bodies import reduce_two_bodies
 from test_nonmatching import (HEX_TO_TETS, H, STEEL, W, _block_sets, _jitter,
+                              assert_uniform_interference_pressure,
                               _ring_interface_pressure, _shifted_top)
 
 
@@ -134,18 +135,8 @@ def test_interference_gives_uniform_contact_pressure(case, slave):
     coefficients) and the contact solver: uniform pressure E_u delta / (2 H) at every
     contact point, no shear (tests/test_nonmatching.py, linear facets)."""
     m = _stack(CASES[case], slave, top_held=True)
-    dim = m.dim
-    pr = make_pairing(m)
-    A = [assemble_body(b) for b in m.bodies]
-    rm = reduce_two_bodies(A[0], A[1], pr)
-    delta = 1e-6
-    prob = ContactProblem(rm.K, 0.3, gap0=np.full(pr.n_pairs, -delta), dim=dim)
-    res = contact_solve(prob, rm.welded_contact_force([1.0]))
-    assert res.success
-    E_u = STEEL.E / (1 - STEEL.nu ** 2) if dim == 2 else STEEL.E
-    traction = res.lam / pr.area[:, None]
-    np.testing.assert_allclose(traction[:, -1], E_u * delta / (2 * H), rtol=1e-8)
-    assert np.abs(traction[:, :-1]).max() < 1e-8 * E_u * delta / H
+    dim, delta = m.dim, 1e-6
+    pr, rm, res = assert_uniform_interference_pressure(m, delta)
     # the recovered fields: the interference closed at every slave node
     u1, u2 = rm.recover(res.d, [1.0])
     s = pr.slave - 1

@@ -217,11 +217,17 @@ def test_contact_patch_test_interference_gives_uniform_pressure(n_bottom, n_top,
     interference delta, through the condensed mortar problem and the contact solver:
     uniform pressure E_u delta / (2 H), E_u = E / (1 - nu^2) in plane strain (uniaxial
     stress, free lateral faces), E in 3D; no shear (equal lateral strains)."""
-    m = _stack(n_bottom, n_top, dim, slave, top_held=True)
+    assert_uniform_interference_pressure(_stack(n_bottom, n_top, dim, slave, top_held=True))
+
+
+def assert_uniform_interference_pressure(m, delta=1e-6):
+    """The two held blocks ``m`` pressed together by an interference ``delta`` through
+    the condensed problem and the contact solver: uniform pressure ``E_u delta / (2 H)``
+    at every contact point, no shear. Returns ``(pairing, reduced model, result)``."""
+    dim = m.dim
     pr = make_pairing(m)
     A = [assemble_body(b) for b in m.bodies]
     rm = reduce_two_bodies(A[0], A[1], pr)
-    delta = 1e-6
     prob = ContactProblem(rm.K, 0.3, gap0=np.full(pr.n_pairs, -delta), dim=dim)
     res = contact_solve(prob, rm.welded_contact_force([1.0]))
     assert res.success
@@ -229,6 +235,7 @@ def test_contact_patch_test_interference_gives_uniform_pressure(n_bottom, n_top,
     traction = res.lam / pr.area[:, None]
     np.testing.assert_allclose(traction[:, -1], E_u * delta / (2 * H), rtol=1e-8)
     assert np.abs(traction[:, :-1]).max() < 1e-8 * E_u * delta / H
+    return pr, rm, res
 
 
 def test_conforming_mortar_gives_the_node_to_node_answer():
