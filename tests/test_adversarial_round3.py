@@ -199,6 +199,27 @@ def test_negative_dissipation_beyond_round_off_fails_whatever_its_error_estimate
     assert noise.dissipation_masing[0] == 0.0 and noise.zeta_masing[0] == 0.0
 
 
+def test_a_loop_where_no_pair_with_friction_slipped_is_elastic_whatever_its_quadrature():
+    """Where no pair with friction slipped on either ramp (a frictionless joint whose
+    pairs open and close: the public CalculiX decks hueeber1 and hueeber3 gave
+    D = -3e-8 J with an estimate of 3e-7 J and failed the run), the cycle is elastic:
+    D, zeta and the error are exactly 0, with neither a negative_dissipation nor an
+    integration_error_above_rtol flag. The same value with a slipping pair keeps both."""
+    from qsma.analysis import _flags, _settle_dissipation
+    from qsma.analysis.options import RunOptions
+    args = (np.ones(1), np.ones(1), np.ones(1))
+    elastic = _level_columns(D=-1e-4, err=1e-3)
+    elastic.no_slip[:] = True
+    flags = _flags(*args, elastic, 2 * np.pi, RunOptions())
+    assert not {"negative_dissipation", "integration_error_above_rtol"} & set(flags[0])
+    _settle_dissipation(elastic, flags, np.ones(1), np.ones(1))
+    assert elastic.dissipation_masing[0] == 0.0 and elastic.zeta_masing[0] == 0.0
+    assert elastic.masing_error[0] == 0.0
+    rubbing = _level_columns(D=-1e-4, err=1e-3)
+    flags = _flags(*args, rubbing, 2 * np.pi, RunOptions())
+    assert {"negative_dissipation", "integration_error_above_rtol"} <= set(flags[0])
+
+
 def test_masing_needs_backbones_that_mirror_not_only_equal_dissipations():
     """Two straight backbones of different slopes (pairs left at the friction limit by a
     tangential preload slip one way only) both give a Masing dissipation of 0; they are

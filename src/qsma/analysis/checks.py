@@ -40,7 +40,10 @@ def _settle_dissipation(hyst, flags, alpha, q):
     a negative value within the round-off bound ``ZETA_ZERO 2 pi alpha |q|`` of the
     contact solves it comes from (a cycle cannot create energy). A negative value
     beyond that bound is flagged ``negative_dissipation`` (:func:`_flags`) and kept, as
-    is every value of a level with a failure flag."""
+    is every value of a level with a failure flag. Where no pair with friction slipped
+    the cycle is elastic whatever a computed loop's quadrature gave (a frictionless
+    joint whose pairs open and close along the loop): ``D = 0`` with error 0, and
+    neither its sign nor its integration error is flagged."""
     bound = ZETA_ZERO * 2 * np.pi * np.asarray(alpha) * np.abs(q)
     sound = np.array([not set(f) & set(FAILURE_FLAGS) for f in flags], bool)
     for method in ("masing", "loop"):
@@ -52,6 +55,7 @@ def _settle_dissipation(hyst, flags, alpha, q):
                                          | negligible)
         D[zero] = 0.0
         zeta[zero] = 0.0
+        err[sound & np.isfinite(D) & hyst.no_slip] = 0.0     # zero by physics, exactly
 
 
 def _flags(alpha, q, tip, hyst, omega0, opts):
@@ -75,7 +79,7 @@ def _flags(alpha, q, tip, hyst, omega0, opts):
                       "loop_not_stabilised" if lp.outcome == "not_stabilised" else
                       "loop_failed")
         elif D[k] < -ZETA_ZERO * 2 * np.pi * alpha[k] * abs(q[k]) and not \
-                _negligible_negative(D[k], err[k], alpha[k], q[k]):
+                _negligible_negative(D[k], err[k], alpha[k], q[k]) and not hyst.no_slip[k]:
             fl.append("negative_dissipation")       # beyond round-off and not negligible
         if hyst.zeta_masing[k] < -ZETA_ZERO and use_loop[k]:
             fl.append("masing_negative")
@@ -90,7 +94,7 @@ def _flags(alpha, q, tip, hyst, omega0, opts):
             fl.append("q_not_increasing")
         if k > 0 and not tip[k] > tip[k - 1]:
             fl.append("tip_not_increasing")
-        if np.isfinite(err[k]) and np.isfinite(D[k]) and \
+        if np.isfinite(err[k]) and np.isfinite(D[k]) and not hyst.no_slip[k] and \
                 err[k] > opts.dissipation_rtol * abs(D[k]) + \
                 ZETA_ZERO * 2 * np.pi * alpha[k] * abs(q[k]):
             fl.append("integration_error_above_rtol")
