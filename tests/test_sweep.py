@@ -4,7 +4,6 @@ run (one preparation, one backbone per mode)."""
 from dataclasses import replace
 import json
 import pickle
-import warnings
 
 import numpy as np
 import pytest
@@ -18,6 +17,8 @@ from qsma.model import Material, Pressure
 from qsma.study import grid, parse_values, read_table, sweep
 from qsma.reduction.condensation import RefactorisedEE
 from qsma.study.runners import done_path
+
+from helpers import in_forked_child
 
 #: 5 levels over the spec's range of linear tied tip deflection (1 um .. 1 mm): small
 #: enough for a test, wide enough to cross from stuck to gross slip on sandwich-2d.
@@ -262,41 +263,33 @@ def test_a_failed_case_is_retried_on_resume(model, tmp_path):
 
 # ------------------------------------------------------------------------------ Dask
 
-@pytest.fixture(scope="module")
-def client():
-    """One two-worker local cluster of processes for the module; threads if processes
-    cannot start here (the reason is given as a warning)."""
+def test_two_dask_workers_give_the_serial_table(model, serial, tmp_path):
+    """A two-worker local cluster of processes, reached by address as with
+    ``--scheduler tcp://host:port`` (the sweep connects its own client): the serial
+    table. In a forked child: a Dask client leaves its IO loop thread behind, which
+    would keep the rest of the session from forking (the -alpha ramp's child)."""
     distributed = pytest.importorskip("distributed")
     import logging
-    try:
-        cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1,
-                                           processes=True, dashboard_address=None,
-                                           silence_logs=logging.ERROR)
-    except Exception as exc:   # e.g. no semaphores / forking refused in a sandbox
-        warnings.warn(f"LocalCluster of processes failed ({exc}); using threads")
-        cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1,
-                                           processes=False, dashboard_address=None)
-    c = distributed.Client(cluster)
-    yield c
-    c.close()
-    cluster.close()
-
-
-def test_two_dask_workers_give_the_serial_table(model, serial, client, tmp_path):
     res, _ = serial
-    # by address, as --scheduler tcp://host:port: the sweep connects its own client
-    par = sweep(model, {"mu": [0.3, 0.6], "preload": [1.5]}, OPTIONS, out=tmp_path,
-                scheduler=client.scheduler.address, plots=False)
-    assert par.success, par.message
-    assert len(client.scheduler_info()["workers"]) == 2
-    assert list(par.table) == list(res.table)
-    for name, col in res.table.items():
-        if name in ROUND_OFF:
-            assert np.allclose(par.table[name], col, rtol=0, atol=ROUND_OFF[name]), name
-        elif isinstance(col[0], (float, int)) and not isinstance(col[0], bool):
-            assert_close(par.table[name], col, 1e-10)
-        else:
-            assert par.table[name] == col, name
+
+    def body():
+        with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                      dashboard_address=None,
+                                      silence_logs=logging.ERROR) as cluster, \
+                distributed.Client(cluster) as client:
+            par = sweep(model, {"mu": [0.3, 0.6], "preload": [1.5]}, OPTIONS,
+                        out=tmp_path, scheduler=cluster.scheduler_address, plots=False)
+            assert par.success, par.message
+            assert len(client.scheduler_info()["workers"]) == 2
+        assert list(par.table) == list(res.table)
+        for name, col in res.table.items():
+            if name in ROUND_OFF:
+                assert np.allclose(par.table[name], col, rtol=0, atol=ROUND_OFF[name]), name
+            elif isinstance(col[0], (float, int)) and not isinstance(col[0], bool):
+                assert_close(par.table[name], col, 1e-10)
+            else:
+                assert par.table[name] == col, name
+    in_forked_child(body)
 
 
 # ----------------------------------------------------------------------- command line
