@@ -1,6 +1,9 @@
 """Helpers shared by several test modules (tests import this module, never each
 other): patch tests, distorted meshes, a small Abaqus deck."""
+import shutil
+
 import numpy as np
+import pytest
 import scipy.sparse.linalg as spla
 
 from qsma.fe import assemble_body, stress_at_nodes
@@ -9,6 +12,12 @@ from qsma.model import Body, Material, Mesh, boundary_facets, write_mesh
 from qsma.mesh.generate import structured_mesh
 
 STEEL = Material(200e9, 0.285, 7800.0)
+
+#: The comparisons with CalculiX run where ``ccx`` is on the path; elsewhere only they
+#: are skipped, the rest of each module runs.
+needs_ccx = pytest.mark.skipif(shutil.which("ccx") is None,
+                               reason="CalculiX (ccx) not installed "
+                                      "(apt-get install calculix-ccx)")
 
 
 def distorted_patch(cell_type):

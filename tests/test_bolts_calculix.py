@@ -11,15 +11,12 @@ by 3.1e-3, 3.1e-4, 3.1e-5, 3.2e-6 of the largest for K = 1e15, 1e16, 1e17, 1e18 
 """
 from __future__ import annotations
 
-import shutil
 
 import pytest
 
-from helpers import load_benchmark
+from helpers import load_benchmark, needs_ccx
 
-pytestmark = pytest.mark.skipif(shutil.which("ccx") is None,
-                                reason="CalculiX (ccx) not installed "
-                                       "(apt-get install calculix-ccx)")
+pytestmark = needs_ccx
 
 
 def _bench():

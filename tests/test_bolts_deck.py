@@ -10,7 +10,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import re
-import shutil
 
 import numpy as np
 import pytest
@@ -25,11 +24,8 @@ from qsma.examples import LAP_3D, brb, lap_2d_bolted, lap_3d, lap_3d_bolted
 from qsma.analysis.levels import Levels
 from qsma.mesh.facets import facet_normals
 
-from helpers import load_benchmark
+from helpers import load_benchmark, needs_ccx
 
-needs_ccx = pytest.mark.skipif(shutil.which("ccx") is None,
-                               reason="CalculiX (ccx) not installed "
-                                      "(apt-get install calculix-ccx)")
 
 LINEAR = InterfaceLaw(LinearPressure(1e15), ElasticStick(1e15))
 

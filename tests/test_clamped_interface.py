@@ -17,6 +17,8 @@ from qsma.mesh.generate import structured_mesh
 from qsma.model import Body, Clamp, Interface, Material, Model, Pressure, Probe, make_pairing
 from qsma.reduction.two_bodies import reduce_two_bodies
 
+from helpers import needs_ccx
+
 # two dissimilar materials: the Poisson mismatch drives tangential tractions and slip
 # under a purely normal load (Goodman's problem), so friction acts at the interface
 SOFT = Material(70e9, 0.34, 2700.0)
@@ -352,8 +354,7 @@ def test_interface_node_pinned_on_one_side():
                        rtol=1e-9, atol=1e-12 * np.abs(res.preload.d).max())
 
 
-@pytest.mark.skipif(__import__("shutil").which("ccx") is None,
-                    reason="CalculiX (ccx) not installed (apt-get install calculix-ccx)")
+@needs_ccx
 def test_calculix_agrees_on_the_half_model(tmp_path):
     """The half beams (:func:`_beams`, symmetry clamps on the interface of both bodies)
     written as a CalculiX deck (``qsma export --calculix``) and run by ccx, which

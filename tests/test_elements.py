@@ -55,7 +55,7 @@ def test_model_translated_by_one_km_gives_same_operators_and_frequency(make, off
 # ---------------------------------------------------------------- quadratic cells
 from qsma.model import Body, Clamp, Material, Mesh, Pressure, boundary_facets  # noqa: E402
 from qsma.mesh.generate import structured_mesh
-from helpers import check_patch, distorted_3d, distorted_patch  # noqa: E402
+from helpers import check_patch, distorted_3d, distorted_patch, needs_ccx  # noqa: E402
 
 STEEL = Material(200e9, 0.285, 7800.0)
 A2 = np.array([[1e-3, 2e-4], [-5e-4, 3e-4]])
@@ -303,14 +303,10 @@ def test_unimplemented_formulations_are_refused_not_replaced(cell_type, element,
 # ---------------------------------------------------------------- CalculiX comparison
 import os  # noqa: E402
 import re  # noqa: E402
-import shutil  # noqa: E402
 import subprocess  # noqa: E402
 
 from helpers import HEX_TO_TETS  # noqa: E402
 
-needs_ccx = pytest.mark.skipif(shutil.which("ccx") is None,
-                               reason="CalculiX (ccx) not installed "
-                                      "(apt-get install calculix-ccx)")
 
 
 def ccx_deck(mesh, etype, k):

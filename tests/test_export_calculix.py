@@ -6,7 +6,6 @@ the preload's contact forces equal qsma's."""
 from __future__ import annotations
 
 import dataclasses
-import shutil
 
 import numpy as np
 import pytest
@@ -24,11 +23,8 @@ from qsma.analysis.levels import Levels
 from qsma.model.mass import PointMass
 from qsma.model.spring import Spring
 
-from helpers import load_benchmark
+from helpers import load_benchmark, needs_ccx
 
-needs_ccx = pytest.mark.skipif(shutil.which("ccx") is None,
-                               reason="CalculiX (ccx) not installed "
-                                      "(apt-get install calculix-ccx)")
 
 
 def _with_law(model, law):

@@ -14,16 +14,13 @@ stabilised dissipations differ by 1.0 to 1.4 % (qsma's own estimate 0.6 to 1.4 %
 """
 from __future__ import annotations
 
-import shutil
 
 import numpy as np
 import pytest
 
-from helpers import load_benchmark
+from helpers import load_benchmark, needs_ccx
 
-pytestmark = pytest.mark.skipif(shutil.which("ccx") is None,
-                                reason="CalculiX (ccx) not installed "
-                                       "(apt-get install calculix-ccx)")
+pytestmark = needs_ccx
 
 
 def _bench():

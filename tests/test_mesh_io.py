@@ -1,7 +1,6 @@
 """Mesh files with named sets (qsma.model.io): round trips, hand-written files, files
 made by Gmsh, and malformed files."""
 import re
-import shutil
 import subprocess
 from pathlib import Path
 
@@ -16,7 +15,7 @@ from qsma.examples import sandwich_2d
 from qsma.mesh.generate import structured_mesh
 from qsma.mesh.io import MESH_FORMATS, read_mesh, write_mesh
 from qsma.mesh.mesh import Mesh, boundary_facets
-from helpers import QUAD_GRID
+from helpers import QUAD_GRID, needs_ccx
 
 DATA = Path(__file__).parent / "data"
 #: (file name, gmsh_version) of every format and version written
@@ -198,7 +197,7 @@ def test_other_readers_accept_our_files(tmp_path):
         assert len(other.cells_dict["hexahedron"]) >= len(mesh.cells)
 
 
-@pytest.mark.skipif(shutil.which("ccx") is None, reason="CalculiX (ccx) is not installed")
+@needs_ccx
 @pytest.mark.parametrize("make,clamp,load,force", [
     (hex_mesh, "x0", "x_end", (2.0, 0, 0)),          # face x = 3 of 1 x 2
     (tetra_mesh, "y0", "y2", (0, 1.0, 0)),           # face y = 2 of 1 x 1
@@ -273,7 +272,7 @@ def test_inp_fields_fit_calculix(tmp_path, cell_type):
     np.testing.assert_array_equal(read.cells, mesh.cells)
 
 
-@pytest.mark.skipif(shutil.which("ccx") is None, reason="CalculiX (ccx) is not installed")
+@needs_ccx
 @pytest.mark.parametrize("cell_type", ["hexahedron", "hexahedron20"])
 def test_calculix_reads_our_coordinates(tmp_path, cell_type):
     """CalculiX reads every coordinate of our .inp as written: the volume of each element

@@ -3,7 +3,6 @@ blocks meshed on different grids, against exact answers: the projection partitio
 unity and reproduces linear fields, a welded pressure passes with the consistent nodal
 forces of both sides, and an interference gives the uniform contact pressure."""
 import dataclasses
-import shutil
 
 import numpy as np
 import pytest
@@ -17,7 +16,9 @@ from qsma.modal import stacked, tie_transform
 from qsma.model import Body, Interface, Mesh, Model, Pressure, make_pairing
 from qsma.model.dual_basis import MIXING
 from qsma.reduction.two_bodies import reduce_two_bodies
-from test_nonmatching import (HEX_TO_TETS, H, STEEL, W, _block_sets, _jitter,
+
+from helpers import HEX_TO_TETS, needs_ccx
+from test_nonmatching import (H, STEEL, W, _block_sets, _jitter,
                               assert_uniform_interference_pressure,
                               _ring_interface_pressure, _shifted_top)
 
@@ -362,7 +363,7 @@ def test_hexahedron20_cantilevers_meshed_apart_give_the_conforming_answer():
     np.testing.assert_allclose(apart.zeta[[20, 30]], conf.zeta[[20, 30]], rtol=0.05)
 
 
-@pytest.mark.skipif(shutil.which("ccx") is None, reason="CalculiX (ccx) not installed")
+@needs_ccx
 @pytest.mark.filterwarnings("ignore::qsma.errors.QuadraticFacetWarning")
 def test_calculix_ties_the_coefficients_as_qsma_does(tmp_path):
     """The exported tied deck of the cantilevers meshed apart ties each closed contact

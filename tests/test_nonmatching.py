@@ -19,6 +19,8 @@ from qsma.modal import stacked, tie_transform
 from qsma.model import Body, Clamp, Interface, Material, Mesh, Model, Pressure, make_pairing
 from qsma.mesh.generate import structured_mesh
 
+from helpers import HEX_TO_TETS
+
 STEEL = Material(200e9, 0.3, 7800.0)
 W, H = 0.04, 0.01          # block width and height [m] (any size: the answers are exact)
 
@@ -123,10 +125,6 @@ def test_patch_test_pressure_passes_a_welded_nonmatching_interface(n_bottom, n_t
                                rtol=1e-9, atol=1e-9 * pressure * a_f.max())
 
 
-# Kuhn's split of a hexahedron (meshio node order) into 6 tetrahedra along its 0-6
-# diagonal: neighbouring hexahedra get matching triangles on their shared faces
-HEX_TO_TETS = [(0, 1, 2, 6), (0, 2, 3, 6), (0, 3, 7, 6), (0, 7, 4, 6), (0, 4, 5, 6),
-               (0, 5, 1, 6)]
 
 
 def _as_tetra(model, k):

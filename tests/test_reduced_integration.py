@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import dataclasses
 import re
-import shutil
 import subprocess
 
 import numpy as np
@@ -20,6 +19,8 @@ from qsma.fe.formulation import resolve_formulation
 from qsma.analysis.levels import Levels
 from qsma.mesh.generate import structured_mesh
 from qsma.model import Body, Clamp, Interface, Material, Model, Probe
+
+from helpers import needs_ccx
 
 E_MPA, NU, RHO = 210e3, 0.3, 7.85e-9          # steel in mm-N-s-tonne
 L, H = 10.0, 1.0
@@ -68,8 +69,7 @@ def test_c3d20r_cantilever_is_softer_than_c3d20_and_near_euler_bernoulli():
     assert red[0] == pytest.approx(eb, rel=1e-2) and full[0] == pytest.approx(eb, rel=1e-2)
 
 
-@pytest.mark.skipif(shutil.which("ccx") is None,
-                    reason="CalculiX (ccx) not installed (apt-get install calculix-ccx)")
+@needs_ccx
 @pytest.mark.parametrize("element", ["C3D20", "C3D20R"])
 def test_cantilever_frequencies_equal_calculix(element, tmp_path):
     """The same mesh and element in CalculiX 2.20: the six lowest frequencies agree to
