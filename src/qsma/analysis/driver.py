@@ -20,7 +20,7 @@ from ..model.pairing import body_order
 from ..progress import reporter
 from ..reduction.rigid import support_share
 from .checks import _flags, _outcome, _settle_dissipation
-from .clock import _Timer
+from .clock import StageClock
 from .dissipation import _direct_loop, level_dissipation, _with_closed
 from .levels import spec_levels
 from .options import RunOptions
@@ -110,7 +110,7 @@ def run_prepared(prepared: Prepared, options: RunOptions | None = None, *, progr
     except TypeError as exc:
         raise InputError(f"qsma.run_prepared: {exc}; valid options: "
                          f"{sorted(RunOptions.__dataclass_fields__)}") from None
-    clock = _Timer()
+    clock = StageClock()
     model, pairing = prepared.model, prepared.pairing
     limit = threads_for(pairing.n_pairs * model.dim) if opts.blas_threads == "auto" \
         else opts.blas_threads
