@@ -243,8 +243,7 @@ def _backbone_columns(alpha, pos, neg, user, hyst, omega0, phi_tip) -> dict:
     has_neg = good_neg[user]
     q_neg[has_neg] = neg.q[user[has_neg]]
     counts = np.array([_counts(s) for s in pos.status[user]]).reshape(n, 3)
-    omega = np.where(hyst.use_loop, 2 * np.pi * hyst.f_hz_loop,
-                     2 * np.pi * hyst.f_hz_masing)
+    omega = 2 * np.pi * hyst.f_hz
     return dict(alpha=alpha, tip_lin=alpha * phi_tip / omega0 ** 2, q=q, tip=tip,
                 q_neg=q_neg, asymmetry=(q + q_neg) / q, tip_velocity=omega * np.abs(tip),
                 n_stuck=counts[:, 0], n_slip=counts[:, 1], n_open=counts[:, 2])
