@@ -38,6 +38,10 @@ TENSION_RANGE = 1e-9
 FIELD_CONTROLS = "1e-6, 1e-5, , , 1e-6, 1e-5"
 #: Increments per branch of a cyclic step (0 -> +A, +A -> -A, -A -> +A).
 LOOP_STEPS = 20
+#: Cycles (+A -> -A -> +A) per amplitude of the cyclic steps, and the fewest allowed:
+#: the last is compared with qsma's stabilised loop, the one before it says whether
+#: CalculiX's loop has settled (a first cycle may slip where later ones do not).
+LOOP_CYCLES = 2
 
 #: Element names of CalculiX 2.20 per (cell type, kinematics); what is missing is refused.
 _ELEMENTS = {

@@ -39,7 +39,7 @@ class _Writer:
         self.penalty = penalty
         self.slopes = []
 
-    def deck(self, opts, mode, alphas, steps) -> str:
+    def deck(self, opts, mode, alphas, steps, cycles) -> str:
         m = self.model
         lines = [f"** CalculiX 2.20 deck of the qsma model {m.name!r}, written by "
                  f"qsma.deck.export_calculix",
@@ -58,7 +58,7 @@ class _Writer:
         clamps, interaction = self.clamps(), self.interfaces()
         steps_cards = self.preload_step()
         if alphas:
-            steps_cards += self.cyclic_steps(mode, alphas, steps)
+            steps_cards += self.cyclic_steps(mode, alphas, steps, cycles)
         else:
             steps_cards += self.frequency_step(opts)
         # the sets the cards above name, defined before them
@@ -335,21 +335,24 @@ class _Writer:
                 "*STEP, PERTURBATION", "*FREQUENCY", f"{self.n_modes(opts)}",
                 *locked_cards(self.bolts), "*END STEP"]
 
-    def cyclic_steps(self, mode, alphas, steps) -> list:
-        """Per amplitude three static steps of the modal load (module docstring), each
-        of unit step time, increments of at most ``1 / steps`` (CalculiX may cut them
-        back), the displacements printed at every increment: the modal force at total
-        time ``t`` within a step is linear between the step's start and end values."""
+    def cyclic_steps(self, mode, alphas, steps, cycles) -> list:
+        """Per amplitude ``1 + 2 cycles`` static steps of the modal load (module
+        docstring), each of unit step time, increments of at most ``1 / steps``
+        (CalculiX may cut them back), the displacements printed at every increment: the
+        modal force at total time ``t`` within a step is linear between the step's start
+        and end values."""
         out = [f"** steps 2..: the modal load alpha M phi of qsma's loaded mode "
-               f"({mode['f0_hz']:.10g} Hz tied, mass-normalised) as nodal forces, three "
-               f"steps per amplitude (0 -> +A, +A -> -A, -A -> +A), at most 1/{steps} of "
-               f"a branch per increment; q = phi^T M (u - u_pre) of the printed "
-               f"displacements. No frequency step: CalculiX 2.20 solves a static step "
-               f"after a PERTURBATION step as linear (no contact iterations)"]
+               f"({mode['f0_hz']:.10g} Hz tied, mass-normalised) as nodal forces, per "
+               f"amplitude {1 + 2 * cycles} steps (0 -> +A, then {cycles} cycles +A -> -A "
+               f"-> +A; the last one is compared with qsma's stabilised loop), at most "
+               f"1/{steps} of a branch per increment; q = phi^T M (u - u_pre) of the "
+               f"printed displacements. No frequency step: CalculiX 2.20 solves a static "
+               f"step after a PERTURBATION step as linear (no contact iterations)"]
         prev, inc = 0.0, inp_number(1.0 / steps)
         for A in alphas:
-            for target in (A, -A, A):
-                out += [f"** modal force {prev:.10g} -> {target:.10g}",
+            for k, target in enumerate((A,) + (-A, A) * cycles):
+                what = "ramp" if k == 0 else f"cycle {(k + 1) // 2} of {cycles}"
+                out += [f"** modal force {prev:.10g} -> {target:.10g} ({what})",
                         f"*STEP, INC={100 * steps}", "*STATIC",
                         f"{inc}, 1., 1e-8, {inc}", "*CONTROLS, PARAMETERS=FIELD",
                         FIELD_CONTROLS, *(locked_cards(self.bolts) if prev == 0.0 else []),
