@@ -315,21 +315,27 @@ def ring_interface_pressure(refine, n_outer, ring=None):
                  clamps=(Clamp("rim"),))
     m = Model((inner, outer), Interface("inner", "out", "outer", "in", coupling="auto"))
     pr = make_pairing(m)
-    A = [assemble_body(bd) for bd in m.bodies]
-    T = tie_transform(m, A, pr, np.ones(pr.n_pairs, bool))
-    K = (T.T @ stacked([x.K for x in A]) @ T).tocsc()
-    F = np.concatenate([x.loads.get("preload", np.zeros(x.n_dofs)) for x in A])
-    x = T @ spla.spsolve(K, T.T @ F)
-    k = pr.slave - 1
-    off = m.dof_offsets()
-    load = A[k].loads.get("preload", np.zeros(A[k].n_dofs))
-    f = (A[k].K @ x[off[k]:off[k + 1]] - load).reshape(-1, 2)[pr.contact_nodes]
+    f = welded_body_forces(m, pr)[pr.slave - 1][pr.contact_nodes]
     radial = np.einsum("ij,ij->i", f, pr.x / np.linalg.norm(pr.x, axis=1)[:, None])
     # Lame, plane strain, u = A r + B / r with sigma_rr(a) = -p and u(c) = 0
     lam, mu = BLOCK_STEEL.lame
     A_ = -p / (2 * (lam + mu) + 2 * mu * c ** 2 / a ** 2)
     exact = -(2 * (lam + mu) * A_ + 2 * mu * A_ * c ** 2 / b ** 2)
     return pr, np.abs(radial) / pr.area, exact
+
+
+def welded_body_forces(model, pairing):
+    """Every contact point of ``pairing`` tied (the mortar constraint where it is one)
+    and the preload solved: per body, the force the other body exerts on each of its
+    nodes, ``K u - f_preload``, as an ``(n_nodes, dim)`` array."""
+    A = [assemble_body(b) for b in model.bodies]
+    T = tie_transform(model, A, pairing, np.ones(pairing.n_pairs, bool))
+    K = (T.T @ stacked([a.K for a in A]) @ T).tocsc()
+    F = np.concatenate([a.loads.get("preload", np.zeros(a.n_dofs)) for a in A])
+    x = T @ spla.spsolve(K, T.T @ F)
+    off = model.dof_offsets()
+    return [(a.K @ x[off[k]:off[k + 1]] - a.loads.get("preload", np.zeros(a.n_dofs)))
+            .reshape(-1, model.dim) for k, a in enumerate(A)]
 
 
 def shifted_top(model, shift):

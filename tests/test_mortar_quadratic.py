@@ -6,20 +6,19 @@ import dataclasses
 
 import numpy as np
 import pytest
-import scipy.sparse.linalg as spla
 from scipy.spatial import cKDTree
 
 from qsma.contact import ContactProblem, solve as contact_solve
 from qsma.fe import assemble_body
 from qsma.mesh.generate import structured_mesh
-from qsma.modal import stacked, tie_transform
+from qsma.modal import tie_transform
 from qsma.model import Body, Interface, Mesh, Model, Pressure, make_pairing
 from qsma.model.dual_basis import MIXING
 from qsma.reduction.two_bodies import reduce_two_bodies
 
 from helpers import (BLOCK_H as H, BLOCK_STEEL as STEEL, BLOCK_W as W, HEX_TO_TETS,
                      assert_uniform_interference_pressure, block_sets, jitter_contact_zone,
-                     needs_ccx, ring_interface_pressure, shifted_top)
+                     needs_ccx, ring_interface_pressure, shifted_top, welded_body_forces)
 
 
 def _tetra10(mesh):
@@ -108,14 +107,7 @@ def test_welded_pressure_gives_the_consistent_forces_of_both_sides(case, slave):
     m = _stack(CASES[case], slave, p=pressure)
     pr = make_pairing(m)
     dim = m.dim
-    A = [assemble_body(b) for b in m.bodies]
-    T = tie_transform(m, A, pr, np.ones(pr.n_pairs, bool))
-    K = (T.T @ stacked([a.K for a in A]) @ T).tocsc()
-    F = np.concatenate([a.loads.get("preload", np.zeros(a.n_dofs)) for a in A])
-    x = T @ spla.spsolve(K, T.T @ F)
-    off = m.dof_offsets()
-    forces = [(a.K @ x[off[k]:off[k + 1]] - a.loads.get("preload", np.zeros(a.n_dofs)))
-              .reshape(-1, dim) for k, a in enumerate(A)]
+    forces = welded_body_forces(m, pr)
     s, mst = pr.slave - 1, 2 - pr.slave
     sets = ("upper", "lower")
     scale = pressure * W ** (dim - 1)
