@@ -39,6 +39,12 @@ def test_frictionless_levels_compute_no_loop_and_dissipate_nothing(frictionless)
     np.testing.assert_allclose(auto.tip_velocity, loop.tip_velocity, rtol=1e-10)
     # a stiffening elastic level is information, as with its loop, not Masing forced
     assert auto.flags == loop.flags and any("hardening" in f for f in auto.flags)
+    # loops.png draws the cycle the level has: both backbones, there and back
+    from qsma.output.plots import loop_curve
+    q, alpha, label = loop_curve(auto, auto.n_levels - 1)
+    assert label == "elastic cycle (the backbones)"
+    assert alpha.max() == auto.alpha[-1] and alpha.min() == -auto.alpha[-1]
+    assert q.min() == auto.q_neg[-1] and np.trapezoid(alpha, q) == 0.0
 
 
 def test_levels_where_a_pair_with_friction_slipped_keep_their_loops():

@@ -164,10 +164,17 @@ def loop_levels(res, n=MAX_LOOP_PANELS) -> list:
 
 def loop_curve(res, k):
     """``(q, alpha, label)`` of the loop drawn at level ``k``: the computed stabilised
-    loop where it exists, else Masing's construction from the backbone."""
+    loop where it exists, the two backbones at the user's levels where the level is
+    elastic (its cycle runs down the -alpha backbone and back up the +alpha one), else
+    Masing's construction from the backbone."""
     lp = res.loops.get(k)
     if lp is not None and lp.success:
         return lp.q, lp.alpha, "computed loop"
+    if res.dissipation_method[k] == "elastic":
+        q = np.concatenate([res.q[k::-1], [0.0], res.q_neg[:k + 1]])
+        f = np.concatenate([res.alpha[k::-1], [0.0], -res.alpha[:k + 1]])
+        return (np.concatenate([q, q[-2::-1]]), np.concatenate([f, f[-2::-1]]),
+                "elastic cycle (the backbones)")
     q, f = masing_loop(res.alpha, res.q, k)
     return q, f, "Masing" + (" (its computed loop failed)" if lp is not None else "")
 
