@@ -121,9 +121,7 @@ def cycle_dissipations(deck, text: str) -> list:
 
     Step 1 (the preload) ends at total time 1; cyclic step ``j`` (0-based) runs from
     ``1 + j`` to ``2 + j``, its modal force linear in time between the step's ends."""
-    from .calculix_bolts import NODES_PER_BOLT
-    n_nodes = deck.first_node[-1] - 1 + NODES_PER_BOLT * len(deck.bolts)
-    blocks = displacements(text, n_nodes)
+    blocks = displacements(text, deck.first_node[-1] - 1)     # the bodies' nodes
     ends = [x for A in deck.amplitudes for x in (A,) + (-A, A) * deck.cycles]
     if not ends:
         raise CalculixError("the deck has no cyclic steps (no amplitudes)")
