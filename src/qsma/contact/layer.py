@@ -34,7 +34,7 @@ from ..errors import InputError
 from .pairlaws import PairLaws
 from .problem import ContactProblem
 from .residual import EPS, ROUNDOFF, reaction_scale
-from .state import OPEN, ContactResult, ContactState, Outcome
+from .state import OPEN_CODE as OPEN, ContactResult, ContactState, Outcome
 
 #: Chord iterations of a nonlinear normal law in one solve before it is reported as not
 #: converged (the caller may then linearise the layer again at the pressures reached).

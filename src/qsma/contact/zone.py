@@ -35,7 +35,7 @@ from .problem import ContactProblem
 from .registry import (DEFAULT_TOL, Iterate, _result, accepted_guess, checked_guess,
                        chosen_method, guess_measures, solve)
 from .residual import FORCE_TOL, measures
-from .state import OPEN, STUCK, ContactState
+from .state import OPEN_CODE as OPEN, STUCK_CODE as STUCK, ContactState
 
 #: Tolerance factor of the second zone solve of a level whose zone answer met ``tol``
 #: on the zone but not on the full problem. sandwich-3d refine 1 with ``active_set``:
