@@ -11,7 +11,7 @@ from qsma.contact import ContactProblem, ContactState, residual, solve
 from qsma.contact import active_set, linear
 from qsma.contact.active_set import surely_rejected
 from qsma.contact.linear import basket_system, solve_partitioned
-from qsma.contact.residual import residual_components
+from qsma.contact.residual import measures, residual_components
 from qsma.examples import EXAMPLES
 import qsma.contact.zone as zone_module
 
@@ -164,3 +164,24 @@ def test_a_wrong_refined_step_is_never_returned_as_an_answer(monkeypatch):
     with pytest.warns(qsma.errors.ContactConvergenceWarning):
         res = solve(p, lw, state, method="active_set", fallback=False)
     assert not res.success and res.residual > TOL
+
+
+def test_a_zone_of_every_pair_reports_the_measures_of_the_full_problem(monkeypatch):
+    """When no pair is eliminated the zone problem is the full problem: the level's
+    measures are taken from its zone solve, and they are those of the full problem
+    evaluated afresh."""
+    p, base, _ = _random_problem(11, n=16)
+    base[:, -1] = 1.0                                   # every pair pressed
+    state = solve(p, base).state
+    zone = zone_module.zone_from_state(p, state)
+    assert zone.sub is p
+    for level in range(1, 6):
+        lw = base.copy()
+        lw[:, 0], lw[:, 1] = 0.3 * level, 0.1 * level
+        res, zone = zone_module.solve_in_zone(zone, lw, state, method="active_set")
+        assert res.success and zone.sub is p
+        fresh = measures(p, lw, res.d, res.lam, state)
+        np.testing.assert_allclose([res.residual, res.residual_force, res.residual_legacy],
+                                   fresh, rtol=1e-12, atol=1e-300)
+        assert fresh[0] <= TOL
+        state = res.state
