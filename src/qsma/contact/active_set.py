@@ -35,7 +35,7 @@ from ..errors import InputError
 from .law import augmented_forces, natural_map, pair_quantities, slip_directions_from_forces
 from .linear import BlockSystem
 from .registry import Iterate, register_method
-from .residual import (EPS, ROUNDOFF, measures, pair_stiffness, products, reaction_scale,
+from .residual import (EPS, ROUNDOFF, measures, pair_stiffness, reaction_scale,
                        residual_components)
 from .state import OPEN_CODE as OPEN, SLIPPING_CODE as SLIPPING, STUCK_CODE as STUCK
 
@@ -116,7 +116,7 @@ class _Newton:
         self.problem, self.lw, self.prev, self.c = problem, lam_w.ravel(), previous.d, c
         start = previous if guess is None else guess
         self.d = np.array(start.d, dtype=float).ravel()
-        self.lam = problem.K @ self.d + self.lw
+        self._set_force()
         self.seen, self.damped, self.failure = set(), False, None
         self.best, self.stall = np.inf, 0
         self.first = _previous_sets(start)
@@ -135,12 +135,14 @@ class _Newton:
         answer (:func:`qsma.contact.residual.residual` ``<= tol``), else None.
 
         An iterate that :func:`surely_rejected` rejects is not checked further: the
-        products with ``K`` and ``|K|`` of the check are formed only for iterates that
-        may pass, and the decision is the check's own."""
+        product with ``|K|`` of the check is formed only for iterates that may pass (``K
+        d`` is the iterate's own, :meth:`_set_force`), and the decision is the check's
+        own."""
         problem = self.problem
         if surely_rejected(problem, lam_w, self.d2, self.lam2, self.prev, tol):
             return None
-        Kd_aKd = products(problem, self.d)
+        with np.errstate(over="ignore", invalid="ignore"):
+            Kd_aKd = self.Kd, problem.abs_product(self.d, symmetric=True)
         r = residual_components(problem, lam_w, self.d2, self.lam2, previous,
                                 known_products=Kd_aKd).total
         if not r <= tol:
@@ -180,8 +182,15 @@ class _Newton:
             self.failure = "line search found no decrease of |F|"
             return False
         self.d = self.d + t * (target - self.d)
-        self.lam = self.problem.K @ self.d + self.lw
+        self._set_force()
         return True
+
+    def _set_force(self):
+        """``lam = K d + lam_w`` of the iterate, ``K d`` kept for its check (one
+        product of one triangle, :meth:`qsma.contact.ContactProblem.product`)."""
+        with np.errstate(over="ignore", invalid="ignore"):
+            self.Kd = self.problem.product(self.d)
+        self.lam = self.Kd + self.lw
 
     def _watch_cycle(self, sets):
         """Damp from now on if an active set repeats, or if ``|F|`` has not gone below
