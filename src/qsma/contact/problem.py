@@ -108,8 +108,8 @@ class ContactProblem:
         BLAS (``dsymv``) gives ``K x`` up to round-off while reading half the matrix:
         the checks of a solve are limited by memory traffic (measured 0.6 ms against
         1.35 ms for ``K @ x`` at N = 1683, 16 against 33 ms at N = 6435). Used by the
-        measures (:mod:`qsma.contact.residual`) and the basket; ``active_set`` and
-        ``nodal_gs`` iterate with ``K @ x``.
+        measures (:mod:`qsma.contact.residual`), the basket and the iterates of
+        ``active_set``; ``nodal_gs`` iterates with ``K @ x``.
         """
         return _symmetric_product(self.K, np.asarray(x, dtype=float).ravel())
 
