@@ -459,3 +459,17 @@ def test_nonlinear_layer_is_linear_about_the_preload_in_the_ramps():
     # dissipation
     flags = {f for fl in res.flags for f in fl}
     assert not flags & {"stuck_not_linear", "negative_dissipation", "masing_on_hardening"}
+
+
+def test_shift_force_kept_for_the_last_shift_is_the_product_of_each_shift():
+    """The force of a layer's shift is kept for the last shift only: for a sequence of
+    shifts with repeats, each answer has the bits of ``K'[:, N] s_N`` of that shift."""
+    model, pairing, physical, laws = _blocks(InterfaceLaw(ExponentialPressure(2e-6, 5e6)))
+    layer = Layer(physical, laws)
+    rng = np.random.default_rng(2)
+    s1, s2 = rng.uniform(0, 1e-6, pairing.n_pairs), rng.uniform(0, 1e-6, pairing.n_pairs)
+    s2[::3] = 0.0
+    for s in (s1, s1, s2, s1, s2.copy()):
+        on = np.flatnonzero(s)
+        direct = layer.problem.K[:, layer.problem.normal_index[on]] @ s[on]
+        assert np.array_equal(layer.shift_force(s), direct)

@@ -32,11 +32,12 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import InputError
-from .law import augmented_forces, pair_quantities, slip_directions_from_forces
-from .linear import basket_system, solve_partitioned
+from .law import augmented_forces, natural_map, pair_quantities, slip_directions_from_forces
+from .linear import BlockSystem
 from .registry import Iterate, register_method
-from .residual import measures, products, residual_components
-from .state import OPEN, SLIPPING, STUCK
+from .residual import (EPS, ROUNDOFF, measures, pair_stiffness, reaction_scale,
+                       residual_components)
+from .state import OPEN_CODE as OPEN, SLIPPING_CODE as SLIPPING, STUCK_CODE as STUCK
 
 #: Armijo constant and the smallest step of the damped line search.
 ARMIJO, MIN_STEP = 1e-4, 2.0 ** -30
@@ -75,11 +76,8 @@ def solve_active_set(problem, lam_w, previous, *, tol, maxiter=None, guess=None,
     steps = NEWTON_STEPS if maxiter is None else min(maxiter, NEWTON_STEPS)
     newton = _Newton(problem, lam_w, previous, augmentation * problem.kappa, guess)
     for it in range(steps + 1):
-        Kd_aKd = products(problem, newton.d)
-        if residual_components(problem, lam_w, newton.d2, newton.lam2, previous,
-                               known_products=Kd_aKd).total <= tol:
-            checked = measures(problem, lam_w, newton.d2, newton.lam2, previous,
-                               known_products=Kd_aKd)
+        checked = newton.accepted(lam_w, previous, tol)
+        if checked is not None:
             return Iterate(newton.d2, newton.lam2, it, True,
                            f"converged in {it} Newton steps{newton.note()}", measures=checked)
         if it == steps or not newton.step():
@@ -118,10 +116,11 @@ class _Newton:
         self.problem, self.lw, self.prev, self.c = problem, lam_w.ravel(), previous.d, c
         start = previous if guess is None else guess
         self.d = np.array(start.d, dtype=float).ravel()
-        self.lam = problem.K @ self.d + self.lw
+        self._set_force()
         self.seen, self.damped, self.failure = set(), False, None
         self.best, self.stall = np.inf, 0
         self.first = _previous_sets(start)
+        self.system = None       # BlockSystem of the pair states of the last step
 
     @property
     def d2(self):
@@ -130,6 +129,26 @@ class _Newton:
     @property
     def lam2(self):
         return self.lam.reshape(-1, self.problem.dim)
+
+    def accepted(self, lam_w, previous, tol):
+        """The measures of the current iterate if it passes the residual check of every
+        answer (:func:`qsma.contact.residual.residual` ``<= tol``), else None.
+
+        An iterate that :func:`surely_rejected` rejects is not checked further: the
+        product with ``|K|`` of the check is formed only for iterates that may pass (``K
+        d`` is the iterate's own, :meth:`_set_force`), and the decision is the check's
+        own."""
+        problem = self.problem
+        if surely_rejected(problem, lam_w, self.d2, self.lam2, self.prev, tol):
+            return None
+        with np.errstate(over="ignore", invalid="ignore"):
+            Kd_aKd = self.Kd, problem.abs_product(self.d, symmetric=True)
+        r = residual_components(problem, lam_w, self.d2, self.lam2, previous,
+                                known_products=Kd_aKd).total
+        if not r <= tol:
+            return None
+        return measures(problem, lam_w, self.d2, self.lam2, previous, known_products=Kd_aKd,
+                        known_residual=r)
 
     def note(self):
         return "; cycling or stall detected, damped steps" if self.damped else ""
@@ -163,8 +182,15 @@ class _Newton:
             self.failure = "line search found no decrease of |F|"
             return False
         self.d = self.d + t * (target - self.d)
-        self.lam = self.problem.K @ self.d + self.lw
+        self._set_force()
         return True
+
+    def _set_force(self):
+        """``lam = K d + lam_w`` of the iterate, ``K d`` kept for its check (one
+        product of one triangle, :meth:`qsma.contact.ContactProblem.product`)."""
+        with np.errstate(over="ignore", invalid="ignore"):
+            self.Kd = self.problem.product(self.d)
+        self.lam = self.Kd + self.lw
 
     def _watch_cycle(self, sets):
         """Damp from now on if an active set repeats, or if ``|F|`` has not gone below
@@ -188,9 +214,10 @@ class _Newton:
         and ``J d - F = -lam_w``; on slipping pairs the rows are those of
         :func:`qsma.contact.linear.slip_rows` with ``s = -h``.
         """
-        R, b, unknown, d_known = basket_system(self.problem, self.lw, sets.status, -sets.h,
-                                               sets.alpha, self.prev, self.c)
-        return solve_partitioned(R, b, unknown, d_known)
+        system = self.system
+        if system is None or not np.array_equal(system.status, sets.status):
+            system = self.system = BlockSystem(self.problem, self.lw, sets.status, self.prev)
+        return system.solve(-sets.h, sets.alpha, self.c)
 
     def _line_search(self, sets, delta):
         """Backtracking on ``|F|^2`` along ``delta``; the step length or None."""
@@ -202,6 +229,30 @@ class _Newton:
                 return t
             t *= 0.5
         return None
+
+
+def surely_rejected(problem, lam_w, d, lam, d_prev, tol):
+    r"""Whether ``(d, lam)`` fails the residual check ``residual <= tol`` for certain,
+    decided without a product with ``K``.
+
+    The check fails when a pair's natural map in its own stiffness, less its round-off
+    allowance ``a_i``, exceeds ``tol max|lam|`` (:func:`qsma.contact.residual.residual`).
+    ``a_i`` is bounded above through the row sums of ``|K|``,
+    ``(|K| |d|)_j <= \sum_k |K_{jk}| \max|d|``, taken twice for the rounding of the
+    products (``|K| |d|`` in single precision on large problems errs by far less). So a
+    pair with ``r_i - 2 a_i^{max} > tol max|lam|`` fails the check whatever ``|K| |d|``
+    is; NaN never counts as certain (the check itself then judges).
+    """
+    q = pair_quantities(problem, d, lam, d_prev)
+    with np.errstate(over="ignore", invalid="ignore"):
+        r_n, r_t = natural_map(q, problem.mu, pair_stiffness(problem))
+        top = np.abs(d).max(initial=0.0)
+        terms = problem.abs_row_sums * top + np.abs(lam_w.ravel())
+        a_max = 2.0 * ROUNDOFF * np.sqrt(problem.size) * EPS * \
+            terms.reshape(problem.n_pairs, -1).max(axis=1)
+        excess = np.maximum(r_n, r_t) - a_max
+        return bool(excess.max(initial=-np.inf) > (1.0 + 2.0 ** -20) * tol
+                    * reaction_scale(lam))
 
 
 def alart_curnier_sets(q, mu, c, status=None, h=None):

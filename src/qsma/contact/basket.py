@@ -48,7 +48,7 @@ from .law import (basket_transitions, local_states, pair_quantities, row_norm,
 from .linear import BlockSystem, known_displacement, open_rows, slip_rows, solve_partitioned
 from .registry import Iterate, register_method
 from .residual import measures, reaction_scale, roundoff_allowance
-from .state import OPEN, SLIPPING, STUCK
+from .state import OPEN_CODE as OPEN, SLIPPING_CODE as SLIPPING, STUCK_CODE as STUCK
 
 #: Checks ignore violations below this fraction of ``tol * F``, so that
 #: round-off cannot move a pair back and forth; they then add at most

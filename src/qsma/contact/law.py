@@ -13,7 +13,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .local import solve_pairs
-from .state import OPEN, SLIPPING, STUCK
+from .state import OPEN_CODE as OPEN, SLIPPING_CODE as SLIPPING, STUCK_CODE as STUCK
 
 
 class PairQuantities(NamedTuple):

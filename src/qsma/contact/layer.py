@@ -34,7 +34,7 @@ from ..errors import InputError
 from .pairlaws import PairLaws
 from .problem import ContactProblem
 from .residual import EPS, ROUNDOFF, reaction_scale
-from .state import OPEN, ContactResult, ContactState, Outcome
+from .state import OPEN_CODE as OPEN, ContactResult, ContactState, Outcome
 
 #: Chord iterations of a nonlinear normal law in one solve before it is reported as not
 #: converged (the caller may then linearise the layer again at the pressures reached).
@@ -205,6 +205,18 @@ class Layer:
             Wp = W - self.problem.K @ (self.c.reshape(-1, 1) * W)
             hit = (W, Wp)
             self._welded["W"] = hit
+        return hit[1]
+
+    def shift_force(self, s):
+        """``K' s`` of a shift ``s`` of the normal components (n_pairs,), flat: the force
+        that takes the shift into the welded force. Kept for the last ``s`` (the same
+        product, the same bits): a frozen layer shifts by the same ``s`` at every level
+        of a loop, and the product gathers a column of ``K'`` per shifted pair."""
+        hit = self._welded.get("shift")
+        if hit is None or not np.array_equal(hit[0], s):
+            on = np.flatnonzero(s)
+            hit = (np.array(s), self.problem.K[:, self.problem.normal_index[on]] @ s[on])
+            self._welded["shift"] = hit
         return hit[1]
 
     def shift(self, P):
@@ -391,16 +403,12 @@ def solve_layered(layer, solve_once, lam_w, state, guess=None, tol=1e-10,
     if not layer.nonlinear and not layer.frozen.any():
         res = solve_once(lam_w, layer.to_slider(state), layer.to_slider(guess))
         return layer.to_physical(res)
-    K = layer.problem.K
-    nidx = layer.problem.normal_index
     start = guess if guess is not None else state
     s = layer.shift(np.zeros(layer.problem.n_pairs) if start is None else start.lam[:, -1])
     ref = state if state is not None else ContactState.reference(layer.physical)
     nit, res, law = 0, None, np.inf
     for it in range(max_iterations):
-        on = np.flatnonzero(s)
-        shifted = lam_w - (K[:, nidx[on]] @ s[on]).reshape(lam_w.shape) if len(on) \
-            else lam_w
+        shifted = lam_w - layer.shift_force(s).reshape(lam_w.shape) if s.any() else lam_w
         res = solve_once(shifted, layer.to_slider(ref, s),
                          layer.to_slider(guess, s) if guess is not None else None)
         nit += res.nit

@@ -28,7 +28,7 @@ from typing import NamedTuple
 import numpy as np
 import scipy.linalg as sla
 
-from .state import OPEN, SLIPPING, STUCK
+from .state import OPEN_CODE as OPEN, SLIPPING_CODE as SLIPPING, STUCK_CODE as STUCK
 
 #: Iterative refinement of a block step with an earlier step's LU factors
 #: (:meth:`BlockSystem.solve`): the answer is accepted when every row's residual is at

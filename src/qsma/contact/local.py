@@ -32,7 +32,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .state import OPEN, SLIPPING, STUCK
+from .state import OPEN_CODE as OPEN, SLIPPING_CODE as SLIPPING, STUCK_CODE as STUCK
 
 #: Roots of the quartic within this distance of the unit circle are kept and
 #: polished (a double root, tangency of the two curves, sits ~sqrt(eps) = 1.5e-8

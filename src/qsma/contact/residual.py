@@ -79,8 +79,9 @@ class ResidualComponents:
 
 def pair_stiffness(problem):
     """``c_i = trace(K_ii) / dim``: the stiffness that turns pair ``i``'s displacements
-    into its forces in the natural map."""
-    return np.einsum("kii->k", problem.diagonal_blocks) / problem.dim
+    into its forces in the natural map (computed once per problem)."""
+    return problem.cached("pair_stiffness",
+                           lambda p: np.einsum("kii->k", p.diagonal_blocks) / p.dim)
 
 
 def force_scale(lam_w, lam):
@@ -247,19 +248,22 @@ def _force_and_legacy(problem, lam_w, d, lam, d_prev, Kd, aKd):
     return as_float(force), as_float(legacy)
 
 
-def measures(problem, lam_w, d, lam, previous_state=None, known_products=None):
+def measures(problem, lam_w, d, lam, previous_state=None, known_products=None,
+             known_residual=None):
     """``(residual, force_residual, legacy_residual)`` of ``(d, lam)`` from one pass
     over ``K`` (:func:`products`): the three numbers a solve reports, each equal to its
     function's value.
 
     ``known_products``, optional: ``(K d, |K| |d|)`` of this ``d`` already computed by
     the caller with :func:`products` or the same two products (a method that holds them
-    for its iterate), so that they are not formed twice.
+    for its iterate), so that they are not formed twice. ``known_residual``, optional:
+    :func:`residual` of this very iterate, evaluated by the caller from these products.
     """
     lam_w, d, lam = (np.asarray(a, dtype=float) for a in (lam_w, d, lam))
     d_prev = _previous_displacement(problem, previous_state)
     Kd_aKd = products(problem, d) if known_products is None else known_products
-    r = _components(problem, lam_w, d, lam, d_prev, Kd_aKd).total
+    r = (_components(problem, lam_w, d, lam, d_prev, Kd_aKd).total
+         if known_residual is None else known_residual)
     return (r, *_force_and_legacy(problem, lam_w, d, lam, d_prev, *Kd_aKd))
 
 

@@ -35,7 +35,7 @@ from .problem import ContactProblem
 from .registry import (DEFAULT_TOL, Iterate, _result, accepted_guess, checked_guess,
                        chosen_method, guess_measures, solve)
 from .residual import FORCE_TOL, measures
-from .state import OPEN, STUCK, ContactState
+from .state import OPEN_CODE as OPEN, STUCK_CODE as STUCK, ContactState
 
 #: Tolerance factor of the second zone solve of a level whose zone answer met ``tol``
 #: on the zone but not on the full problem. sandwich-3d refine 1 with ``active_set``:
@@ -502,11 +502,21 @@ def solve_in_zone(zone: ContactZone, lam_w, state: ContactState, *, method="bask
         lam[zone.keep] = sub.lam
         out = Iterate(d, lam, nit, bool(sub.success and not closing.any()),
                       _message(sub, zone, closing))
-        checked = measures(full, lam_w, d, lam, state)
+        checked = _full_measures(zone, sub, lam_w, d, lam, state)
         if not out.converged or (checked[0] <= tol and checked[1] <= FORCE_TOL):
             break
     return _result(full, lam_w, state, out, method, tol, fallback=sub.fallback,
                    measures=checked), zone
+
+
+def _full_measures(zone, sub, lam_w, d, lam, state):
+    """The measures of ``(d, lam)`` on the full problem. A zone that eliminates nothing
+    is the full problem itself (:meth:`Elimination.build`), and the zone solve has
+    just measured this very iterate on it (in units scaled by powers of two, which
+    change no measure): those measures are the full problem's."""
+    if zone.sub is zone.full and np.isfinite(sub.residual):
+        return sub.residual, sub.residual_force, sub.residual_legacy
+    return measures(zone.full, lam_w, d, lam, state)
 
 
 def _held_guess(zone, lam_w, state, guess, method, tol):
