@@ -18,6 +18,7 @@ import logging
 import numpy as np
 
 from .._infra.forked import ChildFailed, ForkedCall
+from .._infra.threads import blas_threads
 from ..errors import AnalysisError
 from .eigen import same_eigenvalues
 from .linear import check_hourglass, linear_modes, tied_operators
@@ -48,7 +49,18 @@ def leading_modes(model, assembled, pairing, tied, n_modes, reduced, springs, le
     if iteration.k <= leading:               # the leading modes are all of them
         return ModesToCome.finished(build(*iteration.finish()), leading)
     return ModesToCome(build(*iteration.leading(leading)), iteration, build,
-                       ForkedCall(iteration.finish) if fork else None)
+                       ForkedCall(lambda: _finished(iteration)) if fork else None)
+
+
+#: BLAS threads of the rest of the iteration, on the forked process or here: the ramps
+#: run beside it on one thread, and a second OpenBLAS thread of the child would spin on
+#: their core; the same number in both places gives the same numbers.
+FINISH_BLAS_THREADS = 1
+
+
+def _finished(iteration):
+    with blas_threads(FINISH_BLAS_THREADS):
+        return iteration.finish()
 
 
 class ModesToCome:
@@ -97,7 +109,7 @@ class ModesToCome:
                 return child.result()
             except ChildFailed as exc:
                 log.warning("tied modes finished again in this process: %s", exc)
-        return self._iteration.finish()
+        return _finished(self._iteration)
 
 
 def with_leading(modes: Modes, leading: Modes) -> Modes:
