@@ -34,7 +34,7 @@ import time
 
 import numpy as np
 
-from qsma.analysis import _Timer, prepare
+from qsma.analysis import StageClock, prepare
 from qsma.contact.state import OPEN, SLIPPING
 from qsma.deck.calculix import calculix_number, calculix_numbering, surface_rows
 from qsma.deck.calculix_output import contact_stresses, displacements
@@ -157,7 +157,7 @@ def qsma_preload(model):
     """``(pairing, preload contact result, seconds)`` of qsma."""
     t0 = time.perf_counter()
     p = prepare(model)
-    _, _, pre = p.preloaded(RunOptions(), _Timer())
+    _, _, pre = p.preloaded(RunOptions(), StageClock())
     return p.pairing, pre, time.perf_counter() - t0
 
 

@@ -29,7 +29,7 @@ import time
 
 import numpy as np
 
-from qsma.analysis import _Timer, prepare
+from qsma.analysis import StageClock, prepare
 from qsma.contact import OPEN
 from qsma.examples.brb import brb
 from qsma.analysis.options import RunOptions
@@ -40,10 +40,10 @@ def one(refine):
     t0 = time.perf_counter()
     p = prepare(brb(refine))
     t1 = time.perf_counter()
-    _, _, pre = p.preloaded(RunOptions(), _Timer())
+    _, _, pre = p.preloaded(RunOptions(), StageClock())
     t2 = time.perf_counter()
     closed = pre.status != OPEN
-    modes = p.mode(closed, RunOptions(n_modes=2), _Timer())[0].result()
+    modes = p.mode(closed, RunOptions(n_modes=2), StageClock())[0].result()
     t3 = time.perf_counter()
     n0 = sum(b.pretension for b in p.model.bolts)
     row = dict(nodes=sum(b.mesh.n_nodes for b in p.model.bodies), pairs=p.pairing.n_pairs,

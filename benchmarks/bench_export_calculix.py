@@ -3,7 +3,7 @@
     python benchmarks/bench_export_calculix.py [--example sandwich-2d lap-3d]
                                                [--penalty-factor 1e3 1e4]
                                                [--amplitudes 1e-6 1e-5] [--steps 20]
-                                               [--mu 0.1]
+                                               [--cycles N] [--mu 0.1]
 
 Per example and penalty: the deck of :func:`qsma.deck.export_calculix` is solved by
 ``ccx`` and compared with qsma's run of the model: the tied frequency f0 (CalculiX's
@@ -13,9 +13,12 @@ preload's normal contact force at each contact point (qsma's ``lam``; CalculiX's
 the body's stiffness being the same element, tests/test_elements.py), the closed pairs,
 the bolt forces at the end of the preload (CalculiX's spring ``k n . (u_B - u_M)``,
 qsma's pretension ``N0``: force controlled in both; the bolted examples lap-3d-bolted
-and brb), and with ``--amplitudes`` (linear tied tip deflections, converted as qsma's levels) the
-loop dissipation of CalculiX's last branch pair (``oint alpha dq``, trapezoidal) against
-qsma's loop at the same modal force.
+and brb), and with ``--amplitudes`` (linear tied tip deflections, converted as qsma's
+levels) the loop dissipation of CalculiX's last cycle (``oint alpha dq``, trapezoidal)
+against qsma's stabilised loop at the same modal force, and CalculiX's first cycle
+beside it. The deck runs ``--cycles`` cycles per amplitude (default: as many as qsma's
+loops took to settle at these amplitudes, at least two), so that the cycle compared is
+a settled one in both codes.
 """
 from __future__ import annotations
 
@@ -34,8 +37,9 @@ from qsma.contact.laws import ElasticStick, InterfaceLaw, LinearPressure
 from qsma.deck import export_calculix
 from qsma.deck.calculix_bolts import NODES_PER_BOLT, spring_forces
 from qsma.deck.calculix import PENALTY_FACTOR, _default_penalty
-from qsma.deck.calculix_output import (contact_stresses, displacements, eigenfrequencies,
-                                       run_calculix)
+from qsma.deck.calculix_cards import LOOP_CYCLES
+from qsma.deck.calculix_output import (contact_stresses, cycle_dissipations, displacements,
+                                       eigenfrequencies, run_calculix)
 from qsma.examples import EXAMPLES, brb
 from qsma.examples.bolted import stack_3d_bolted
 from qsma.fe import assemble_body
@@ -67,14 +71,23 @@ def contact_forces(model, deck, u_body, assembled, pairing):
     return np.einsum("ij,ij->i", f[pairing.nodes2], pairing.normals)
 
 
-def compare(model, folder: Path, penalty=None, amplitudes=None, steps=20, opts=None):
-    """One comparison (module docstring): a dict of the measures."""
+def compare(model, folder: Path, penalty=None, amplitudes=None, steps=20, opts=None,
+            cycles=None):
+    """One comparison (module docstring): a dict of the measures. With ``amplitudes``,
+    qsma's loops are computed first; ``cycles`` None: as many cycles per amplitude in
+    the deck as the most any of qsma's loops took to settle, at least two."""
     opts = opts or RunOptions()
+    res = None
+    if amplitudes is not None:
+        res = qsma.run(model, opts, levels=amplitudes, dissipation="loop")
+        amplitudes = Levels("alpha", tuple(res.alpha))
+        if cycles is None:
+            cycles = max(LOOP_CYCLES, int(np.max(res.loop_cycles)))
     t0 = time.perf_counter()
     law = model.interface.law
     deck = export_calculix(model, folder / "model.inp", options=opts, penalty=penalty,
                            amplitudes=amplitudes, steps=steps,
-                           tied=law is None or law.rigid)
+                           cycles=cycles or LOOP_CYCLES, tied=law is None or law.rigid)
     t_qsma = time.perf_counter() - t0
     mode, pairing = deck.mode, deck.mode["pairing"]
     t0 = time.perf_counter()
@@ -108,7 +121,7 @@ def compare(model, folder: Path, penalty=None, amplitudes=None, steps=20, opts=N
                bolt_qsma=np.array([b.pretension for b in model.bolts]),
                bolt_ccx=spring_forces(deck.bolts, blocks[n_pre - 1][1]))
     if amplitudes is not None:
-        out.update(_loops(model, deck, blocks[n_pre:], u_pre, opts))
+        out.update(_loops(deck, text, res))
     return out
 
 
@@ -133,30 +146,19 @@ def _preload_times(blocks):
     return [t for t, _ in blocks if t <= 1.0 + 1e-9]
 
 
-def _loops(model, deck, later, u_pre, opts):
-    """Dissipation of CalculiX's loop at each amplitude (its steps +A -> -A -> +A)
-    against qsma's computed loop at the same modal forces; ``later``: the displacement
-    blocks of the cyclic steps, step ``j`` (0-based) from total time ``1 + j`` to
-    ``2 + j``, the modal force linear in time within it."""
-    ends = [x for A in deck.amplitudes for x in (A, -A, A)]
-    starts = [0.0] + ends[:-1]
-    t = np.array([time for time, _ in later])
-    j = np.minimum(np.ceil(t - 1.0 - 1e-9).astype(int) - 1, len(ends) - 1)
-    alpha = np.array(starts)[j] + (np.array(ends) - np.array(starts))[j] * (t - 1.0 - j)
-    q = np.array([sum(np.sum(m * (u[:, :model.dim] - u0[:, :model.dim]))
-                      for m, u, u0 in zip(deck.mode["mphi"], deck.per_body(ub), u_pre))
-                  for _, ub in later])
-    res = qsma.run(model, opts, levels=Levels("alpha", deck.amplitudes), dissipation="loop")
-    d_ccx, q_ccx = [], []
-    for i in range(len(deck.amplitudes)):
-        top = int(np.flatnonzero(j == 3 * i)[-1])          # the end of the ramp to +A
-        loop = slice(top, int(np.flatnonzero(j == 3 * i + 2)[-1]) + 1)
-        d_ccx.append(abs(np.trapezoid(alpha[loop], q[loop])))
-        q_ccx.append(q[top])
-    return dict(alpha=np.asarray(deck.amplitudes), q_ccx=np.array(q_ccx),
-                q_qsma=np.asarray(res.q), D_ccx=np.array(d_ccx),
+def _loops(deck, text, res):
+    """Dissipation of CalculiX's last and first cycle at each amplitude against qsma's
+    stabilised loop ``res`` (a run at the same modal forces, every level a loop)."""
+    loops = cycle_dissipations(deck, text)
+    q_top = lambda cycle: cycle[1][0]                  # q at +A, where the cycle starts
+    return dict(alpha=np.asarray(deck.amplitudes), cycles=deck.cycles,
+                q_ccx=np.array([q_top(c[-1]) for c in loops]), q_qsma=np.asarray(res.q),
+                D_ccx=np.array([c[-1][2] for c in loops]),
+                D_ccx_cycles=[[cycle[2] for cycle in c] for c in loops],
                 D_qsma=np.asarray(res.dissipation),
-                D_qsma_error=np.asarray(res.dissipation_error))
+                D_qsma_error=np.asarray(res.dissipation_error),
+                D_qsma_first=np.asarray(res.dissipation_first_cycle),
+                qsma_cycles=np.asarray(res.loop_cycles))
 
 
 def _bolt_error(r) -> str:
@@ -173,6 +175,9 @@ def main(argv=None):
     ap.add_argument("--amplitudes", type=float, nargs="*", default=None,
                     help="linear tied tip deflections of the cyclic steps")
     ap.add_argument("--steps", type=int, default=20)
+    ap.add_argument("--cycles", type=int, default=None,
+                    help="cycles per amplitude in the deck (default: as many as qsma's "
+                         "loops took to settle, at least 2); the last one is compared")
     ap.add_argument("--mu", type=float, default=None,
                     help="the friction coefficient of the model (default: the example's)")
     ap.add_argument("--linear", type=float, nargs=2, metavar=("KN", "KT"),
@@ -201,7 +206,7 @@ def main(argv=None):
                                                                  tuple(args.amplitudes))
             with tempfile.TemporaryDirectory() as tmp:
                 r = compare(model, Path(tmp), penalty=K, amplitudes=levels,
-                            steps=args.steps)
+                            steps=args.steps, cycles=args.cycles)
             rel = lambda f: (f - r["f0_qsma"]) / r["f0_qsma"]
             K = r["penalty"]
             print(f"| {name} | {K:.3g} | {r['f0_qsma']:.6f} | {r['f0_tied']:.6f} | "
@@ -213,14 +218,18 @@ def main(argv=None):
             if "D_ccx" in r:
                 loops.append((name, K, r))
     if loops:
-        print("\n| model | K (Pa/m) | alpha | q qsma | q ccx | D qsma (J) | D ccx (J) | "
-              "ccx / qsma |")
-        print("|---" * 8 + "|")
+        print("\n| model | K (Pa/m) | alpha | q qsma | q ccx | cycles qsma / ccx | "
+              "D qsma (J) | its estimate | D qsma first cycle | D ccx per cycle | "
+              "ccx last / qsma |")
+        print("|---" * 11 + "|")
         for name, K, r in loops:
-            for a, q1, q2, d1, d2 in zip(r["alpha"], r["q_qsma"], r["q_ccx"], r["D_qsma"],
-                                         r["D_ccx"]):
-                print(f"| {name} | {K:.3g} | {a:.4e} | {q1:.6e} | {q2:.6e} | {d1:.4e} | "
-                      f"{d2:.4e} | {f'{d2 / d1:.4f}' if d1 > 0 else 'stuck'} |")
+            for a, q1, q2, nq, d1, e1, f1, dc in zip(
+                    r["alpha"], r["q_qsma"], r["q_ccx"], r["qsma_cycles"], r["D_qsma"],
+                    r["D_qsma_error"], r["D_qsma_first"], r["D_ccx_cycles"]):
+                cycles = " / ".join(f"{d:.4e}" for d in dc)
+                print(f"| {name} | {K:.3g} | {a:.4e} | {q1:.6e} | {q2:.6e} | "
+                      f"{nq} / {r['cycles']} | {d1:.4e} | {e1:.1e} | {f1:.4e} | {cycles} | "
+                      f"{f'{dc[-1] / d1:.4f}' if d1 > 0 else 'stuck'} |")
     return 0
 
 

@@ -12,10 +12,16 @@ not kept"):
 ``parallel``
     ``--repeat`` runs of each case with the loops in the process, on ``--workers``
     forked processes and on a local Dask cluster of ``--workers`` processes
-    (``loop_scheduler``), alternating; the median of the hysteresis stage and the
-    speed-up, the median CPU seconds of the run in this process and its children (a
+    (``loop_scheduler``; scheduler and workers started as their own processes),
+    alternating, each run in a fresh interpreter; the median of the hysteresis stage
+    and the speed-up, the median CPU seconds of the run's process and its children (a
     Dask worker's CPU is not counted there), and whether every per-level value and
     every loop point has the same bits as in one process.
+``scaling``
+    One run of each case with every loop in the process: the loops' wall time on N
+    workers (``--scaling-workers``) when the longest loops are handed out first, as the
+    run does, and the whole run's speed-up with the rest of it (model, condensation,
+    ramps) serial.
 ``methods``
     ``--repeat`` runs of each case with every method of ``--methods`` (one loop worker,
     alternating); the median of the hysteresis and the contact stages, the ratio to the
@@ -44,6 +50,7 @@ not kept"):
     python benchmarks/bench_loops.py profile --cases lap-3d:1
     python benchmarks/bench_loops.py parallel --cases lap-3d:1 --repeat 2 \
         --dissipation loop --workers 2
+    python benchmarks/bench_loops.py scaling --cases lap-3d:1 brb:2
     python benchmarks/bench_loops.py methods --cases lap-3d:1 brb:1 --repeat 2 \
         --levels tip:log:1e-4:1e-3:2 --dissipation loop
     python benchmarks/bench_loops.py interpolation --cases lap-2d:1 lap-3d:1 brb:1
@@ -71,6 +78,7 @@ from 6052 to 5616 (BRB refine 1), 15112 to 13726 (lap-3d refine 1) and 7094 to 6
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 
 import numpy as np
@@ -131,42 +139,117 @@ def _initial_steps(r, k):
     return len(_loop_fractions(r.backbone_alpha, g, linear_end, r.options.loop_steps))
 
 
+def _digest(res) -> str:
+    """SHA-256 of every per-level value and every loop's points of ``res``: two runs
+    with the same digest gave the same bits."""
+    import hashlib
+    h = hashlib.sha256()
+    for name in LEVEL_FIELDS:
+        x = getattr(res, name)
+        if isinstance(x, np.ndarray) and x.dtype.kind == "f":
+            h.update(np.ascontiguousarray(x).tobytes())
+        else:
+            h.update(repr(list(x)).encode())
+    for k in sorted(res.loops):
+        h.update(np.ascontiguousarray(res.loops[k].q).tobytes())
+    return h.hexdigest()
+
+
+def _measured(case, levels, options):
+    """One run in this (fresh) process: its hysteresis seconds, the CPU of the process
+    and its children, the loops, the loop solves and the digest of its bits."""
+    cpu = cpu_with_children_s()
+    r = _run(case, levels, **options)
+    return dict(hysteresis=r.timings_s["hysteresis"], cpu=cpu_with_children_s() - cpu,
+                loops=len(r.loops), solves=r.solver["loop_solves"], digest=_digest(r))
+
+
 def parallel(args):
-    """Each case with the loops in this process, on ``--workers`` forked processes and
-    on the workers of a local Dask cluster of as many processes, alternating."""
-    import logging
-    from distributed import LocalCluster
+    """Each case with the loops in one process, on ``--workers`` forked processes and
+    on the workers of a local Dask cluster of as many processes, alternating.
+
+    Every run is a fresh interpreter (``spawn``): a process that holds a Dask client or
+    cluster has threads, and qsma forks no loop worker from such a process (the loops
+    would run in it, one at a time). The cluster's scheduler and workers are
+    processes of their own (``dask scheduler``, ``dask worker``), started once."""
+    import concurrent.futures
+    import multiprocessing
+    import shutil
+    import subprocess
+    import sys
+    import time
     n = args.workers
     sides = {"1 process": dict(loop_workers=1), f"{n} processes": dict(loop_workers=n)}
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                           dashboard_address=":0", silence_logs=logging.ERROR)
-    sides[f"Dask, {n} workers"] = dict(loop_scheduler=cluster.scheduler_address)
+    dask = shutil.which("dask", path=os.path.dirname(sys.executable)) or shutil.which("dask")
+    cluster = []
+    if dask is None:
+        print("(no `dask` command: the Dask rows are left out)")
+    else:
+        port = 18786
+        address = f"tcp://127.0.0.1:{port}"
+        quiet = dict(stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        cluster.append(subprocess.Popen([dask, "scheduler", "--port", str(port),
+                                         "--dashboard-address", ":0"], **quiet))
+        time.sleep(2.0)
+        cluster.append(subprocess.Popen([dask, "worker", address, "--nworkers", str(n),
+                                         "--nthreads", "1", "--no-dashboard"], **quiet))
+        time.sleep(4.0)
+        sides[f"Dask, {n} workers"] = dict(loop_scheduler=address)
     _header("case", "loops", "loop solves", "loops on", "hysteresis [s]", "speed-up",
-            "CPU of this process and its children [s]", "same bits as 1 process")
+            "CPU of the run's processes [s]", "same bits as 1 process")
+    context = multiprocessing.get_context("spawn")
     try:
         for case in args.cases:
-            times = {s: [] for s in sides}
-            cpus = {s: [] for s in sides}
-            same = {s: True for s in sides}
+            got = {s: [] for s in sides}
             for _ in range(args.repeat):
-                runs = {}
                 for side, kw in sides.items():
-                    cpu = cpu_with_children_s()
-                    runs[side] = _run(case, args.levels, dissipation=args.dissipation, **kw)
-                    cpus[side].append(cpu_with_children_s() - cpu)
-                    times[side].append(runs[side].timings_s["hysteresis"])
-                first = runs["1 process"]
-                for side in sides:
-                    same[side] &= _same_bits(first, runs[side])
-            t1 = statistics.median(times["1 process"])
-            for side in sides:
-                t = statistics.median(times[side])
-                print(f"| {case} | {len(first.loops)} | {first.solver['loop_solves']} | "
-                      f"{side} | {t:.2f} | {t1 / t:.2f} | "
-                      f"{statistics.median(cpus[side]):.1f} | "
-                      f"{'yes' if same[side] else 'NO'} |", flush=True)
+                    with concurrent.futures.ProcessPoolExecutor(1, mp_context=context) as ex:
+                        got[side].append(ex.submit(_measured, case, args.levels,
+                                                   dict(kw, dissipation=args.dissipation)
+                                                   ).result())
+            first = got["1 process"][0]
+            t1 = statistics.median(g["hysteresis"] for g in got["1 process"])
+            for side, runs in got.items():
+                t = statistics.median(g["hysteresis"] for g in runs)
+                same = all(g["digest"] == first["digest"] for g in runs)
+                print(f"| {case} | {first['loops']} | {first['solves']} | {side} | "
+                      f"{t:.2f} | {t1 / t:.2f} | "
+                      f"{statistics.median(g['cpu'] for g in runs):.1f} | "
+                      f"{'yes' if same else 'NO'} |", flush=True)
     finally:
-        cluster.close()
+        for proc in cluster[::-1]:
+            proc.terminate()
+            proc.wait(timeout=30)
+
+
+def _makespan(seconds, n) -> float:
+    """Wall time of jobs of ``seconds`` on ``n`` workers, the longest handed out first
+    (what :func:`qsma.hysteresis.workers.map_loops` does): each goes to the worker that
+    is free first."""
+    import heapq
+    free = [0.0] * n
+    for t in sorted(seconds, reverse=True):
+        heapq.heappush(free, heapq.heappop(free) + t)
+    return max(free)
+
+
+def scaling(args):
+    """From one run per case with every loop in this process: the loops' wall time on
+    N workers by the longest-first rule, and the run's speed-up with the rest serial."""
+    counts = [int(c) for c in args.scaling_workers]
+    _header("case", "loops", "loops serial [s]", "longest loop [s]", "rest of the run [s]",
+            *[f"N = {c}: loops [s] / run speed-up" for c in counts])
+    for case in args.cases:
+        r = _run(case, args.levels, dissipation=args.dissipation, loop_workers=1)
+        loops = [t for t in r.level_costs.loop_seconds if t > 0]
+        rest = r.timings_s["total"] - r.timings_s["hysteresis"]
+        serial = rest + sum(loops)
+        cells = []
+        for c in counts:
+            m = _makespan(loops, c)
+            cells.append(f"{m:.2f} / {serial / (rest + m):.2f}")
+        print(f"| {case} | {len(loops)} | {sum(loops):.2f} | {max(loops, default=0):.2f} | "
+              f"{rest:.2f} | " + " | ".join(cells) + " |", flush=True)
 
 
 def methods(args):
@@ -395,20 +478,22 @@ def interpolation(args):
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("table", choices=["profile", "parallel", "methods", "interpolation",
-                                     "warm", "settle"])
+    p.add_argument("table", choices=["profile", "parallel", "scaling", "methods",
+                                     "interpolation", "warm", "settle"])
     p.add_argument("--cases", nargs="+", default=["lap-2d:1"], help="EXAMPLE:REFINE")
     p.add_argument("--levels", help="levels spec (default: the 51 default levels)")
     p.add_argument("--dissipation", default="auto", choices=["auto", "loop"])
     p.add_argument("--repeat", type=int, default=3)
     p.add_argument("--workers", type=int, default=2,
                    help="processes of the parallel table (forked, and Dask workers)")
+    p.add_argument("--scaling-workers", nargs="+", default=[1, 2, 4, 8, 16, 32, 64],
+                   help="worker counts of the scaling table")
     p.add_argument("--methods", nargs="+", default=["basket", "active_set"],
                    help="contact methods of the methods table")
     p.add_argument("--rtols", type=float, nargs="+", default=[5e-3, 2e-2, 5e-2])
     p.add_argument("--strides", type=int, nargs="+", default=[2, 4, 8])
     args = p.parse_args(argv)
-    {"profile": profile, "parallel": parallel, "methods": methods,
+    {"profile": profile, "parallel": parallel, "scaling": scaling, "methods": methods,
      "interpolation": interpolation, "warm": warm, "settle": settle}[args.table](args)
 
 

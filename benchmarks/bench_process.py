@@ -18,7 +18,7 @@ Two measurements, each the median of ``--repeat`` fresh processes:
 
 The analysis row is also split by the run's own stages (pairing, assembly,
 condensation, tied modes, contact ramps, hysteresis, post-processing), in CPU seconds
-(``qsma.analysis._Timer.stage`` wrapped in the child; nested stages count once).
+(``qsma.analysis.StageClock.stage`` wrapped in the child; nested stages count once).
 
 ``--baseline SRC`` measures a second source tree (the ``src`` folder of another
 checkout, e.g. a worktree of the main branch) in the same session, its processes
@@ -90,10 +90,10 @@ def _child(example, out):
 
 
 def _cpu_per_stage(analysis):
-    """Wrap ``analysis._Timer.stage`` so that the CPU seconds of every stage of a run
+    """Wrap ``analysis.StageClock.stage`` so that the CPU seconds of every stage of a run
     add up in the returned dict (a stage inside another counts for the outer one)."""
     from contextlib import contextmanager
-    original, record, depth = analysis._Timer.stage, {}, [0]
+    original, record, depth = analysis.StageClock.stage, {}, [0]
 
     @contextmanager
     def stage(self, name):
@@ -107,7 +107,7 @@ def _cpu_per_stage(analysis):
             if depth[0] == 0:
                 record[name] = record.get(name, 0.0) + time.process_time() - c0
 
-    analysis._Timer.stage = stage
+    analysis.StageClock.stage = stage
     return record
 
 

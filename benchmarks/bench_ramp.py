@@ -73,7 +73,7 @@ def timed_run(prepared, method, dissipation):
         res = run_prepared(replace(prepared, cache={}), method=method,
                            dissipation=dissipation)
     finally:
-        analysis._Timer.stage = original_stage
+        analysis.StageClock.stage = original_stage
         analysis._solve = original_solve
     counts = [int(np.sum(res.states.status[-1] == s)) for s in (0, 1, 2)]
     return {"cpu": record["contact"]["cpu"], "solves": calls[0], "f0": res.f0_hz,

@@ -43,8 +43,8 @@ MEASURED = [s for s in STAGES if s != "total"]
 
 
 def _instrumented_timer(record):
-    """Wrap ``analysis._Timer.stage`` so each stage also records CPU and peak memory."""
-    original = analysis._Timer.stage
+    """Wrap ``analysis.StageClock.stage`` so each stage also records CPU and peak memory."""
+    original = analysis.StageClock.stage
 
     @contextmanager
     def stage(self, name):
@@ -59,7 +59,7 @@ def _instrumented_timer(record):
         entry["peak_mb"] = max(entry["peak_mb"], _resources.peak_memory_mb() or 0.0)
         entry["held_mb"] = _resources.current_memory_mb() or 0.0   # at its last end
 
-    analysis._Timer.stage = stage
+    analysis.StageClock.stage = stage
     return original
 
 
@@ -77,7 +77,7 @@ def measure(refine, options):
     try:
         res = qsma.run(sandwich_3d(refine), **options)
     finally:
-        analysis._Timer.stage = original
+        analysis.StageClock.stage = original
     info = res.model_info
     return {
         "refine": refine, "n_dofs": info["n_dofs"], "n_pairs": info["n_pairs"],

@@ -1,15 +1,21 @@
 """Helpers shared by several test modules (tests import this module, never each
-other): patch tests, distorted meshes, a small Abaqus deck."""
+other): patch tests, distorted meshes, a small Abaqus deck, blocks and rings meshed
+apart for the mortar tests."""
+import dataclasses
 import shutil
 
 import numpy as np
 import pytest
 import scipy.sparse.linalg as spla
 
+from qsma.contact import ContactProblem, solve as contact_solve
 from qsma.fe import assemble_body, stress_at_nodes
 from qsma.examples import stack_2d
-from qsma.model import Body, Material, Mesh, boundary_facets, write_mesh
+from qsma.modal import stacked, tie_transform
+from qsma.model import (Body, Clamp, Interface, Material, Mesh, Model, Pressure,
+                        boundary_facets, make_pairing, write_mesh)
 from qsma.mesh.generate import structured_mesh
+from qsma.reduction.two_bodies import reduce_two_bodies
 
 STEEL = Material(200e9, 0.285, 7800.0)
 
@@ -231,3 +237,122 @@ def in_forked_child(function):
     child.join()
     if error is not None:
         pytest.fail(error, pytrace=False)
+
+
+# ------------------------------------------------------------ blocks meshed apart
+#: The material of the stacked blocks and rings of the mortar tests
+BLOCK_STEEL = Material(200e9, 0.3, 7800.0)
+#: Width and height of a stacked block [m] (any size: the answers are exact)
+BLOCK_W, BLOCK_H = 0.04, 0.01
+
+
+def block_sets(m, y0, dim, held):
+    """The block mesh ``m`` of ``[0, BLOCK_W] x [y0, y0 + BLOCK_H] (x [0, BLOCK_W])`` with
+    its sets (facets ``lower``, ``upper``) and its clamps: ``held`` "bottom" clamps u_y on
+    its lower face and u_x (u_z) on edges of that face (no interface node), "top" the
+    same on its upper face, "" nothing. Returns ``(mesh, clamps)``."""
+    x = m.points
+    e = 1e-9 * BLOCK_W
+    lo, hi = np.abs(x[:, 1] - y0) < e, np.abs(x[:, 1] - y0 - BLOCK_H) < e
+    face = lo if held == "bottom" else hi
+    sets = {"yface": np.flatnonzero(face), "xline": np.flatnonzero(face & (x[:, 0] < e))}
+    clamps = [Clamp("yface", (1,)), Clamp("xline", (0,))] if held else []
+    if dim == 3 and held:
+        sets["zline"] = np.flatnonzero(face & (x[:, 2] < e))
+        clamps.append(Clamp("zline", (2,)))
+    top = y0 + BLOCK_H
+    facets = {"lower": m.boundary_facets_where(lambda p: np.abs(p[:, 1] - y0) < e),
+              "upper": m.boundary_facets_where(lambda p: np.abs(p[:, 1] - top) < e)}
+    return m.with_sets(node_sets=sets, facet_sets=facets), clamps
+
+
+def assert_uniform_interference_pressure(m, delta=1e-6):
+    """The two held blocks ``m`` pressed together by an interference ``delta`` through
+    the condensed problem and the contact solver: uniform pressure ``E_u delta / (2 H)``
+    (``H``: :data:`BLOCK_H`) at every contact point, no shear. Returns ``(pairing,
+    reduced model, result)``."""
+    dim = m.dim
+    pr = make_pairing(m)
+    A = [assemble_body(b) for b in m.bodies]
+    rm = reduce_two_bodies(A[0], A[1], pr)
+    prob = ContactProblem(rm.K, 0.3, gap0=np.full(pr.n_pairs, -delta), dim=dim)
+    res = contact_solve(prob, rm.welded_contact_force([1.0]))
+    assert res.success
+    E_u = BLOCK_STEEL.E / (1 - BLOCK_STEEL.nu ** 2) if dim == 2 else BLOCK_STEEL.E
+    traction = res.lam / pr.area[:, None]
+    np.testing.assert_allclose(traction[:, -1], E_u * delta / (2 * BLOCK_H), rtol=1e-8)
+    assert np.abs(traction[:, :-1]).max() < 1e-8 * E_u * delta / BLOCK_H
+    return pr, rm, res
+
+
+def annulus(r0, r1, nr, nt):
+    """Full ring ``r0 <= r <= r1`` of nr x nt quads (the seam nodes merged)."""
+    m = structured_mesh(np.linspace(r0, r1, nr + 1), np.linspace(0, 2 * np.pi, nt + 1))
+    r, t = m.points[:, 0], m.points[:, 1]
+    seam = np.isclose(t, 2 * np.pi)
+    target = np.arange(len(r))
+    target[seam] = np.flatnonzero(seam) - (nr + 1) * nt          # node (i, nt) -> (i, 0)
+    number = np.cumsum(~seam) - 1
+    mesh = Mesh(np.column_stack([r * np.cos(t), r * np.sin(t)])[~seam],
+                number[target[m.cells]], "quad")
+    on = lambda R: (lambda p: np.abs(np.hypot(p[:, 0], p[:, 1]) - R) < 1e-9 * r1)
+    return mesh.with_sets(node_sets={"rim": np.flatnonzero(on(r1)(mesh.points))},
+                          facet_sets={"in": mesh.boundary_facets_where(on(r0)),
+                                      "out": mesh.boundary_facets_where(on(r1))})
+
+
+def ring_interface_pressure(refine, n_outer, ring=None):
+    """Inner ring (a..b, 48 refine elements around) welded by the mortar constraint to
+    an outer ring (b..c, ``n_outer`` refine around, outer rim clamped), pressure p inside.
+    Returns the pairing, the radial interface traction at the slave nodes and the Lame
+    value (plane strain).
+    ``ring(r0, r1, nr, nt)``: the ring's mesh (default :func:`annulus`)."""
+    ring = ring or annulus
+    a, b, c, p = 0.02, 0.03, 0.045, 1e7
+    inner = Body("inner", ring(a, b, 6 * refine, 48 * refine), BLOCK_STEEL,
+                 pressures=(Pressure("in", p),))
+    outer = Body("outer", ring(b, c, 6 * refine, n_outer * refine), BLOCK_STEEL,
+                 clamps=(Clamp("rim"),))
+    m = Model((inner, outer), Interface("inner", "out", "outer", "in", coupling="auto"))
+    pr = make_pairing(m)
+    f = welded_body_forces(m, pr)[pr.slave - 1][pr.contact_nodes]
+    radial = np.einsum("ij,ij->i", f, pr.x / np.linalg.norm(pr.x, axis=1)[:, None])
+    # Lame, plane strain, u = A r + B / r with sigma_rr(a) = -p and u(c) = 0
+    lam, mu = BLOCK_STEEL.lame
+    A_ = -p / (2 * (lam + mu) + 2 * mu * c ** 2 / a ** 2)
+    exact = -(2 * (lam + mu) * A_ + 2 * mu * A_ * c ** 2 / b ** 2)
+    return pr, np.abs(radial) / pr.area, exact
+
+
+def welded_body_forces(model, pairing):
+    """Every contact point of ``pairing`` tied (the mortar constraint where it is one)
+    and the preload solved: per body, the force the other body exerts on each of its
+    nodes, ``K u - f_preload``, as an ``(n_nodes, dim)`` array."""
+    A = [assemble_body(b) for b in model.bodies]
+    T = tie_transform(model, A, pairing, np.ones(pairing.n_pairs, bool))
+    K = (T.T @ stacked([a.K for a in A]) @ T).tocsc()
+    F = np.concatenate([a.loads.get("preload", np.zeros(a.n_dofs)) for a in A])
+    x = T @ spla.spsolve(K, T.T @ F)
+    off = model.dof_offsets()
+    return [(a.K @ x[off[k]:off[k + 1]] - a.loads.get("preload", np.zeros(a.n_dofs)))
+            .reshape(-1, model.dim) for k, a in enumerate(A)]
+
+
+def shifted_top(model, shift):
+    """``model`` with the nodes of its second body moved along x by ``shift(points)``."""
+    top = model.bodies[1]
+    pts = top.mesh.points.copy()
+    pts[:, 0] += shift(pts)
+    mesh = Mesh(pts, top.mesh.cells, top.mesh.cell_type, top.mesh.node_sets,
+                top.mesh.facet_sets)
+    return dataclasses.replace(model, bodies=(model.bodies[0],
+                                              dataclasses.replace(top, mesh=mesh)))
+
+
+def jitter_contact_zone(p):
+    """For :func:`shifted_top` on sandwich-2d: moves the top beam's nodes in the contact
+    zone by up to 0.2 mm along x (a quarter of an element), keeping both ends of the zone
+    and the node count."""
+    L, lc = 0.2032, 0.0508
+    s = (p[:, 0] - (L - lc)) / lc
+    return np.where((s > 0) & (s < 1), 2e-4 * np.sin(np.pi * s) * np.sin(7 * np.pi * s), 0)

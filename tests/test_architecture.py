@@ -226,6 +226,70 @@ def test_tests_and_benchmarks_import_the_new_paths():
     assert not old, "\n".join(old)
 
 
+def _imported_names(tree):
+    """``(line, module)`` of every import in ``tree``, relative imports by their name."""
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            yield from ((node.lineno, a.name) for a in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            yield node.lineno, node.module
+
+
+def test_no_test_module_imports_another():
+    """What several test modules share lives in tests/helpers.py: a test module imported
+    by another runs its module-level code twice, and renaming one of its tests' private
+    builders breaks a module that nobody reads beside it."""
+    tests = Path(__file__).resolve().parent
+    modules = {p.stem for p in tests.rglob("test_*.py")}
+    found = [f"{path.relative_to(tests)}:{line} imports {module}"
+             for path in sorted(tests.rglob("*.py"))
+             for line, module in _imported_names(ast.parse(path.read_text()))
+             if module.rpartition(".")[2] in modules]
+    assert not found, "\n".join(found)
+
+
+def _top_package(name) -> str:
+    """``qsma.deck`` for ``qsma.deck.calculix``; ``qsma`` for a module at the top."""
+    return ".".join(name.split(".")[:2]) if name.count(".") else name
+
+
+def _private_imports(name):
+    """``(line, module, name)`` of the private names (one leading underscore) that module
+    ``name`` imports from a module of another top-level package of qsma."""
+    tree = ast.parse(MODULES[name][0].read_text())
+    for node in ast.walk(tree):
+        if not isinstance(node, ast.ImportFrom):
+            continue
+        module = _resolved(name, node) if node.level else node.module or ""
+        if not module.startswith("qsma") or _top_package(module) == _top_package(name):
+            continue
+        for a in node.names:
+            if a.name.startswith("_") and not a.name.startswith("__"):
+                yield node.lineno, module, a.name
+
+
+#: Private names still imported across packages: the Abaqus lexer's readers in the deck
+#: reader, made public together with it (each entry must still be found below, so the
+#: list only shrinks).
+PRIVATE_IMPORTS_PENDING = {
+    ("qsma.deck.reader", "qsma.mesh.io.abaqus.lexer", "_inp_cards"),
+    ("qsma.deck.records", "qsma.mesh.io.abaqus.lexer", "_abaqus_float"),
+    ("qsma.deck.records", "qsma.mesh.io.abaqus.lexer", "_rows"),
+}
+
+
+def test_no_private_name_is_imported_from_another_package():
+    """A name with a leading underscore is its package's own: another package that needs
+    it gets a public name where it lives (a private helper may change without notice)."""
+    found = {(name, module, what): line for name in GRAPH
+             for line, module, what in _private_imports(name)}
+    stale = PRIVATE_IMPORTS_PENDING - set(found)
+    assert not stale, f"no longer imported, remove from PRIVATE_IMPORTS_PENDING: {stale}"
+    private = [f"{a}:{line} imports {b}.{c}" for (a, b, c), line in sorted(found.items())
+               if (a, b, c) not in PRIVATE_IMPORTS_PENDING]
+    assert not private, "\n".join(private)
+
+
 @pytest.mark.parametrize("name", ["qsma.mesh", "qsma.contact", "qsma.model", "qsma.fe",
                                   "qsma.reduction.schur", "qsma.reduction.multibody",
                                   "qsma.modal", "qsma.hysteresis", "qsma.analysis.driver",

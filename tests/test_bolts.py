@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import qsma
-from qsma.analysis import _Timer, prepare
+from qsma.analysis import StageClock, prepare
 from qsma.errors import InputError
 from qsma.examples.bolted import BOLT_2D, lap_2d_bolted
 from qsma.model import Bolt
@@ -19,7 +19,7 @@ from qsma.analysis.result import load_factors
 
 def _preload(model):
     p = prepare(model)
-    red, _, pre = p.preloaded(RunOptions(), _Timer())
+    red, _, pre = p.preloaded(RunOptions(), StageClock())
     return p, red, pre
 
 
@@ -137,7 +137,7 @@ def test_bolt_pretension_loads_like_the_patch_it_replaces():
 def test_preload_scale_scales_the_pretension():
     """A sweep's preload scale multiplies the bolt pretension with the pressures."""
     p = prepare(lap_2d_bolted(1, free="all")).with_preload_scale(2.0)
-    red, _, pre = p.preloaded(RunOptions(), _Timer())
+    red, _, pre = p.preloaded(RunOptions(), StageClock())
     assert p.model.bolts[0].pretension == 2 * BOLT_2D["pretension"]
     assert red.bolt_forces(pre.d, load_factors(red, 0.0))[0] == pytest.approx(
         2 * BOLT_2D["pretension"], rel=1e-14)

@@ -210,20 +210,64 @@ def test_couplings_of_no_bolt_are_refused_with_the_pattern(tmp_path):
     assert "qsma has no rigid (kinematic) couplings" in note.fix
 
 
-def test_an_abaqus_connector_bolt_is_refused_with_the_pattern(tmp_path):
-    """Abaqus' connector bolt (a CONN3D2 with an AXIAL *CONNECTOR SECTION and a
-    *CONNECTOR LOAD): the mesh still reads, the connector's cards are refused with the
-    pattern qsma reads."""
-    def connector(text):
-        return text.replace("*STEP", "*ELEMENT, TYPE=CONN3D2, ELSET=CONN\n99001, 1, 2\n"
-                            "*CONNECTOR SECTION, ELSET=CONN\nAXIAL\n*STEP", 1).replace(
-            "*STATIC\n", "*STATIC\n*CONNECTOR LOAD\n99001, 1, 8000.\n", 1)
-    deck = _lap_deck(tmp_path, connector)
-    what = {n.what for n in deck.refusals}
-    assert {"*CONNECTOR SECTION", "*CONNECTOR LOAD"} <= what
-    note = next(n for n in deck.refusals if n.what == "*CONNECTOR SECTION")
-    assert note.fix.startswith("qsma reads no connector elements (CONN3D2); qsma reads "
-                               "couplings, beams and springs only as a bolt")
+def _connector(load="8000.", elasticity="*CONNECTOR ELASTICITY, COMPONENT=1\n1e9\n",
+               kind="AXIAL", after=""):
+    """The exported lap-3d-bolted deck with its bolt written as Abaqus' connector bolt:
+    the beam, its pretension section, the spring and the ties replaced by a CONN3D2
+    between the couplings' reference nodes; ``after``: cards of a second step."""
+    def edit(text):
+        ref_a = re.search(r"TYPE=DCOUP3D, ELSET=BOLT_bolt_A\n\d+, (\d+)\n", text).group(1)
+        ref_b = re.search(r"TYPE=DCOUP3D, ELSET=BOLT_bolt_B\n\d+, (\d+)\n", text).group(1)
+        member = re.search(r"\*ELEMENT, TYPE=B31, ELSET=bolt\n.*?(?=\*\* body)", text,
+                           re.S).group(0)
+        text = text.replace(member, f"*ELEMENT, TYPE=CONN3D2, ELSET=bolt\n99001, {ref_a}, "
+                            f"{ref_b}\n*CONNECTOR SECTION, ELSET=bolt, BEHAVIOR=BOLTB\n"
+                            f"{kind}\n*CONNECTOR BEHAVIOR, NAME=BOLTB\n{elasticity}")
+        text = re.sub(r"\*CLOAD\n\d+, 1, 8000.0\n",
+                      f"*CONNECTOR LOAD\nbolt, 1, {load}\n", text)
+        text = re.sub(r"\*BOUNDARY, FIXED\n\d+, 1, 1\n", after, text)
+        return text
+    return edit
+
+
+@pytest.mark.parametrize("load", ["8000.", "-8000."])
+def test_an_abaqus_connector_bolt_reads_as_the_same_bolt(tmp_path, load):
+    """Abaqus' connector bolt (an AXIAL CONN3D2 between the couplings' reference nodes,
+    *CONNECTOR ELASTICITY the stiffness, *CONNECTOR LOAD the pretension): the bolt of
+    the model the deck was written from; the tension is the load's magnitude whichever
+    sign the deck gives it, which the bolt's comment says."""
+    deck = _lap_deck(tmp_path, _connector(load=load))
+    assert not deck.refusals, deck.refusals
+    (bolt,) = deck.config["bolts"]
+    original = lap_3d_bolted(1).bolts[0]
+    assert (bolt["pretension"], bolt["stiffness"]) == (original.pretension,
+                                                       original.stiffness)
+    assert (bolt["body_a"], bolt["body_b"]) == ("bottom", "top")
+    assert "magnitude of its *CONNECTOR LOAD" in deck.comments[("bolts", 0)]
+    assert not any("CONNECTOR" in n.what for n in deck.notes)
+
+
+def test_a_connector_held_after_the_preload_is_read_with_a_note(tmp_path):
+    """*CONNECTOR MOTION in the step after the preload: Abaqus holds the bolt rigid
+    there; qsma keeps the elasticity and says so (not a refusal)."""
+    deck = _lap_deck(tmp_path, _connector(after="*CONNECTOR MOTION, FIXED\nbolt, 1\n"))
+    assert not deck.refusals
+    (note,) = [n for n in deck.notes if "*CONNECTOR MOTION" in n.what]
+    assert "keeps the stiffness of its *CONNECTOR ELASTICITY" in note.fix
+
+
+@pytest.mark.parametrize("edit, says", [
+    (dict(kind="BEAM"), "of type BEAM"),
+    (dict(elasticity=""), "no positive *CONNECTOR ELASTICITY"),
+    (dict(elasticity="*CONNECTOR ELASTICITY, COMPONENT=1, RIGID\n"), "is not linear"),
+    (dict(load="0."), "no *CONNECTOR LOAD on its component 1"),
+])
+def test_a_connector_that_is_no_bolt_is_refused_with_the_pattern(tmp_path, edit, says):
+    deck = _lap_deck(tmp_path, _connector(**edit))
+    assert "bolts" not in deck.config
+    note = next(n for n in deck.refusals if says in n.what)
+    assert "CONN3D2" in note.fix or "*CONNECTOR LOAD" in note.fix or \
+        "stiffness" in note.fix
 
 
 @pytest.mark.parametrize("member", ["B31", "T3D2"])

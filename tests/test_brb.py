@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import qsma
-from qsma.analysis import _Timer, prepare
+from qsma.analysis import StageClock, prepare
 from qsma.contact import OPEN
 from qsma.errors import InputError
 from qsma.examples import EXAMPLES
@@ -24,8 +24,8 @@ def coarse():
     """The coarse BRB with a flat rigid interface, prepared and preloaded, with its tied
     modes."""
     p = prepare(brb(1, surfaces="flat"))
-    red, _, pre = p.preloaded(RunOptions(), _Timer())
-    modes = p.mode(pre.status != OPEN, RunOptions(n_modes=4), _Timer())[0].result()
+    red, _, pre = p.preloaded(RunOptions(), StageClock())
+    modes = p.mode(pre.status != OPEN, RunOptions(n_modes=4), StageClock())[0].result()
     return p, red, pre, modes
 
 
@@ -132,10 +132,10 @@ def test_tied_frequency_converges_under_refinement():
     f = []
     for r in (1, 2):
         p = prepare(brb(r, surfaces="flat"))
-        _, _, pre = p.preloaded(RunOptions(), _Timer())
+        _, _, pre = p.preloaded(RunOptions(), StageClock())
         closed = pre.status != OPEN
         assert 0 < closed.sum() < p.pairing.n_pairs
-        f.append(p.mode(closed, RunOptions(n_modes=1), _Timer())[0].result().f_hz[6])
+        f.append(p.mode(closed, RunOptions(n_modes=1), StageClock())[0].result().f_hz[6])
     e1, e2 = (abs(x - F_TIED_REFINE_3) for x in f)
     assert e1 > 4 * e2 and e2 < 1e-2 * F_TIED_REFINE_3
 
@@ -245,7 +245,7 @@ def test_measured_preload_follows_the_rough_law_and_the_gap(measured):
     flat_model = brb(1)
     flat_model = dataclasses.replace(flat_model, interface=dataclasses.replace(
         flat_model.interface, gap=None))
-    flat = prepare(flat_model).preloaded(RunOptions(), _Timer())[2]
+    flat = prepare(flat_model).preloaded(RunOptions(), StageClock())[2]
     assert pre.P[ends].sum() > 1.5 * flat.P[ends].sum()
 
 

@@ -184,18 +184,53 @@ def test_cli_writes_the_deck_and_refuses(tmp_path, capsys):
     assert "bolt" in capsys.readouterr().err
     assert main(["export", "--calculix", str(tmp_path / "no" / "x.inp"), "--example",
                  "lap-2d"]) == 2
+    assert main(["export", "--calculix", str(tmp_path / "c.inp"), "--example", "lap-2d",
+                 "--amplitudes", "tip:list:1e-5", "--cycles", "1"]) == 2
+    assert "cycles must be an integer of at least 2" in capsys.readouterr().err
+    assert main(["export", "--calculix", str(tmp_path / "c.inp"), "--example", "lap-2d",
+                 "--amplitudes", "tip:list:1e-5", "--cycles", "3", "--steps", "2"]) == 0
+    assert (tmp_path / "c.inp").read_text().count("*CLOAD") == 1 + 2 * 3
+
+
+def _cloads(text):
+    """Per ``*CLOAD`` card of ``text``: its rows as ``{(node, dof): value}``."""
+    out = []
+    for block in text.split("*CLOAD\n")[1:]:
+        rows = {}
+        for line in block.splitlines():
+            if line.startswith("*"):
+                break
+            node, dof, value = line.split(",")
+            rows[int(node), int(dof)] = float(value)
+        out.append(rows)
+    return out
 
 
 def test_cyclic_steps_carry_the_modal_load():
-    """Three steps per amplitude; the nodal forces of a step are alpha M phi of qsma's
-    mass-normalised mode (phi^T M phi = 1 summed over the bodies)."""
+    """Per amplitude a ramp 0 -> +A and two cycles +A -> -A -> +A by default (the last
+    is compared with qsma's stabilised loop); the nodal forces of a step are alpha M phi
+    of qsma's mass-normalised mode (phi^T M phi = 1 summed over the bodies)."""
     deck = calculix_deck(lap_2d(1), amplitudes=(2.0, 5.0), steps=4)
-    assert deck.text.count("*CLOAD") == 6
+    assert deck.cycles == 2 and deck.text.count("*CLOAD") == 2 * (1 + 2 * 2)
     assert "*FREQUENCY" not in deck.text
     norm = sum(np.sum(p * mp) for p, mp in zip(deck.mode["phi"], deck.mode["mphi"]))
     assert norm == pytest.approx(1.0, rel=1e-9)
+    # the targets of the steps: +A, then -A, +A per cycle; the forces are alpha M phi
+    node, dof = max(_cloads(deck.text)[0].items(), key=lambda kv: abs(kv[1]))[0]
+    unit = _cloads(deck.text)[0][node, dof] / 2.0
+    targets = [rows[node, dof] / unit for rows in _cloads(deck.text)]
+    np.testing.assert_allclose(targets, [2, -2, 2, -2, 2, 5, -5, 5, -5, 5], rtol=1e-12)
+    k = deck.first_node.index(max(n for n in deck.first_node if n <= node))
+    assert unit == pytest.approx(deck.mode["mphi"][k][node - deck.first_node[k], dof - 1],
+                                 rel=1e-12)
+    three = calculix_deck(lap_2d(1), amplitudes=(2.0,), steps=4, cycles=3)
+    assert three.cycles == 3 and three.text.count("*CLOAD") == 1 + 2 * 3
+    assert "cycle 3 of 3" in three.text
     with pytest.raises(InputError, match="increase strictly"):
         calculix_deck(lap_2d(1), amplitudes=(5.0, 2.0))
+    for bad in (1, 0, 2.5, True):
+        with pytest.raises(InputError, match="cycles must be an integer of at least 2"):
+            calculix_deck(lap_2d(1), amplitudes=(2.0,), cycles=bad)
 
 
 # --- with CalculiX -------------------------------------------------------------------
@@ -217,3 +252,53 @@ def test_calculix_agrees_on_tied_frequency_and_preload(make, bench, tmp_path):
     assert r["max_diff"] < 5e-5
     assert r["total_ccx"] == pytest.approx(r["total_qsma"], rel=1e-5)
     assert r["f0_ccx"] == pytest.approx(r["f0_qsma"], rel=1e-3)
+
+
+def _dat(times_u):
+    """CalculiX's .dat text of one printed node: a displacement block per ``(time,
+    u_x)``."""
+    return "".join(f"\n displacements (vx,vy,vz) for set NALL and time  {t:.7E}\n\n"
+                   f"         1  {u:.6E}  0.000000E+00  0.000000E+00\n"
+                   for t, u in times_u)
+
+
+def test_cycle_dissipations_read_each_cycle_of_the_printed_increments():
+    """One node, M phi = (1, 0): q is u_x less its preload value. Two increments per
+    branch, A = 2, two cycles whose (q, alpha) polygons enclose 2.8 and 2.4 (shoelace
+    formula by hand); the ramp 0 -> +A is no part of either. Output that stops before
+    the last step is refused."""
+    from qsma.deck.calculix import CalculixDeck
+    from qsma.deck.calculix_output import CalculixError, cycle_dissipations
+    deck = CalculixDeck("", (1, 2), (1, 2), (), amplitudes=(2.0,), steps=2, cycles=2,
+                        mode={"mphi": [np.array([[1.0, 0.0]])]})
+    u_pre = 0.3
+    q = [0.5, 1.0, 0.8, -1.2, -0.6, 1.0, 0.6, -1.0, -0.6, 1.0]     # at t = 1.5, 2, ..., 6
+    text = _dat([(0.5, 0.1), (1.0, u_pre)] + [(1.0 + 0.5 * (k + 1), u_pre + x)
+                                              for k, x in enumerate(q)])
+    (first, second), = cycle_dissipations(deck, text)
+    np.testing.assert_allclose(first[0], [2, 0, -2, 0, 2], atol=1e-12)
+    np.testing.assert_allclose(first[1], [1.0, 0.8, -1.2, -0.6, 1.0], atol=1e-12)
+    assert first[2] == pytest.approx(2.8, rel=1e-12)
+    np.testing.assert_allclose(second[1], [1.0, 0.6, -1.0, -0.6, 1.0], atol=1e-12)
+    assert second[2] == pytest.approx(2.4, rel=1e-12)
+    with pytest.raises(CalculixError, match="up to time 5 of 6"):
+        cycle_dissipations(deck, text.rsplit("\n displacements", 2)[0])
+
+
+@needs_ccx
+def test_calculix_cycles_settle_to_the_loop_qsma_reports(bench, tmp_path):
+    """lap-2d with a linear law (2e13 / 1e13 Pa/m, the same in both codes) at a tied tip
+    deflection of 1.028e-4 m, where the first cycle after the ramp slips pairs that the
+    settled cycles do not (qsma's loop: 2 cycles, a shakedown). CalculiX's three
+    cycles of the exported deck (20 increments per branch), measured: 4.4128e-3,
+    3.1755e-3, 3.1754e-3 J/m; qsma's stabilised loop 3.1780e-3 +- 8.1e-6 J/m (its first
+    cycle 4.3887e-3). The first cycle is 1.39 times the last, the last agrees with qsma
+    to 8e-4 (docs/validation.md, "The exported deck's cycles")."""
+    law = InterfaceLaw(LinearPressure(2e13), ElasticStick(1e13))
+    r = bench.compare(_with_law(lap_2d(1), law), tmp_path,
+                      amplitudes=Levels("tip", (1.028e-4,)), steps=20, cycles=3)
+    first, second, last = r["D_ccx_cycles"][0]
+    assert r["D_qsma_first"][0] > 1.2 * r["D_qsma"][0]        # qsma sees the shakedown
+    assert first > 1.2 * last                                  # so does CalculiX
+    assert second == pytest.approx(last, rel=1e-3)             # and then it settles
+    assert last == pytest.approx(r["D_qsma"][0], rel=5e-3)

@@ -1,7 +1,7 @@
 """Figures a person can read: no overlapping tick labels, a unit on every axis, every
 plotted curve inside its axes, on the 2D and 3D examples.
 
-The figures are captured as they are saved (``qsma.output.plots._save``) and inspected
+The figures are captured as they are saved (``qsma.output.plots.save_png``) and inspected
 through matplotlib's own text extents after a draw, so the test measures what the PNG
 shows.
 """
@@ -22,13 +22,13 @@ UNIT = re.compile(r"\[[^\]]+\]")
 
 def _capture(res, tmp_path, monkeypatch):
     figures = {}
-    save = plots._save
+    save = plots.save_png
 
     def keep(fig, path):
         figures[str(path).rsplit("/", 1)[-1]] = fig
         return save(fig, path)
 
-    monkeypatch.setattr(plots, "_save", keep)
+    monkeypatch.setattr(plots, "save_png", keep)
     plots.write_plots(res, tmp_path)
     return figures
 
@@ -123,7 +123,7 @@ def test_figures_are_readable(results, case, tmp_path, monkeypatch):
 
 def test_checker_sees_crowded_ticks_and_missing_units():
     """The checks above can fail: a crowded axis without units is caught."""
-    fig, ax = plots._figure(figsize=(2, 2))
+    fig, ax = plots.agg_figure(figsize=(2, 2))
     ax.plot([0, 1], [0, 1])
     ax.set_xticks(np.linspace(0, 1, 40), [f"{x:.6f}" for x in np.linspace(0, 1, 40)])
     ax.set_xlabel("no unit here")
@@ -216,7 +216,7 @@ def test_the_amplitude_measure_is_selectable_and_shared_with_studies(results, tm
              "tip_velocity": list(res.tip_velocity), "f_hz": list(res.f_hz),
              "zeta": list(res.zeta)}
     drawn = []
-    monkeypatch.setattr(study_plots, "_save", lambda fig, path: drawn.append(fig))
+    monkeypatch.setattr(study_plots, "save_png", lambda fig, path: drawn.append(fig))
     for amplitude, field, label in (
             (None, "tip", "peak tip deflection [m]"),
             ("velocity", "tip_velocity", "peak tip velocity [m/s]"),

@@ -294,10 +294,10 @@ def test_tied_modes_with_springs_substructured_and_assembled_agree():
     from qsma.modal import linear_modes
     from qsma.contact.layer import interface_springs
     from qsma.analysis.options import RunOptions
-    from qsma.analysis import _Timer
+    from qsma.analysis import StageClock
     law = InterfaceLaw(LinearPressure(5e13), ElasticStick(2e13))
     p = prepare(_sandwich(law))
-    reduced, layer, pre = p.preloaded(RunOptions(), _Timer())
+    reduced, layer, pre = p.preloaded(RunOptions(), StageClock())
     closed = pre.status != 2
     springs = interface_springs(layer, closed)
     a = linear_modes(p.model, p.assembled, p.pairing, tied=closed, n_modes=3,

@@ -73,7 +73,7 @@ def test_bad_tie_mask_rejected():
 
 import dataclasses  # noqa: E402
 
-from qsma.analysis import _Timer, prepare  # noqa: E402
+from qsma.analysis import StageClock, prepare  # noqa: E402
 from qsma.examples import lap_2d, lap_2d_free  # noqa: E402
 from qsma.examples.bolted import BOLT_2D, lap_2d_bolted  # noqa: E402
 from qsma.modal import identity_rows, substructured_inverse, tie_transform  # noqa: E402
@@ -106,7 +106,7 @@ MODELS = {
 
 def _preloaded(name):
     p = prepare(MODELS[name]())
-    reduced, _, pre = p.preloaded(RunOptions(), _Timer())
+    reduced, _, pre = p.preloaded(RunOptions(), StageClock())
     return p, reduced, pre.status != 2
 
 

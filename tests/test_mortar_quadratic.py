@@ -6,21 +6,19 @@ import dataclasses
 
 import numpy as np
 import pytest
-import scipy.sparse.linalg as spla
 from scipy.spatial import cKDTree
 
 from qsma.contact import ContactProblem, solve as contact_solve
 from qsma.fe import assemble_body
 from qsma.mesh.generate import structured_mesh
-from qsma.modal import stacked, tie_transform
+from qsma.modal import tie_transform
 from qsma.model import Body, Interface, Mesh, Model, Pressure, make_pairing
 from qsma.model.dual_basis import MIXING
 from qsma.reduction.two_bodies import reduce_two_bodies
 
-from helpers import HEX_TO_TETS, needs_ccx
-from test_nonmatching import (H, STEEL, W, _block_sets, _jitter,
-                              assert_uniform_interference_pressure,
-                              _ring_interface_pressure, _shifted_top)
+from helpers import (BLOCK_H as H, BLOCK_STEEL as STEEL, BLOCK_W as W, HEX_TO_TETS,
+                     assert_uniform_interference_pressure, block_sets, jitter_contact_zone,
+                     needs_ccx, ring_interface_pressure, shifted_top, welded_body_forces)
 
 
 def _tetra10(mesh):
@@ -47,7 +45,7 @@ def _block(y0, n, dim, held, cell_type):
         m = _tetra10(structured_mesh(*ax))
     else:
         m = structured_mesh(*ax, cell_type=cell_type)
-    return _block_sets(m, y0, dim, held)
+    return block_sets(m, y0, dim, held)
 
 
 def _stack(case, slave, top_held=False, p=0.0):
@@ -109,14 +107,7 @@ def test_welded_pressure_gives_the_consistent_forces_of_both_sides(case, slave):
     m = _stack(CASES[case], slave, p=pressure)
     pr = make_pairing(m)
     dim = m.dim
-    A = [assemble_body(b) for b in m.bodies]
-    T = tie_transform(m, A, pr, np.ones(pr.n_pairs, bool))
-    K = (T.T @ stacked([a.K for a in A]) @ T).tocsc()
-    F = np.concatenate([a.loads.get("preload", np.zeros(a.n_dofs)) for a in A])
-    x = T @ spla.spsolve(K, T.T @ F)
-    off = m.dof_offsets()
-    forces = [(a.K @ x[off[k]:off[k + 1]] - a.loads.get("preload", np.zeros(a.n_dofs)))
-              .reshape(-1, dim) for k, a in enumerate(A)]
+    forces = welded_body_forces(m, pr)
     s, mst = pr.slave - 1, 2 - pr.slave
     sets = ("upper", "lower")
     scale = pressure * W ** (dim - 1)
@@ -189,8 +180,8 @@ def test_quad8_parts_meshed_apart_give_the_conforming_answer():
     import qsma
     from qsma.examples import sandwich_2d
     m = sandwich_2d(1, element="quad8")
-    j = _shifted_top(dataclasses.replace(
-        m, interface=dataclasses.replace(m.interface, coupling="mortar")), _jitter)
+    j = shifted_top(dataclasses.replace(
+        m, interface=dataclasses.replace(m.interface, coupling="mortar")), jitter_contact_zone)
     conf, res = qsma.run(m), qsma.run(j)
     assert res.success and res.pairing.coupling == "mortar"
     assert res.f0_hz == pytest.approx(conf.f0_hz, rel=1e-4)
@@ -261,7 +252,7 @@ def test_curved_quadratic_facets_meshed_apart_converge_to_lame(cell_type):
     on 24 / 24 cells: 0.07 %)."""
     errors = []
     for refine in (1, 2):
-        pr, pres, exact = _ring_interface_pressure(
+        pr, pres, exact = ring_interface_pressure(
             refine, 35, lambda r0, r1, nr, nt: _annulus(r0, r1, nr // 2, nt // 2, cell_type))
         assert pr.coupling == "mortar"
         errors.append((abs(pres.mean() / exact - 1), np.abs(pres / exact - 1).max()))

@@ -7,7 +7,6 @@ import dataclasses
 
 import numpy as np
 import pytest
-import scipy.sparse.linalg as spla
 
 import qsma
 from qsma.reduction.two_bodies import reduce_two_bodies
@@ -15,14 +14,12 @@ from qsma.contact import ContactProblem, solve as contact_solve
 from qsma.errors import InputError
 from qsma.examples import sandwich_2d
 from qsma.fe import assemble_body
-from qsma.modal import stacked, tie_transform
-from qsma.model import Body, Clamp, Interface, Material, Mesh, Model, Pressure, make_pairing
+from qsma.model import Body, Clamp, Interface, Mesh, Model, Pressure, make_pairing
 from qsma.mesh.generate import structured_mesh
 
-from helpers import HEX_TO_TETS
-
-STEEL = Material(200e9, 0.3, 7800.0)
-W, H = 0.04, 0.01          # block width and height [m] (any size: the answers are exact)
+from helpers import (BLOCK_H as H, BLOCK_STEEL as STEEL, BLOCK_W as W, HEX_TO_TETS,
+                     assert_uniform_interference_pressure, block_sets, jitter_contact_zone,
+                     ring_interface_pressure, shifted_top, welded_body_forces)
 
 
 def _axes(n, *extent):
@@ -35,23 +32,7 @@ def _block(y0, n, dim, held):
     (no interface node), "top" the same on its upper face, "" nothing."""
     ax = _axes(n, *([W, H, W] if dim == 3 else [W, H]))
     ax[1] = ax[1] + y0
-    return _block_sets(structured_mesh(*ax), y0, dim, held)
-
-
-def _block_sets(m, y0, dim, held):
-    """The sets and clamps of :func:`_block` on the block mesh ``m``."""
-    x = m.points
-    e = 1e-9 * W
-    lo, hi = np.abs(x[:, 1] - y0) < e, np.abs(x[:, 1] - y0 - H) < e
-    face = lo if held == "bottom" else hi
-    sets = {"yface": np.flatnonzero(face), "xline": np.flatnonzero(face & (x[:, 0] < e))}
-    clamps = [Clamp("yface", (1,)), Clamp("xline", (0,))] if held else []
-    if dim == 3 and held:
-        sets["zline"] = np.flatnonzero(face & (x[:, 2] < e))
-        clamps.append(Clamp("zline", (2,)))
-    facets = {"lower": m.boundary_facets_where(lambda p: np.abs(p[:, 1] - y0) < e),
-              "upper": m.boundary_facets_where(lambda p: np.abs(p[:, 1] - y0 - H) < e)}
-    return m.with_sets(node_sets=sets, facet_sets=facets), clamps
+    return block_sets(structured_mesh(*ax), y0, dim, held)
 
 
 def _stack(n_bottom, n_top, dim, slave=None, top_held=False, p=0.0):
@@ -97,16 +78,7 @@ def test_patch_test_pressure_passes_a_welded_nonmatching_interface(n_bottom, n_t
     pressure = 3e6
     m = _stack(n_bottom, n_top, dim, slave, p=pressure)
     pr = make_pairing(m)
-    A = [assemble_body(b) for b in m.bodies]
-    T = tie_transform(m, A, pr, np.ones(pr.n_pairs, bool))
-    K = (T.T @ stacked([a.K for a in A]) @ T).tocsc()
-    F = np.concatenate([a.loads.get("preload", np.zeros(a.n_dofs)) for a in A])
-    x = T @ spla.spsolve(K, T.T @ F)
-    off = m.dof_offsets()
-    forces = []
-    for k, a in enumerate(A):                       # force the other body exerts, per node
-        load = a.loads.get("preload", np.zeros(a.n_dofs))
-        forces.append((a.K @ x[off[k]:off[k + 1]] - load).reshape(-1, dim))
+    forces = welded_body_forces(m, pr)
     s, mst = pr.slave - 1, 2 - pr.slave
     on_slave = forces[s][pr.contact_nodes]
     sign = -1.0 if s == 0 else 1.0                  # bottom is pushed down, top up
@@ -156,15 +128,7 @@ def test_patch_test_triangles_against_quadrilaterals(slave):
     pr = make_pairing(m)
     assert m.bodies[1].mesh.facets("lower").shape[1] == 3
     np.testing.assert_allclose(pr.projection.sum(axis=1).A1, 1.0, rtol=0, atol=1e-13)
-    A = [assemble_body(b) for b in m.bodies]
-    T = tie_transform(m, A, pr, np.ones(pr.n_pairs, bool))
-    K = (T.T @ stacked([a.K for a in A]) @ T).tocsc()
-    F = np.concatenate([a.loads.get("preload", np.zeros(a.n_dofs)) for a in A])
-    x = T @ spla.spsolve(K, T.T @ F)
-    k = pr.slave - 1
-    off = m.dof_offsets()
-    load = A[k].loads.get("preload", np.zeros(A[k].n_dofs))
-    f = (A[k].K @ x[off[k]:off[k + 1]] - load).reshape(-1, 3)[pr.contact_nodes]
+    f = welded_body_forces(m, pr)[pr.slave - 1][pr.contact_nodes]
     np.testing.assert_allclose(np.abs(f[:, 1]) / pr.area, pressure, rtol=1e-9)
 
 
@@ -197,15 +161,7 @@ def test_patch_test_with_distorted_quadrilaterals(slave):
     xm = m.bodies[2 - pr.slave].mesh.points[pr.master_nodes]
     np.testing.assert_allclose(pr.projection.sum(axis=1).A1, 1.0, rtol=0, atol=1e-13)
     np.testing.assert_allclose(pr.projection @ xm, xs, rtol=0, atol=1e-14 * W)
-    A = [assemble_body(b) for b in m.bodies]
-    T = tie_transform(m, A, pr, np.ones(pr.n_pairs, bool))
-    K = (T.T @ stacked([a.K for a in A]) @ T).tocsc()
-    F = np.concatenate([a.loads.get("preload", np.zeros(a.n_dofs)) for a in A])
-    x = T @ spla.spsolve(K, T.T @ F)
-    k = pr.slave - 1
-    off = m.dof_offsets()
-    load = A[k].loads.get("preload", np.zeros(A[k].n_dofs))
-    f = (A[k].K @ x[off[k]:off[k + 1]] - load).reshape(-1, 3)[pr.contact_nodes]
+    f = welded_body_forces(m, pr)[pr.slave - 1][pr.contact_nodes]
     np.testing.assert_allclose(np.abs(f[:, 1]) / pr.area, pressure, rtol=1e-7)
 
 
@@ -216,24 +172,6 @@ def test_contact_patch_test_interference_gives_uniform_pressure(n_bottom, n_top,
     uniform pressure E_u delta / (2 H), E_u = E / (1 - nu^2) in plane strain (uniaxial
     stress, free lateral faces), E in 3D; no shear (equal lateral strains)."""
     assert_uniform_interference_pressure(_stack(n_bottom, n_top, dim, slave, top_held=True))
-
-
-def assert_uniform_interference_pressure(m, delta=1e-6):
-    """The two held blocks ``m`` pressed together by an interference ``delta`` through
-    the condensed problem and the contact solver: uniform pressure ``E_u delta / (2 H)``
-    at every contact point, no shear. Returns ``(pairing, reduced model, result)``."""
-    dim = m.dim
-    pr = make_pairing(m)
-    A = [assemble_body(b) for b in m.bodies]
-    rm = reduce_two_bodies(A[0], A[1], pr)
-    prob = ContactProblem(rm.K, 0.3, gap0=np.full(pr.n_pairs, -delta), dim=dim)
-    res = contact_solve(prob, rm.welded_contact_force([1.0]))
-    assert res.success
-    E_u = STEEL.E / (1 - STEEL.nu ** 2) if dim == 2 else STEEL.E
-    traction = res.lam / pr.area[:, None]
-    np.testing.assert_allclose(traction[:, -1], E_u * delta / (2 * H), rtol=1e-8)
-    assert np.abs(traction[:, :-1]).max() < 1e-8 * E_u * delta / H
-    return pr, rm, res
 
 
 def test_conforming_mortar_gives_the_node_to_node_answer():
@@ -253,63 +191,17 @@ def test_conforming_mortar_gives_the_node_to_node_answer():
 
 
 # ------------------------------------------------------------------ curved interface
-def _annulus(r0, r1, nr, nt):
-    """Full ring ``r0 <= r <= r1`` of nr x nt quads (the seam nodes merged)."""
-    m = structured_mesh(np.linspace(r0, r1, nr + 1), np.linspace(0, 2 * np.pi, nt + 1))
-    r, t = m.points[:, 0], m.points[:, 1]
-    seam = np.isclose(t, 2 * np.pi)
-    target = np.arange(len(r))
-    target[seam] = np.flatnonzero(seam) - (nr + 1) * nt          # node (i, nt) -> (i, 0)
-    number = np.cumsum(~seam) - 1
-    mesh = Mesh(np.column_stack([r * np.cos(t), r * np.sin(t)])[~seam],
-                number[target[m.cells]], "quad")
-    on = lambda R: (lambda p: np.abs(np.hypot(p[:, 0], p[:, 1]) - R) < 1e-9 * r1)
-    return mesh.with_sets(node_sets={"rim": np.flatnonzero(on(r1)(mesh.points))},
-                          facet_sets={"in": mesh.boundary_facets_where(on(r0)),
-                                      "out": mesh.boundary_facets_where(on(r1))})
-
-
-def _ring_interface_pressure(refine, n_outer, ring=None):
-    """Inner ring (a..b, 48 refine elements around) welded by the mortar constraint to
-    an outer ring (b..c, ``n_outer`` refine around, outer rim clamped), pressure p inside.
-    Returns the radial interface traction at the slave nodes and the Lame value.
-    ``ring(r0, r1, nr, nt)``: the ring's mesh (default :func:`_annulus`)."""
-    ring = ring or _annulus
-    a, b, c, p = 0.02, 0.03, 0.045, 1e7
-    inner = Body("inner", ring(a, b, 6 * refine, 48 * refine), STEEL,
-                 pressures=(Pressure("in", p),))
-    outer = Body("outer", ring(b, c, 6 * refine, n_outer * refine), STEEL,
-                 clamps=(Clamp("rim"),))
-    m = Model((inner, outer), Interface("inner", "out", "outer", "in", coupling="auto"))
-    pr = make_pairing(m)
-    A = [assemble_body(bd) for bd in m.bodies]
-    T = tie_transform(m, A, pr, np.ones(pr.n_pairs, bool))
-    K = (T.T @ stacked([x.K for x in A]) @ T).tocsc()
-    F = np.concatenate([x.loads.get("preload", np.zeros(x.n_dofs)) for x in A])
-    x = T @ spla.spsolve(K, T.T @ F)
-    k = pr.slave - 1
-    off = m.dof_offsets()
-    load = A[k].loads.get("preload", np.zeros(A[k].n_dofs))
-    f = (A[k].K @ x[off[k]:off[k + 1]] - load).reshape(-1, 2)[pr.contact_nodes]
-    radial = np.einsum("ij,ij->i", f, pr.x / np.linalg.norm(pr.x, axis=1)[:, None])
-    # Lame, plane strain, u = A r + B / r with sigma_rr(a) = -p and u(c) = 0
-    lam, mu = STEEL.lame
-    A_ = -p / (2 * (lam + mu) + 2 * mu * c ** 2 / a ** 2)
-    exact = -(2 * (lam + mu) * A_ + 2 * mu * A_ * c ** 2 / b ** 2)
-    return pr, np.abs(radial) / pr.area, exact
-
-
 def test_curved_nonmatching_interface_converges_to_lame():
     """A circular interface meshed with 48 and 35 segments (polygons that differ by up to
     1.4 % of an element): mapped along the master normal field, the welded pressure has
     the conforming mesh's accuracy on average (Lame to 0.27 % at refine 1, 0.066 % at
     refine 2, measured; the same as 48 / 48 node-to-node) and a pointwise scatter that
     halves with h (0.41 %, 0.14 %, 0.054 % at refine 1, 2, 4)."""
-    pr, conf, exact = _ring_interface_pressure(1, 48)
+    pr, conf, exact = ring_interface_pressure(1, 48)
     assert pr.coupling == "node"
     errors = []
     for refine in (1, 2):
-        pr, pres, exact = _ring_interface_pressure(refine, 35)
+        pr, pres, exact = ring_interface_pressure(refine, 35)
         assert pr.coupling == "mortar" and 0 < np.abs(pr.gap).max() < 0.02 * 2 * np.pi * 0.03 / 35
         assert abs(pres.mean() / exact - 1) < 3e-3 / refine ** 2      # O(h^2), as conforming
         errors.append(np.abs(pres / exact - 1).max())
@@ -318,30 +210,12 @@ def test_curved_nonmatching_interface_converges_to_lame():
 
 
 # ------------------------------------------------------------------ never snapped
-def _shifted_top(model, shift):
-    top = model.bodies[1]
-    pts = top.mesh.points.copy()
-    pts[:, 0] += shift(pts)
-    mesh = Mesh(pts, top.mesh.cells, top.mesh.cell_type, top.mesh.node_sets,
-                top.mesh.facet_sets)
-    return dataclasses.replace(model, bodies=(model.bodies[0],
-                                              dataclasses.replace(top, mesh=mesh)))
-
-
-def _jitter(p):
-    """Moves the top beam's nodes in the contact zone by up to 0.2 mm along x (a
-    quarter of an element), keeping both ends of the zone and the node count."""
-    L, lc = 0.2032, 0.0508
-    s = (p[:, 0] - (L - lc)) / lc
-    return np.where((s > 0) & (s < 1), 2e-4 * np.sin(np.pi * s) * np.sin(7 * np.pi * s), 0)
-
-
 def test_approximately_matching_nodes_are_refused_not_snapped():
     """Equal node counts a fraction of an element apart: the node coupling refuses and
     points to the mortar coupling; tol cannot be raised to glue them; "auto" couples
     them properly (and a conforming mesh stays node-to-node)."""
     base = sandwich_2d(1)
-    m = _shifted_top(base, _jitter)
+    m = shifted_top(base, jitter_contact_zone)
     m = dataclasses.replace(m, interface=dataclasses.replace(m.interface, coupling="node"))
     with pytest.raises(InputError, match=r"no partner(.|\n)*never snapped(.|\n)*mortar"):
         make_pairing(m)
@@ -364,7 +238,7 @@ def test_bad_coupling_options_are_refused():
 
 # ------------------------------------------------------------------ bad input
 def test_surface_that_projects_nowhere():
-    m = _shifted_top(sandwich_2d(1), lambda p: np.full(len(p), 0.3))
+    m = shifted_top(sandwich_2d(1), lambda p: np.full(len(p), 0.3))
     m = dataclasses.replace(m, interface=dataclasses.replace(m.interface, coupling="mortar"))
     with pytest.raises(InputError, match=r"body 'bottom' set 'interface'.*projects nowhere"
                                          r"(.|\n)*Fix:"):
@@ -379,7 +253,7 @@ def test_offset_surfaces_couple_their_overlap_and_report_the_rest():
     from qsma.errors import PartialCoverageWarning
     from qsma.model.coupling import mortar_operator
     shift, length = 3e-4, 0.0508                    # sandwich-2d contact zone
-    m = _shifted_top(sandwich_2d(1), lambda p: np.full(len(p), shift))
+    m = shifted_top(sandwich_2d(1), lambda p: np.full(len(p), shift))
     m = dataclasses.replace(m, interface=dataclasses.replace(m.interface, coupling="auto"))
     bottom, top = m.bodies
     op = mortar_operator(bottom.mesh, bottom.mesh.facets("interface"), top.mesh,
@@ -481,7 +355,7 @@ def test_overlapping_bodies_are_refused():
 # ------------------------------------------------------------------ QSMA through mortar
 @pytest.fixture(scope="module")
 def jittered():
-    m = _shifted_top(sandwich_2d(1), _jitter)
+    m = shifted_top(sandwich_2d(1), jitter_contact_zone)
     return dataclasses.replace(m, interface=dataclasses.replace(m.interface,
                                                                 coupling="auto"))
 

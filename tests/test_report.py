@@ -307,8 +307,8 @@ def test_browser_check_catches_a_broken_page(browser, tmp_path):
     errors, widths = show(browser, bad)
     assert any("broken on purpose" in e["message"] for e in errors)
     assert widths == [0]
-    from qsma.output.plots import _figure, png_bytes
-    png = base64.b64encode(png_bytes(_figure()[0])).decode()
+    from qsma.output.plots import agg_figure, png_bytes
+    png = base64.b64encode(png_bytes(agg_figure()[0])).decode()
     cramped = tmp_path / "cramped.html"
     cramped.write_text('<!DOCTYPE html><html><body><table><tr><th></th><th></th></tr>'
                        '<tr><td style="font-size: 9px">value</td><td>1</td></tr></table>'

@@ -31,7 +31,7 @@ _NAMES = {
     "preload": "stages", "GAP_REPORT_RTOL": "stages",
     "Dissipation": "dissipation", "MIN_LOOP_STEPS": "dissipation",
     "ZETA_ZERO": "checks", "ZETA_NEGLIGIBLE": "checks", "STUCK_FREQUENCY_RTOL": "checks",
-    "STAGES": "clock",
+    "STAGES": "clock", "StageClock": "clock",
     "EXPECT_MAX_RATIO": "ramps", "LEVEL_REFINE_ROUNDS": "ramps",
     "RunOptions": "options", "Execution": "options", "EXECUTION_FIELDS": "options",
     "Levels": "levels", "QSMAResult": "result", "LevelTable": "result",
@@ -40,7 +40,7 @@ _NAMES = {
 #: The private helpers that tests and benchmarks reach for by their old names.
 _PRIVATE = {
     "_flags": "checks", "_negligible_negative": "checks", "_outcome": "checks",
-    "_settle_dissipation": "checks", "_Timer": "clock", "_linear_end": "dissipation",
+    "_settle_dissipation": "checks", "_linear_end": "dissipation",
     "_loop_fractions": "dissipation", "_scaled_preload": "prepared",
     "_expected_closing": "ramps", "_NegativeRamp": "ramps", "_ramp": "ramps",
     "_contact_threads": "solves", "_load_factors": "solves", "_Response": "solves",

@@ -63,7 +63,7 @@ def _flags(alpha, q, tip, hyst, omega0, opts):
     should know (information); see :data:`FAILURE_FLAGS`. ``hyst``: the levels'
     :class:`qsma.analysis.dissipation.Dissipation`."""
     n = len(alpha)
-    use_loop = hyst.use_loop
+    not_masing = hyst.masing_unused
     f, zeta, err, D = hyst.f_hz, hyst.zeta, hyst.dissipation_error, hyst.dissipation
     f0 = omega0 / (2 * np.pi)
     # no pair has left its preload state on either ramp up to the level (every point
@@ -81,12 +81,12 @@ def _flags(alpha, q, tip, hyst, omega0, opts):
         elif D[k] < -ZETA_ZERO * 2 * np.pi * alpha[k] * abs(q[k]) and not \
                 _negligible_negative(D[k], err[k], alpha[k], q[k]) and not hyst.no_slip[k]:
             fl.append("negative_dissipation")       # beyond round-off and not negligible
-        if hyst.zeta_masing[k] < -ZETA_ZERO and use_loop[k]:
+        if hyst.zeta_masing[k] < -ZETA_ZERO and not_masing[k]:
             fl.append("masing_negative")
         hard = f[k] > f0 * (1 + STUCK_FREQUENCY_RTOL) or (
             k > 0 and q[k] * alpha[k - 1] * (1 + SECANT_RTOL) < q[k - 1] * alpha[k])
         if hard:
-            fl.append("hardening" if use_loop[k] else "masing_on_hardening")
+            fl.append("hardening" if not_masing[k] else "masing_on_hardening")
         if untouched[k] and (abs(f[k] / f0 - 1) > STUCK_FREQUENCY_RTOL
                              or abs(zeta[k]) > ZETA_ZERO):
             fl.append("stuck_not_linear")

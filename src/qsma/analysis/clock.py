@@ -11,7 +11,7 @@ STAGES = ("model", "assembly", "modal", "condensation", "contact", "hysteresis",
           "postprocess", "total")
 
 
-class _Timer:
+class StageClock:
     """Seconds per stage of :data:`STAGES`; a stage may be entered several times. Each
     entry is told to ``report`` (:class:`qsma.progress.Progress`)."""
 

@@ -1,6 +1,6 @@
 """The dissipation per cycle at each level: Masing's rules where their checks hold,
-the stabilised loop elsewhere (:mod:`qsma.hysteresis`), collected in a
-:class:`Dissipation`."""
+no loop where the cycle is elastic (no pair with friction slipped), the stabilised
+loop elsewhere (:mod:`qsma.hysteresis`), collected in a :class:`Dissipation`."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
@@ -25,7 +25,8 @@ log = logging.getLogger("qsma")
 @dataclass(eq=False)
 class Dissipation:
     """The dissipation per cycle at each of the user's levels, by Masing's rules and by
-    the computed loop (NaN where not computed), and which of the two the level uses.
+    the computed loop (NaN where not computed), and which of them the level uses, or
+    that its cycle is elastic.
 
     A field named like a column of the level table (:class:`qsma.analysis.result.LevelTable`)
     is that column: the run takes it from here (:meth:`columns`). The arrays are
@@ -45,13 +46,18 @@ class Dissipation:
     shakedown : (n,) bool array
         The first cycle or the first loadings differ from the settled cycle.
     use_loop : (n,) bool array
-        The level reports the loop (else Masing's rules).
+        The level reports the loop (else Masing's rules, or the elastic cycle).
     method_reason : (n,) object array
         Why the level uses the method it does.
     no_slip : (n,) bool array
         No pair with friction slipped on either ramp up to the level (``D = 0`` exactly).
     linear : (n,) bool array
         No pair has left its preload state on either ramp up to the level.
+    elastic : (n,) bool array
+        The level reports the elastic cycle, without a loop: Masing's checks failed, but
+        no pair with friction slipped on either ramp up to it (:func:`_elastic_cycle`).
+        ``D = 0`` exactly; the frequency is the loop's peak-to-peak secant of the two
+        backbones, which the cycle retraces (``f_hz_elastic``, NaN elsewhere).
     loops : dict
         Level index -> :class:`qsma.hysteresis.Loop` of the levels whose loop was computed.
     n_solves : int
@@ -73,16 +79,25 @@ class Dissipation:
     method_reason: np.ndarray
     no_slip: np.ndarray
     linear: np.ndarray
+    elastic: np.ndarray = None
+    f_hz_elastic: np.ndarray = None
     loops: dict = field(default_factory=dict)
     n_solves: int = 0
 
-    def _chosen(self, masing, loop):
-        return np.where(self.use_loop, loop, masing)
+    def __post_init__(self):
+        n = len(self.use_loop)
+        if self.elastic is None:
+            self.elastic = np.zeros(n, bool)
+        if self.f_hz_elastic is None:
+            self.f_hz_elastic = np.full(n, np.nan)
+
+    def _chosen(self, masing, loop, elastic=0.0):
+        return np.where(self.use_loop, loop, np.where(self.elastic, elastic, masing))
 
     @property
     def f_hz(self) -> np.ndarray:
         """Secant frequency of the method each level uses."""
-        return self._chosen(self.f_hz_masing, self.f_hz_loop)
+        return self._chosen(self.f_hz_masing, self.f_hz_loop, self.f_hz_elastic)
 
     @property
     def zeta(self) -> np.ndarray:
@@ -101,8 +116,14 @@ class Dissipation:
 
     @property
     def dissipation_method(self) -> np.ndarray:
-        """``"loop"`` or ``"masing"`` per level."""
-        return np.where(self.use_loop, "loop", "masing").astype(object)
+        """``"loop"``, ``"elastic"`` or ``"masing"`` per level."""
+        return np.where(self.use_loop, "loop",
+                        np.where(self.elastic, "elastic", "masing")).astype(object)
+
+    @property
+    def masing_unused(self) -> np.ndarray:
+        """The level reports another value than Masing's (a loop or the elastic cycle)."""
+        return self.use_loop | self.elastic
 
     def columns(self, names) -> dict:
         """The values of the level-table columns ``names`` held here (fields and the
@@ -138,6 +159,8 @@ def level_dissipation(solver, response, grid, user, pos, neg, pre, opts, k_ref,
                                       "Masing's assumptions verified"),
                       checks.reason).astype(object)
     reason[~valid & (checks.reason == "")] = "negative ramp failed: symmetry not verified"
+    no_slip = _no_rubbing(solver.problem.mu, pos.status, neg_status, nn)
+    elastic = np.zeros(n, bool)
     if opts.dissipation == "masing":
         use_loop = np.zeros(n, bool)
         reason = np.array([r if v else f"forced by dissipation='masing' although {r}"
@@ -146,7 +169,13 @@ def level_dissipation(solver, response, grid, user, pos, neg, pre, opts, k_ref,
         use_loop = np.ones(n, bool)
         reason = np.full(n, "forced by dissipation='loop'", dtype=object)
     else:
-        use_loop = ~valid
+        elastic = _elastic_cycle(valid, no_slip, q_neg)
+        reason[elastic] = [f"elastic: no pair with friction slipped on either ramp, the "
+                           f"cycle retraces both backbones ({r})" for r in reason[elastic]]
+        use_loop = ~valid & ~elastic
+    f_elastic = np.full(n, np.nan)
+    f_elastic[elastic] = np.sqrt(2 * grid[elastic] / (pos.q[elastic] - q_neg[elastic])) \
+        / (2 * np.pi)
     nan = np.full(n_ok, np.nan)
     out = Dissipation(
         f_hz_masing=est.omega[user] / (2 * np.pi), zeta_masing=est.zeta[user],
@@ -154,9 +183,8 @@ def level_dissipation(solver, response, grid, user, pos, neg, pre, opts, k_ref,
         f_hz_loop=nan.copy(), zeta_loop=nan.copy(), dissipation_loop=nan.copy(),
         loop_error=nan.copy(), dissipation_first_cycle=nan.copy(),
         loop_cycles=np.zeros(n_ok, int), shakedown=np.zeros(n_ok, bool),
-        use_loop=use_loop[user], method_reason=reason[user],
-        no_slip=_no_rubbing(solver.problem.mu, pos.status, neg_status, nn)[user],
-        linear=linear[user])
+        use_loop=use_loop[user], method_reason=reason[user], no_slip=no_slip[user],
+        linear=linear[user], elastic=elastic[user], f_hz_elastic=f_elastic[user])
     todo = np.flatnonzero(out.use_loop)
     job = _LevelLoops(solver.layer, _InterfaceLoads.of(solver.reduced), solver.method,
                       solver.opts, _outermost(solver.zone), response, grid, user, pos,
@@ -272,6 +300,19 @@ def _no_rubbing(mu, pos_status, neg_status, n_neg) -> np.ndarray:
         np.any((neg_status == SLIPPING) & rubbing, axis=1)
     slips[n_neg:] = True
     return ~np.logical_or.accumulate(slips)
+
+
+def _elastic_cycle(valid, no_slip, q_neg) -> np.ndarray:
+    """Per ramp point: the cycle is elastic and needs no loop. Where Masing's checks
+    failed (``valid`` false) but no pair with friction slipped on either ramp up to the
+    point (``no_slip``), every pair with friction stuck and the frictionless ones slid
+    without dissipating: the state at each load is the unique minimiser of the elastic
+    energy under the contact constraints, whatever the path, so a cycle between -A and
+    +A retraces the -alpha and the +alpha backbone, from the first cycle on, and
+    encloses no area. Needs the -alpha backbone there (``q_neg`` finite, negative)."""
+    with np.errstate(invalid="ignore"):
+        below = q_neg < 0
+    return ~valid & no_slip & below
 
 
 def _first_loading_differs(lp, q_top, q_bottom, rtol) -> bool:

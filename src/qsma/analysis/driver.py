@@ -20,7 +20,7 @@ from ..model.pairing import body_order
 from ..progress import reporter
 from ..reduction.rigid import support_share
 from .checks import _flags, _outcome, _settle_dissipation
-from .clock import _Timer
+from .clock import StageClock
 from .dissipation import _direct_loop, level_dissipation, _with_closed
 from .levels import spec_levels
 from .options import RunOptions
@@ -110,7 +110,7 @@ def run_prepared(prepared: Prepared, options: RunOptions | None = None, *, progr
     except TypeError as exc:
         raise InputError(f"qsma.run_prepared: {exc}; valid options: "
                          f"{sorted(RunOptions.__dataclass_fields__)}") from None
-    clock = _Timer()
+    clock = StageClock()
     model, pairing = prepared.model, prepared.pairing
     limit = threads_for(pairing.n_pairs * model.dim) if opts.blas_threads == "auto" \
         else opts.blas_threads
@@ -246,8 +246,7 @@ def _backbone_columns(alpha, pos, neg, user, hyst, omega0, phi_tip) -> dict:
     has_neg = good_neg[user]
     q_neg[has_neg] = neg.q[user[has_neg]]
     counts = np.array([_counts(s) for s in pos.status[user]]).reshape(n, 3)
-    omega = np.where(hyst.use_loop, 2 * np.pi * hyst.f_hz_loop,
-                     2 * np.pi * hyst.f_hz_masing)
+    omega = 2 * np.pi * hyst.f_hz
     return dict(alpha=alpha, tip_lin=alpha * phi_tip / omega0 ** 2, q=q, tip=tip,
                 q_neg=q_neg, asymmetry=(q + q_neg) / q, tip_velocity=omega * np.abs(tip),
                 n_stuck=counts[:, 0], n_slip=counts[:, 1], n_open=counts[:, 2])

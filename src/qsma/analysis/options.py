@@ -111,7 +111,9 @@ class RunOptions:
     dissipation : {"auto", "masing", "loop"}
         ``"masing"``: Masing's rules on the backbone at every level; ``"loop"``: the
         stabilised quasi-static loop computed at every level; ``"auto"``: Masing where
-        its assumptions are verified at that level, the loop elsewhere.
+        its assumptions are verified at that level, no loop where they are not but no
+        pair with friction slipped (the cycle is elastic, ``dissipation_method``
+        "elastic"), the loop elsewhere.
     dissipation_rtol : float
         Target of the estimated integration error of each dissipation, relative to it:
         levels and loop increments are inserted until the estimate is below it.

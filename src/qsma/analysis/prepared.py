@@ -15,7 +15,7 @@ from ..model import Pressure
 from ..model.pairing import make_pairing, multi_pairing
 from ..reduction.condensation import refactorised_bodies
 from ..units import check_model_units
-from .clock import _Timer
+from .clock import StageClock
 from .options import RunOptions
 from .solves import _contact_threads
 from .stages import _assemble, _condense, _mode, _warn_closed_gaps, preload
@@ -165,7 +165,7 @@ def _start(model, opts):
     """``(clock, pairing, BLAS thread limit)`` of a run: the interface pairing (timed as
     stage "model"; every interface of a model with several) and the thread limit of its
     size."""
-    clock = _Timer()
+    clock = StageClock()
     with clock.stage("model"):
         pairing = make_pairing(model) if model.interface is not None \
             else multi_pairing(model)

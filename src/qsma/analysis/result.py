@@ -121,7 +121,8 @@ class LevelTable:
                                      report=("dissipation", "{:.3e}"))
     dissipation_error: np.ndarray = column("estimate of the integration error of "
                                            "dissipation", "energy", optional=True)
-    dissipation_method: np.ndarray = column("masing or loop",
+    dissipation_method: np.ndarray = column("masing, loop or elastic (no loop needed: no "
+                                            "pair with friction slipped)",
                                             report=("dissipation by", "{}"))
     f_hz_masing: np.ndarray = column("Masing's rules on the +alpha backbone: frequency",
                                      "frequency")

@@ -22,7 +22,7 @@ from ..reduction.multibody import reduce_model
 from ..reduction.pretension import lock
 from ..reduction.rigid import ANCHOR_ROUNDS, anchored, elastic_probe, held_by_joint
 from ..reduction.two_bodies import reduce_two_bodies
-from .clock import _Timer
+from .clock import StageClock
 from .result import load_factors as _load_factors
 from .solves import _solve
 
@@ -54,7 +54,7 @@ def preload(model, assembled, pairing, *, method="auto", opts=None, schur_backen
     :class:`AnalysisError` if the solve fails or leaves no pair in contact (tied modes
     of a disconnected assembly would be meaningless).
     """
-    clock = _Timer() if clock is None else clock
+    clock = StageClock() if clock is None else clock
     if reduced is None:
         reduced = _condense(model, assembled, pairing, schur_backend, clock)
     with clock.stage("condensation"):

@@ -26,6 +26,10 @@ def add_arguments(p):
                         "--levels (e.g. tip:list:1e-5,1e-4); runs qsma's preload and mode")
     p.add_argument("--steps", type=int, default=20,
                    help="increments per branch of the cyclic steps (default 20)")
+    p.add_argument("--cycles", type=int, default=2, metavar="N",
+                   help="cycles +A -> -A -> +A per amplitude after the ramp to +A "
+                        "(default 2, at least 2): compare the last with qsma's stabilised "
+                        "loop; give as many as qsma's loop took (results.json loop_cycles)")
     p.add_argument("--penalty", type=float, metavar="K",
                    help="slope (Pa/m) of the penalty standing for qsma's hard contact "
                         "and rigid stick (default 1e4 E / h of each interface)")
@@ -44,7 +48,8 @@ def execute(args) -> int:
     options = replace(options, mode=args.mode)
     amplitudes = parse_levels_spec(args.amplitudes) if args.amplitudes else None
     deck = export_calculix(model, out, options=options, amplitudes=amplitudes,
-                           penalty=args.penalty, steps=args.steps, tied=args.tied)
+                           penalty=args.penalty, steps=args.steps, cycles=args.cycles,
+                           tied=args.tied)
     print(f"wrote {deck.path}" + (f" and {deck.tied_path}" if deck.tied_path else ""))
     print(f"run: ccx -i {out.with_suffix('')}")
     return 0

@@ -34,9 +34,10 @@ def add_arguments(p):
                         "default in SI: 1 um to 1 mm; 1e-3 to 1 in a mm-N-s-tonne model)")
     p.add_argument("--maxiter", type=int, help="contact solver iteration cap")
     p.add_argument("--dissipation", choices=["auto", "masing", "loop"],
-                   help="dissipation per cycle: Masing's rules where verified and the "
-                        "stabilised loop elsewhere (auto, the default), or one of them at "
-                        "every level")
+                   help="dissipation per cycle: Masing's rules where verified, none "
+                        "where no pair with friction slipped, and the stabilised loop "
+                        "elsewhere (auto, the default), or Masing or the loop at every "
+                        "level")
     p.add_argument("--max-cycles", type=int, metavar="N",
                    help="loop cycles per amplitude before a level is declared not "
                         "stabilised (default 8; a shakedown that visibly converges gets "
@@ -211,8 +212,11 @@ def _summary(res, paths, verbose):
     print(f"mode {res.mode_index}: f0 = {res.f0_hz:.3f} Hz; {res.n_levels} load levels, "
           f"solver {res.solver['method']}")
     n_loop = int(np.sum(res.dissipation_method == "loop"))
-    print(f"dissipation: {res.n_levels - n_loop} level(s) by Masing's rules, {n_loop} by "
-          f"computed loops ({res.options.dissipation}){_loop_costs(res.level_costs)}")
+    n_elastic = int(np.sum(res.dissipation_method == "elastic"))
+    elastic = f", {n_elastic} elastic without a loop" if n_elastic else ""
+    print(f"dissipation: {res.n_levels - n_loop - n_elastic} level(s) by Masing's rules, "
+          f"{n_loop} by computed loops{elastic} ({res.options.dissipation})"
+          f"{_loop_costs(res.level_costs)}")
     if verbose:
         tip = f"tip [{u.length}]"
         print(f"{'k':>3} {'alpha':>11} {tip:>10} {'f [Hz]':>9} {'zeta':>10} "

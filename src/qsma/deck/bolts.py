@@ -7,7 +7,9 @@ reference nodes (a ``B31`` beam or ``T3D2`` truss, possibly in series with
 ``SPRINGA`` springs and linked by ``*EQUATION`` ties between the bolt's own nodes)
 with a ``*PRE-TENSION SECTION, ELEMENT=``, and the pretension as ``*CLOAD`` on DOF 1
 of the section's node in the first ``*STATIC`` step: the pattern
-:func:`qsma.deck.export_calculix` writes.
+:func:`qsma.deck.export_calculix` writes. Abaqus' connector bolts (an ``AXIAL``
+``CONN3D2`` between the couplings' reference nodes) are read by
+:mod:`qsma.deck.connector_bolts`.
 
 The locked stiffness is the members' ``E A / L`` in series: a spring its constant,
 a truss or beam ``E A / L`` from its section and material. A pretensioned beam in
@@ -25,6 +27,7 @@ import math
 import numpy as np
 
 from ..mesh.celltypes import CELL_TYPES, abaqus_faces
+from .connector_bolts import ConnectorBolts
 from .records import _number, _row_where, _rows_of, _where
 
 #: keywords whose cards a bolt may use
@@ -53,7 +56,7 @@ class _Member:
     elset: str | None = None
 
 
-class DeckBolts:
+class DeckBolts(ConnectorBolts):
     """The part of the deck reader (:class:`qsma.deck.reader._DeckReader`) that reads
     bolts; it uses the reader's cards, notes, materials and bodies, and leaves in
     ``_bolt_cards`` the cards and in ``_bolt_refs`` the load references (pretension
@@ -62,7 +65,8 @@ class DeckBolts:
     def _bolts(self, bodies, preload) -> list:
         """``[(table, comment)]`` of the bolts; notes for the pieces of none."""
         self._bolt_cards, self._bolt_refs = set(), set()
-        if not any(c.keyword == "PRE-TENSION SECTION" for c in self.cards):
+        if not any(c.keyword in ("PRE-TENSION SECTION", "CONNECTOR SECTION")
+                   for c in self.cards):
             return []                  # no bolt: the deck's sets need not be indexed
         self._index_cards()
         out = []
@@ -76,12 +80,12 @@ class DeckBolts:
             found = self._bolt(card, bodies, preload, len(out))
             if found is not None:
                 out.append(found)
-        return out
+        return out + self._connector_bolts(bodies, preload, len(out))
 
     # --- the cards ----------------------------------------------------------------------
     def _index_cards(self):
         self._nsets, self._elsets, self._members, self._springs = {}, {}, {}, {}
-        self._couplings, self._equations = {}, []
+        self._couplings, self._equations, self._connectors = {}, [], {}
         fm = self.asm.file_mesh
         self._xyz = {int(i): p for i, p in zip(fm.labels, fm.points)}
         couplings = []                  # read once every element set is known
@@ -89,7 +93,7 @@ class DeckBolts:
             kw, p = card.keyword, card.params
             etype = str(p.get("TYPE", "")).upper()
             if kw not in _INDEXED or (kw == "ELEMENT" and etype not in _MEMBERS
-                                      and etype != "DCOUP3D"):
+                                      and etype not in ("DCOUP3D", "CONN3D2")):
                 continue                   # e.g. nodes and the bodies' cells
             rows = [(w, t) for w, t, _ in _rows_of(card)]
             if kw in ("NSET", "ELSET"):
@@ -129,6 +133,8 @@ class DeckBolts:
                 self._members[numbers[0]] = _Member(
                     numbers[0], _MEMBERS[etype], tuple(numbers[1:3]), _row_where(w),
                     card.params.get("ELSET") if len(rows) == 1 else None)
+            elif etype == "CONN3D2" and len(numbers) >= 3:
+                self._connectors[numbers[0]] = tuple(numbers[1:3])
             elif etype == "DCOUP3D" and len(numbers) >= 2:
                 self._members[numbers[0]] = _Member(numbers[0], "dcoup", (numbers[1],),
                                                     _row_where(w))

@@ -19,12 +19,14 @@ and ``*FRICTION``), and the steps
    held by its normal penalty and its stick slope, an open one is free, which is qsma's
    tied structure (closed pairs tied, open ones free) up to the penalty (hard law) or
    exactly its layer's springs (a linear law);
-3. with ``amplitudes``: for each modal force ``A`` three static steps of the modal
-   load ``alpha M phi`` (qsma's mass-normalised loaded mode, as nodal forces
-   ``*CLOAD``): 0 -> +A, +A -> -A, -A -> +A, in ``steps`` fixed increments per branch,
-   with the displacements printed at every increment. ``q = phi^T M (u - u_pre)``
-   of the printed displacements against ``alpha`` is the loop; its area the
-   dissipation per cycle (:func:`qsma.deck.calculix_output.loop_dissipation`).
+3. with ``amplitudes``: for each modal force ``A`` static steps of the modal load
+   ``alpha M phi`` (qsma's mass-normalised loaded mode, as nodal forces ``*CLOAD``):
+   0 -> +A, then ``cycles`` cycles +A -> -A -> +A, in ``steps`` fixed increments per
+   branch, with the displacements printed at every increment. ``q = phi^T M (u -
+   u_pre)`` of the printed displacements against ``alpha`` is the loop, its area the
+   dissipation of each cycle (:func:`qsma.deck.calculix_output.cycle_dissipations`);
+   the last cycle is the one to compare with qsma's stabilised loop, a first cycle can
+   differ from it (pairs that slip once after the preload).
 
 qsma's hard contact becomes a stiff linear penalty (CalculiX's node-to-surface contact
 is a penalty method): slope :data:`PENALTY_FACTOR` ``E / h`` (``E`` the stiffer body's
@@ -44,10 +46,10 @@ import numpy as np
 
 from .._infra.files import atomic_write
 from ..errors import InputError
-from .calculix_cards import (FIELD_CONTROLS, LOOP_STEPS, PENALTY_FACTOR, TENSION,
-                             TENSION_RANGE, CalculixRefusal, _refuse_what_calculix_cannot_hold,
-                             calculix_element, calculix_number, calculix_numbering,
-                             surface_rows)
+from .calculix_cards import (FIELD_CONTROLS, LOOP_CYCLES, LOOP_STEPS, PENALTY_FACTOR,
+                             TENSION, TENSION_RANGE, CalculixRefusal,
+                             _refuse_what_calculix_cannot_hold, calculix_element,
+                             calculix_number, calculix_numbering, surface_rows)
 from .calculix_writer import (_default_penalty, _modal_forces, _qsma_mode, _refuse_tied,
                               _Writer)
 
@@ -67,6 +69,7 @@ class CalculixDeck:
         stick slope written (the penalty where qsma's stick is rigid)
     amplitudes : the modal forces of the cyclic steps (empty: none)
     steps : per amplitude, the number of increments per branch
+    cycles : per amplitude, the cycles +A -> -A -> +A after the ramp 0 -> +A
     mode : qsma's preload and loaded mode when the tied deck or cyclic steps are
         written: ``f0_hz``, ``closed`` (mask of the contact points), ``phi`` and
         ``mphi`` per body ((n_nodes, dim) arrays), else None
@@ -83,6 +86,7 @@ class CalculixDeck:
     penalty: tuple
     amplitudes: tuple = ()
     steps: int = LOOP_STEPS
+    cycles: int = LOOP_CYCLES
     mode: dict | None = field(default=None, repr=False)
     path: Path | None = None
     tied_text: str | None = field(default=None, repr=False)
@@ -95,7 +99,8 @@ class CalculixDeck:
 
 
 def export_calculix(model, path, *, options=None, amplitudes=None, penalty=None,
-                    steps: int = LOOP_STEPS, tied: bool = False) -> CalculixDeck:
+                    steps: int = LOOP_STEPS, cycles: int = LOOP_CYCLES,
+                    tied: bool = False) -> CalculixDeck:
     """Write ``model`` as a runnable CalculiX deck to ``path`` (atomically), and with
     ``tied`` its tied deck beside it (``<stem>-tied.inp``).
 
@@ -111,6 +116,9 @@ def export_calculix(model, path, *, options=None, amplitudes=None, penalty=None,
     penalty : normal (and stick) slope standing for qsma's hard contact and rigid
         stick, Pa/m (None: :data:`PENALTY_FACTOR` ``E / h`` per interface)
     steps : increments per branch of the cyclic steps
+    cycles : cycles +A -> -A -> +A per amplitude, at least :data:`LOOP_CYCLES` (the
+        last is compared with qsma's stabilised loop; give as many as qsma's loop
+        took to settle, results.json ``loop_cycles``)
     tied : also write the tied deck (:func:`tied_deck`; runs qsma's preload)
 
     Returns
@@ -118,7 +126,7 @@ def export_calculix(model, path, *, options=None, amplitudes=None, penalty=None,
     CalculixDeck
     """
     deck = calculix_deck(model, options=options, amplitudes=amplitudes, penalty=penalty,
-                         steps=steps, tied=tied)
+                         steps=steps, cycles=cycles, tied=tied)
     path = Path(path)
     tied_path = path.with_name(f"{path.stem}-tied{path.suffix}") if tied else None
     for where, text in ((path, deck.text), (tied_path, deck.tied_text)):
@@ -133,7 +141,8 @@ def export_calculix(model, path, *, options=None, amplitudes=None, penalty=None,
 
 
 def calculix_deck(model, *, options=None, amplitudes=None, penalty=None,
-                  steps: int = LOOP_STEPS, tied: bool = False) -> CalculixDeck:
+                  steps: int = LOOP_STEPS, cycles: int = LOOP_CYCLES,
+                  tied: bool = False) -> CalculixDeck:
     """The deck (and tied deck) of :func:`export_calculix`, not written."""
     from ..analysis.options import RunOptions
     opts = options or RunOptions()
@@ -142,6 +151,12 @@ def calculix_deck(model, *, options=None, amplitudes=None, penalty=None,
             and steps >= 1):
         raise InputError(f"steps must be a positive integer (increments per branch), "
                          f"got {steps!r}")
+    if not (isinstance(cycles, (int, np.integer)) and not isinstance(cycles, bool)
+            and cycles >= LOOP_CYCLES):
+        raise InputError(f"cycles must be an integer of at least {LOOP_CYCLES} (cycles per "
+                         f"amplitude: the last is compared with qsma's stabilised loop, "
+                         f"the one before shows whether CalculiX's has settled), got "
+                         f"{cycles!r}")
     if tied:
         _refuse_tied(model)
     writer = _Writer(model, penalty)
@@ -150,13 +165,14 @@ def calculix_deck(model, *, options=None, amplitudes=None, penalty=None,
         mode = _qsma_mode(model, opts)
     if amplitudes is not None:
         alphas = _modal_forces(amplitudes, mode)
-    text = writer.deck(opts, mode, alphas, int(steps))
+    text = writer.deck(opts, mode, alphas, int(steps), int(cycles))
     tied_text = _Writer(model, penalty).tied_deck(opts, mode) if tied else None
     return CalculixDeck(text, tuple(writer.first_node), tuple(writer.first_element),
-                        tuple(writer.slopes), tuple(alphas), int(steps), mode,
-                        tied_text=tied_text, bolts=tuple(writer.bolts))
+                        tuple(writer.slopes), tuple(alphas), int(steps), int(cycles),
+                        mode, tied_text=tied_text, bolts=tuple(writer.bolts))
 
 
-__all__ = ["CalculixDeck", "CalculixRefusal", "export_calculix", "calculix_deck", "calculix_number",
-           "calculix_numbering", "surface_rows", "calculix_element", "PENALTY_FACTOR",
-           "TENSION", "TENSION_RANGE", "FIELD_CONTROLS", "LOOP_STEPS"]
+__all__ = ["CalculixDeck", "CalculixRefusal", "export_calculix", "calculix_deck",
+           "calculix_number", "calculix_numbering", "surface_rows", "calculix_element",
+           "PENALTY_FACTOR", "TENSION", "TENSION_RANGE", "FIELD_CONTROLS", "LOOP_STEPS",
+           "LOOP_CYCLES"]

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..fe.bolts import bolt_vectors, washer_weights
-from ..mesh.io.abaqus.writer import _inp_number
+from ..mesh.io.abaqus.writer import inp_number
 from .calculix_cards import CalculixRefusal
 
 #: Deck nodes per bolt: the two coupling reference nodes, the middle node, the
@@ -99,7 +99,7 @@ def bolt_layouts(model, first_node: int, first_element: int) -> list:
 def _num(x) -> str:
     """A real CalculiX reads as a real (its ``*SPRING`` tells reals from integers by
     the decimal point or exponent)."""
-    text = _inp_number(float(x))
+    text = inp_number(float(x))
     return text if any(c in text for c in ".eE") else text + "."
 
 
@@ -112,7 +112,7 @@ def node_rows(layouts) -> list:
         out.append(f"** bolt {lay.bolt.name!r}: coupling reference nodes {A} (washer "
                    f"a) and {B} (washer b), middle node {M}, pretension node {P}")
         for node, x in ((A, a), (B, b), (M, (a + b) / 2), (P, a)):
-            out.append(", ".join([str(node)] + [_inp_number(float(v)) for v in x]))
+            out.append(", ".join([str(node)] + [inp_number(float(v)) for v in x]))
     return out
 
 

@@ -10,7 +10,7 @@ from ..contact.laws import ElasticStick, InterfaceLaw
 from ..errors import InputError
 from ..fe.formulation import resolve_formulations
 from ..mesh.celltypes import CELL_TYPES, abaqus_faces
-from ..mesh.io.abaqus.writer import _inp_number
+from ..mesh.io.abaqus.writer import inp_number
 from ..mesh.mesh import facet_index
 
 #: Slope of the penalty that stands for qsma's hard contact, as a multiple of ``E / h``
@@ -38,6 +38,10 @@ TENSION_RANGE = 1e-9
 FIELD_CONTROLS = "1e-6, 1e-5, , , 1e-6, 1e-5"
 #: Increments per branch of a cyclic step (0 -> +A, +A -> -A, -A -> +A).
 LOOP_STEPS = 20
+#: Cycles (+A -> -A -> +A) per amplitude of the cyclic steps, and the fewest allowed:
+#: the last is compared with qsma's stabilised loop, the one before it says whether
+#: CalculiX's loop has settled (a first cycle may slip where later ones do not).
+LOOP_CYCLES = 2
 
 #: Element names of CalculiX 2.20 per (cell type, kinematics); what is missing is refused.
 _ELEMENTS = {
@@ -59,8 +63,8 @@ class CalculixRefusal(InputError):
 def calculix_number(x) -> str:
     """A number as CalculiX reads it whole: at most 20 characters (its ``f20.0``
     fields), the shortest text that reads back as the same double where that fits
-    (:func:`qsma.mesh.io.abaqus.writer._inp_number`)."""
-    return _inp_number(x)
+    (:func:`qsma.mesh.io.abaqus.writer.inp_number`)."""
+    return inp_number(x)
 
 
 def calculix_numbering(model) -> tuple:
@@ -149,13 +153,13 @@ def _surface_behavior(law, slope, label):
     note = []
     if normal.name == "hard":
         cards = ["*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR",
-                 f"{_inp_number(slope)}, {_inp_number(TENSION)}, {_inp_number(TENSION_RANGE)}"]
+                 f"{inp_number(slope)}, {inp_number(TENSION)}, {inp_number(TENSION_RANGE)}"]
         note.append(f"qsma's hard contact: a linear penalty of slope {slope:.6g} Pa/m "
                     f"(PENALTY_FACTOR E / h): contact forces within ~1e-4 of hard contact")
     elif normal.name == "linear":
         cards = ["*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR",
-                 f"{_inp_number(normal.k)}, {_inp_number(TENSION)}, "
-                 f"{_inp_number(TENSION_RANGE)}"]
+                 f"{inp_number(normal.k)}, {inp_number(TENSION)}, "
+                 f"{inp_number(TENSION_RANGE)}"]
         note.append(f"qsma's linear law, slope {normal.k:g} Pa/m; tension "
                     f"{TENSION:g} Pa at clearances (qsma's layer carries none)")
     elif normal.name == "exponential":
@@ -165,7 +169,7 @@ def _surface_behavior(law, slope, label):
                 f"{normal.form!r}) is another curve than CalculiX's EXPONENTIAL: give "
                 f"form='calculix', or a tabular law sampled from it")
         cards = ["*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=EXPONENTIAL",
-                 f"{_inp_number(normal.c0)}, {_inp_number(normal.p0)}"]
+                 f"{inp_number(normal.c0)}, {inp_number(normal.p0)}"]
         note.append("qsma's exponential law in CalculiX's form (c0, p0)")
     elif normal.name == "tabular":
         rows = [list(r) for r in normal.table]
@@ -173,7 +177,7 @@ def _surface_behavior(law, slope, label):
         far = h2 + 1e3 * (h2 - rows[0][1])
         rows.append([p2 + (p2 - p1) / (h2 - h1) * (far - h2), far])
         cards = ["*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=TABULAR"]
-        cards += [f"{_inp_number(p)}, {_inp_number(h)}" for p, h in rows]
+        cards += [f"{inp_number(p)}, {inp_number(h)}" for p, h in rows]
         note.append("qsma's tabular law; the last row continues its last slope (qsma's "
                     "law beyond the table, where CalculiX would keep the pressure)")
     else:

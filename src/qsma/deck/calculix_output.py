@@ -109,3 +109,46 @@ def eigenfrequencies(text: str) -> np.ndarray:
             continue
         f.append(float(cols[3] if len(cols) == 5 else cols[2]))
     return np.array(f)
+
+
+def cycle_dissipations(deck, text: str) -> list:
+    """The loops of the cyclic steps of ``deck`` (a :class:`qsma.deck.CalculixDeck`
+    with ``amplitudes``) from CalculiX's output ``text``: per amplitude, per cycle
+    (``deck.cycles`` of them), ``(alpha, q, D)``: the modal force and amplitude ``q =
+    phi^T M (u - u_pre)`` at every printed increment from +A through -A back to +A,
+    and ``D``, the closed integral of alpha dq (trapezoidal), the work done on the
+    structure over the cycle: its dissipation.
+
+    Step 1 (the preload) ends at total time 1; cyclic step ``j`` (0-based) runs from
+    ``1 + j`` to ``2 + j``, its modal force linear in time between the step's ends."""
+    blocks = displacements(text, deck.first_node[-1] - 1)     # the bodies' nodes
+    ends = [x for A in deck.amplitudes for x in (A,) + (-A, A) * deck.cycles]
+    if not ends:
+        raise CalculixError("the deck has no cyclic steps (no amplitudes)")
+    times = np.array([t for t, _ in blocks])
+    pre = np.flatnonzero(times <= 1.0 + 1e-9)
+    if pre.size == 0 or times[-1] < len(ends) + 1.0 - 1e-9:
+        raise CalculixError(f"CalculiX printed displacements up to time "
+                            f"{times[-1] if times.size else 0:g} of {len(ends) + 1}: "
+                            f"a step stopped early (see its .sta file)")
+    mphi = deck.mode["mphi"]
+    u_pre = deck.per_body(blocks[pre[-1]][1])
+    later = blocks[pre[-1] + 1:]
+    t = times[pre[-1] + 1:]
+    j = np.minimum(np.ceil(t - 1.0 - 1e-9).astype(int) - 1, len(ends) - 1)
+    starts = np.array([0.0] + ends[:-1])
+    alpha = starts[j] + (np.array(ends) - starts)[j] * (t - 1.0 - j)
+    dim = mphi[0].shape[1]
+    q = np.array([sum(np.sum(m * (u[:, :dim] - u0[:, :dim]))
+                      for m, u, u0 in zip(mphi, deck.per_body(ub), u_pre))
+                  for _, ub in later])
+    out, per = [], 1 + 2 * deck.cycles
+    for i in range(len(deck.amplitudes)):
+        cycles = []
+        for c in range(deck.cycles):
+            top = int(np.flatnonzero(j == per * i + 2 * c)[-1])     # at +A, cycle starts
+            end = int(np.flatnonzero(j == per * i + 2 * c + 2)[-1]) + 1
+            a, qq = alpha[top:end], q[top:end]
+            cycles.append((a, qq, float(np.trapezoid(a, qq))))
+        out.append(cycles)
+    return out

@@ -8,7 +8,7 @@ import re
 import numpy as np
 
 from ..errors import InputError
-from ..mesh.io.abaqus.writer import _inp_number
+from ..mesh.io.abaqus.writer import inp_number
 from ..model.pairing import make_pairing
 from ..model.spring import set_shares
 from .calculix_bolts import (ELEMENTS_PER_BOLT, bolt_layouts, locked_cards, model_cards,
@@ -39,7 +39,7 @@ class _Writer:
         self.penalty = penalty
         self.slopes = []
 
-    def deck(self, opts, mode, alphas, steps) -> str:
+    def deck(self, opts, mode, alphas, steps, cycles) -> str:
         m = self.model
         lines = [f"** CalculiX 2.20 deck of the qsma model {m.name!r}, written by "
                  f"qsma.deck.export_calculix",
@@ -58,7 +58,7 @@ class _Writer:
         clamps, interaction = self.clamps(), self.interfaces()
         steps_cards = self.preload_step()
         if alphas:
-            steps_cards += self.cyclic_steps(mode, alphas, steps)
+            steps_cards += self.cyclic_steps(mode, alphas, steps, cycles)
         else:
             steps_cards += self.frequency_step(opts)
         # the sets the cards above name, defined before them
@@ -124,7 +124,7 @@ class _Writer:
                 used.add((first[0], first[1], c))
                 terms = [first] + [t for t in terms if t is not first
                                    and (t[0], dim * t[1] + c) not in held]
-                entries = [f"{self.first_node[k] + n}, {c + 1}, {_inp_number(w)}"
+                entries = [f"{self.first_node[k] + n}, {c + 1}, {inp_number(w)}"
                            for k, n, w in terms]
                 out += ["*EQUATION", str(len(entries))]
                 out += [", ".join(entries[j:j + 4]) for j in range(0, len(entries), 4)]
@@ -168,7 +168,7 @@ class _Writer:
                "*NODE, NSET=NALL"]
         for b, n0 in zip(self.model.bodies, self.first_node):
             out.append(f"** body {b.name!r}: nodes {n0}..{n0 + b.mesh.n_nodes - 1}")
-            out += [", ".join([str(n0 + i)] + [_inp_number(v) for v in p])
+            out += [", ".join([str(n0 + i)] + [inp_number(v) for v in p])
                     for i, p in enumerate(b.mesh.points.tolist())]
         return out + node_rows(self.bolts)
 
@@ -209,8 +209,8 @@ class _Writer:
         mat, name = b.material, f"M_{self.body_set(k)}"
         out = [f"** body {b.name!r}: material E = {mat.E:g}, nu = {mat.nu:g}, "
                f"rho = {mat.rho:g}", f"*MATERIAL, NAME={name}", "*ELASTIC",
-               f"{_inp_number(mat.E)}, {_inp_number(mat.nu)}", "*DENSITY",
-               _inp_number(mat.rho), f"*SOLID SECTION, ELSET={self.body_set(k)}, "
+               f"{inp_number(mat.E)}, {inp_number(mat.nu)}", "*DENSITY",
+               inp_number(mat.rho), f"*SOLID SECTION, ELSET={self.body_set(k)}, "
                f"MATERIAL={name}"]
         if b.dim == 2:
             out.insert(-1, "** 2D: unit thickness, as qsma's bodies (forces per unit depth)")
@@ -248,7 +248,7 @@ class _Writer:
             self.next_element += len(at)
             out += [f"*ELEMENT, TYPE={etype}, ELSET={elset}",
                     *[f"{e}, {n}" for e, n in zip(ids, at)], *header(elset),
-                    _inp_number(float(v))]
+                    inp_number(float(v))]
         return out
 
     def clamps(self) -> list:
@@ -282,7 +282,7 @@ class _Writer:
                     + ("" if itf.mu is not None else " (the model's mu)"),
                     *[f"** {line}" for line in note],
                     f"*SURFACE INTERACTION, NAME={name}", *behaviour, "*FRICTION",
-                    f"{_inp_number(mu)}, {_inp_number(stick if stick is not None else slope)}",
+                    f"{inp_number(mu)}, {inp_number(stick if stick is not None else slope)}",
                     f"*CONTACT PAIR, INTERACTION={name}, TYPE=NODE TO SURFACE",
                     f"{s_name}, {m_name}"]
         return out
@@ -310,7 +310,7 @@ class _Writer:
                                f"{p.load!r}, not part of qsma's preload, not applied")
                     continue
                 out += [f"** body {b.name!r}: pressure {p.p:g} on {p.set!r}", "*DSLOAD",
-                        f"{self.set_name(k, p.set, 'facet')}, P, {_inp_number(p.p)}"]
+                        f"{self.set_name(k, p.set, 'facet')}, P, {inp_number(p.p)}"]
             for f in b.forces:
                 if f.load != "preload":
                     out.append(f"** force on {f.set!r} of body {b.name!r}: load pattern "
@@ -319,7 +319,7 @@ class _Writer:
                 name = self.set_name(k, f.set, "node")
                 out += [f"** body {b.name!r}: force {list(f.force)} on every node of "
                         f"{f.set!r}", "*CLOAD"]
-                out += [f"{name}, {c + 1}, {_inp_number(v)}" for c, v in enumerate(f.force)
+                out += [f"{name}, {c + 1}, {inp_number(v)}" for c, v in enumerate(f.force)
                         if v != 0.0]
         out += preload_cards(self.bolts)
         out += ["*NODE PRINT, NSET=NALL", "U", "*CONTACT PRINT", "CSTR", "*END STEP"]
@@ -335,28 +335,31 @@ class _Writer:
                 "*STEP, PERTURBATION", "*FREQUENCY", f"{self.n_modes(opts)}",
                 *locked_cards(self.bolts), "*END STEP"]
 
-    def cyclic_steps(self, mode, alphas, steps) -> list:
-        """Per amplitude three static steps of the modal load (module docstring), each
-        of unit step time, increments of at most ``1 / steps`` (CalculiX may cut them
-        back), the displacements printed at every increment: the modal force at total
-        time ``t`` within a step is linear between the step's start and end values."""
+    def cyclic_steps(self, mode, alphas, steps, cycles) -> list:
+        """Per amplitude ``1 + 2 cycles`` static steps of the modal load (module
+        docstring), each of unit step time, increments of at most ``1 / steps``
+        (CalculiX may cut them back), the displacements printed at every increment: the
+        modal force at total time ``t`` within a step is linear between the step's start
+        and end values."""
         out = [f"** steps 2..: the modal load alpha M phi of qsma's loaded mode "
-               f"({mode['f0_hz']:.10g} Hz tied, mass-normalised) as nodal forces, three "
-               f"steps per amplitude (0 -> +A, +A -> -A, -A -> +A), at most 1/{steps} of "
-               f"a branch per increment; q = phi^T M (u - u_pre) of the printed "
-               f"displacements. No frequency step: CalculiX 2.20 solves a static step "
-               f"after a PERTURBATION step as linear (no contact iterations)"]
-        prev, inc = 0.0, _inp_number(1.0 / steps)
+               f"({mode['f0_hz']:.10g} Hz tied, mass-normalised) as nodal forces, per "
+               f"amplitude {1 + 2 * cycles} steps (0 -> +A, then {cycles} cycles +A -> -A "
+               f"-> +A; the last one is compared with qsma's stabilised loop), at most "
+               f"1/{steps} of a branch per increment; q = phi^T M (u - u_pre) of the "
+               f"printed displacements. No frequency step: CalculiX 2.20 solves a static "
+               f"step after a PERTURBATION step as linear (no contact iterations)"]
+        prev, inc = 0.0, inp_number(1.0 / steps)
         for A in alphas:
-            for target in (A, -A, A):
-                out += [f"** modal force {prev:.10g} -> {target:.10g}",
+            for k, target in enumerate((A,) + (-A, A) * cycles):
+                what = "ramp" if k == 0 else f"cycle {(k + 1) // 2} of {cycles}"
+                out += [f"** modal force {prev:.10g} -> {target:.10g} ({what})",
                         f"*STEP, INC={100 * steps}", "*STATIC",
                         f"{inc}, 1., 1e-8, {inc}", "*CONTROLS, PARAMETERS=FIELD",
                         FIELD_CONTROLS, *(locked_cards(self.bolts) if prev == 0.0 else []),
                         "*CLOAD"]
                 for n0, mphi in zip(self.first_node, mode["mphi"]):
                     for i, row in enumerate(mphi):
-                        out += [f"{n0 + i}, {c + 1}, {_inp_number(target * v)}"
+                        out += [f"{n0 + i}, {c + 1}, {inp_number(target * v)}"
                                 for c, v in enumerate(row) if v != 0.0]
                 out += ["*NODE PRINT, NSET=NALL", "U", "*END STEP"]
                 prev = target
@@ -410,10 +413,10 @@ def _qsma_mode(model, opts) -> dict:
     ``pairing``) and those slipping (``slipping``), the tied ``f0_hz``, ``omega0``, ``phi_tip`` and
     per body ``phi`` and ``mphi`` ((n_nodes, dim) arrays, mass-normalised, the sign of
     a run)."""
-    from ..analysis import _Timer, prepare
+    from ..analysis import StageClock, prepare
     from ..contact import OPEN, SLIPPING
     p = prepare(model, opts)
-    clock = _Timer()
+    clock = StageClock()
     reduced, layer, pre = p.preloaded(opts, clock)
     closed = pre.status != OPEN
     others, phi, phi_tip, omega0, _ = p.mode(closed, opts, clock, reduced, layer)

@@ -41,8 +41,12 @@ _BOLT_ONLY = ("qsma reads couplings, beams and springs only as a bolt: two distr
               "*STATIC step (docs/mesh-io.md); complete the bolt, or write a [[bolts]] "
               "table (qsma init)")
 
-#: Abaqus' connector elements (an AXIAL connector with a CONNECTOR LOAD is a bolt there).
-_NO_CONNECTORS = "qsma reads no connector elements (CONN3D2); " + _BOLT_ONLY
+#: Abaqus' connector elements: read only as bolts (:mod:`qsma.deck.connector_bolts`).
+_NO_CONNECTORS = ("qsma reads connector elements (CONN3D2) only as bolts: an AXIAL "
+                  "connector between the reference nodes of two distributing couplings on "
+                  "washer faces, its *CONNECTOR ELASTICITY, COMPONENT=1 the stiffness, "
+                  "*CONNECTOR LOAD on component 1 in the first *STATIC step the pretension "
+                  "(docs/mesh-io.md); or " + _BOLT_ONLY)
 
 #: Keywords that change the structure, its material or its supports in a way qsma does
 #: not model: running without them answers another problem. Value: what to do.

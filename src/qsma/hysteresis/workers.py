@@ -8,6 +8,7 @@ import queue
 import time
 import warnings
 
+from .._infra.shipping import InBand
 from .._infra.forked import (default_signals, fork_refusal, quiet_fork, raise_again,
                              recorded_warnings)
 from ..errors import InputError
@@ -107,12 +108,13 @@ def _dask_map(job, indices, scheduler, done):
     """:func:`map_loops` on the workers of the Dask scheduler at ``scheduler`` (an
     address such as ``tcp://host:8786``): ``job`` is scattered to every worker once
     (its contact problem and eliminations travel as they are: nothing is condensed
-    there), then one task per index, the largest amplitudes first."""
+    there; its arrays arrive aligned, :class:`qsma._infra.shipping.InBand`), then one
+    task per index, the largest amplitudes first."""
     from distributed import as_completed
     client = scheduler_client(scheduler)
     try:
         started = time.perf_counter()
-        shipped = client.scatter(job, broadcast=True, hash=False)
+        shipped = client.scatter(InBand(job), broadcast=True, hash=False)
         log.info("loops: the interface problem sent to %d Dask worker(s) in %.2f s",
                  len(client.scheduler_info()["workers"]), time.perf_counter() - started)
         order = indices[::-1]

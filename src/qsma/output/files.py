@@ -23,14 +23,14 @@ from .folders import (TMP_PREFIX, RunFolder, atomic_path, atomic_write,  # noqa:
 
 SCHEMA_VERSION = 1
 
-def _clean(x, where="results"):
+def json_safe(x, where="results"):
     """JSON-safe value: numpy to Python; NaN/Inf are refused, never written."""
     if isinstance(x, dict):
-        return {k: _clean(v, f"{where}.{k}") for k, v in x.items()}
+        return {k: json_safe(v, f"{where}.{k}") for k, v in x.items()}
     if isinstance(x, (list, tuple)):
-        return [_clean(v, where) for v in x]
+        return [json_safe(v, where) for v in x]
     if isinstance(x, np.ndarray):
-        return _clean(x.tolist(), where)
+        return json_safe(x.tolist(), where)
     if isinstance(x, (np.integer,)):
         return int(x)
     if isinstance(x, (float, np.floating)):
@@ -62,7 +62,7 @@ LOOP_DERIVED = tuple(k for k, c in LEVEL_COLUMNS.items() if c["nan_when_flagged"
 def _level_columns(res) -> dict:
     """Per-level values by name, JSON-ready: optional NaN -> None, NaN of
     :data:`LOOP_DERIVED` at a level flagged with one of :data:`NAN_FLAGS` -> None,
-    flags as lists. Any other NaN or Inf is kept (and refused by :func:`_clean`)."""
+    flags as lists. Any other NaN or Inf is kept (and refused by :func:`json_safe`)."""
     table = {}
     levels = res.levels_table()
     explained = [any(f in NAN_FLAGS for f in flags) for flags in levels["flags"]]
@@ -137,7 +137,7 @@ def results_dict(res) -> dict:
                               "dissipation": dl.dissipation,
                               "dissipation_masing": dl.dissipation_masing,
                               "success": dl.success, "message": dl.message}
-    return _clean(out)
+    return json_safe(out)
 
 
 def write_json(res, path):
@@ -163,7 +163,8 @@ def column_name(heading: str) -> str:
     return heading.split(" [", 1)[0]
 
 
-def _csv_cell(v):
+def csv_cell(v):
+    """A JSON-safe value as a CSV cell: null empty, flags joined by ``;``, true/false 1/0."""
     if v is None:
         return ""
     if isinstance(v, list):
@@ -186,9 +187,9 @@ def write_csv(res, path):
     w = csv.writer(buf, lineterminator="\n")
     columns = csv_columns()
     w.writerow(csv_header(res.units, res.model.dim))
-    table = _clean(_level_columns(res), "levels")          # refuses NaN / Inf
+    table = json_safe(_level_columns(res), "levels")          # refuses NaN / Inf
     for k in range(res.n_levels):
-        w.writerow([k] + [_csv_cell(table[c][k]) for c in columns[1:]])
+        w.writerow([k] + [csv_cell(table[c][k]) for c in columns[1:]])
     atomic_write(path, buf.getvalue())
 
 

@@ -18,8 +18,8 @@ from ..units import SI, display_stress, quantity_unit
 MARGINS_IN = (0.95, 0.25, 0.65, 0.4)
 
 
-def _figure(nrows=1, ncols=1, figsize=(6, 4.5), hspace=0.2, wspace=0.2,
-            margins=MARGINS_IN, **kw):
+def agg_figure(nrows=1, ncols=1, figsize=(6, 4.5), hspace=0.2, wspace=0.2,
+               margins=MARGINS_IN, **kw):
     """A figure on the Agg canvas, independent of pyplot and of the user's backend, with
     the ``margins`` in inches (left, right, bottom, top; default :data:`MARGINS_IN`)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -61,7 +61,8 @@ def _stress(res) -> tuple:
     return display_stress(getattr(res, "units", None) or SI)
 
 
-def _save(fig, path):
+def save_png(fig, path):
+    """Write ``fig`` as a PNG file at ``path``, atomically; the path."""
     atomic_write(path, png_bytes(fig), "wb")
     return Path(path)
 
@@ -127,7 +128,7 @@ def draw_backbone(res):
     -------
     matplotlib.figure.Figure
     """
-    fig, ax = _figure(figsize=(6, 4.5))
+    fig, ax = agg_figure(figsize=(6, 4.5))
     ax.loglog(res.q, res.alpha, "o-", ms=3, label="QSMA backbone")
     ax.loglog(res.q, res.q * res.omega0 ** 2, "--", lw=1, label="linear (tied)")
     ax.set_xlabel(f"modal amplitude q [{_unit(res, 'modal_amplitude')}]")
@@ -163,10 +164,17 @@ def loop_levels(res, n=MAX_LOOP_PANELS) -> list:
 
 def loop_curve(res, k):
     """``(q, alpha, label)`` of the loop drawn at level ``k``: the computed stabilised
-    loop where it exists, else Masing's construction from the backbone."""
+    loop where it exists, the two backbones at the user's levels where the level is
+    elastic (its cycle runs down the -alpha backbone and back up the +alpha one), else
+    Masing's construction from the backbone."""
     lp = res.loops.get(k)
     if lp is not None and lp.success:
         return lp.q, lp.alpha, "computed loop"
+    if res.dissipation_method[k] == "elastic":
+        q = np.concatenate([res.q[k::-1], [0.0], res.q_neg[:k + 1]])
+        f = np.concatenate([res.alpha[k::-1], [0.0], -res.alpha[:k + 1]])
+        return (np.concatenate([q, q[-2::-1]]), np.concatenate([f, f[-2::-1]]),
+                "elastic cycle (the backbones)")
     q, f = masing_loop(res.alpha, res.q, k)
     return q, f, "Masing" + (" (its computed loop failed)" if lp is not None else "")
 
@@ -182,9 +190,9 @@ def draw_loops(res):
     levels = loop_levels(res)
     ncols = min(3, len(levels))
     nrows = -(-len(levels) // ncols)
-    fig, axes = _figure(nrows, ncols, figsize=(3.4 * ncols + 0.6, 3.3 * nrows + 0.5),
-                        hspace=0.75, wspace=0.5, squeeze=False,
-                        margins=(0.85, 0.2, 0.6, 1.0))
+    fig, axes = agg_figure(nrows, ncols, figsize=(3.4 * ncols + 0.6, 3.3 * nrows + 0.5),
+                           hspace=0.75, wspace=0.5, squeeze=False,
+                           margins=(0.85, 0.2, 0.6, 1.0))
     k0 = res.omega0 ** 2
     kind, name, measure = amplitude_of(res)
     for ax, k in zip(axes.ravel(), levels):
@@ -253,7 +261,7 @@ def draw_damping_frequency(res):
     A level whose loop failed has no used frequency; drawn against the velocity it has
     no abscissa either, so its Masing values are drawn at Masing's own velocity
     ``2 pi f_masing |tip|`` and marked: no level leaves the figure unseen."""
-    fig, (a1, a2) = _figure(2, 1, figsize=(6, 6.5), hspace=0.08, sharex=True)
+    fig, (a1, a2) = agg_figure(2, 1, figsize=(6, 6.5), hspace=0.08, sharex=True)
     text, quantity, v = amplitude_of(res)
     loop = res.dissipation_method == "loop"
     hard = np.array(["hardening" in f or "masing_on_hardening" in f for f in res.flags])
@@ -314,7 +322,7 @@ def draw_interface(res, levels=None):
     levels = sorted({0, n // 2, (3 * n) // 4, n - 1}) if levels is None else levels
     p = res.pairing
     x = p.x[:, 0]
-    fig, axes = _figure(3, 1, figsize=(7, 8), hspace=0.1, sharex=True)
+    fig, axes = agg_figure(3, 1, figsize=(7, 8), hspace=0.1, sharex=True)
     pre = res.preload.lam
     stress, factor = _stress(res)
     length = _unit(res, "length")
@@ -351,9 +359,9 @@ def draw_interface_map(res, levels=None):
     p = res.pairing
     t1, t2 = p.frames[0, 0], p.frames[0, 1]
     u, v = p.x @ t1, p.x @ t2
-    fig, axes = _figure(3, len(levels), figsize=(3.6 * len(levels) + 1.4, 7.0),
-                        hspace=0.3, wspace=0.15, squeeze=False, sharex=True, sharey=True,
-                        margins=(0.85, 1.45, 0.65, 0.45))
+    fig, axes = agg_figure(3, len(levels), figsize=(3.6 * len(levels) + 1.4, 7.0),
+                           hspace=0.3, wspace=0.15, squeeze=False, sharex=True, sharey=True,
+                           margins=(0.85, 1.45, 0.65, 0.45))
     states = ListedColormap(["tab:blue", "tab:orange", "lightgray"])
     stress, factor = _stress(res)
     length = _unit(res, "length")
@@ -385,27 +393,27 @@ def draw_interface_map(res, levels=None):
 
 def plot_backbone(res, path):
     """:func:`draw_backbone` written to the PNG file ``path`` (atomically); returns it."""
-    return _save(draw_backbone(res), path)
+    return save_png(draw_backbone(res), path)
 
 
 def plot_loops(res, path):
     """:func:`draw_loops` written to the PNG file ``path`` (atomically); returns it."""
-    return _save(draw_loops(res), path)
+    return save_png(draw_loops(res), path)
 
 
 def plot_damping_frequency(res, path):
     """:func:`draw_damping_frequency` written to the PNG file ``path`` (atomically)."""
-    return _save(draw_damping_frequency(res), path)
+    return save_png(draw_damping_frequency(res), path)
 
 
 def plot_interface(res, path, levels=None):
     """:func:`draw_interface` written to the PNG file ``path`` (atomically)."""
-    return _save(draw_interface(res, levels), path)
+    return save_png(draw_interface(res, levels), path)
 
 
 def plot_interface_map(res, path, levels=None):
     """:func:`draw_interface_map` written to the PNG file ``path`` (atomically)."""
-    return _save(draw_interface_map(res, levels), path)
+    return save_png(draw_interface_map(res, levels), path)
 
 
 # -- What the figures read of a result ---------------------------------------------------
@@ -551,7 +559,7 @@ def write_plots(res, out, amplitude=None) -> dict:
     """
     data = plot_data(res, amplitude)
     out = Path(out)
-    return {name: _save(draw(data), out / file)
+    return {name: save_png(draw(data), out / file)
             for name, (file, draw) in figure_files(data.model.dim).items()}
 
 

@@ -163,10 +163,10 @@ def _length(res) -> str:
 def draw_mesh_3d(res):
     """The nodes of each body and the interface pairs by their state after the preload
     in a 3D view scaled equally along x, y and z (a thin plate looks thin)."""
-    from .plots import _figure
+    from .plots import agg_figure
     model, p = res.model, res.pairing
     from matplotlib.ticker import MaxNLocator
-    fig = _figure(figsize=(10.0, 4.6), margins=MESH_MARGINS_IN)[0]
+    fig = agg_figure(figsize=(10.0, 4.6), margins=MESH_MARGINS_IN)[0]
     fig.clf()
     ax = fig.add_subplot(projection="3d")
     fig.subplots_adjust(left=0.0, right=1 - MESH_MARGINS_IN[1] / 10.0, bottom=0.0,
@@ -275,7 +275,7 @@ def draw_mesh_2d(res):
     :data:`MAX_SVG_CELLS` cells is drawn by its outline."""
     from matplotlib.lines import Line2D
     from matplotlib.patches import PathPatch
-    from .plots import _figure
+    from .plots import agg_figure
     model, p = res.model, res.pairing
     g = MESH_2D
     left, right, bottom, top = g["margins"]
@@ -288,9 +288,9 @@ def draw_mesh_2d(res):
     windows = ((lo[0], hi[0], lo[1], hi[1]), (plo[0], phi[0], plo[1], phi[1]))
     heights = [float(np.clip(width * (w[3] - w[2]) / max(w[1] - w[0], 1e-300), *bounds))
                for w, bounds in zip(windows, (g["whole"], g["zoom"]))]
-    fig, axes = _figure(2, 1, figsize=(g["width"], sum(heights) + g["gap"] + bottom + top),
-                        hspace=g["gap"] / np.mean(heights), margins=g["margins"],
-                        gridspec_kw=dict(height_ratios=heights))
+    fig, axes = agg_figure(2, 1, figsize=(g["width"], sum(heights) + g["gap"] + bottom + top),
+                           hspace=g["gap"] / np.mean(heights), margins=g["margins"],
+                           gridspec_kw=dict(height_ratios=heights))
     edges = [body_edges(b.mesh) for b in model.bodies]
     length = _length(res)
     windows = [_filled(w, h / width) for w, h in zip(windows, heights)]

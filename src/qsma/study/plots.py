@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..output.plots import _figure, _save
+from ..output.plots import agg_figure, save_png
 from ..units import quantity_unit
 
 
@@ -27,7 +27,7 @@ def plot_parameter(table, parameter, others, path, units="SI", dim=3, amplitude=
     from ..output.plots import AMPLITUDES, DEFAULT_AMPLITUDE, check_amplitude
     field, text, quantity = AMPLITUDES[check_amplitude(amplitude or DEFAULT_AMPLITUDE)]
     from matplotlib import colormaps
-    fig, (a1, a2) = _figure(2, 1, figsize=(6.5, 7), sharex=True)
+    fig, (a1, a2) = agg_figure(2, 1, figsize=(6.5, 7), sharex=True)
     rows = _cases(table)
     values = sorted({table[parameter][r[0]] for r in rows.values()}, key=str)
     cmap = colormaps["viridis"]
@@ -53,7 +53,7 @@ def plot_parameter(table, parameter, others, path, units="SI", dim=3, amplitude=
         a.grid(True, alpha=0.3)
     if len(rows) <= 12:
         a1.legend(fontsize=7)
-    return _save(fig, path)
+    return save_png(fig, path)
 
 
 def plot_study(table, parameters, out, units="SI", dim=3, amplitude=None) -> dict:
@@ -72,7 +72,7 @@ def plot_study(table, parameters, out, units="SI", dim=3, amplitude=None) -> dic
 def plot_fit(fr, path, start_prediction=None):
     """Measured frequency and damping (markers) against the fitted run's curves and,
     dashed, the interpolated values of the start point."""
-    fig, (a1, a2) = _figure(2, 1, figsize=(6.5, 7), sharex=True)
+    fig, (a1, a2) = agg_figure(2, 1, figsize=(6.5, 7), sharex=True)
     m, res = fr.measured, fr.result
     amp = np.abs(np.asarray(getattr(res, m.kind), float))
     fitted = ", ".join(f"{k} = {v:.4g}" for k, v in fr.values.items())
@@ -100,4 +100,4 @@ def plot_fit(fr, path, start_prediction=None):
     for a in (a1, a2):
         a.grid(True, which="both", alpha=0.3)
     a1.legend(fontsize=7)
-    return _save(fig, path)
+    return save_png(fig, path)

@@ -298,14 +298,14 @@ def _rom_units(res) -> dict:
 
 def rom_dict(res, fit: IwanFit) -> dict:
     """The content of rom.json for a :class:`qsma.analysis.result.QSMAResult` and its fit."""
-    from ..output.files import _clean
+    from ..output.files import json_safe
     m = fit.model
     q, alpha = np.asarray(res.q, float), np.asarray(res.alpha, float)
     keep = np.isfinite(q) & np.isfinite(alpha) & (q > 0) & (alpha > 0)   # as fit_iwan
     q, alpha = q[keep], alpha[keep]
     level = lambda v: np.asarray(v)[keep]
     series, jerr = fit_jenkins(q, alpha)
-    return _clean({
+    return json_safe({
         "schema_version": ROM_SCHEMA_VERSION,
         "kind": "modal_iwan4",
         "reference": "Segalman, J. Appl. Mech. 72 (2005) 752-760",

@@ -12,6 +12,7 @@ from pathlib import Path
 import time
 import warnings
 
+from .._infra.shipping import InBand
 from ..errors import InputError, QSMAError, SerialSweepWarning
 from ..analysis.options import RunOptions
 from .cases import Case, case_inputs, material_key, model_with_materials
@@ -316,7 +317,7 @@ def run_dask(groups, key_of, todo, options, out, files, scheduler, workers):
     else:
         client = scheduler
     try:
-        shared = {k: client.scatter(p, broadcast=True, hash=False)
+        shared = {k: client.scatter(InBand(p), broadcast=True, hash=False)
                   for k, p in groups.items()}
         futures = {client.submit(run_case, shared[key_of(c)], c, options, out / c.name,
                                  files, pure=False): c for c in todo}

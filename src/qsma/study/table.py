@@ -53,7 +53,7 @@ def write_table(table, out, units="SI", dim=3) -> dict:
     """Write the study table as CSV (always) and Parquet (when pyarrow is installed);
     the CSV header names the units of the level columns in the model's system
     (``tip [m]``, as results.csv)."""
-    from ..output.files import atomic_path, atomic_write, _csv_cell
+    from ..output.files import atomic_path, atomic_write, csv_cell
     from ..analysis.result import level_units
     from ..units import column_label
     buf = io.StringIO()
@@ -63,7 +63,7 @@ def write_table(table, out, units="SI", dim=3) -> dict:
     w.writerow([column_label(c, unit.get(c)) for c in names])
     n = len(table[names[0]]) if names else 0
     for i in range(n):
-        w.writerow([_csv_cell(table[c][i]) for c in names])
+        w.writerow([csv_cell(table[c][i]) for c in names])
     paths = {"table": Path(out) / TABLE_NAME}
     atomic_write(paths["table"], buf.getvalue())
     try:

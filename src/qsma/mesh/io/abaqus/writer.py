@@ -48,7 +48,7 @@ def _abaqus_write_type(mesh: Mesh) -> str:
     return name
 
 
-def _inp_number(x: float) -> str:
+def inp_number(x: float) -> str:
     """``x`` in at most :data:`CALCULIX_FIELD` characters: the shortest text that reads
     back as the same double where it fits, else the most significant digits that fit
     (13 or more: a relative change below 5e-14)."""
@@ -90,7 +90,7 @@ def _format_abaqus(mesh: Mesh, _version=None) -> str:
     out = ["*HEADING", f"qsma mesh: {mesh.n_nodes} nodes, {len(mesh.cells)} {etype} elements",
            "** written by qsma.mesh.io.write_mesh; facet sets are *SURFACE definitions over",
            "** the internal element sets _<set>_S<face> (Abaqus face numbering)", "*NODE"]
-    out += [", ".join([str(i)] + [_inp_number(v) for v in p])
+    out += [", ".join([str(i)] + [inp_number(v) for v in p])
             for i, p in enumerate(mesh.points.tolist(), 1)]
     out.append(f"*ELEMENT, TYPE={etype}")
     out += _element_lines(np.arange(1, len(mesh.cells) + 1), mesh.cells)
