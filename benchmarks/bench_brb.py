@@ -43,7 +43,7 @@ def one(refine):
     _, _, pre = p.preloaded(RunOptions(), StageClock())
     t2 = time.perf_counter()
     closed = pre.status != OPEN
-    modes = p.mode(closed, RunOptions(n_modes=2), StageClock())[0]
+    modes = p.mode(closed, RunOptions(n_modes=2), StageClock())[0].result()
     t3 = time.perf_counter()
     n0 = sum(b.pretension for b in p.model.bolts)
     row = dict(nodes=sum(b.mesh.n_nodes for b in p.model.bodies), pairs=p.pairing.n_pairs,

@@ -5,11 +5,13 @@ Usage: python benchmarks/bench_scale.py [--refine 1 2] [--repeat 3 1] [--json ou
        python benchmarks/bench_scale.py --tables r1.json r2.json   (reprint saved rows)
 
 Per refinement, ``qsma.run`` is called ``--repeat`` times (one number per refinement,
-the last one repeated) and every stage of results.json ``timings_s`` is measured three
+the last one repeated) and every stage of results.json ``timings_s`` is measured four
 ways: wall time, CPU time of the process and of the child processes it waited for
 (all threads; more than the wall time where
 BLAS runs on both cores, and the honest measure on a shared machine where the wall time
-waits for other jobs), and the peak resident memory during the stage (Linux ``VmHWM``,
+waits for other jobs), the CPU time of the process alone (what the forked children,
+the -alpha ramp and the tied modes beyond the loaded one, take off the run's own path
+where a second core is free), and the peak resident memory during the stage (Linux ``VmHWM``,
 reset at the start of each stage; qsma._infra.resources), and the resident memory left at
 the end of each stage, beside the MB of the dense interface matrices the result holds
 and the number of K_EE factorisations (congruent bodies share one, qsma.reduction.congruence).
@@ -26,6 +28,7 @@ the results of the last level are those of 2e-7 (f0 is comparable, q and zeta no
 import argparse
 from contextlib import contextmanager
 import json
+import os
 import statistics
 
 import numpy as np
@@ -46,17 +49,24 @@ def _instrumented_timer(record):
     @contextmanager
     def stage(self, name):
         _resources.reset_peak()
-        c0 = _resources.cpu_with_children_s()
+        c0, own0 = _resources.cpu_with_children_s(), _own_cpu_s()
         with original(self, name):
             yield
         cpu = _resources.cpu_with_children_s() - c0
-        entry = record.setdefault(name, {"cpu": 0.0, "peak_mb": 0.0})
+        entry = record.setdefault(name, {"cpu": 0.0, "own": 0.0, "peak_mb": 0.0})
         entry["cpu"] += cpu
+        entry["own"] += _own_cpu_s() - own0
         entry["peak_mb"] = max(entry["peak_mb"], _resources.peak_memory_mb() or 0.0)
         entry["held_mb"] = _resources.current_memory_mb() or 0.0   # at its last end
 
     analysis.StageClock.stage = stage
     return original
+
+
+def _own_cpu_s():
+    """CPU seconds of this process alone (all its threads, not its children)."""
+    t = os.times()
+    return t.user + t.system
 
 
 def measure(refine, options):
@@ -73,6 +83,7 @@ def measure(refine, options):
         "refine": refine, "n_dofs": info["n_dofs"], "n_pairs": info["n_pairs"],
         "success": bool(res.success),
         "wall": {k: res.timings_s[k] for k in STAGES},
+        "own": {k: record.get(k, {}).get("own", 0.0) for k in MEASURED},
         "cpu": {**{k: record.get(k, {}).get("cpu", 0.0) for k in MEASURED},
                 "total": _resources.cpu_with_children_s() - c0},
         "peak_mb": {k: record.get(k, {}).get("peak_mb", 0.0) for k in MEASURED},
@@ -104,7 +115,7 @@ def _factors(reduced):
 
 def median_run(runs):
     med = dict(runs[-1])
-    for key in ("wall", "cpu", "peak_mb", "held_mb"):
+    for key in ("wall", "cpu", "own", "peak_mb", "held_mb"):
         if key in runs[0]:
             med[key] = {k: statistics.median(r[key][k] for r in runs) for k in runs[0][key]}
     med["runs"] = len(runs)
@@ -127,6 +138,14 @@ def print_tables(rows):
         cells = [f"{r['wall'][k]:.2f} / {r['cpu'][k]:.2f}" for k in STAGES]
         print(f"| {r['refine']} | {r['n_dofs']} | {r['n_pairs']} | {r['runs']} | "
               + " | ".join(cells) + f" | {r['process_peak_mb']:.0f} |")
+    if all("own" in r for r in rows):
+        print("\nCPU of the run's own process per stage [s] (its forked children apart: "
+              "what a free second core takes off the run's path):\n")
+        print("| refine | " + " | ".join(MEASURED) + " |")
+        print("|---" * (len(MEASURED) + 1) + "|")
+        for r in rows:
+            print(f"| {r['refine']} | " + " | ".join(f"{r['own'][k]:.2f}" for k in MEASURED)
+                  + " |")
     print("\nStage peak resident memory [MB]:\n")
     print("| refine | " + " | ".join(MEASURED) + " |")
     print("|---" * (len(MEASURED) + 1) + "|")

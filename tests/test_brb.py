@@ -25,7 +25,7 @@ def coarse():
     modes."""
     p = prepare(brb(1, surfaces="flat"))
     red, _, pre = p.preloaded(RunOptions(), StageClock())
-    modes = p.mode(pre.status != OPEN, RunOptions(n_modes=4), StageClock())[0]
+    modes = p.mode(pre.status != OPEN, RunOptions(n_modes=4), StageClock())[0].result()
     return p, red, pre, modes
 
 
@@ -135,7 +135,7 @@ def test_tied_frequency_converges_under_refinement():
         _, _, pre = p.preloaded(RunOptions(), StageClock())
         closed = pre.status != OPEN
         assert 0 < closed.sum() < p.pairing.n_pairs
-        f.append(p.mode(closed, RunOptions(n_modes=1), StageClock())[0].f_hz[6])
+        f.append(p.mode(closed, RunOptions(n_modes=1), StageClock())[0].result().f_hz[6])
     e1, e2 = (abs(x - F_TIED_REFINE_3) for x in f)
     assert e1 > 4 * e2 and e2 < 1e-2 * F_TIED_REFINE_3
 

@@ -223,3 +223,40 @@ def test_block_pattern_sums_duplicates_like_a_coordinate_assembly():
     ref = sp.coo_matrix((blocks.ravel(), (rows, cols)), shape=(8, 8)).toarray()
     assert np.allclose(A.toarray(), ref, rtol=0, atol=1e-14)
     assert A.nnz == 4 * (16 - 2)          # all node pairs but (0, 1) and (1, 0)
+
+
+@pytest.mark.parametrize("case", [("quad", 2), ("triangle", 2), ("hexahedron", 3),
+                                  ("tetra", 3)])
+def test_nodal_stress_is_the_average_of_the_element_means_of_the_gauss_stresses(case):
+    """``stress_at_nodes`` of a non-uniform field on a distorted mesh equals, to
+    round-off, its definition written out: per element the mean over the Gauss points
+    of ``C : sym(grad u)`` from the element's own quadrature, then per node the mean
+    over the elements that hold it."""
+    from qsma.fe import stress_at_nodes
+    from qsma.fe.batched import cell_quadrature
+    cell_type, dim = case
+    mesh = distorted_patch(cell_type) if dim == 2 else distorted_3d(cell_type)
+    a = assemble_body(Body("patch", mesh, STEEL))
+    x = mesh.points
+    u = np.column_stack([x[:, 0] ** 2 * x[:, 1], np.sin(x[:, 0] + 2 * x[:, 1]),
+                         x[:, 1] * x[:, -1] ** 2][:dim]).ravel() * 1e-3
+    sig, vm = stress_at_nodes(a.body, u)
+    quad = cell_quadrature(mesh)
+    lam, mu = STEEL.lame
+    U = u.reshape(-1, dim)[quad.nodes]
+    per_element = []
+    for cut, G, _ in quad.batches():
+        for e, Ge in zip(U[cut], G):
+            s = np.zeros((dim, dim))
+            for Gq in Ge:                                   # each Gauss point
+                eps = 0.5 * (e.T @ Gq + (e.T @ Gq).T)
+                s += 2 * mu * eps + lam * np.trace(eps) * np.eye(dim)
+            per_element.append(s / len(Ge))
+    expected = np.zeros_like(sig)
+    count = np.zeros(len(x))
+    for cell, s in zip(mesh.cells, per_element):
+        expected[cell] += s
+        count[cell] += 1
+    expected /= count[:, None, None]
+    assert np.abs(sig - expected).max() < 1e-12 * np.abs(expected).max()
+    assert np.all(vm >= 0) and np.abs(vm).max() > 0

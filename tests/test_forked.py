@@ -1,5 +1,7 @@
 """The -alpha ramp on a forked process beside the last refinement round
-(qsma.analysis._NegativeRamp) and the forked call it uses (qsma._infra.forked)."""
+(qsma.analysis._NegativeRamp), the tied modes beyond the loaded one finished on a
+forked process while the ramps run (qsma.modal.leading), and the forked call both use
+(qsma._infra.forked)."""
 import os
 import threading
 import warnings
@@ -96,6 +98,59 @@ def test_a_failed_child_is_replaced_by_the_serial_ramp(serial, monkeypatch, capl
     assert "negative ramp solved again in this process" in caplog.text
     _same_bits(res, serial)
 
+
+
+@pytest.fixture
+def modes_fork(monkeypatch):
+    """The tied modes finished on a forked process as on Linux with two usable cores."""
+    monkeypatch.setattr(analysis.stages, "second_core_refusal", lambda: None)
+
+
+def _same_modes(a, b):
+    assert np.array_equal(a.modes.omega, b.modes.omega)
+    assert np.array_equal(a.modes.shapes, b.modes.shapes)
+    assert a.omega0 == b.omega0
+
+
+def test_forked_tied_modes_give_the_serial_bits(serial, monkeypatch, modes_fork):
+    """sandwich-2d computes six tied modes and loads the first: the run goes on with
+    it once it has converged, a child finishes the other five meanwhile, and every
+    result and every mode is the serial one bit for bit (the serial run finishes the
+    same iteration in its own process)."""
+    from qsma.modal import eigen, leading
+    made, finished_here = [], []
+    parent = os.getpid()
+
+    class Counted(_forked.ForkedCall):
+        def __init__(self, job):
+            made.append(os.getpid())
+            super().__init__(job)
+
+    finish = eigen.ShiftInvert.finish
+
+    def counted_finish(self):
+        if os.getpid() == parent:
+            finished_here.append(1)
+        return finish(self)
+    monkeypatch.setattr(leading, "ForkedCall", Counted)
+    monkeypatch.setattr(eigen.ShiftInvert, "finish", counted_finish)
+    forked = qsma.run(sandwich_2d(1))
+    assert made == [parent] and finished_here == []      # the child's modes were used
+    assert len(forked.modes.omega) == 6
+    _same_bits(forked, serial)
+    _same_modes(forked, serial)
+
+
+@pytest.mark.parametrize("child", [_Dying, _Raising])
+def test_a_failed_modes_child_is_replaced_by_the_serial_iteration(serial, monkeypatch,
+                                                                  caplog, child, modes_fork):
+    from qsma.modal import leading
+    monkeypatch.setattr(leading, "ForkedCall", child)
+    with caplog.at_level("WARNING", logger="qsma"):
+        res = qsma.run(sandwich_2d(1))
+    assert "tied modes finished again in this process" in caplog.text
+    _same_bits(res, serial)
+    _same_modes(res, serial)
 
 def test_no_fork_outside_the_main_thread(serial, monkeypatch):
     monkeypatch.setattr(analysis.ramps, "ForkedCall", _Counted)

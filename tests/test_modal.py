@@ -348,3 +348,59 @@ def test_tied_modes_on_two_solve_threads_equal_one_bit_for_bit(name, monkeypatch
         lam = m.omega[j] ** 2
         scale = (sp.linalg.norm(K, 1) + lam * sp.linalg.norm(M, 1)) * np.abs(phi).sum()
         assert np.abs(K @ phi - lam * (M @ phi)).sum() <= 1e-12 * scale
+
+
+def test_leading_pairs_converge_first_and_the_iteration_finishes_as_a_whole():
+    """``ShiftInvert.leading(1)`` stops as soon as the lowest pair passes the
+    convergence test (the chain's lowest eigenvalue to 1e-12, fewer block solves than
+    the six pairs need), and ``finish`` goes on from there to the same numbers as an
+    uninterrupted ``block_shift_invert``."""
+    K, M, exact = _chain(400)
+    lu = spla.splu(K)
+    applied = []
+
+    def solve(B):
+        applied.append(B.shape[1])
+        return lu.solve(np.asfortranarray(B))
+    iteration = modal.ShiftInvert(solve, M, 6)
+    lam1, vec1 = iteration.leading(1)
+    n_leading = len(applied)
+    np.testing.assert_allclose(lam1, exact[:1], rtol=1e-12)
+    res = lu.solve(np.asfortranarray(M @ vec1)) - vec1 / lam1
+    assert np.sqrt(np.sum(res * (M @ res))) < 1e-10 / lam1[0]
+    lam, vec = iteration.finish()
+    assert n_leading < len(applied)
+    whole = modal.block_shift_invert(lambda B: lu.solve(np.asfortranarray(B)), M, 6)
+    assert np.array_equal(lam, whole[0]) and np.array_equal(vec, whole[1])
+    assert modal.same_eigenvalues(lam1, lam[:1])
+
+
+def test_same_eigenvalues_separates_round_off_from_another_mode():
+    """Two converged Ritz values of one eigenvalue differ by at most twice the residual
+    floor (relative); a neighbouring eigenvalue of the chain is far outside that."""
+    _, _, exact = _chain(400)
+    assert modal.same_eigenvalues(exact[:2], exact[:2] * (1 + 1e-9))
+    assert not modal.same_eigenvalues(exact[:2], exact[:2] * (1 + 1e-7))
+    assert not modal.same_eigenvalues(exact[:1], exact[1:2])
+    assert not modal.same_eigenvalues(exact[:1], exact[:2])
+
+
+def test_leading_modes_that_are_not_the_lowest_of_the_finished_set_are_refused():
+    """The modes a run loaded before the iteration finished must be the first of the
+    finished set: the same eigenvalues are taken with their leading shapes; a leading
+    mode whose eigenvalue the finished set does not start with (a lower mode found
+    later) raises AnalysisError instead of reporting modes beside a ramp of another
+    mode."""
+    from qsma.errors import AnalysisError
+    from qsma.modal import Modes
+    from qsma.modal.leading import with_leading
+    rng = np.random.default_rng(1)
+    tied = np.ones(3, bool)
+    full = Modes(np.array([10.0, 20.0, 30.0]), rng.standard_normal((8, 3)), tied)
+    early = Modes(np.array([10.0 * (1 + 1e-12)]), rng.standard_normal((8, 1)), tied)
+    kept = with_leading(full, early)
+    assert kept.omega[0] == early.omega[0] and np.array_equal(kept.shapes[:, 0],
+                                                              early.shapes[:, 0])
+    assert np.array_equal(kept.shapes[:, 1:], full.shapes[:, 1:])
+    with pytest.raises(AnalysisError, match="not the lowest"):
+        with_leading(full, Modes(np.array([20.0]), rng.standard_normal((8, 1)), tied))

@@ -113,7 +113,7 @@ def test_one_element_thick_c3d20r_is_refused_by_its_hourglass_mode():
     suppress them), so the tied stiffness is singular: refused naming the body, its
     element and the fix, never reported as a frequency near 0. Modes that the
     factorisation passes are checked too (their strain energy on the full rule against
-    the reduced one, :func:`qsma.modal.linear._check_hourglass`)."""
+    the reduced one, :func:`qsma.modal.linear.check_hourglass`)."""
     steel = Material(E_MPA, NU, RHO)
     beam = _beam_mesh((10, 1, 1), "C3D20R")
     end = beam.boundary_facets_where(lambda p: np.isclose(p[:, 1], H) & (p[:, 0] >= 9.0))

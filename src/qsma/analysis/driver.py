@@ -132,31 +132,31 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
                                       opts=sopts, schur_backend=opts.schur_backend,
                                       clock=clock, contact_threads=_contact_threads(opts))
         closed = pre.status != OPEN
-        modes, phi, phi_tip, omega0, ltip = _mode(model, assembled, pairing, closed, opts,
-                                                  clock, reduced, layer)
+        pending, phi, phi_tip, omega0, ltip = _mode(model, assembled, pairing, closed,
+                                                    opts, clock, reduced, layer)
     else:
         assembled = prepared.assembled
         reduced, layer, pre = prepared.preloaded(opts, clock)
         closed = pre.status != OPEN
-        modes, phi, phi_tip, omega0, ltip = prepared.mode(closed, opts, clock, reduced,
-                                                          layer)
+        pending, phi, phi_tip, omega0, ltip = prepared.mode(closed, opts, clock, reduced,
+                                                            layer)
     problem = layer.problem
-
-    with clock.stage("condensation"):
-        off = model.dof_offsets()
-        Mphi = [a.M @ phi[off[k]:off[k + 1]] for k, a in enumerate(assembled)]
-        part = lambda v, k: v[off[k]:off[k + 1]]
-        reduced = reduced.add_pattern("modal", *(Mphi[i] for i in order)).with_functionals({
-            "q": tuple(Mphi[i] for i in order),
-            "tip": tuple(part(ltip, i) for i in order),
-        })
-    response = _Response(reduced, pre)
-    levels = spec_levels(model.units) if opts.levels is None else opts.levels
-    alpha = levels.alpha(omega0, phi_tip)
-    k_ref = omega0 ** 2
-
-    contact_limit = _contact_threads(opts)
     try:
+        with clock.stage("condensation"):
+            off = model.dof_offsets()
+            Mphi = [a.M @ phi[off[k]:off[k + 1]] for k, a in enumerate(assembled)]
+            part = lambda v, k: v[off[k]:off[k + 1]]
+            reduced = reduced.add_pattern("modal", *(Mphi[i] for i in order))
+            reduced = reduced.with_functionals({
+                "q": tuple(Mphi[i] for i in order),
+                "tip": tuple(part(ltip, i) for i in order),
+            })
+        response = _Response(reduced, pre)
+        levels = spec_levels(model.units) if opts.levels is None else opts.levels
+        alpha = levels.alpha(omega0, phi_tip)
+        k_ref = omega0 ** 2
+
+        contact_limit = _contact_threads(opts)
         with clock.stage("contact"), threads_limited(contact_limit):
             solver = _Solver(layer, reduced, opts.method, sopts,
                              zone_from_state(problem, pre.state) if opts.eliminate_open
@@ -171,11 +171,14 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
             finally:
                 negative.cancel()
             solver.zone = _with_closed(solver.zone, neg.status)
+        with clock.stage("modal"):            # the modes beyond the loaded one
+            modes = pending.result()
 
         with clock.stage("hysteresis"), threads_limited(contact_limit):
             hyst = level_dissipation(solver, response, grid[:pos.n], user, pos, neg, pre,
                                      opts, k_ref, report, contact_limit)
     finally:
+        pending.cancel()            # a forked iteration of the modes left by an error
         if prepared is None:        # the problem dies with this run: free its zones now,
             release_zones(problem)  # not at the next collection of the cycle collector
 

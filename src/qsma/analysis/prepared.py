@@ -121,7 +121,8 @@ class Prepared:
 
     def mode(self, closed, opts, clock, reduced=None, layer=None):
         """:func:`_mode` cached by the mask of closed pairs, the mode, ``n_modes`` and the
-        interface springs of a compliant layer."""
+        interface springs of a compliant layer; its first item is a
+        :class:`qsma.modal.ModesToCome` (``.result()``: every mode)."""
         springs = interface_springs(layer, closed)
         key = ("mode", np.asarray(closed, bool).tobytes(), opts.mode, opts.n_modes,
                None if springs is None else springs.tobytes())

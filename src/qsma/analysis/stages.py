@@ -7,6 +7,7 @@ import warnings
 
 import numpy as np
 
+from .._infra.forked import fork_refusal, second_core_refusal
 from .._infra.threads import CONTACT_BLAS_THREADS, blas_threads as threads_limited
 from ..contact import ContactProblem, OPEN
 from ..contact.layer import Anderson, Layer, interface_springs
@@ -14,7 +15,7 @@ from ..contact.pairlaws import LOW_PRESSURE, LOW_SECANT
 from ..errors import AnalysisError, ContactConvergenceWarning, InputError
 from ..fe import assemble_body
 from ..fe.bolts import bolt_functionals, with_bolt_loads
-from ..modal import linear_modes, probe_vector
+from ..modal import leading_modes, probe_vector
 from ..model.pairing import (MultiPairing, body_order, pair_gaps, pair_laws, pair_mu,
                              warn_closed_gaps)
 from ..reduction.multibody import reduce_model
@@ -239,7 +240,10 @@ def _assemble(model, clock, keep=None):
 
 
 def _mode(model, assembled, pairing, closed, opts, clock, reduced=None, layer=None):
-    """The loaded mode: ``(modes, phi, phi_tip, omega0, ltip)``, tip deflection positive.
+    """The loaded mode: ``(modes, phi, phi_tip, omega0, ltip)``, tip deflection positive,
+    ``modes`` a :class:`qsma.modal.ModesToCome` (the modes up to the loaded one are
+    known; the others are finished on a forked process while the ramps run, where
+    ``parallel_ramps`` and the platform allow it, else when asked for).
     ``reduced``: the condensed model of the preload, whose factors the shift-invert of
     the tied modes reuses (:func:`qsma.modal.linear_modes`). ``layer``: the interface
     layer of the ramps; a compliant one holds the closed pairs by its springs
@@ -247,25 +251,39 @@ def _mode(model, assembled, pairing, closed, opts, clock, reduced=None, layer=No
     mode = opts.mode
     with clock.stage("modal"):
         nm = max(6, mode + 1) if opts.n_modes is None else opts.n_modes
-        modes = linear_modes(model, assembled, pairing, tied=closed, n_modes=nm,
-                             reduced=reduced, springs=interface_springs(layer, closed))
-        n_el = len(modes.omega) - modes.n_rigid
-        if mode >= n_el:
-            raise InputError(f"mode index {mode} is beyond the {n_el} computed modes "
-                             f"(0..{n_el - 1}, elastic modes: rigid-body modes are not "
-                             f"counted); raise n_modes")
-        phi = modes.shapes[:, modes.n_rigid + mode].copy()
-        raw = probe_vector(model)
-        ltip = elastic_probe(raw, model, assembled)     # free-free: centre-of-mass frame
-        phi_tip = float(ltip @ phi)
-        if phi_tip < 0:
-            phi, phi_tip = -phi, -phi_tip
-        probe_nodes = raw != 0
-        rms = float(np.sqrt(np.mean(phi[probe_nodes] ** 2)))
-        if abs(phi_tip) < 1e-6 * rms or rms == 0:
-            f_mode = modes.f_hz[modes.n_rigid + mode]
-            raise InputError(f"mode {mode} ({f_mode:.4g} Hz) has no tip deflection "
-                             f"along the probe direction (|phi_tip| = {abs(phi_tip):.2e}, "
-                             f"RMS of the mode at the tip nodes {rms:.2e}); choose a mode "
-                             f"that moves the tip: the load levels are scaled by it")
-    return modes, phi, phi_tip, float(modes.omega[modes.n_rigid + mode]), ltip
+        fork = (opts.execution.parallel_ramps and fork_refusal() is None
+                and second_core_refusal() is None)
+        pending = leading_modes(model, assembled, pairing, closed, nm, reduced,
+                                interface_springs(layer, closed), mode + 1, fork)
+        try:
+            phi, phi_tip, ltip = _loaded_mode(model, assembled, pending.leading, mode)
+        except BaseException:
+            pending.cancel()
+            raise
+    modes = pending.leading
+    return pending, phi, phi_tip, float(modes.omega[modes.n_rigid + mode]), ltip
+
+
+def _loaded_mode(model, assembled, modes, mode):
+    """``(phi, phi_tip, ltip)`` of elastic mode ``mode`` of ``modes``, checked to exist
+    and to move the tip."""
+    n_el = len(modes.omega) - modes.n_rigid
+    if mode >= n_el:
+        raise InputError(f"mode index {mode} is beyond the {n_el} computed modes "
+                         f"(0..{n_el - 1}, elastic modes: rigid-body modes are not "
+                         f"counted); raise n_modes")
+    phi = modes.shapes[:, modes.n_rigid + mode].copy()
+    raw = probe_vector(model)
+    ltip = elastic_probe(raw, model, assembled)     # free-free: centre-of-mass frame
+    phi_tip = float(ltip @ phi)
+    if phi_tip < 0:
+        phi, phi_tip = -phi, -phi_tip
+    probe_nodes = raw != 0
+    rms = float(np.sqrt(np.mean(phi[probe_nodes] ** 2)))
+    if abs(phi_tip) < 1e-6 * rms or rms == 0:
+        f_mode = modes.f_hz[modes.n_rigid + mode]
+        raise InputError(f"mode {mode} ({f_mode:.4g} Hz) has no tip deflection "
+                         f"along the probe direction (|phi_tip| = {abs(phi_tip):.2e}, "
+                         f"RMS of the mode at the tip nodes {rms:.2e}); choose a mode "
+                         f"that moves the tip: the load levels are scaled by it")
+    return phi, phi_tip, ltip

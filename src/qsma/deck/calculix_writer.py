@@ -419,7 +419,8 @@ def _qsma_mode(model, opts) -> dict:
     clock = StageClock()
     reduced, layer, pre = p.preloaded(opts, clock)
     closed = pre.status != OPEN
-    _, phi, phi_tip, omega0, _ = p.mode(closed, opts, clock, reduced, layer)
+    others, phi, phi_tip, omega0, _ = p.mode(closed, opts, clock, reduced, layer)
+    others.cancel()                     # the modes beyond the loaded one: not needed
     off = model.dof_offsets()
     phis = [phi[off[k]:off[k + 1]].reshape(-1, model.dim) for k in range(len(model.bodies))]
     mphi = [(a.M @ f.ravel()).reshape(-1, model.dim) for a, f in zip(p.assembled, phis)]

@@ -264,9 +264,10 @@ def stress_at_nodes(body: Body, u: np.ndarray):
         u_block = u if nodes is None else np.asarray(u)[block_dofs(nodes, dim)]
         sig_el = _cell_stress(m, body.material, part, u_block)       # (nelem, dim, dim)
         t = m.cells if nodes is None else nodes[m.cells]
-        for k in range(t.shape[1]):
-            np.add.at(acc, t[:, k], sig_el)
-            np.add.at(cnt, t[:, k], 1.0)
+        per_node = np.repeat(sig_el.reshape(len(t), -1), t.shape[1], axis=0)
+        acc += np.column_stack([np.bincount(t.ravel(), per_node[:, c], len(acc))
+                                for c in range(dim * dim)]).reshape(acc.shape)
+        cnt += np.bincount(t.ravel(), minlength=len(cnt))
     lam, mu = plane_lame(body.material, parts[0])
     s = acc / cnt[:, None, None]
     if dim == 2:
@@ -289,10 +290,7 @@ def _cell_stress(mesh: Mesh, material, form: Formulation, u: np.ndarray) -> np.n
     lam, mu = plane_lame(material, form)
     quad = batched.cell_quadrature(mesh)
     U = np.asarray(u).reshape(-1, mesh.dim)[quad.nodes]             # (ne, nb, dim)
-    sig = np.empty((quad.n_elements, mesh.dim, mesh.dim))
-    for cut, G, _ in quad.batches():
-        gu = np.einsum("eak,eqai->eqki", U[cut], G).mean(axis=1)     # mean over Gauss points
-        eps = 0.5 * (gu + np.swapaxes(gu, 1, 2))
-        tr = np.trace(eps, axis1=1, axis2=2)
-        sig[cut] = 2 * mu * eps + lam * tr[:, None, None] * np.eye(mesh.dim)
-    return sig
+    gu = np.einsum("eak,eai->eki", U, quad.mean_gradients())         # mean over Gauss points
+    eps = 0.5 * (gu + np.swapaxes(gu, 1, 2))
+    tr = np.trace(eps, axis1=1, axis2=2)
+    return 2 * mu * eps + lam * tr[:, None, None] * np.eye(mesh.dim)

@@ -122,6 +122,21 @@ class CellQuadrature:
             yield (cut, *inverse_and_determinant(jacobians(self.coords[cut],
                                                            self.geometry_grads)))
 
+    def mean_gradients(self):
+        """``(ne, nb, d)``: the physical gradients of the shape functions averaged over
+        the quadrature points of each element, ``mean_q dN_a/dx_i`` (computed once and
+        kept): the gradient of a field averaged over an element is the field's nodal
+        values times these, the element-centre stress of
+        :func:`qsma.fe.assembly.stress_at_nodes` for every field written."""
+        cached = self.__dict__.get("_mean_gradients")
+        if cached is None:
+            nq = len(self.weights)
+            cached = np.concatenate([np.einsum("qaj,eqji->eai", self.grads, Jinv,
+                                               optimize=True) / nq
+                                     for _, Jinv, _ in self._mapped()])
+            self.__dict__["_mean_gradients"] = cached
+        return cached
+
     def batches(self):
         """``(cut, G, dx)`` per batch of :data:`BATCH` elements: the physical gradients
         ``G[e, q, a, i] = dN_a/dx_i`` and the weights ``dx[e, q] = w_q |det J|``."""

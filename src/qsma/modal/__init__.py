@@ -8,16 +8,18 @@ eliminated, ``u_slave = sum_k P_ik u_master_k`` per component.
 One concern per module: :mod:`.linear` (:func:`linear_modes`, the entry point),
 :mod:`.tied` (the tie transform, :class:`Modes`, the checks of rigid motions, the
 factorised eigen solve, the probe), :mod:`.substructured` (the inverse through the
-condensed bodies), :mod:`.eigen` (block Krylov shift-invert).
+condensed bodies), :mod:`.eigen` (block Krylov shift-invert), :mod:`.leading` (the
+loaded mode first, the others after it).
 """
 from .eigen import block_shift_invert
+from .leading import ModesToCome, leading_modes
 from .linear import linear_modes
 from .substructured import SubstructuredInverse, identity_rows, substructured_inverse
 from .tied import (LANCZOS_MEMORY_SHARE, MAX_MODES, RIGID_TOL, FREE_SHIFT_RTOL, Modes,
                    check_n_modes, free_shift, mode_tip, nonrigid_part, probe_vector,
                    stacked, tie_transform)
 
-__all__ = ["linear_modes", "Modes", "tie_transform", "stacked", "mode_tip",
+__all__ = ["linear_modes", "leading_modes", "ModesToCome", "Modes", "tie_transform", "stacked", "mode_tip",
            "probe_vector", "nonrigid_part", "free_shift", "check_n_modes",
            "block_shift_invert", "SubstructuredInverse", "substructured_inverse",
            "identity_rows", "MAX_MODES", "RIGID_TOL", "FREE_SHIFT_RTOL",

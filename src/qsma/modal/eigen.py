@@ -64,6 +64,74 @@ def block_shift_invert(solve, M, k, Z=None, gram=None, start=None):
     Returns ``(lam, vec)``, ``lam`` increasing, ``vec`` M-orthonormal. Raises
     :class:`AnalysisError` if the iteration does not converge.
     """
+    return ShiftInvert(solve, M, k, Z, gram, start).finish()
+
+
+def _converged(worst, previous):
+    """The convergence test of :func:`block_shift_invert` on the worst relative residual
+    of the pairs judged, ``previous`` that of the step before."""
+    return worst <= EIG_RESIDUAL_RTOL or EIG_RESIDUAL_FLOOR >= worst > 0.5 * previous
+
+
+def same_eigenvalues(lam_a, lam_b):
+    """Whether two sets of eigenvalues that each passed the convergence test of
+    :func:`block_shift_invert` are the same eigenvalues: a Ritz value whose relative
+    residual is at most ``EIG_RESIDUAL_FLOOR`` lies within that fraction of an
+    eigenvalue of ``K^-1 M`` (a residual bound of a self-adjoint operator), so two of
+    the same eigenvalue differ by at most twice that; a different eigenvalue (a mode
+    that one set missed) is farther off by the gap between them."""
+    lam_a, lam_b = np.asarray(lam_a, dtype=float), np.asarray(lam_b, dtype=float)
+    bound = 2 * EIG_RESIDUAL_FLOOR * np.maximum(np.abs(lam_a), np.abs(lam_b))
+    return lam_a.shape == lam_b.shape and bool(np.all(np.abs(lam_a - lam_b) <= bound))
+
+
+class ShiftInvert:
+    """The iteration of :func:`block_shift_invert`, advanced on demand.
+
+    :meth:`leading` advances it until its first ``m`` wanted pairs pass the convergence
+    test (the test of the whole set applied to those pairs) and returns them;
+    :meth:`finish` goes on from there until all ``k`` pass and returns them, the same
+    numbers as :func:`block_shift_invert`. The leading pairs are eigenpairs to the same
+    tolerance as the finished ones, not the same bits (they come from a smaller
+    basis). The state lives in this object, so a forked process can finish the
+    iteration while its parent goes on with the leading pairs.
+    """
+
+    def __init__(self, solve, M, k, Z=None, gram=None, start=None):
+        self.k = k
+        self._steps = _ritz_steps(solve, M, k, Z, gram, start)
+        self._done = None
+
+    def leading(self, m):
+        """``(lam, vec)`` of the first ``m <= k`` pairs once they have converged."""
+        previous = np.inf
+        while self._done is None:
+            try:
+                mu, Y, res, Q = next(self._steps)
+            except StopIteration as stop:
+                self._done = stop.value
+                break
+            worst = float(np.max(res[:m] / mu[:m]))
+            if _converged(worst, previous):
+                return 1.0 / mu[:m], Q @ Y[:, :m]
+            previous = worst
+        lam, vec = self._done
+        return lam[:m], vec[:, :m]
+
+    def finish(self):
+        """``(lam, vec)`` of all ``k`` pairs (:func:`block_shift_invert`)."""
+        while self._done is None:
+            try:
+                next(self._steps)
+            except StopIteration as stop:
+                self._done = stop.value
+        return self._done
+
+
+def _ritz_steps(solve, M, k, Z, gram, start):
+    """The iteration of :func:`block_shift_invert` as a generator: yields ``(mu, Y, res,
+    Q)`` after each Rayleigh-Ritz step (``Q`` a view of the basis, valid until the next
+    step) and returns ``(lam, vec)`` of the ``k`` pairs once they all converged."""
     n = M.shape[0]
     b = min(EIG_BLOCK, k + EIG_GUARD, n - k)
     want = min(k + EIG_GUARD, n - 1)           # basis size before convergence is judged
@@ -96,9 +164,9 @@ def block_shift_invert(solve, M, k, Z=None, gram=None, start=None):
                 V = W
                 continue
             mu, Y, res = basis.ritz(want)
+            yield mu, Y, res, basis.Q
             worst, previous = float(np.max(res[:k] / mu[:k])), worst
-            if (worst <= EIG_RESIDUAL_RTOL
-                    or worst <= EIG_RESIDUAL_FLOOR and worst > 0.5 * previous):
+            if _converged(worst, previous):
                 return 1.0 / mu[:k], basis.Q @ Y[:, :k]
             V = W
         mu, Y, res = basis.ritz(want)

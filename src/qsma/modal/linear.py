@@ -39,21 +39,11 @@ def linear_modes(model, assembled, pairing, tied=None, n_modes=6, reduced=None,
     value joins the two sides by a spring, 0 leaves it free. Contact points tied in every
     component are tied as without springs.
     """
-    if tied is None:
-        tied = np.ones(pairing.n_pairs, dtype=bool)
-    tied = np.asarray(tied, dtype=bool)
-    if tied.shape != (pairing.n_pairs,):
-        raise InputError(f"tied mask must have {pairing.n_pairs} entries, got {tied.shape}")
-    springs = _checked_springs(springs, pairing.n_pairs, model.dim)
-    held = tied if springs is None else tied & np.all(np.isinf(springs), axis=1)
-    T = tie_transform(model, assembled, pairing, held)
+    tied, springs, held, T, M, inverse = tied_operators(model, assembled, pairing, tied,
+                                                        n_modes, reduced, springs)
     n_free = assembly_free_motions(model, assembled)
-    check_n_modes(n_modes, T.shape[1])
-    M = (T.T @ stacked([a.M for a in assembled]) @ T).tocsc()
-    inverse = None if reduced is None else substructured_inverse(
-        model, assembled, pairing, tied, reduced, T, M, springs)
     if inverse is not None:
-        return _check_hourglass(
+        return check_hourglass(
             _substructured_modes(inverse, M, T, tied, n_modes, model, assembled), assembled)
     if springs is not None:
         T = partly_tied(T, model, pairing, springs, held)
@@ -75,8 +65,29 @@ def linear_modes(model, assembled, pairing, tied=None, n_modes=6, reduced=None,
     vec /= np.sqrt(np.einsum("ik,ik->k", vec, M @ vec))
     omega = np.sqrt(np.maximum(lam, 0.0))
     omega[:n_free] = 0.0
-    return _check_hourglass(Modes(omega, T @ vec, tied.copy(), n_free), assembled)
+    return check_hourglass(Modes(omega, T @ vec, tied.copy(), n_free), assembled)
 
+
+
+def tied_operators(model, assembled, pairing, tied, n_modes, reduced, springs):
+    """What :func:`linear_modes` checks and builds before its eigen solve: ``(tied,
+    springs, held, T, M, inverse)``, ``held`` the contact points tied in every
+    component, ``T`` their tie transform, ``M`` the tied mass matrix and ``inverse`` the
+    :class:`SubstructuredInverse` (None where the condensed bodies do not cover the
+    case)."""
+    if tied is None:
+        tied = np.ones(pairing.n_pairs, dtype=bool)
+    tied = np.asarray(tied, dtype=bool)
+    if tied.shape != (pairing.n_pairs,):
+        raise InputError(f"tied mask must have {pairing.n_pairs} entries, got {tied.shape}")
+    springs = _checked_springs(springs, pairing.n_pairs, model.dim)
+    held = tied if springs is None else tied & np.all(np.isinf(springs), axis=1)
+    T = tie_transform(model, assembled, pairing, held)
+    check_n_modes(n_modes, T.shape[1])
+    M = (T.T @ stacked([a.M for a in assembled]) @ T).tocsc()
+    inverse = None if reduced is None else substructured_inverse(
+        model, assembled, pairing, tied, reduced, T, M, springs)
+    return tied, springs, held, T, M, inverse
 
 #: A mode whose strain energy in a body on the full rule exceeds this many times its
 #: energy on the reduced rule of that body's elements is a zero-energy (hourglass) mode
@@ -85,7 +96,7 @@ def linear_modes(model, assembled, pairing, tied=None, n_modes=6, reduced=None,
 HOURGLASS_RATIO = 10.0
 
 
-def _check_hourglass(modes, assembled):
+def check_hourglass(modes, assembled):
     """Refuse modes that are zero-energy modes of reduced integration (C3D20R, CPE8R):
     their deformation carries almost no strain energy on the reduced rule and a normal
     amount on the full one. Such modes spread through meshes one element thick; in

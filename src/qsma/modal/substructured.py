@@ -12,7 +12,7 @@ from ..fe.bolts import bolt_vectors
 from ..model.pairing import MultiPairing, body_order
 from ..reduction.rigid import assembly_motions, rigid_body_modes
 from ..reduction.two_bodies import tied_solver
-from .eigen import block_shift_invert
+from .eigen import ShiftInvert
 from .tied import RIGID_TOL, Modes, _check_rigid
 
 @dataclass(frozen=True, eq=False)
@@ -136,13 +136,26 @@ def _rigid_fields(model, assembled):
 def _substructured_modes(inverse, M, T, tied, n_modes, model, assembled):
     """:func:`linear_modes` with :class:`SubstructuredInverse` (sigma = 0; the rigid
     modes of a free-free assembly are its motions ``Z``, M-orthonormalised)."""
+    lam, vec = substructured_iteration(inverse, M, n_modes, model, assembled).finish()
+    return substructured_modes(lam, vec, inverse, M, T, tied, model, assembled)
+
+
+def substructured_iteration(inverse, M, n_modes, model, assembled) -> ShiftInvert:
+    """The shift-invert iteration of the elastic modes through ``inverse``, not yet run
+    (:class:`qsma.modal.eigen.ShiftInvert`)."""
     n = M.shape[0]
     n_free = 0 if inverse.Z is None else inverse.Z.shape[1]
     k = min(n_modes, n - 2 - n_free)
     start = None if n_free else _rigid_fields(model, assembled)[inverse.rows]
-    lam, vec = block_shift_invert(inverse, M, k, inverse.Z, inverse.gram, start)
+    return ShiftInvert(inverse, M, k, inverse.Z, inverse.gram, start)
+
+
+def substructured_modes(lam, vec, inverse, M, T, tied, model, assembled) -> Modes:
+    """:class:`Modes` of the eigenpairs ``(lam, vec)`` of the iteration (the rigid
+    motions of a free-free assembly first), checked not to be rigid-body motions."""
+    n_free = 0 if inverse.Z is None else inverse.Z.shape[1]
     _check_rigid(lam, model, assembled, T, vec)
-    vec /= np.sqrt(np.einsum("ik,ik->k", vec, M @ vec))
+    vec = vec / np.sqrt(np.einsum("ik,ik->k", vec, M @ vec))
     omega = np.sqrt(np.maximum(lam, 0.0))
     if n_free:
         L = np.linalg.cholesky(inverse.gram)

@@ -14,7 +14,6 @@ import csv
 import os
 
 import numpy as np
-from scipy.interpolate import LinearNDInterpolator
 
 from ..errors import InputError
 
@@ -85,6 +84,9 @@ class GapField:
             span = max(xs[-1] - xs[0], np.finfo(float).tiny)
             v[(at[:, 0] < xs[0] - 1e-9 * span) | (at[:, 0] > xs[-1] + 1e-9 * span)] = np.nan
         else:
+            # imported here: scipy.interpolate brings scipy.optimize, 0.1-0.2 s of the
+            # start of every command, and only a 2D gap field needs it
+            from scipy.interpolate import LinearNDInterpolator
             v = LinearNDInterpolator(self.points, self.values)(at)
         outside = ~np.isfinite(v)
         if outside.any():
