@@ -496,7 +496,10 @@ def _assemble(xs, slave, ns, xm, master, pieces, names, same_way):
     keep = covered >= MIN_FACET_COVER
     mixing = mixing_matrix(skind)
     if not TYPES[skind].is_linear:
-        keep &= ~weak_shares(pieces, sf, skind, mixing, covered * facet_area)
+        weak = keep & weak_shares(pieces, sf, skind, mixing, covered * facet_area)
+        if weak.all() and weak.any():
+            _refuse_partly_covered(xs, sf, covered, skind, names)
+        keep &= ~weak
     _check_coverage(xs, np.unique(sf), node_cover, names, np.unique(sf[same_way]),
                     keep.any())
     pc = pieces if keep.all() else _only_facets(pieces, keep)
@@ -571,6 +574,25 @@ def _check_gap(gap, x, size, names):
         f"as touching). Fix: move the bodies so that the interface surfaces touch in "
         f"the undeformed configuration, or check that the sets name the facing "
         f"surfaces.")
+
+
+def _refuse_partly_covered(xs, sf, covered, kind, names):
+    """Refuse a quadratic slave surface whose every facet the master covers only in part,
+    too little for the facet's mixed shape functions (``weak_shares``): nothing is left
+    to couple, though the surfaces face each other."""
+    sbody, sset, mbody, mset = names
+    k = int(np.argmax(covered))
+    raise InputError(
+        f"interface body {sbody!r} set {sset!r} (slave) / body {mbody!r} set {mset!r} "
+        f"(master): every one of the {len(sf)} {kind} slave facet(s) is only partly "
+        f"covered by the master (at most {100 * covered[k]:.1f} %, the facet at "
+        f"{np.round(xs[sf[k]].mean(axis=0), 12).tolist()}); on the covered part of a "
+        f"quadratic facet the shape functions of the nodes outside integrate to almost "
+        f"nothing, so the dual basis cannot be built there and no facet is left to couple. "
+        f"Fix: make the other surface the slave (swap the surfaces of the *CONTACT PAIR "
+        f"row, or Interface(slave=...) / 'slave' in TOML), so that the slave is the one "
+        f"the other covers, or mesh the slave surface so that its facets lie within the "
+        f"master.")
 
 
 def _check_coverage(xs, snodes, node_cover, names, same_way_nodes, any_covered):
