@@ -82,11 +82,22 @@ COVERAGE_TOL = 1e-6
 #: 1 / fraction^2 on bilinear facets (1e4 here).
 MIN_FACET_COVER = 1e-2
 
-#: Largest gap or overlap between the two surfaces, as a fraction of the local slave
-#: element size, accepted as "touching": a chord of length h on a radius R deviates
-#: from the arc by h^2 / (8 R), below 0.1 h for any mesh with h < 0.8 R. Farther apart
-#: the surfaces are not in contact (or overlap): refused, never snapped.
+#: Largest overlap (interpenetration) of the two surfaces, as a fraction of the local
+#: slave element size, accepted as an initial overclosure: a chord of length h on a
+#: radius R deviates from the arc by h^2 / (8 R), below 0.1 h for any mesh with
+#: h < 0.8 R. Deeper the surfaces overlap: refused, never snapped.
 GAP_FRACTION = 0.1
+
+#: Largest initial gap (surfaces apart), as a fraction of the local slave element size:
+#: the gap is the initial gap g0 of the contact problem, which the preload closes or
+#: leaves open (a punch on a block touches along a line, and its surface lies apart
+#: from the block elsewhere). The points of the two sides are matched once, along the
+#: slave normal in the undeformed mesh (small displacements): where the normals differ
+#: by an angle theta a gap g shifts the matched point by g tan(theta), below 0.1 h at
+#: g = 0.5 h and theta < 11 degrees. A facet set on the wrong face of the other body is
+#: at least one element (the body's thickness) away, so farther than half an element
+#: the surfaces are taken as not facing each other: refused, never snapped.
+GAP_APART_FRACTION = 0.5
 
 
 @dataclass(frozen=True, eq=False)
@@ -101,8 +112,9 @@ class MortarOperator:
     area : (n_slave,) ``D_i = int N_i dA`` (length per unit depth in 2D)
     normals : (n_slave,) unit outward normals of the slave surface at its nodes
     gap : (n_slave,) weighted normal gap ``D_i^-1 int psi_i (x_m - x_s).n_s dA`` of the
-        undeformed surfaces (positive apart); within :data:`GAP_FRACTION` of the element
-        size, it is reported and treated as zero (touching surfaces)
+        undeformed surfaces (positive apart), the initial gap of the contact problem;
+        at most :data:`GAP_APART_FRACTION` of the element size apart and
+        :data:`GAP_FRACTION` overlapping
     slave_area : area of the slave facet set (length per unit depth in 2D)
     unmatched_area : the part of it that faces no master facet (left out of the
         coupling: holes, curved or offset edges of two discretisations)
@@ -148,7 +160,8 @@ def mortar_operator(slave_mesh, slave_facets, master_mesh, master_facets,
     InputError
         When no part of the slave surface projects onto the master, when the facing
         facets have normals pointing the same way (a set on the wrong face), or when the
-        surfaces are farther apart or overlap more than :data:`GAP_FRACTION` of an element,
+        surfaces are farther apart than :data:`GAP_APART_FRACTION` or overlap more than
+        :data:`GAP_FRACTION` of an element,
         and for facet rows that are not the mesh's facets (corners only, say).
     """
     kinds = [_facet_kind(mesh, facets, body, name, names) for mesh, facets, body, name
@@ -242,7 +255,7 @@ def _pieces_2d(xs, sf, ns, xm, mf, nm):
     edge = xs[sf[:, 1]] - x0
     length = np.linalg.norm(edge, axis=1)
     e, f = _candidates(cKDTree(xm[mf].mean(axis=1)), x0 + 0.5 * edge,
-                       0.5 * length + 0.5 * hm.max() + GAP_FRACTION * length)
+                       0.5 * length + 0.5 * hm.max() + GAP_APART_FRACTION * length)
     opposed = np.einsum("ij,ij->i", ns[e], nm[f]) < 0
     same_way = np.unique(e[~opposed])
     e, f = e[opposed], f[opposed]
@@ -441,7 +454,7 @@ def _pieces_3d(xs, sf, ns, xm, mf, nm):
                                        sf)
     hs, hm = _facet_size(xs, sf), _facet_size(xm, mf)
     e, f = _candidates(cKDTree(xm[mf].mean(axis=1)), c,
-                       hs + hm.max() + GAP_FRACTION * hs)
+                       hs + hm.max() + GAP_APART_FRACTION * hs)
     opposed = np.einsum("ij,ij->i", n[e], nm[f]) < 0
     same_way = np.unique(e[~opposed])
     e, f = e[opposed], f[opposed]
@@ -551,9 +564,11 @@ def _only_facets(pc, keep):
 
 
 def _check_gap(gap, x, size, names):
-    """Refuse surfaces farther apart (or overlapping) than :data:`GAP_FRACTION` of the
-    local element ``size`` at some point, named at the first point of the worst gap
-    (slave facet order; ties to round-off)."""
+    """Refuse surfaces farther apart than :data:`GAP_APART_FRACTION` (or overlapping more
+    than :data:`GAP_FRACTION`) of the local element ``size`` at some point, named at the
+    first point of the worst gap (relative to its bound; slave facet order, ties to
+    round-off)."""
+    bound = np.where(gap > 0, GAP_APART_FRACTION, GAP_FRACTION)
     ratio = np.abs(gap) / size
     sbody, sset, mbody, mset = names
     if not np.all(np.isfinite(ratio)):
@@ -563,17 +578,27 @@ def _check_gap(gap, x, size, names):
             f"between the surfaces is not finite at {np.round(x[k], 12).tolist()} (a "
             f"degenerate facet: zero area or collapsed edges). Fix: check the mesh of the "
             f"interface surfaces there.")
-    if not len(ratio) or ratio.max() <= GAP_FRACTION:
+    excess = ratio / bound
+    if not len(ratio) or excess.max() <= 1.0:
         return
-    k = int(np.flatnonzero(ratio >= ratio.max() * (1.0 - 1e-12))[0])
-    what = "apart" if gap[k] > 0 else "overlap (interpenetrate)"
+    k = int(np.flatnonzero(excess >= excess.max() * (1.0 - 1e-12))[0])
+    if gap[k] > 0:
+        raise InputError(
+            f"interface body {sbody!r} set {sset!r} / body {mbody!r} set {mset!r}: the "
+            f"two surfaces are {gap[k]:.3e} m apart at {np.round(x[k], 12).tolist()}, "
+            f"{ratio[k]:.2f} of the local element size; initial gaps up to "
+            f"{GAP_APART_FRACTION} of an element are taken as gaps the preload may close, "
+            f"farther apart the surfaces do not face each other (a set on the wrong face, "
+            f"or bodies placed apart). Fix: check that the sets name the facing surfaces, "
+            f"restrict the slave set to the part of the surface that can come into contact, "
+            f"or move the bodies so that the surfaces touch or nearly touch.")
     raise InputError(
         f"interface body {sbody!r} set {sset!r} / body {mbody!r} set {mset!r}: the two "
-        f"surfaces are {abs(gap[k]):.3e} m {what} at {np.round(x[k], 12).tolist()}, "
-        f"{ratio[k]:.2f} of the local element size (at most {GAP_FRACTION} is taken "
-        f"as touching). Fix: move the bodies so that the interface surfaces touch in "
-        f"the undeformed configuration, or check that the sets name the facing "
-        f"surfaces.")
+        f"surfaces overlap (interpenetrate) by {-gap[k]:.3e} m at "
+        f"{np.round(x[k], 12).tolist()}, {ratio[k]:.2f} of the local element size (at "
+        f"most {GAP_FRACTION} is taken as an initial overclosure). Fix: move the bodies "
+        f"so that the interface surfaces touch in the undeformed configuration, or check "
+        f"that the sets name the facing surfaces.")
 
 
 def _refuse_partly_covered(xs, sf, covered, kind, names):
@@ -619,4 +644,4 @@ def _check_coverage(xs, snodes, node_cover, names, same_way_nodes, any_covered):
         f"{mbody!r} set {mset!r} (master): no slave facet faces a master facet (at most "
         f"{100 * MIN_FACET_COVER:g} % of one is covered):\n" + "\n".join(lines) + more +
         "\nFix: check that the sets name the two surfaces that touch (outward normals "
-        "opposed, within a tenth of an element of each other).")
+        "opposed, within half an element of each other).")
