@@ -306,7 +306,7 @@ def test_a_gap_that_is_not_finite_is_refused_by_name():
     """A degenerate facet can make a gap NaN; the check names it instead of crashing on
     ``ratio.max()`` being NaN."""
     from qsma.errors import InputError
-    from qsma.model.coupling import _check_gap
+    from qsma.model.mortar_checks import check_gap
     x = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
     with pytest.raises(InputError, match=r"not finite at \[1.0, 0.0, 0.0\]"):
-        _check_gap(np.array([0.0, np.nan]), x, np.ones(2), ("a", "s", "b", "t"))
+        check_gap(np.array([0.0, np.nan]), x, np.ones(2), ("a", "s", "b", "t"))
