@@ -43,7 +43,8 @@ class QSMAWarning(UserWarning):
 
 
 class InterfaceGapWarning(QSMAWarning):
-    """Mortar surfaces that do not touch in the mesh were taken as touching."""
+    """Mortar surfaces that do not touch in the mesh: their gaps are the initial gaps of
+    the contact problem."""
 
 
 class PartialCoverageWarning(QSMAWarning):

@@ -34,7 +34,7 @@ GAP_REPORT_RTOL = 1e-9
 
 def _warn_closed_gaps(model, pairing):
     """Say so when the mortar coupling found surfaces that are apart (or overlap) in the
-    mesh (gaps up to a tenth of an element, docs/theory.md section 8): the contact
+    mesh (up to half an element apart, docs/theory.md section 8): the contact
     problem starts from these gaps."""
     warn_closed_gaps(model, pairing, GAP_REPORT_RTOL)
 

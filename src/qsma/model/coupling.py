@@ -65,28 +65,13 @@ from ..mesh.celltypes import TYPES
 from ..mesh.facets import facet_normals
 from .dual_basis import (SlaveBasis, dual_basis, facet_values, mixing_matrix, shape_values,
                          slave_basis, weak_shares)
+from .mortar_checks import (COVERAGE_TOL, GAP_APART_FRACTION, MIN_FACET_COVER,
+                            check_coverage, check_gap, refuse_partly_covered)
 
 #: Gauss-Legendre points per direction: 4 points integrate degree 7 on a segment and,
 #: collapsed onto a triangle (Duffy), total degree 6 exactly; the integrands of a flat
 #: interface (products of two bilinear functions on affine pieces) have degree <= 4.
 GAUSS_POINTS = 4
-
-#: A slave node counts as covered when the master covers every slave facet around it
-#: to all but this fraction of the facet's area: six orders above double round-off of
-#: the clipped areas, far below any intended overhang (half an element is 0.5).
-COVERAGE_TOL = 1e-6
-
-#: A slave facet covered by the master on less than this fraction of its area is left
-#: out of the coupling (its covered sliver counted as unmatched): the dual basis is
-#: built on the covered part of each facet, and its mass matrix's condition grows like
-#: 1 / fraction^2 on bilinear facets (1e4 here).
-MIN_FACET_COVER = 1e-2
-
-#: Largest gap or overlap between the two surfaces, as a fraction of the local slave
-#: element size, accepted as "touching": a chord of length h on a radius R deviates
-#: from the arc by h^2 / (8 R), below 0.1 h for any mesh with h < 0.8 R. Farther apart
-#: the surfaces are not in contact (or overlap): refused, never snapped.
-GAP_FRACTION = 0.1
 
 
 @dataclass(frozen=True, eq=False)
@@ -101,8 +86,9 @@ class MortarOperator:
     area : (n_slave,) ``D_i = int N_i dA`` (length per unit depth in 2D)
     normals : (n_slave,) unit outward normals of the slave surface at its nodes
     gap : (n_slave,) weighted normal gap ``D_i^-1 int psi_i (x_m - x_s).n_s dA`` of the
-        undeformed surfaces (positive apart); within :data:`GAP_FRACTION` of the element
-        size, it is reported and treated as zero (touching surfaces)
+        undeformed surfaces (positive apart), the initial gap of the contact problem;
+        at most :data:`GAP_APART_FRACTION` of the element size apart and
+        :data:`qsma.model.mortar_checks.GAP_FRACTION` overlapping
     slave_area : area of the slave facet set (length per unit depth in 2D)
     unmatched_area : the part of it that faces no master facet (left out of the
         coupling: holes, curved or offset edges of two discretisations)
@@ -148,7 +134,8 @@ def mortar_operator(slave_mesh, slave_facets, master_mesh, master_facets,
     InputError
         When no part of the slave surface projects onto the master, when the facing
         facets have normals pointing the same way (a set on the wrong face), or when the
-        surfaces are farther apart or overlap more than :data:`GAP_FRACTION` of an element,
+        surfaces are farther apart than :data:`GAP_APART_FRACTION` or overlap more than
+        :data:`qsma.model.mortar_checks.GAP_FRACTION` of an element,
         and for facet rows that are not the mesh's facets (corners only, say).
     """
     kinds = [_facet_kind(mesh, facets, body, name, names) for mesh, facets, body, name
@@ -242,7 +229,7 @@ def _pieces_2d(xs, sf, ns, xm, mf, nm):
     edge = xs[sf[:, 1]] - x0
     length = np.linalg.norm(edge, axis=1)
     e, f = _candidates(cKDTree(xm[mf].mean(axis=1)), x0 + 0.5 * edge,
-                       0.5 * length + 0.5 * hm.max() + GAP_FRACTION * length)
+                       0.5 * length + 0.5 * hm.max() + GAP_APART_FRACTION * length)
     opposed = np.einsum("ij,ij->i", ns[e], nm[f]) < 0
     same_way = np.unique(e[~opposed])
     e, f = e[opposed], f[opposed]
@@ -441,7 +428,7 @@ def _pieces_3d(xs, sf, ns, xm, mf, nm):
                                        sf)
     hs, hm = _facet_size(xs, sf), _facet_size(xm, mf)
     e, f = _candidates(cKDTree(xm[mf].mean(axis=1)), c,
-                       hs + hm.max() + GAP_FRACTION * hs)
+                       hs + hm.max() + GAP_APART_FRACTION * hs)
     opposed = np.einsum("ij,ij->i", n[e], nm[f]) < 0
     same_way = np.unique(e[~opposed])
     e, f = e[opposed], f[opposed]
@@ -496,8 +483,11 @@ def _assemble(xs, slave, ns, xm, master, pieces, names, same_way):
     keep = covered >= MIN_FACET_COVER
     mixing = mixing_matrix(skind)
     if not TYPES[skind].is_linear:
-        keep &= ~weak_shares(pieces, sf, skind, mixing, covered * facet_area)
-    _check_coverage(xs, np.unique(sf), node_cover, names, np.unique(sf[same_way]),
+        weak = keep & weak_shares(pieces, sf, skind, mixing, covered * facet_area)
+        if weak.all() and weak.any():
+            refuse_partly_covered(xs, sf, covered, skind, names)
+        keep &= ~weak
+    check_coverage(xs, np.unique(sf), node_cover, names, np.unique(sf[same_way]),
                     keep.any())
     pc = pieces if keep.all() else _only_facets(pieces, keep)
     unmatched = max(float(facet_area.sum() - (covered * facet_area)[keep].sum()), 0.0)
@@ -515,7 +505,7 @@ def _assemble(xs, slave, ns, xm, master, pieces, names, same_way):
     xg_s = np.einsum("pk,pkd->pd", Ns, xs[point_nodes])
     xg_m = np.einsum("pk,pkd->pd", Nm, xm[m_rows[pc.piece]])
     gap = np.einsum("pd,pd->p", xg_m - xg_s, normal[point_facet])
-    _check_gap(gap, xg_s, _facet_size(xs, corners)[point_facet], names)
+    check_gap(gap, xg_s, _facet_size(xs, corners)[point_facet], names)
     weighted_gap = np.bincount(point_nodes.ravel(), minlength=len(xs),
                                weights=(psi * (w * gap)[:, None]).ravel())
     # M_ik = int psi_i N_k^m per piece: rows the slave facet's nodes, columns the master's
@@ -545,56 +535,3 @@ def _only_facets(pc, keep):
     return _Pieces(pc.facet[kept], pc.master[kept], pc.slave_nodes[kept],
                    pc.master_nodes[kept], number[pc.piece[point]], pc.r_slave[point],
                    pc.r_master[point], pc.weight[point])
-
-
-def _check_gap(gap, x, size, names):
-    """Refuse surfaces farther apart (or overlapping) than :data:`GAP_FRACTION` of the
-    local element ``size`` at some point, named at the first point of the worst gap
-    (slave facet order; ties to round-off)."""
-    ratio = np.abs(gap) / size
-    sbody, sset, mbody, mset = names
-    if not np.all(np.isfinite(ratio)):
-        k = int(np.flatnonzero(~np.isfinite(ratio))[0])
-        raise InputError(
-            f"interface body {sbody!r} set {sset!r} / body {mbody!r} set {mset!r}: the gap "
-            f"between the surfaces is not finite at {np.round(x[k], 12).tolist()} (a "
-            f"degenerate facet: zero area or collapsed edges). Fix: check the mesh of the "
-            f"interface surfaces there.")
-    if not len(ratio) or ratio.max() <= GAP_FRACTION:
-        return
-    k = int(np.flatnonzero(ratio >= ratio.max() * (1.0 - 1e-12))[0])
-    what = "apart" if gap[k] > 0 else "overlap (interpenetrate)"
-    raise InputError(
-        f"interface body {sbody!r} set {sset!r} / body {mbody!r} set {mset!r}: the two "
-        f"surfaces are {abs(gap[k]):.3e} m {what} at {np.round(x[k], 12).tolist()}, "
-        f"{ratio[k]:.2f} of the local element size (at most {GAP_FRACTION} is taken "
-        f"as touching). Fix: move the bodies so that the interface surfaces touch in "
-        f"the undeformed configuration, or check that the sets name the facing "
-        f"surfaces.")
-
-
-def _check_coverage(xs, snodes, node_cover, names, same_way_nodes, any_covered):
-    """Refuse surfaces that do not face each other: the uncovered slave nodes all face
-    master facets whose normals point the same way, or no slave facet is covered."""
-    sbody, sset, mbody, mset = names
-    frac = node_cover[snodes]
-    bad = snodes[frac < 1.0 - COVERAGE_TOL]
-    if len(bad) == 0 or (any_covered and not np.isin(bad, same_way_nodes).all()):
-        return
-    if np.isin(bad, same_way_nodes).all():
-        raise InputError(
-            f"interface body {sbody!r} set {sset!r} / body {mbody!r} set {mset!r}: the "
-            f"outward normals of the two surfaces point the same way where they meet "
-            f"({len(bad)} slave node(s), e.g. node {bad[0]} at "
-            f"{np.round(xs[bad[0]], 12).tolist()}), so they cannot be in contact (inverted "
-            f"or mis-assigned surface). Fix: name the facet set on the face of each body "
-            f"that touches the other body (outward normals opposed).")
-    lines = [f"  node {k} at {np.round(xs[k], 12).tolist()}: an adjacent facet is "
-             f"{100 * node_cover[k]:.1f} % covered" for k in bad[:8]]
-    more = f"\n  ... and {len(bad) - 8} more" if len(bad) > 8 else ""
-    raise InputError(
-        f"interface body {sbody!r} set {sset!r} (slave) projects nowhere onto body "
-        f"{mbody!r} set {mset!r} (master): no slave facet faces a master facet (at most "
-        f"{100 * MIN_FACET_COVER:g} % of one is covered):\n" + "\n".join(lines) + more +
-        "\nFix: check that the sets name the two surfaces that touch (outward normals "
-        "opposed, within a tenth of an element of each other).")

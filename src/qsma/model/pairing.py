@@ -251,7 +251,8 @@ def warn_closed_gaps(model, pairing, rtol):
         what = "apart" if gap[np.argmax(np.abs(gap))] > 0 else "overlapping"
         warnings.warn(f"interface {itf.label}: the two surfaces are up to {worst:.3e} "
                       f"{what} in the mesh (largest of {int(np.count_nonzero(gap))} mortar "
-                      f"gaps); the contact problem starts from these initial gaps (faceted "
-                      f"curved surfaces differ like this, by about h^2 / 8R). If the "
+                      f"gaps); the contact problem starts from these initial gaps, which the "
+                      f"preload closes where it can (the gaps of the geometry, as of a punch "
+                      f"on a block, or of faceted curved surfaces, about h^2 / 8R). If the "
                       f"surfaces should touch, mesh them coincident or refine",
                       InterfaceGapWarning, stacklevel=4)

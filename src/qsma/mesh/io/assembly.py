@@ -25,7 +25,7 @@ import numpy as np
 
 from ...errors import InputError, MeshFileError
 from ..celltypes import CELL_TYPES
-from ..mesh import Mesh, boundary_facets
+from ..mesh import MIXABLE, Mesh, boundary_facets
 from .abaqus.reader import _abaqus_file_mesh
 from .common import _FileMesh, _to_mesh
 from .gmsh.reader import _gmsh_file_mesh
@@ -80,11 +80,35 @@ class Assembly:
         held = tuple(t for t in self.cell_types      # the types this body holds
                      if any(bt == t and cell and len(conn)
                             for bt, _, conn, cell in body.blocks))
+        if len(held) > 1 and not _mixable(held):
+            raise MeshFileError(self._unmixable(members, held, what))
         try:
             mesh = _to_mesh(body, held)
         except MeshFileError as exc:
             raise MeshFileError(f"{exc} (body: {what})") from exc
         return _with_node_surfaces(mesh, fm.node_surfaces)
+
+    def _unmixable(self, members, held, what) -> str:
+        """The refusal of a body whose cells are of types one mesh cannot mix: each type
+        with its element name and the element sets of the file that hold such cells."""
+        fm = self.file_mesh
+        sizes = [len(conn) for _, _, conn, _ in fm.blocks]
+        block_type = np.repeat([t for t, *_ in fm.blocks], sizes)
+        parts = []
+        for t in held:
+            mine = members[block_type[members] == t]
+            sets = [name for name, p in fm.element_sets.items()
+                    if np.isin(np.concatenate(p), mine).any()]
+            element = fm.block_elements.get(t) or t
+            parts.append(f"{len(mine)} {element} ({t}) cell(s)"
+                         + (f" in element set(s) {', '.join(sets[:4])}" if sets else ""))
+        return (f"{self.source}: the body made of {what} holds " + " and ".join(parts)
+                + f", a mix of cell types one body cannot hold (a body's cells must share "
+                f"one facet type: 2D {MIXABLE['line']} or {MIXABLE['line3']}). Fix: mesh "
+                f"the body with one cell type (e.g. all {held[0]}), or make each cell type "
+                f"a body of its own, meshed apart and joined by an interface (a *CONTACT "
+                f"PAIR in a deck, [[interfaces]] in TOML); bodies of different cell types "
+                f"in one file are read")
 
     def components(self) -> list:
         """Global element indices of the cells of each connected part of the mesh (cells
@@ -97,13 +121,16 @@ class Assembly:
         cells = [(offsets[b] + np.arange(len(conn)), conn) for b, (t, _, conn, cell)
                  in enumerate(fm.blocks) if t in self.cell_types and cell]
         index = np.concatenate([i for i, _ in cells])
-        conn = np.vstack([c for _, c in cells])
-        n_nodes = len(fm.points)
-        rows = np.repeat(np.arange(len(conn)), conn.shape[1])
-        graph = coo_matrix((np.ones(conn.size), (rows, len(conn) + conn.ravel())),
-                           shape=(len(conn) + n_nodes,) * 2)
+        n_cells, n_nodes = len(index), len(fm.points)
+        # cell -> node edges, block by block (blocks of several types differ in width)
+        rows = np.concatenate([np.repeat(np.arange(len(c)), c.shape[1]) + start
+                               for (_, c), start in zip(cells, np.cumsum(
+                                   [0] + [len(c) for _, c in cells[:-1]]))])
+        cols = np.concatenate([c.ravel() for _, c in cells])
+        graph = coo_matrix((np.ones(len(rows)), (rows, n_cells + cols)),
+                           shape=(n_cells + n_nodes,) * 2)
         _, label = connected_components(graph, directed=False)
-        cell_label = label[:len(conn)]
+        cell_label = label[:n_cells]
         order = [lab for lab in _first_appearance_labels(cell_label)]
         return [index[cell_label == lab] for lab in order]
 
@@ -136,7 +163,7 @@ def read_assembly(path, *, cell_type: str | None = None) -> Assembly:
     if cell_type is not None and cell_type not in CELL_TYPES:
         raise InputError(f"cell_type must be one of {sorted(CELL_TYPES)} or None, "
                          f"got {cell_type!r}")
-    readers = {".msh": _gmsh_file_mesh,
+    readers = {".msh": lambda p, c: _gmsh_file_mesh(p, c, per_body=True),
                ".inp": lambda p, c: _abaqus_file_mesh(p, c, assembly=True)}
     read = readers.get(path.suffix.lower())
     if read is None:
@@ -178,17 +205,16 @@ def _restrict(fm: _FileMesh, keep_cells: np.ndarray, vtypes: tuple) -> _FileMesh
         idx = new_node[np.concatenate(parts)] if parts else np.zeros(0, np.int64)
         return [idx[idx >= 0]]
 
-    def facets(parts):
-        rows = np.concatenate(parts) if parts else np.zeros((0, 1), np.int64)
-        rows = rows[np.all(used[rows], axis=1)] if len(rows) else rows
-        return [new_node[rows]]
+    def facets(parts):      # part by part: facets of several types differ in width
+        kept = [new_node[rows[np.all(used[rows], axis=1)]] for rows in parts if len(rows)]
+        return [rows for rows in kept if len(rows)] or [np.zeros((0, 1), np.int64)]
 
     element_sets = {k: v for k, v in ((k, elements(p)) for k, p in
                                       fm.element_sets.items()) if v[0].size}
     node_sets = {k: v for k, v in ((k, nodes(p)) for k, p in fm.node_sets.items())
                  if v[0].size}
     facet_rows = {k: v for k, v in ((k, facets(p)) for k, p in fm.facet_rows.items())
-                  if len(v[0])}
+                  if sum(len(rows) for rows in v)}
     free_faces = {k: v for k, v in ((k, elements(p)) for k, p in fm.free_faces.items())
                   if v[0].size}
     return replace(fm, points=fm.points[used], labels=np.asarray(fm.labels)[used],
@@ -196,6 +222,12 @@ def _restrict(fm: _FileMesh, keep_cells: np.ndarray, vtypes: tuple) -> _FileMesh
                    facet_rows=facet_rows, free_faces=free_faces,
                    empty_sets=dict(fm.empty_sets),
                    element_ids=ids if fm.element_ids is not None else None)
+
+
+def _mixable(types) -> bool:
+    """Whether cells of ``types`` can be one body (one mesh of several blocks)."""
+    facet_types = {CELL_TYPES[t].facet_type for t in types}
+    return len(facet_types) == 1 and facet_types <= set(MIXABLE)
 
 
 def _first_appearance_labels(labels):

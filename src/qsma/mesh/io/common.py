@@ -92,10 +92,14 @@ class _Elements:
             yield int(b), members[self.block_of[members] == b] - self.offsets[b]
 
 
-def _cell_type_of(source: str, blocks: list, requested: str | None) -> tuple:
+def _cell_type_of(source: str, blocks: list, requested: str | None, *,
+                  per_body: bool = False) -> tuple:
     """The cell types of a file: the types of the highest-dimensional elements that may
     be cells, in the order of their first block. Several types (a mixed mesh) must share
-    their facet type (:data:`qsma.mesh.mesh.MIXABLE`)."""
+    their facet type (:data:`qsma.mesh.mesh.MIXABLE`), unless the file is read as an
+    assembly (``per_body``): then each body is one mesh of its own, and the rule holds
+    for each body when its mesh is made (a hexahedral body beside a tetrahedral one, or
+    a quadratic beside a linear one, is a model qsma computes)."""
     types = {t: d for t, d, conn, cell in blocks if len(conn) and cell}
     if not types and any(len(conn) for *_, conn, _ in blocks):
         found = sorted({t for t, _, conn, _ in blocks if len(conn)})
@@ -118,7 +122,8 @@ def _cell_type_of(source: str, blocks: list, requested: str | None) -> tuple:
                                 f"the mesh to them (e.g. Gmsh: Mesh.ElementOrder = 1, "
                                 f"Mesh.RecombineAll = 1 for hexahedra)")
     facet_types = {CELL_TYPES[t].facet_type for t in top}
-    if len(top) > 1 and (len(facet_types) > 1 or not facet_types <= set(MIXABLE)):
+    if len(top) > 1 and not per_body and (len(facet_types) > 1
+                                          or not facet_types <= set(MIXABLE)):
         raise MeshFileError(f"{source}: the file holds {dim}D cells of types "
                             f"{', '.join(top)}, a mix qsma does not support; mixed meshes "
                             f"may be 2D {MIXABLE['line']} or {MIXABLE['line3']} (one facet "

@@ -91,13 +91,14 @@ class _InpReader:
         return sets[key]
 
     # --- after the last card -----------------------------------------------------------
-    def file_mesh(self, cell_type):
-        """What the file holds (nodes in id order), and its cell type."""
+    def file_mesh(self, cell_type, per_body: bool = False):
+        """What the file holds (nodes in id order), and its cell type; ``per_body``: the
+        cell types are checked per body (an assembly), not for the whole file."""
         node_ids, xyz = self._nodes()
         nodes = _IdLookup(node_ids)
         blocks = [(b.cell_type, TYPES[b.cell_type].dim, self._connectivity(b, nodes),
                    _is_continuum(b.abaqus_type)) for b in self.blocks]
-        vtypes = _cell_type_of(self.source, blocks, cell_type)
+        vtypes = _cell_type_of(self.source, blocks, cell_type, per_body=per_body)
         self._check_node_rows(CELL_TYPES[vtypes[0]].dim)
         elements = self._element_lookup()
         index = _Elements(blocks)
@@ -596,4 +597,4 @@ def _abaqus_file_mesh(path: Path, cell_type: str | None, assembly: bool = False)
         handler = _INP_KEYWORDS.get(card.keyword)
         if handler is not None:
             handler(reader, card)
-    return reader.file_mesh(cell_type)
+    return reader.file_mesh(cell_type, per_body=assembly)

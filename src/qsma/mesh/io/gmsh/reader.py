@@ -27,8 +27,9 @@ def _read_gmsh(path: Path, cell_type: str | None) -> Mesh:
     return _to_mesh(*_gmsh_file_mesh(path, cell_type))
 
 
-def _gmsh_file_mesh(path: Path, cell_type: str | None):
-    """``(what the file holds, its cell type)``, before it becomes a Mesh."""
+def _gmsh_file_mesh(path: Path, cell_type: str | None, per_body: bool = False):
+    """``(what the file holds, its cell type)``, before it becomes a Mesh; ``per_body``:
+    the cell types are checked per body (an assembly), not for the whole file."""
     raw = _read_bytes(path)
     src = str(path)
     version, is_ascii, size_t = _gmsh_header(raw, src)
@@ -42,7 +43,7 @@ def _gmsh_file_mesh(path: Path, cell_type: str | None):
     else:
         raise MeshFileError(f"{src}: Gmsh format version {version} is not supported; save "
                             f"the mesh as version 4.1 or 2.2 (Gmsh: Mesh.MshFileVersion)")
-    vtypes = _cell_type_of(src, fm.blocks, cell_type)
+    vtypes = _cell_type_of(src, fm.blocks, cell_type, per_body=per_body)
     dim = CELL_TYPES[vtypes[0]].dim
     kinds = {dim: "cell", dim - 1: "facet"}
     for name, gdim in dims.items():
