@@ -298,23 +298,14 @@ class DeckBolts(ConnectorBolts):
 
     def _pretension(self, node, preload, where):
         """The pretension: the ``*CLOAD`` on DOF 1 of ``node`` in the preload step."""
-        names = self._node_names(node)
-        total, found = 0.0, False
-        for card in (preload.cards if preload is not None else []):
-            if card.keyword not in ("CLOAD", "BOUNDARY"):
-                continue
-            for w, t, _ in _rows_of(card):
-                if not t or t[0].strip().upper() not in {n.upper() for n in names}:
-                    continue
-                if card.keyword == "BOUNDARY":
-                    self.note(_row_where(w), f"*BOUNDARY on the pretension node {node} in "
-                              f"the preload step", "qsma's bolts are force controlled: "
-                              "give the pretension as *CLOAD on DOF 1 of the node", True)
-                    return None
-                scale = self._amplitude(card, preload)
-                if len(t) > 2 and t[1].strip() == "1" and scale is not None:
-                    total += scale * _number(t[2], w, "the pretension")
-                    found = True
+        held = (f"*BOUNDARY on the pretension node {node} in the preload step",
+                "qsma's bolts are force controlled: give the pretension as *CLOAD on DOF "
+                "1 of the node")
+        summed = self._component_one_load(preload, self._node_names(node), "CLOAD",
+                                          "BOUNDARY", held, "the pretension")
+        if summed is None:
+            return None
+        total, found = summed
         if not found or total <= 0:
             self.note(where, f"*PRE-TENSION SECTION with node {node}: "
                       + ("no *CLOAD on its DOF 1 in the first *STATIC step" if not found

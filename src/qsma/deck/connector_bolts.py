@@ -133,23 +133,15 @@ class ConnectorBolts:
         """The ``*CONNECTOR LOAD`` on component 1 of ``elem`` in the preload step, or
         None with a note (also for a ``*CONNECTOR MOTION`` there)."""
         names = {str(elem), elset}
-        total, found = 0.0, False
-        for card in (preload.cards if preload is not None else []):
-            if card.keyword not in ("CONNECTOR LOAD", "CONNECTOR MOTION"):
-                continue
-            for w, t, _ in _rows_of(card):
-                if not t or t[0].strip().upper() not in names:
-                    continue
-                self._bolt_cards.add(id(card))
-                if card.keyword == "CONNECTOR MOTION":
-                    self.note(_row_where(w), f"*CONNECTOR MOTION on connector {elem} in the "
-                              f"preload step", "qsma's bolts are force controlled: give the "
-                              "pretension as *CONNECTOR LOAD on component 1", True)
-                    return None
-                scale = self._amplitude(card, preload)
-                if len(t) > 2 and t[1].strip() == "1" and scale is not None:
-                    total += scale * _number(t[2], w, "the connector load")
-                    found = True
+        held = (f"*CONNECTOR MOTION on connector {elem} in the preload step",
+                "qsma's bolts are force controlled: give the pretension as *CONNECTOR "
+                "LOAD on component 1")
+        summed = self._component_one_load(preload, names, "CONNECTOR LOAD",
+                                          "CONNECTOR MOTION", held, "the connector load",
+                                          claim=True)
+        if summed is None:
+            return None
+        total, found = summed
         for step in self.steps:
             if step is preload:
                 continue
@@ -166,3 +158,27 @@ class ConnectorBolts:
                       "LOAD, element, 1, N0 in the first *STATIC step", True)
             return None
         return total
+
+    def _component_one_load(self, preload, names, load, held, note, what, claim=False):
+        """``(sum, found)`` of the ``load`` rows on component 1 of the references
+        ``names`` in the preload step (scaled by their amplitudes; with ``claim`` the
+        cards used are counted as the bolt's); None with the refusal ``note`` (what,
+        fix) where a ``held`` card prescribes that component instead."""
+        total, found = 0.0, False
+        upper = {n.upper() for n in names}
+        for card in (preload.cards if preload is not None else []):
+            if card.keyword not in (load, held):
+                continue
+            for w, t, _ in _rows_of(card):
+                if not t or t[0].strip().upper() not in upper:
+                    continue
+                if claim:
+                    self._bolt_cards.add(id(card))
+                if card.keyword == held:
+                    self.note(_row_where(w), note[0], note[1], True)
+                    return None
+                scale = self._amplitude(card, preload)
+                if len(t) > 2 and t[1].strip() == "1" and scale is not None:
+                    total += scale * _number(t[2], w, what)
+                    found = True
+        return total, found
