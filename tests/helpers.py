@@ -356,3 +356,22 @@ def jitter_contact_zone(p):
     L, lc = 0.2032, 0.0508
     s = (p[:, 0] - (L - lc)) / lc
     return np.where((s > 0) & (s < 1), 2e-4 * np.sin(np.pi * s) * np.sin(7 * np.pi * s), 0)
+
+
+def assert_forced_mortar_is_node_to_node(model):
+    """``model`` (conforming interface) run node to node and with the mortar coupling
+    forced: the projection is the identity to round-off and f0, q and zeta agree to
+    1e-8. Returns both results ``(node, mortar)`` and their pairings."""
+    import qsma
+    from qsma.model import make_pairing
+    mm = dataclasses.replace(model, interface=dataclasses.replace(model.interface,
+                                                                  coupling="mortar"))
+    pn, pm = make_pairing(model), make_pairing(mm)
+    assert pn.coupling == "node" and pm.coupling == "mortar"
+    assert np.abs(pm.projection.toarray() - np.eye(pn.n_pairs)).max() < 1e-12
+    a, b = qsma.run(model), qsma.run(mm)
+    assert a.success and b.success
+    assert b.f0_hz == pytest.approx(a.f0_hz, rel=1e-8)
+    np.testing.assert_allclose(b.q, a.q, rtol=1e-8, atol=1e-8 * np.abs(a.q).max())
+    np.testing.assert_allclose(b.zeta, a.zeta, rtol=1e-8, atol=1e-10)
+    return a, b, pm
