@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -449,3 +450,20 @@ def test_a_deck_friction_of_no_slip_is_taken_as_the_largest_mu(tmp_path):
     deck = read_deck(path)
     assert deck.config["interface"]["mu"] == MU_NO_SLIP
     assert any("mu = 1e+20" in str(n) and not n.refuses for n in deck.notes)
+
+
+def test_general_contact_is_refused_with_the_contact_pair_to_write(tmp_path):
+    """Abaqus' general contact (*CONTACT with its inclusions and property assignment)
+    instead of the *CONTACT PAIR: refused card by card, each naming the pair to write
+    and where its interaction comes from."""
+    text = lap_deck(tmp_path / "base.inp").read_text()
+    pair = re.search(r"\*CONTACT PAIR[^\n]*\n[^\n]+\n", text).group(0)
+    path = tmp_path / "general.inp"
+    path.write_text(text.replace(pair, "*CONTACT\n*CONTACT INCLUSIONS, ALL EXTERIOR\n"
+                                       "*CONTACT PROPERTY ASSIGNMENT\n, , JOINT\n"))
+    deck = read_deck(path)
+    general = [n for n in deck.refusals if n.what.startswith("*CONTACT")]
+    assert [n.what for n in general] == ["*CONTACT", "*CONTACT INCLUSIONS",
+                                         "*CONTACT PROPERTY ASSIGNMENT"]
+    assert all("*CONTACT PAIR, INTERACTION=name" in n.fix for n in general)
+    assert any("no *CONTACT PAIR joins two bodies" in n.what for n in deck.refusals)
