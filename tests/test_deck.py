@@ -467,3 +467,28 @@ def test_general_contact_is_refused_with_the_contact_pair_to_write(tmp_path):
                                          "*CONTACT PROPERTY ASSIGNMENT"]
     assert all("*CONTACT PAIR, INTERACTION=name" in n.fix for n in general)
     assert any("no *CONTACT PAIR joins two bodies" in n.what for n in deck.refusals)
+
+
+@pytest.mark.parametrize("adjust, expected", [("1e-5", 1e-5), ("TOP_INTERFACE", "top_interface")])
+def test_contact_pair_adjust_is_the_interfaces_adjust(tmp_path, adjust, expected):
+    """``*CONTACT PAIR, ADJUST=`` a distance or a node set of the slave (names ignore
+    case) becomes the interface's ``adjust`` (the gaps it closes are zero), written by
+    qsma init and read back; a set the slave does not hold is a note and the gaps stay
+    as meshed."""
+    text = lap_deck(tmp_path / "base.inp").read_text()
+    path = tmp_path / "adjust.inp"
+    path.write_text(text.replace("TYPE=SURFACE TO SURFACE",
+                                 f"TYPE=SURFACE TO SURFACE, ADJUST={adjust}"))
+    deck = read_deck(path)
+    assert not deck.refusals
+    itf = deck.config["interface"]
+    assert itf["adjust"] == expected and itf["set2"] == "top_interface"
+    assert not any("ADJUST" in n.what for n in deck.notes)
+    assert main(["init", str(path)]) == 0
+    model = load_config(tmp_path / "adjust.toml").model
+    assert model.interface_list[0].adjust == expected
+    path.write_text(text.replace("TYPE=SURFACE TO SURFACE",
+                                 "TYPE=SURFACE TO SURFACE, ADJUST=BOTTOM_CLAMP"))
+    deck = read_deck(path)
+    assert "adjust" not in deck.config["interface"]
+    assert any("ADJUST=BOTTOM_CLAMP" in n.what and not n.refuses for n in deck.notes)

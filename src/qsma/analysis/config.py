@@ -46,11 +46,11 @@ SCHEMA = {
     "interface": {"body1": (str, True), "set1": (str, True), "body2": (str, True),
                   "set2": (str, True), "mu": (_NUM, True), "tol": (_NUM, False),
                   "coupling": (str, False), "slave": (str, False), "law": (dict, False),
-                  "gap": (dict, False)},
+                  "gap": (dict, False), "adjust": (_NUM + (str,), False)},
     "interfaces": {"body1": (str, True), "set1": (str, True), "body2": (str, True),
                    "set2": (str, True), "mu": (_NUM, True), "tol": (_NUM, False),
                    "coupling": (str, False), "slave": (str, False), "law": (dict, False),
-                   "gap": (dict, False)},
+                   "gap": (dict, False), "adjust": (_NUM + (str,), False)},
     "gap": {"file": (str, True), "scale": (_NUM, False), "coordinate_scale": (_NUM, False)},
     "damping": {"ratio": (_NUM, False), "rayleigh": (list, False)},
     "tip": {"sets": (list, False), "points": (list, False), "direction": (list, True)},
@@ -162,7 +162,8 @@ def _interface(t, where, base, with_mu=True) -> Interface:
                              coordinate_scale=g.get("coordinate_scale", 1.0))
     return Interface(t["body1"], t["set1"], t["body2"], t["set2"], t.get("tol"),
                      coupling=t.get("coupling", "auto"), slave=t.get("slave"),
-                     mu=t["mu"] if with_mu else None, law=law, gap=gap)
+                     mu=t["mu"] if with_mu else None, law=law, gap=gap,
+                     adjust=t.get("adjust"))
 
 
 def _damping(table, where):
