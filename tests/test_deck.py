@@ -487,6 +487,11 @@ def test_contact_pair_adjust_is_the_interfaces_adjust(tmp_path, adjust, expected
     assert main(["init", str(path)]) == 0
     model = load_config(tmp_path / "adjust.toml").model
     assert model.interface_list[0].adjust == expected
+    if isinstance(expected, float):            # the export writes the distance back
+        from qsma.deck import export_calculix
+        (tmp_path / "export").mkdir()
+        back = export_calculix(model, tmp_path / "export" / "back.inp").text
+        assert re.search(r"\*CONTACT PAIR, [^\n]*, ADJUST=1e-0?5\n", back)
     path.write_text(text.replace("TYPE=SURFACE TO SURFACE",
                                  "TYPE=SURFACE TO SURFACE, ADJUST=BOTTOM_CLAMP"))
     deck = read_deck(path)
