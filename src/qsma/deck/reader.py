@@ -16,6 +16,7 @@ from ..units import SI, UNIT_SYSTEMS, plausible, unit_system
 from .bolts import DeckBolts
 from .loads import SupportsAndLoads
 from .probe import ProbeAndLevels
+from .general_contact import GENERAL_CONTACT_CARDS, GeneralContact
 from .records import (LAW_NOTES, Deck, DeckInterface, DeckNote, SurfaceInteraction,
                       _HARMLESS, _INTERACTION_KEYWORDS, _MATERIAL_KEYWORDS, _PROCEDURES,
                       _REFUSED, _SILENT, _USED, _Material, _Step, _loads_in, _number,
@@ -54,7 +55,7 @@ def read_deck(path, *, mode: int = 0, tip_node: int | None = None,
     return reader.deck(mode, tip_node, tip_direction, levels, units)
 
 
-class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts):
+class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, GeneralContact):
     """What :func:`read_deck` builds, step by step."""
 
     def __init__(self, path, cards, assembly, density=None):
@@ -285,7 +286,8 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts):
         cards = list(self.model_cards) + (list(preload.cards) if preload else [])
         for card in cards:
             kw = card.keyword
-            if kw in _SILENT or kw in _USED or id(card) in self._bolt_cards:
+            if kw in _SILENT or kw in _USED or id(card) in self._bolt_cards \
+                    or kw in GENERAL_CONTACT_CARDS:       # read (or refused) with the pairs
                 continue
             if kw == "INITIAL CONDITIONS" and \
                     str(card.params.get("TYPE", "")).upper() == "TEMPERATURE":
@@ -534,6 +536,7 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts):
                 out.append((table, comment))
                 self._deck_interfaces.append(DeckInterface(
                     slave, master, names[s], names[m], record, w))
+        out += self._general_interfaces(bodies)
         if not out:
             self.note(self.path.name, "no *CONTACT PAIR joins two bodies",
                       "qsma's joint is a contact interface: define a *CONTACT PAIR", True)
