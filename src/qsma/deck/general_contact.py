@@ -75,7 +75,6 @@ class GeneralContact:
             rows = [t for _, t, _ in _rows_of(card) if any(x.strip() for x in t)]
             if "ALL EXTERIOR" not in card.params or rows:
                 self.note(_where(card), "*CONTACT INCLUSIONS of named surfaces",
-                          "qsma reads general contact as ALL EXTERIOR only: " +
                           _GENERAL_CONTACT, True)
                 readable = False
         if not inclusions:
