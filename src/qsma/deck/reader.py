@@ -16,6 +16,7 @@ from ..units import SI, UNIT_SYSTEMS, plausible, unit_system
 from .bolts import DeckBolts
 from .loads import SupportsAndLoads
 from .probe import ProbeAndLevels
+from ..fe.formulation import nearest_element
 from .general_contact import GENERAL_CONTACT_CARDS, GeneralContact
 from .records import (LAW_NOTES, Deck, DeckInterface, DeckNote, SurfaceInteraction,
                       _HARMLESS, _INTERACTION_KEYWORDS, _MATERIAL_KEYWORDS, _PROCEDURES,
@@ -328,6 +329,7 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, GeneralContact):
                     f"connected part {k + 1} of the mesh (cells joined through shared "
                     f"nodes), {len(cells)} elements")
             self._material_keys(table, k, section)
+            self._element_key(table, k, mesh)
             bodies.append({"table": table, "mesh": mesh,
                            "thickness": section[2] if section else 1.0})
         if len(bodies) == 1:
@@ -352,9 +354,32 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, GeneralContact):
                           "a deck with parts; give E, nu and rho per body in the TOML "
                           "(qsma init)", True)
             self._material_keys(table, k, section)
-            bodies.append({"table": table, "mesh": self.asm.body_mesh(name),
+            mesh = self.asm.body_mesh(name)
+            self._element_key(table, k, mesh)
+            bodies.append({"table": table, "mesh": mesh,
                            "thickness": section[2] if section else 1.0})
         return bodies
+
+    def _element_key(self, table, k, mesh):
+        """``element`` of a body whose elements qsma computes as their nearest one
+        (``C3D8R`` as ``C3D8I``, ...), with a note each; nothing where all are its own."""
+        found = {}
+        for block in [mesh] + list(mesh.extra_blocks):
+            near = nearest_element(block.element, block.cell_type)
+            if near is not None:
+                found[str(block.element).upper()] = near
+        if not found:
+            return
+        table["element"] = next(iter(found.values()))[0] if not mesh.extra_blocks \
+            else "nearest"
+        for old, (new, why) in found.items():
+            card = next((c for c in self.cards if c.keyword == "ELEMENT" and
+                         str(c.params.get("TYPE", "")).upper() == old), None)
+            self.note(_where(card) if card is not None else self.path.name,
+                      f"{old} elements are computed as {new}",
+                      why, False)
+        self.comments[("bodies", k, "element")] = "; ".join(
+            f"the deck's {old} computed as {new}" for old, (new, _) in found.items())
 
     def _elset(self, name):
         """The spelling of element set ``name`` in the file (names ignore case)."""
