@@ -291,19 +291,25 @@ def test_block_stuck_on_a_clamped_foundation_is_the_block_clamped_there():
     assert np.abs(u - ref).max() < 1e-6 * np.abs(ref).max()
 
 
-def test_normal_clamped_on_both_sides_is_refused():
-    """A contact point whose normal both bodies' clamps hold can neither open nor close,
-    and its pressure is a share of the clamps' reaction that nothing determines: the
-    reduction refuses it, naming the point and the way out."""
+def _edge_clamped(components):
+    """The half model of :func:`_blocks_2d` with both bodies also clamped at the
+    interface's edge node (x = W, y = 0) in ``components`` (None: every one)."""
     model = _blocks_2d(True, 24)
     bodies = []
     for b in model.bodies:
         edge = np.flatnonzero((np.abs(b.mesh.points[:, 0] - W) < EPS)
                               & (np.abs(b.mesh.points[:, 1]) < EPS))
         m = b.mesh.with_sets(node_sets=dict(b.mesh.node_sets, edge=edge))
-        bodies.append(Body(b.name, m, b.material, b.clamps + (Clamp("edge", (1,)),),
+        bodies.append(Body(b.name, m, b.material, b.clamps + (Clamp("edge", components),),
                            b.pressures))
-    model = Model(tuple(bodies), model.interface, mu=MU)
+    return Model(tuple(bodies), model.interface, mu=MU)
+
+
+def test_normal_clamped_on_both_sides_is_refused():
+    """A contact point whose normal both bodies' clamps hold can neither open nor close,
+    and its pressure is a share of the clamps' reaction that nothing determines: the
+    reduction refuses it, naming the point and the way out."""
+    model = _edge_clamped(components=(1,))
     A = [assemble_body(b) for b in model.bodies]
     with pytest.raises(InputError, match=r"contact point\(s\) \[24\] .* clamped along the "
                        r"contact normal on both sides.*release the normal clamp of one side"):
@@ -316,15 +322,7 @@ def test_point_clamped_in_every_direction_on_both_sides_is_inert(monkeypatch):
     the rest of the contact state does not depend on the stiffness the reduction gives
     it (scaled by 1e3: the same state to round-off)."""
     import qsma.reduction.multibody as multibody
-    model = _blocks_2d(True, 24)
-    bodies = []
-    for b in model.bodies:
-        edge = np.flatnonzero((np.abs(b.mesh.points[:, 0] - W) < EPS)
-                              & (np.abs(b.mesh.points[:, 1]) < EPS))
-        m = b.mesh.with_sets(node_sets=dict(b.mesh.node_sets, edge=edge))
-        bodies.append(Body(b.name, m, b.material, b.clamps + (Clamp("edge"),),
-                           b.pressures))
-    model = Model(tuple(bodies), model.interface, mu=MU)
+    model = _edge_clamped(components=None)
     curvature = lambda x: x[:, 0] ** 2
     _, _, res, _, _ = _preload(model, curvature)
     np.testing.assert_array_equal(res.d.reshape(-1, 2)[24], 0.0)
