@@ -44,13 +44,13 @@ SCHEMA = {
                   "face": (int, False)},
     "forces": {"set": (str, True), "force": (list, True), "load": (str, False)},
     "interface": {"body1": (str, True), "set1": (str, True), "body2": (str, True),
-                  "set2": (str, True), "mu": (_NUM, True), "tol": (_NUM, False),
+                  "set2": (str, True), "mu": (_NUM, False), "tol": (_NUM, False),
                   "coupling": (str, False), "slave": (str, False), "law": (dict, False),
-                  "gap": (dict, False)},
+                  "gap": (dict, False), "tied": (bool, False)},
     "interfaces": {"body1": (str, True), "set1": (str, True), "body2": (str, True),
-                   "set2": (str, True), "mu": (_NUM, True), "tol": (_NUM, False),
+                   "set2": (str, True), "mu": (_NUM, False), "tol": (_NUM, False),
                    "coupling": (str, False), "slave": (str, False), "law": (dict, False),
-                   "gap": (dict, False)},
+                   "gap": (dict, False), "tied": (bool, False)},
     "gap": {"file": (str, True), "scale": (_NUM, False), "coordinate_scale": (_NUM, False)},
     "damping": {"ratio": (_NUM, False), "rayleigh": (list, False)},
     "tip": {"sets": (list, False), "points": (list, False), "direction": (list, True)},
@@ -154,6 +154,10 @@ def decode_utf8(raw: bytes, where: str, kind: str) -> str:
 
 
 def _interface(t, where, base, with_mu=True) -> Interface:
+    tied = t.get("tied", False)
+    if "mu" not in t and not tied:
+        raise InputError(f"{where}: missing required key 'mu' (the friction coefficient; "
+                         f"only a tied interface, tied = true, has none)")
     law = law_from_table(t["law"], f"{where}.law") if "law" in t else None
     gap = None
     if "gap" in t:
@@ -162,7 +166,8 @@ def _interface(t, where, base, with_mu=True) -> Interface:
                              coordinate_scale=g.get("coordinate_scale", 1.0))
     return Interface(t["body1"], t["set1"], t["body2"], t["set2"], t.get("tol"),
                      coupling=t.get("coupling", "auto"), slave=t.get("slave"),
-                     mu=t["mu"] if with_mu else None, law=law, gap=gap)
+                     mu=t.get("mu") if with_mu else None, law=law, gap=gap,
+                     tied=tied)
 
 
 def _damping(table, where):
@@ -328,8 +333,8 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
         itf = _check(data["interface"], "interface", f"{where}: interface")
         model = Model(bodies=tuple(bodies),
                       interface=_interface(itf, f"{where}: interface", base, with_mu=False),
-                      tip=probe, mu=itf["mu"], name=name, bolts=bolts, units=units,
-                      damping=damping)
+                      tip=probe, mu=itf.get("mu", Model.mu), name=name, bolts=bolts,
+                      units=units, damping=damping)
     else:
         if not data["interfaces"]:
             raise InputError(f"{where}: interfaces is empty; list the touching facet sets "
@@ -337,8 +342,10 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
         itfs = tuple(_interface(_check(t, "interfaces", f"{where}: interfaces[{k}]"),
                                 f"{where}: interfaces[{k}]", base)
                      for k, t in enumerate(data["interfaces"]))
-        model = Model(bodies=tuple(bodies), interfaces=itfs, tip=probe, mu=itfs[0].mu,
-                      name=name, bolts=bolts, units=units, damping=damping)
+        mus = [i.mu for i in itfs if not i.tied]     # a tied interface has no mu
+        model = Model(bodies=tuple(bodies), interfaces=itfs, tip=probe,
+                      mu=mus[0] if mus else Model.mu, name=name, bolts=bolts, units=units,
+                      damping=damping)
     analysis = dict(data.get("analysis", {})) if isinstance(data.get("analysis"), dict) \
         else data.get("analysis", {})
     modes = _modes(analysis, f"{where}: analysis")

@@ -58,6 +58,10 @@ class Interface:
         mesh. A callable of the contact points' coordinates ``(n, dim) -> (n,)``, or a
         :class:`qsma.model.gapfield.GapField` (e.g. a measured height map,
         :func:`qsma.model.gapfield.read_gap_field`). ``None``: flat (the mesh's own gaps).
+    tied : a bonded interface (a weld, a glued or sub-meshed part, a deck's ``*TIE``): its
+        contact points neither open nor slip, their relative displacement is held at
+        zero (the slave follows the master surface). It carries no friction, law or gap
+        and leaves the contact problem (docs/theory.md, "Tied interfaces").
     """
 
     body1: str
@@ -70,6 +74,7 @@ class Interface:
     mu: float | None = None
     law: object = None
     gap: object = None
+    tied: bool = False
 
     @property
     def label(self) -> str:
@@ -77,6 +82,15 @@ class Interface:
         return f"{self.body1}.{self.set1} / {self.body2}.{self.set2}"
 
     def __post_init__(self):
+        if not isinstance(self.tied, (bool, np.bool_)):
+            raise InputError(f"interface {self.label}: tied must be true or false, got "
+                             f"{self.tied!r}")
+        if self.tied:
+            given = [k for k in ("mu", "law", "gap") if getattr(self, k) is not None]
+            if given:
+                raise InputError(f"interface {self.label}: a tied interface neither opens "
+                                 f"nor slips, so it takes no {given[0]}; remove {given[0]}, "
+                                 f"or set tied = false for a frictional interface")
         if self.mu is not None and (isinstance(self.mu, bool)
                                     or not isinstance(self.mu, (int, float, np.number))
                                     or not np.isfinite(self.mu) or self.mu < 0):

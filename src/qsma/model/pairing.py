@@ -20,7 +20,7 @@ def make_pairing(model, interface=None) -> Pairing | MultiPairing:
     the mortar coupling (:func:`qsma.model.interface.pair_interface`). A model of
     several interfaces (and no ``interface`` given): every one of them, as a
     :class:`MultiPairing`."""
-    if interface is None and model.interface is None:
+    if interface is None and (model.interface is None or model.interface.tied):
         return multi_pairing(model)
     return pair_interface(model, interface)
 
@@ -62,13 +62,31 @@ class MultiPairing:
 
     Attributes
     ----------
-    couplings : one :class:`Coupling` per interface (``model.interface_list`` order)
+    couplings : one :class:`Coupling` per interface with contact (``model.interface_list``
+        order, the tied ones left out)
     interfaces : the :class:`qsma.model.Interface` of each coupling
     rows : start of each interface's contact points (``rows[I]:rows[I+1]``)
+    tied, tied_interfaces : the :class:`Coupling` and the interface of each tied
+        interface (``Interface.tied``): its points' relative displacement is zero, so
+        they are no unknowns of the contact problem; the condensation, the tied modes
+        and the recovery see them (docs/theory.md, "Tied interfaces")
     """
 
     couplings: tuple
     interfaces: tuple
+    tied: tuple = ()
+    tied_interfaces: tuple = ()
+
+    @property
+    def every_coupling(self) -> tuple:
+        """The couplings with contact, then the tied ones (the row order of the
+        condensation's relative displacements, :func:`qsma.reduction.multibody.reduce_bodies`)."""
+        return tuple(self.couplings) + tuple(self.tied)
+
+    @property
+    def n_tied(self) -> int:
+        """Contact points of the tied interfaces."""
+        return int(sum(c.pairing.n_pairs for c in self.tied))
 
     @property
     def rows(self) -> np.ndarray:
@@ -112,18 +130,21 @@ class MultiPairing:
 
 
 def multi_pairing(model) -> MultiPairing:
-    """Pair every interface of ``model`` (:func:`pair_interface`)."""
-    couplings = []
+    """Pair every interface of ``model`` (:func:`pair_interface`); the tied ones apart
+    (:attr:`MultiPairing.tied`)."""
+    couplings, tied = [], []
     for itf in model.interface_list:
-        couplings.append(Coupling(pair_interface(model, itf), model.body_index(itf.body1),
-                                  model.body_index(itf.body2)))
-    return MultiPairing(tuple(couplings), tuple(model.interface_list))
+        c = Coupling(pair_interface(model, itf), model.body_index(itf.body1),
+                     model.body_index(itf.body2))
+        (tied if itf.tied else couplings).append((c, itf))
+    return MultiPairing(tuple(c for c, _ in couplings), tuple(i for _, i in couplings),
+                        tuple(c for c, _ in tied), tuple(i for _, i in tied))
 
 
 def pair_mu(model, pairing) -> np.ndarray | float:
     """Friction coefficient of each contact point: its interface's ``mu``, else the
     model's (a scalar when no interface sets its own)."""
-    itfs = model.interface_list
+    itfs = [i for i in model.interface_list if not i.tied]
     if all(i.mu is None for i in itfs):
         return model.mu
     if not isinstance(pairing, MultiPairing):

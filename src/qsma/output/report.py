@@ -378,6 +378,8 @@ def run_report_html(res, figures=None, amplitude=None) -> str:
         "degrees of freedom": info["n_dofs"], "interface pairs": info["n_pairs"],
         "coupling": info["coupling"], "friction coefficient": info["mu"],
         "pairs closed after the preload": info["n_closed_after_preload"],
+        **({"tied interface points": info["n_tied_pairs"]}
+           if info.get("n_tied_pairs") else {}),
         **{f"elements of {b}": e for b, e in info["elements"].items()}}))
     parts.append("<h2>Mode</h2>" + _pairs({
         "mode index": res.mode_index, "f0 [Hz]": f"{res.f0_hz:.4f}",
