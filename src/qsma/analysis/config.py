@@ -46,11 +46,13 @@ SCHEMA = {
     "interface": {"body1": (str, True), "set1": (str, True), "body2": (str, True),
                   "set2": (str, True), "mu": (_NUM, False), "tol": (_NUM, False),
                   "coupling": (str, False), "slave": (str, False), "law": (dict, False),
-                  "gap": (dict, False), "tied": (bool, False)},
+                  "gap": (dict, False), "tied": (bool, False),
+                  "position_tol": (_NUM, False)},
     "interfaces": {"body1": (str, True), "set1": (str, True), "body2": (str, True),
                    "set2": (str, True), "mu": (_NUM, False), "tol": (_NUM, False),
                    "coupling": (str, False), "slave": (str, False), "law": (dict, False),
-                   "gap": (dict, False), "tied": (bool, False)},
+                   "gap": (dict, False), "tied": (bool, False),
+                   "position_tol": (_NUM, False)},
     "gap": {"file": (str, True), "scale": (_NUM, False), "coordinate_scale": (_NUM, False)},
     "damping": {"ratio": (_NUM, False), "rayleigh": (list, False)},
     "tip": {"sets": (list, False), "points": (list, False), "direction": (list, True)},
@@ -167,7 +169,7 @@ def _interface(t, where, base, with_mu=True) -> Interface:
     return Interface(t["body1"], t["set1"], t["body2"], t["set2"], t.get("tol"),
                      coupling=t.get("coupling", "auto"), slave=t.get("slave"),
                      mu=t.get("mu") if with_mu else None, law=law, gap=gap,
-                     tied=tied)
+                     tied=tied, position_tol=t.get("position_tol"))
 
 
 def _damping(table, where):

@@ -16,6 +16,7 @@ from ..units import SI, UNIT_SYSTEMS, plausible, unit_system
 from .bolts import DeckBolts
 from .loads import SupportsAndLoads
 from .probe import ProbeAndLevels
+from .ties import DeckTies, is_tied
 from .records import (LAW_NOTES, Deck, DeckInterface, DeckNote, SurfaceInteraction,
                       _HARMLESS, _INTERACTION_KEYWORDS, _MATERIAL_KEYWORDS, _PROCEDURES,
                       _REFUSED, _SILENT, _USED, _Material, _Step, _loads_in, _number,
@@ -54,7 +55,7 @@ def read_deck(path, *, mode: int = 0, tip_node: int | None = None,
     return reader.deck(mode, tip_node, tip_direction, levels, units)
 
 
-class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts):
+class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, DeckTies):
     """What :func:`read_deck` builds, step by step."""
 
     def __init__(self, path, cards, assembly, density=None):
@@ -174,7 +175,13 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts):
                 self.note(_where(card), f"*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE={law} "
                           f"of interaction {name!r}: {LAW_NOTES[law]}", "the interface "
                           "law of qsma that is its layer (docs/theory.md section 12)", False)
-            elif law not in ("HARD", "LINEAR", "EXPONENTIAL", "TABULAR") or law == "TIED":
+            elif law == "TIED":
+                self.note(_where(card), f"*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=TIED of "
+                          f"interaction {name!r}: its contact pairs are tied interfaces (no "
+                          f"separation, no slip), tied rigidly: CalculiX's penalty springs "
+                          f"are not modelled", "a stiff penalty gives the same structure",
+                          False)
+            elif law not in ("HARD", "LINEAR", "EXPONENTIAL", "TABULAR"):
                 self.note(_where(card), f"*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE={law} "
                           f"of interaction {name!r}", "qsma's interfaces open and slip: a "
                           "tied contact is no joint (give HARD, LINEAR, EXPONENTIAL or "
@@ -512,6 +519,14 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts):
                 if key in seen:
                     continue
                 seen.add(key)
+                if is_tied(record):
+                    out.append((self._tied_table(names, bodies, s, m, slave, master),
+                                f"*CONTACT PAIR, {w}: master {master}, slave {slave}; "
+                                f"PRESSURE-OVERCLOSURE=TIED of interaction {record.name!r}: "
+                                f"tied"))
+                    self._deck_interfaces.append(DeckInterface(
+                        slave, master, names[s], names[m], record, w))
+                    continue
                 mu = record.mu if record is not None and record.mu is not None else 0.0
                 table = {"body1": names[m], "set1": self._find(bodies[m]["mesh"], master,
                                                                  ("facet",)),
@@ -532,9 +547,16 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts):
                 out.append((table, comment))
                 self._deck_interfaces.append(DeckInterface(
                     slave, master, names[s], names[m], record, w))
+        out += self._ties(bodies, seen)
         if not out:
             self.note(self.path.name, "no *CONTACT PAIR joins two bodies",
                       "qsma's joint is a contact interface: define a *CONTACT PAIR", True)
+        elif all(t.get("tied") for t, _ in out):
+            self.note(self.path.name, "every interface is tied (*TIE, or TIED contact): no "
+                      "interface can open or slip, the structure is linear",
+                      "there is no QSMA to run: `qsma init` writes the model, whose tied "
+                      "frequencies `qsma modes` gives; for a QSMA give the joint as a "
+                      "*CONTACT PAIR with *FRICTION", True)
         return out
 
     def _interaction(self, name):

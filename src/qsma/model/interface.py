@@ -24,6 +24,11 @@ from .friction import check_mu
 #: meshing difference: nodes farther apart are not snapped, they need the mortar coupling.
 NODE_MATCH_FRACTION = 1e-6
 
+#: A tied interface's surfaces may lie this fraction of the local element size apart
+#: (CalculiX's default position tolerance of a ``*TIE``, 2.5 % of the typical element
+#: size); farther apart they do not face each other, and the tie is refused.
+TIE_POSITION_FRACTION = 0.025
+
 #: Couplings of an :class:`Interface`.
 COUPLINGS = ("node", "mortar", "auto")
 
@@ -62,6 +67,9 @@ class Interface:
         contact points neither open nor slip, their relative displacement is held at
         zero (the slave follows the master surface). It carries no friction, law or gap
         and leaves the contact problem (docs/theory.md, "Tied interfaces").
+    position_tol : a tied interface's largest distance (m) between a slave point and the
+        master surface; farther apart the tie is refused (the surfaces do not face each
+        other). ``None``: :data:`TIE_POSITION_FRACTION` of the local element size.
     """
 
     body1: str
@@ -75,6 +83,7 @@ class Interface:
     law: object = None
     gap: object = None
     tied: bool = False
+    position_tol: float | None = None
 
     @property
     def label(self) -> str:
@@ -85,6 +94,14 @@ class Interface:
         if not isinstance(self.tied, (bool, np.bool_)):
             raise InputError(f"interface {self.label}: tied must be true or false, got "
                              f"{self.tied!r}")
+        if self.position_tol is not None and (
+                not self.tied or isinstance(self.position_tol, bool)
+                or not isinstance(self.position_tol, (int, float, np.number))
+                or not np.isfinite(self.position_tol) or self.position_tol <= 0):
+            raise InputError(f"interface {self.label}: position_tol is the largest distance "
+                             f"of a tied interface's surfaces, a finite number > 0 on a "
+                             f"tied interface (tied = true); got {self.position_tol!r}"
+                             + ("" if self.tied else " on an interface that is not tied"))
         if self.tied:
             given = [k for k in ("mu", "law", "gap") if getattr(self, k) is not None]
             if given:
@@ -480,6 +497,32 @@ def _warn_quad8(itf, *bodies):
             f"\"mortar\" on the interface (its dual basis gives every contact point a "
             f"positive share of a pressure)"),
         stacklevel=4)                        # the caller of make_pairing
+
+
+def check_tie_distance(model, itf, pairing):
+    """Refuse a tied interface whose slave points lie farther from the master surface
+    than its position tolerance (:attr:`Interface.position_tol`, else
+    :data:`TIE_POSITION_FRACTION` of the local element size): the surfaces do not face
+    each other, and tying them would weld parts that are apart."""
+    if pairing.gap is None or not len(pairing.gap):
+        return                                    # node to node: coincident nodes
+    slave = model.body(itf.body1 if pairing.slave == 1 else itf.body2)
+    sset = itf.set1 if pairing.slave == 1 else itf.set2
+    h = _local_size(slave.mesh, slave.mesh.facets(sset), pairing.contact_nodes)
+    tol = TIE_POSITION_FRACTION * h if itf.position_tol is None \
+        else np.full(len(h), float(itf.position_tol))
+    far = np.abs(pairing.gap) > tol
+    if far.any():
+        k = int(np.argmax(np.abs(pairing.gap) - tol))
+        raise InputError(
+            f"tied interface {itf.label}: {int(far.sum())} of {len(far)} slave point(s) lie "
+            f"farther from the master surface than the position tolerance, up to "
+            f"{abs(pairing.gap[k]):.3e} (tolerance {tol[k]:.3e}) at node "
+            f"{pairing.contact_nodes[k]} of body {slave.name!r} at "
+            f"{np.round(slave.mesh.points[pairing.contact_nodes[k]], 12).tolist()}: the "
+            f"surfaces do not face each other. Fix: name the facet sets that touch, mesh "
+            f"the two parts so that they meet, or give a larger position_tol (a deck's "
+            f"*TIE, POSITION TOLERANCE=) if the parts are meant to be tied across the gap")
 
 
 def _check_boundary(mesh, facets, body, name):

@@ -12,7 +12,7 @@ import scipy.sparse as sp
 from ..contact.laws import InterfaceLaw
 from ..contact.pairlaws import PairLaws
 from ..errors import InputError, InterfaceGapWarning
-from .interface import Pairing, pair_interface
+from .interface import Pairing, check_tie_distance, pair_interface
 
 
 def make_pairing(model, interface=None) -> Pairing | MultiPairing:
@@ -136,6 +136,8 @@ def multi_pairing(model) -> MultiPairing:
     for itf in model.interface_list:
         c = Coupling(pair_interface(model, itf), model.body_index(itf.body1),
                      model.body_index(itf.body2))
+        if itf.tied:
+            check_tie_distance(model, itf, c.pairing)
         (tied if itf.tied else couplings).append((c, itf))
     return MultiPairing(tuple(c for c, _ in couplings), tuple(i for _, i in couplings),
                         tuple(c for c, _ in tied), tuple(i for _, i in tied))
