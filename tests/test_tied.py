@@ -3,7 +3,6 @@ coincident nodes and the two parts tied is the body itself, to round-off, in the
 modes, the preload, the backbone and the damping; the tied points' forces balance the
 rest of the structure; a tied interface takes no friction; a model of tied interfaces
 only is refused with the way out."""
-import dataclasses
 
 import numpy as np
 import pytest
