@@ -141,3 +141,10 @@ def test_the_toml_key(tmp_path):
     del data["interfaces"][1]["mu"]
     with pytest.raises(InputError, match="missing required key 'mu'.*tied = true"):
         parse_config(data, base=tmp_path)
+
+
+def test_the_calculix_export_refuses_a_tie(tmp_path):
+    from qsma.deck import export_calculix
+    _, split = split_sandwich()
+    with pytest.raises(InputError, match="interface left.cut / right.cut is tied"):
+        export_calculix(split, tmp_path / "x.inp")
