@@ -4,6 +4,8 @@ modes, the preload, the backbone and the damping; the tied points' forces balanc
 rest of the structure; a tied interface takes no friction; a model of tied interfaces
 only is refused with the way out."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -148,3 +150,54 @@ def test_the_calculix_export_refuses_a_tie(tmp_path):
     _, split = split_sandwich()
     with pytest.raises(InputError, match="interface left.cut / right.cut is tied"):
         export_calculix(split, tmp_path / "x.inp")
+
+
+def test_a_bolted_joint_beside_a_tie_is_the_bolted_beam():
+    """sandwich-2d-bolted (a bolt pretensioned, then locked) with its bottom beam cut
+    and tied: the same f0, backbone, damping and bolt force as the beam; the tied
+    forces (the locked bolt's force among the loads) are the nodal forces between the
+    parts."""
+    from qsma.examples.bolted import sandwich_2d_bolted
+    m = sandwich_2d_bolted(1)
+    left, right = split_body(m.bodies[0], 0, CUT, ("left", "right"))
+    bolt = dataclasses.replace(m.bolts[0], body_a="right")
+    split = Model(bodies=(left, right, m.bodies[1]), interfaces=(
+        Interface("left", "cut", "right", "cut", tied=True),
+        Interface("right", "interface", "top", "interface")), bolts=(bolt,),
+        tip=Probe(sets=(("right", "tip"), ("top", "tip")), direction=(0.0, 1.0)), mu=m.mu)
+    one, two = qsma.run(m, levels=LEVELS), qsma.run(split, levels=LEVELS)
+    assert one.success and two.success
+    assert two.f0_hz == pytest.approx(one.f0_hz, rel=1e-10)
+    assert np.abs(two.q - one.q).max() <= 1e-8 * np.abs(one.q).max()
+    assert np.abs(two.zeta - one.zeta).max() <= 1e-8 * one.zeta.max()
+    k = two.n_levels - 1
+    red, p = two.reduced, two.pairing.tied[0].pairing
+    a = qsma.analysis.result.load_factors(red, two.alpha[k])
+    d = two.states.d[k]
+    assert red.bolt_forces(d, a) == pytest.approx(one.reduced.bolt_forces(one.states.d[k], a),
+                                                  rel=1e-9)
+    lam = np.einsum("pij,pi->pj", p.frames, red.tied_forces(d, a))
+    left_asm = assemble_body(left)
+    u = red.recover(d, a)[0]
+    full = red.base_factors(d, a)
+    residual = (left_asm.K @ u - red.base.loads[0] @ full).reshape(-1, 2)[p.nodes1]
+    assert np.abs(residual + lam).max() <= 1e-9 * np.abs(lam).max()
+
+
+def test_the_fields_show_the_tied_points_stuck_with_their_pressure(runs, tmp_path):
+    """The VTU fields of a level hold the tied points' contact pressure (their normal
+    force over their area) and their state, stuck."""
+    import meshio
+    from qsma.contact import STUCK
+    _, two = runs
+    qsma.write_all(two, tmp_path / "out", plots=False)
+    k = two.n_levels - 1
+    fields = meshio.read(tmp_path / "out" / f"fields_level{k:02d}.vtu").point_data
+    p = two.pairing.tied[0].pairing
+    lam = two.reduced.tied_forces(two.states.d[k], qsma.analysis.result.load_factors(
+        two.reduced, two.alpha[k]))
+    start = two.model.bodies[0].mesh.n_nodes                       # 'right' follows 'left'
+    for offset, nodes in ((0, p.nodes1), (start, p.nodes2)):
+        assert np.all(fields["contact_state"][offset + nodes] == int(STUCK))
+        np.testing.assert_allclose(fields["contact_pressure"][offset + nodes],
+                                   lam[:, -1] / p.area, rtol=1e-12)

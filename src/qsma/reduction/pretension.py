@@ -87,6 +87,11 @@ class LockedModel:
     def recover(self, d, a):
         return self.base.recover(d, self.base_factors(d, a))
 
+    def tied_forces(self, d, a):
+        """The tied interfaces' forces (:meth:`MultiReducedModel.tied_forces`) with the
+        locked bolts' forces among the load factors."""
+        return self.base.tied_forces(d, self.base_factors(d, a))
+
     def evaluate(self, name, d, a) -> float:
         c_d, c_a = self.functionals[name]
         return float(c_d @ np.asarray(d).ravel() + c_a @ np.asarray(a, dtype=float))
