@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -449,3 +450,50 @@ def test_a_deck_friction_of_no_slip_is_taken_as_the_largest_mu(tmp_path):
     deck = read_deck(path)
     assert deck.config["interface"]["mu"] == MU_NO_SLIP
     assert any("mu = 1e+20" in str(n) and not n.refuses for n in deck.notes)
+
+
+def test_general_contact_is_refused_with_the_contact_pair_to_write(tmp_path):
+    """Abaqus' general contact (*CONTACT with its inclusions and property assignment)
+    instead of the *CONTACT PAIR: refused card by card, each naming the pair to write
+    and where its interaction comes from."""
+    text = lap_deck(tmp_path / "base.inp").read_text()
+    pair = re.search(r"\*CONTACT PAIR[^\n]*\n[^\n]+\n", text).group(0)
+    path = tmp_path / "general.inp"
+    path.write_text(text.replace(pair, "*CONTACT\n*CONTACT INCLUSIONS, ALL EXTERIOR\n"
+                                       "*CONTACT PROPERTY ASSIGNMENT\n, , JOINT\n"))
+    deck = read_deck(path)
+    general = [n for n in deck.refusals if n.what.startswith("*CONTACT")]
+    assert [n.what for n in general] == ["*CONTACT", "*CONTACT INCLUSIONS",
+                                         "*CONTACT PROPERTY ASSIGNMENT"]
+    assert all("*CONTACT PAIR, INTERACTION=name" in n.fix for n in general)
+    assert any("no *CONTACT PAIR joins two bodies" in n.what for n in deck.refusals)
+
+
+@pytest.mark.parametrize("adjust, expected", [("1e-5", 1e-5), ("TOP_INTERFACE", "top_interface")])
+def test_contact_pair_adjust_is_the_interfaces_adjust(tmp_path, adjust, expected):
+    """``*CONTACT PAIR, ADJUST=`` a distance or a node set of the slave (names ignore
+    case) becomes the interface's ``adjust`` (the gaps it closes are zero), written by
+    qsma init and read back; a set the slave does not hold is a note and the gaps stay
+    as meshed."""
+    text = lap_deck(tmp_path / "base.inp").read_text()
+    path = tmp_path / "adjust.inp"
+    path.write_text(text.replace("TYPE=SURFACE TO SURFACE",
+                                 f"TYPE=SURFACE TO SURFACE, ADJUST={adjust}"))
+    deck = read_deck(path)
+    assert not deck.refusals
+    itf = deck.config["interface"]
+    assert itf["adjust"] == expected and itf["set2"] == "top_interface"
+    assert not any("ADJUST" in n.what for n in deck.notes)
+    assert main(["init", str(path)]) == 0
+    model = load_config(tmp_path / "adjust.toml").model
+    assert model.interface_list[0].adjust == expected
+    if isinstance(expected, float):            # the export writes the distance back
+        from qsma.deck import export_calculix
+        (tmp_path / "export").mkdir()
+        back = export_calculix(model, tmp_path / "export" / "back.inp").text
+        assert re.search(r"\*CONTACT PAIR, [^\n]*, ADJUST=1e-0?5\n", back)
+    path.write_text(text.replace("TYPE=SURFACE TO SURFACE",
+                                 "TYPE=SURFACE TO SURFACE, ADJUST=BOTTOM_CLAMP"))
+    deck = read_deck(path)
+    assert "adjust" not in deck.config["interface"]
+    assert any("ADJUST=BOTTOM_CLAMP" in n.what and not n.refuses for n in deck.notes)

@@ -488,9 +488,7 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, DeckTies):
                 continue
             inter = card.params.get("INTERACTION")
             record = self._interaction(inter if isinstance(inter, str) else None)
-            if "ADJUST" in card.params:
-                self.note(_where(card), f"ADJUST={card.params['ADJUST']} of the contact "
-                          f"pair", "qsma takes the gaps from the geometry as meshed", False)
+            adjust = self._adjust(card)
             for where, tokens, text in _rows_of(card):
                 w = _row_where(where)
                 if len(tokens) < 2:
@@ -536,6 +534,10 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, DeckTies):
                 law = law_table(record, w)
                 if law is not None:
                     table["law"] = law
+                if adjust is not None:
+                    table["adjust"] = self._adjust_set(adjust, bodies[s]["mesh"], card)
+                    if table["adjust"] is None:
+                        del table["adjust"]
                 comment = f"*CONTACT PAIR, {w}: master {master}, slave {slave}"
                 if record is None or record.mu is None:
                     comment += "; no *FRICTION: frictionless as in CalculiX (set mu)"
@@ -558,6 +560,34 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, DeckTies):
                       "frequencies `qsma modes` gives; for a QSMA give the joint as a "
                       "*CONTACT PAIR with *FRICTION", True)
         return out
+
+    def _adjust(self, card):
+        """A contact pair's ``ADJUST=`` (the interface's ``adjust``): a distance, the
+        name of a node set (:meth:`_adjust_set`), or None."""
+        value = card.params.get("ADJUST")
+        if value is None or value is True:
+            return None
+        try:
+            adjust = float(value)
+        except (TypeError, ValueError):
+            return str(value)
+        if not np.isfinite(adjust) or adjust < 0:
+            self.note(_where(card), f"ADJUST={value} of the contact pair",
+                      "give ADJUST= a distance >= 0", True)
+            return None
+        return adjust
+
+    def _adjust_set(self, adjust, mesh, card):
+        """The adjust of a pair: a distance as it is, a node set spelled as in the slave
+        body's ``mesh``; None with a note where the slave has no such set."""
+        if not isinstance(adjust, str):
+            return adjust
+        found = self._find(mesh, adjust, ("node", "facet"))
+        if found is None:
+            self.note(_where(card), f"ADJUST={adjust} of the contact pair: no node set of "
+                      f"the slave surface's body", "qsma takes these gaps as meshed; give "
+                      "ADJUST= a distance, or a node set of the slave's nodes", False)
+        return found
 
     def _interaction(self, name):
         if name is None:

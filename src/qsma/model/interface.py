@@ -63,6 +63,11 @@ class Interface:
         mesh. A callable of the contact points' coordinates ``(n, dim) -> (n,)``, or a
         :class:`qsma.model.gapfield.GapField` (e.g. a measured height map,
         :func:`qsma.model.gapfield.read_gap_field`). ``None``: flat (the mesh's own gaps).
+    adjust : the meshed surfaces' gaps and overlaps within this distance (m) are zero,
+        as Abaqus' and CalculiX's ``*CONTACT PAIR, ADJUST=`` moves the slave nodes onto
+        the master surface before the analysis; a string: a node set of the slave body,
+        whose contact points' gaps are zero (``ADJUST=`` a node set); ``None``: the
+        gaps as meshed. The gap field ``gap`` is added after, unadjusted.
     tied : a bonded interface (a weld, a glued or sub-meshed part, a deck's ``*TIE``): its
         contact points neither open nor slip, their relative displacement is held at
         zero (the slave follows the master surface). It carries no friction, law or gap
@@ -82,6 +87,7 @@ class Interface:
     mu: float | None = None
     law: object = None
     gap: object = None
+    adjust: float | str | None = None
     tied: bool = False
     position_tol: float | None = None
 
@@ -103,7 +109,8 @@ class Interface:
                              f"tied interface (tied = true); got {self.position_tol!r}"
                              + ("" if self.tied else " on an interface that is not tied"))
         if self.tied:
-            given = [k for k in ("mu", "law", "gap") if getattr(self, k) is not None]
+            given = [k for k in ("mu", "law", "gap", "adjust")
+                     if getattr(self, k) is not None]
             if given:
                 raise InputError(f"interface {self.label}: a tied interface neither opens "
                                  f"nor slips, so it takes no {given[0]}; remove {given[0]}, "
@@ -124,6 +131,14 @@ class Interface:
             raise InputError(f"interface {self.label}: gap must be a function of the "
                              f"contact points' coordinates or a GapField, got "
                              f"{type(self.gap).__name__}")
+        if self.adjust is not None and not isinstance(self.adjust, str) and (
+                isinstance(self.adjust, bool)
+                or not isinstance(self.adjust, (int, float, np.number))
+                or not np.isfinite(self.adjust) or self.adjust < 0):
+            raise InputError(f"interface {self.label}: adjust must be a finite distance "
+                             f">= 0 (m), the gaps and overlaps to close, or a node "
+                             f"set of the slave body, got "
+                             f"{self.adjust!r}")
         if self.coupling not in COUPLINGS:
             raise InputError(f"interface coupling must be one of {list(COUPLINGS)}, "
                              f"got {self.coupling!r}")
