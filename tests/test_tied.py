@@ -114,13 +114,29 @@ def test_a_tied_interface_takes_no_friction_law_or_gap():
         Interface("a", "s", "b", "t", tied="yes")
 
 
-def test_a_model_of_tied_interfaces_only_is_refused_with_the_way_out():
+def test_a_model_of_tied_interfaces_only_runs_linear_every_level_elastic(tmp_path):
+    """Nothing can open or slip: every level is elastic, D = zeta = 0 exactly, the
+    secant frequency is f0 and the tip the linear tied deflection (to the accuracy of
+    the eigen solve), the run says why; its f0 is that of the tied modes, and its files
+    are written."""
+    from qsma.errors import TiedOnlyWarning
+    from qsma.modal import linear_modes
     m, split = split_sandwich()
     only = Model(bodies=split.bodies[:2], interfaces=split.interfaces[:1],
                  tip=Probe(sets=(("right", "tip"),), direction=(0.0, 1.0)))
-    with pytest.raises(InputError, match="every interface of the model is tied .*qsma "
-                                         "modes"):
-        qsma.run(only, levels=LEVELS)
+    with pytest.warns(TiedOnlyWarning, match="every interface is tied"):
+        res = qsma.run(only, levels=LEVELS)
+    assert res.success and "every interface is tied" in res.message
+    assert np.all(res.zeta == 0.0) and np.all(res.dissipation == 0.0)
+    assert set(res.dissipation_method) == {"elastic"} and res.loops == {}
+    np.testing.assert_allclose(res.f_hz, res.f0_hz, rtol=1e-8)
+    np.testing.assert_allclose(res.tip, res.tip_lin, rtol=1e-8)
+    np.testing.assert_allclose(res.q, res.alpha / res.omega0 ** 2, rtol=1e-8)
+    modes = linear_modes(only, [assemble_body(b) for b in only.bodies], make_pairing(only),
+                         n_modes=1)
+    assert res.f0_hz == pytest.approx(modes.f_hz[0], rel=1e-10)
+    qsma.write_all(res, tmp_path / "out")
+    assert (tmp_path / "out" / "report.html").exists()
 
 
 def test_the_toml_key(tmp_path):

@@ -24,6 +24,7 @@ from .checks import _flags, _outcome, _settle_dissipation
 from .clock import StageClock
 from .dissipation import _direct_loop, level_dissipation, _with_closed
 from .levels import spec_levels
+from .linear import tied_only_run
 from .options import RunOptions
 from .prepared import Prepared, _start
 from .ramps import _NegativeRamp, _refined_backbone
@@ -122,6 +123,8 @@ def run_prepared(prepared: Prepared, options: RunOptions | None = None, *, progr
 
 
 def _run(model, pairing, opts, progress, clock, prepared=None):
+    if not pairing.n_pairs:                      # tied interfaces only: linear
+        return tied_only_run(model, pairing, opts, clock, prepared)
     report = clock.report = reporter(progress)
     if opts.execution.loop_scheduler is not None:   # a wrong address: told before the ramps
         scheduler_client(opts.execution.loop_scheduler).close()

@@ -161,17 +161,6 @@ def prepare(model, options: RunOptions | None = None, *, assembled=None) -> Prep
                     clock.done(), {})
 
 
-def every_interface_tied(model) -> str:
-    """The refusal of a model whose interfaces are all tied."""
-    labels = [i.label for i in model.interface_list]
-    return (f"every interface of the model is tied ({', '.join(labels)}): no interface can "
-            f"open or slip, so the structure is linear, its frequency is the tied f0 at "
-            f"every amplitude and its joints dissipate nothing; there is no QSMA to run. "
-            f"Fix: for the frequencies of the tied structure run `qsma modes` on the "
-            f"model; for a QSMA give the joint's contact surfaces as a frictional "
-            f"interface (tied = false and its mu; a deck's *CONTACT PAIR with *FRICTION)")
-
-
 def _start(model, opts):
     """``(clock, pairing, BLAS thread limit)`` of a run: the interface pairing (timed as
     stage "model"; every interface of a model with several) and the thread limit of its
@@ -180,8 +169,6 @@ def _start(model, opts):
     with clock.stage("model"):
         pairing = make_pairing(model) if model.interface is not None \
             else multi_pairing(model)
-    if not pairing.n_pairs:
-        raise InputError(every_interface_tied(model))
     _warn_closed_gaps(model, pairing)
     check_model_units(model)
     limit = threads_for(pairing.n_pairs * model.dim) if opts.blas_threads == "auto" \

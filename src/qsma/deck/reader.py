@@ -555,10 +555,9 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, DeckTies):
                       "qsma's joint is a contact interface: define a *CONTACT PAIR", True)
         elif all(t.get("tied") for t, _ in out):
             self.note(self.path.name, "every interface is tied (*TIE, or TIED contact): no "
-                      "interface can open or slip, the structure is linear",
-                      "there is no QSMA to run: `qsma init` writes the model, whose tied "
-                      "frequencies `qsma modes` gives; for a QSMA give the joint as a "
-                      "*CONTACT PAIR with *FRICTION", True)
+                      "interface can open or slip, the structure is linear and every level "
+                      "elastic (f = f0, zeta = 0)", "for a QSMA of a joint give its "
+                      "contact surfaces as a *CONTACT PAIR with *FRICTION", False)
         return out
 
     def _adjust(self, card):

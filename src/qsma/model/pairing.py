@@ -97,6 +97,8 @@ class MultiPairing:
         return int(self.rows[-1])
 
     def _stack(self, name):
+        if not self.couplings:             # tied interfaces only: no contact points
+            return getattr(self.tied[0].pairing, name)[:0]
         return np.concatenate([getattr(c.pairing, name) for c in self.couplings])
 
     @property

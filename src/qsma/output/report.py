@@ -282,7 +282,7 @@ def draw_mesh_2d(res):
     width = g["width"] - left - right
     points = np.vstack([b.mesh.points[:, :2] for b in model.bodies])
     lo, hi = points.min(axis=0), points.max(axis=0)
-    xy = p.x[:, :2]
+    xy = (p.x if len(p.x) else np.vstack([c.pairing.x for c in p.tied]))[:, :2]
     pad = 0.15 * max(float(np.ptp(xy, axis=0).max()), 1e-12)
     plo, phi = xy.min(axis=0) - pad, xy.max(axis=0) + pad
     windows = ((lo[0], hi[0], lo[1], hi[1]), (plo[0], phi[0], plo[1], phi[1]))
