@@ -176,11 +176,7 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, DeckTies):
                           f"of interaction {name!r}: {LAW_NOTES[law]}", "the interface "
                           "law of qsma that is its layer (docs/theory.md section 12)", False)
             elif law == "TIED":
-                self.note(_where(card), f"*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=TIED of "
-                          f"interaction {name!r}: its contact pairs are tied interfaces (no "
-                          f"separation, no slip), tied rigidly: CalculiX's penalty springs "
-                          f"are not modelled", "a stiff penalty gives the same structure",
-                          False)
+                self._note_tied_interaction(card, name)
             elif law not in ("HARD", "LINEAR", "EXPONENTIAL", "TABULAR"):
                 self.note(_where(card), f"*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE={law} "
                           f"of interaction {name!r}", "qsma's interfaces open and slip: a "
@@ -518,12 +514,8 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, DeckTies):
                     continue
                 seen.add(key)
                 if is_tied(record):
-                    out.append((self._tied_table(names, bodies, s, m, slave, master),
-                                f"*CONTACT PAIR, {w}: master {master}, slave {slave}; "
-                                f"PRESSURE-OVERCLOSURE=TIED of interaction {record.name!r}: "
-                                f"tied"))
-                    self._deck_interfaces.append(DeckInterface(
-                        slave, master, names[s], names[m], record, w))
+                    out.append(self._tied_pair(names, bodies, (s, m), (slave, master),
+                                               record, w))
                     continue
                 mu = record.mu if record is not None and record.mu is not None else 0.0
                 table = {"body1": names[m], "set1": self._find(bodies[m]["mesh"], master,
@@ -554,10 +546,7 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, DeckTies):
             self.note(self.path.name, "no *CONTACT PAIR joins two bodies",
                       "qsma's joint is a contact interface: define a *CONTACT PAIR", True)
         elif all(t.get("tied") for t, _ in out):
-            self.note(self.path.name, "every interface is tied (*TIE, or TIED contact): no "
-                      "interface can open or slip, the structure is linear and every level "
-                      "elastic (f = f0, zeta = 0)", "for a QSMA of a joint give its "
-                      "contact surfaces as a *CONTACT PAIR with *FRICTION", False)
+            self._note_tied_only()
         return out
 
     def _adjust(self, card):

@@ -15,7 +15,7 @@ cyclic model, which qsma does not model.
 """
 from __future__ import annotations
 
-from .records import _number, _row_where, _rows_of, _spelling, _where
+from .records import DeckInterface, _number, _row_where, _rows_of, _spelling, _where
 
 #: ``*TIE`` parameters that make it something else than tied surfaces.
 _CYCLIC = ("CYCLIC SYMMETRY", "MULTISTAGE")
@@ -35,6 +35,28 @@ class DeckTies:
         return {"body1": names[m], "set1": self._find(bodies[m]["mesh"], master, ("facet",)),
                 "body2": names[s], "set2": self._find(bodies[s]["mesh"], slave, ("facet",)),
                 "coupling": "auto", "slave": names[s], "tied": True}
+
+    def _tied_pair(self, names, bodies, sm, surfaces, record, w):
+        """``(table, comment)`` of a TIED ``*CONTACT PAIR`` row (``sm``: the slave and
+        master bodies, ``surfaces``: the slave and master surfaces), recorded."""
+        (s, m), (slave, master) = sm, surfaces
+        self._deck_interfaces.append(DeckInterface(slave, master, names[s], names[m],
+                                                   record, w))
+        return (self._tied_table(names, bodies, s, m, slave, master),
+                f"*CONTACT PAIR, {w}: master {master}, slave {slave}; "
+                f"PRESSURE-OVERCLOSURE=TIED of interaction {record.name!r}: tied")
+
+    def _note_tied_interaction(self, card, name):
+        self.note(_where(card), f"*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=TIED of "
+                  f"interaction {name!r}: its contact pairs are tied interfaces (no "
+                  f"separation, no slip), tied rigidly: CalculiX's penalty springs are not "
+                  f"modelled", "a stiff penalty gives the same structure", False)
+
+    def _note_tied_only(self):
+        self.note(self.path.name, "every interface is tied (*TIE, or TIED contact): no "
+                  "interface can open or slip, the structure is linear and every level "
+                  "elastic (f = f0, zeta = 0)", "for a QSMA of a joint give its contact "
+                  "surfaces as a *CONTACT PAIR with *FRICTION", False)
 
     def _ties(self, bodies, seen):
         """``[(table, comment)]`` of every ``*TIE`` of the deck (``seen``: the surface

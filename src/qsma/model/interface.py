@@ -514,32 +514,6 @@ def _warn_quad8(itf, *bodies):
         stacklevel=4)                        # the caller of make_pairing
 
 
-def check_tie_distance(model, itf, pairing):
-    """Refuse a tied interface whose slave points lie farther from the master surface
-    than its position tolerance (:attr:`Interface.position_tol`, else
-    :data:`TIE_POSITION_FRACTION` of the local element size): the surfaces do not face
-    each other, and tying them would weld parts that are apart."""
-    if pairing.gap is None or not len(pairing.gap):
-        return                                    # node to node: coincident nodes
-    slave = model.body(itf.body1 if pairing.slave == 1 else itf.body2)
-    sset = itf.set1 if pairing.slave == 1 else itf.set2
-    h = _local_size(slave.mesh, slave.mesh.facets(sset), pairing.contact_nodes)
-    tol = TIE_POSITION_FRACTION * h if itf.position_tol is None \
-        else np.full(len(h), float(itf.position_tol))
-    far = np.abs(pairing.gap) > tol
-    if far.any():
-        k = int(np.argmax(np.abs(pairing.gap) - tol))
-        raise InputError(
-            f"tied interface {itf.label}: {int(far.sum())} of {len(far)} slave point(s) lie "
-            f"farther from the master surface than the position tolerance, up to "
-            f"{abs(pairing.gap[k]):.3e} (tolerance {tol[k]:.3e}) at node "
-            f"{pairing.contact_nodes[k]} of body {slave.name!r} at "
-            f"{np.round(slave.mesh.points[pairing.contact_nodes[k]], 12).tolist()}: the "
-            f"surfaces do not face each other. Fix: name the facet sets that touch, mesh "
-            f"the two parts so that they meet, or give a larger position_tol (a deck's "
-            f"*TIE, POSITION TOLERANCE=) if the parts are meant to be tied across the gap")
-
-
 def _check_boundary(mesh, facets, body, name):
     """Every facet of the interface set must be a boundary facet of its body."""
     inner = facets[facet_index(mesh).find(facets) < 0].tolist()
