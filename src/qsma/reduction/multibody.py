@@ -279,15 +279,15 @@ def reduce_bodies(assembled, couplings, patterns=("preload",), backend="auto",
     except np.linalg.LinAlgError as exc:
         raise InputError("the welded assembly is not held against rigid-body motion; add "
                          "clamps") from exc
+    nf = dim * n_free                 # the tied points' columns leave (their d_T = 0)
+    T_t = T_d[:, nf:] if tied else None
+    T_d, G, fixed = T_d[:, :nf], G[:nf], fixed[fixed < nf]
     KT_d = Kc @ T_d
     # lam = Q^T (Kc u - Fc)_s = T_d^T (Kc u - Fc): T_d is zero outside the pivot rows
     K = T_d.T @ (KT_d - KT_r @ cho_solved(S_cho, KT_r.T @ T_d))
     K = 0.5 * (K + K.T)
     W = T_d.T @ (KT_r @ cho_solved(S_cho, T_r.T @ Fc) - Fc)
     K = decoupled(K, fixed)
-    nf = dim * n_free                         # the tied points' rows leave (d_T = 0)
-    T_t = T_d[:, nf:] if tied else None
-    K, W, T_d, G, fixed = K[:nf, :nf], W[:nf], T_d[:, :nf], G[:nf], fixed[fixed < nf]
     held = held_by_ties(bodies, tied)
     K, g = _ghost(K, [None if b.rigid is None or held[j]
                       else G[:, offsets[j]:offsets[j + 1]] @ b.rigid
