@@ -217,3 +217,19 @@ def test_the_fields_show_the_tied_points_stuck_with_their_pressure(runs, tmp_pat
         assert np.all(fields["contact_state"][offset + nodes] == int(STUCK))
         np.testing.assert_allclose(fields["contact_pressure"][offset + nodes],
                                    lam[:, -1] / p.area, rtol=1e-12)
+
+
+def test_a_bolted_model_of_ties_only_runs_linear():
+    """sandwich-2d-bolted with its joint tied: the bolts are locked over an interface
+    without contact points, every level elastic."""
+    from qsma.errors import TiedOnlyWarning
+    from qsma.examples.bolted import sandwich_2d_bolted
+    m = sandwich_2d_bolted(1)
+    tied = dataclasses.replace(m, interface=dataclasses.replace(m.interface, tied=True))
+    with pytest.warns(TiedOnlyWarning):
+        res = qsma.run(tied, levels=LEVELS)
+    assert res.success and np.all(res.zeta == 0.0)
+    np.testing.assert_allclose(res.f_hz, res.f0_hz, rtol=1e-8)
+    a = qsma.analysis.result.load_factors(res.reduced, res.alpha[-1])
+    assert res.reduced.bolt_forces(res.states.d[-1], a) == pytest.approx(
+        [m.bolts[0].pretension], rel=1e-6)

@@ -30,8 +30,8 @@ ALL_TIED = ("every interface is tied: no interface can open or slip, so the stru
 def tied_only_run(model, pairing, opts, clock, prepared=None) -> QSMAResult:
     """The :class:`QSMAResult` of a model of tied interfaces only (module docstring)."""
     warnings.warn(TiedOnlyWarning(f"{ALL_TIED}: every level is elastic (f = f0, "
-                                     f"zeta = 0); for a QSMA of a joint give its contact "
-                                     f"surfaces as a frictional interface"), stacklevel=3)
+                                  f"zeta = 0); for a QSMA of a joint give its contact "
+                                  f"surfaces as a frictional interface"), stacklevel=3)
     if prepared is None:
         assembled = _assemble(model, clock)
         reduced = _condense(model, assembled, pairing, opts.schur_backend, clock)

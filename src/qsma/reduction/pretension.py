@@ -123,8 +123,8 @@ def lock(base, bolts, d_pre) -> LockedModel:
     E_a[:, keep.index(pre)] = 0.0            # preload factor is 1 before and after
     W_N = base.W[:, idx]
     update = W_N @ H @ E_d
-    scale = max(np.abs(base.K).max(), np.abs(update).max())
-    asym = np.abs(update - update.T).max()
+    scale = max(np.abs(base.K).max(initial=0.0), np.abs(update).max(initial=0.0))
+    asym = np.abs(update - update.T).max(initial=0.0)      # no contact point: nothing
     if asym > RECIPROCITY_RTOL * scale:
         raise AnalysisError(f"the locked bolts' stiffness is not symmetric (max asymmetry "
                             f"{asym:.3e} against {scale:.3e}): reciprocity failed, the bolt "
