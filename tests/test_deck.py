@@ -452,21 +452,58 @@ def test_a_deck_friction_of_no_slip_is_taken_as_the_largest_mu(tmp_path):
     assert any("mu = 1e+20" in str(n) and not n.refuses for n in deck.notes)
 
 
-def test_general_contact_is_refused_with_the_contact_pair_to_write(tmp_path):
-    """Abaqus' general contact (*CONTACT with its inclusions and property assignment)
-    instead of the *CONTACT PAIR: refused card by card, each naming the pair to write
-    and where its interaction comes from."""
+def _general(tmp_path, cards):
+    """The lap deck with its *CONTACT PAIR replaced by ``cards`` (general contact)."""
     text = lap_deck(tmp_path / "base.inp").read_text()
     pair = re.search(r"\*CONTACT PAIR[^\n]*\n[^\n]+\n", text).group(0)
     path = tmp_path / "general.inp"
-    path.write_text(text.replace(pair, "*CONTACT\n*CONTACT INCLUSIONS, ALL EXTERIOR\n"
-                                       "*CONTACT PROPERTY ASSIGNMENT\n, , JOINT\n"))
+    path.write_text(text.replace(pair, cards))
+    return path
+
+
+def test_general_contact_all_exterior_runs_as_the_contact_pair(tmp_path):
+    """Abaqus' general contact (*CONTACT, ALL EXTERIOR, one global property) instead of
+    the *CONTACT PAIR: the interface is where the two beams touch, with the property's
+    friction and law. sandwich-2d's beams touch along their whole overlap, beyond the
+    bolted region the benchmark names: so the model equals sandwich-2d with that
+    overlap as interface, and qsma init writes touching = true, read back the same."""
+    path = _general(tmp_path, "*CONTACT\n*CONTACT INCLUSIONS, ALL EXTERIOR\n"
+                              "*CONTACT PROPERTY ASSIGNMENT\n, , JOINT\n")
     deck = read_deck(path)
-    general = [n for n in deck.refusals if n.what.startswith("*CONTACT")]
-    assert [n.what for n in general] == ["*CONTACT", "*CONTACT INCLUSIONS",
-                                         "*CONTACT PROPERTY ASSIGNMENT"]
-    assert all("*CONTACT PAIR, INTERACTION=name" in n.fix for n in general)
-    assert any("no *CONTACT PAIR joins two bodies" in n.what for n in deck.refusals)
+    assert not deck.refusals, deck.refusals
+    itf = deck.config["interface"]
+    assert itf["touching"] and "set1" not in itf and itf["mu"] == MU
+    assert itf["law"] == LAW_TABLE
+    model = parse_config(deck.config, base=tmp_path).model
+    bottom, top = model.bodies
+    n = [len(b.mesh.facet_sets[f"touching:{o.name}"]) for b, o in ((bottom, top),
+                                                                  (top, bottom))]
+    ref = sandwich_2d(1)
+    named = [len(b.mesh.facet_sets["interface"]) for b in ref.bodies]
+    assert n[0] == n[1] > named[0] == named[1]           # the whole overlap
+    assert main(["init", str(path)]) == 0
+    back = load_config(tmp_path / "general.toml").model
+    assert back.interface.set1 == model.interface.set1 == "touching:top"
+
+
+@pytest.mark.parametrize("cards, what", [
+    ("*CONTACT\n*CONTACT INCLUSIONS\ntop_interface, bottom_interface\n",
+     "*CONTACT INCLUSIONS of named surfaces"),
+    ("*CONTACT\n*CONTACT INCLUSIONS, ALL EXTERIOR\n*CONTACT EXCLUSIONS\n"
+     "top_clamp, bottom_clamp\n", "*CONTACT EXCLUSIONS"),
+    ("*CONTACT\n*CONTACT INCLUSIONS, ALL EXTERIOR\n*CONTACT PROPERTY ASSIGNMENT\n"
+     "top_interface, bottom_interface, JOINT\n", "*CONTACT PROPERTY ASSIGNMENT to surfaces"),
+    ("*CONTACT\n*CONTACT INCLUSIONS, ALL EXTERIOR\n*CONTACT PROPERTY ASSIGNMENT\n"
+     ", , NOPE\n", "names interaction 'NOPE'"),
+])
+def test_general_contact_qsma_cannot_read_is_refused_with_the_way(tmp_path, cards, what):
+    """Narrower general contact (named inclusions, exclusions, properties per surface
+    pair) or an undefined property: refused by line, naming the *CONTACT PAIR to
+    write; the deck does not run."""
+    deck = read_deck(_general(tmp_path, cards))
+    (note,) = [n for n in deck.refusals if what in n.what]
+    assert "*CONTACT PAIR" in note.fix or "*SURFACE INTERACTION" in note.fix
+    assert main(["run", str(tmp_path / "general.inp"), "--out", str(tmp_path / "o")]) == 2
 
 
 @pytest.mark.parametrize("adjust, expected", [("1e-5", 1e-5), ("TOP_INTERFACE", "top_interface")])

@@ -122,3 +122,48 @@ def test_a_touching_interface_and_named_sets_exclude_each_other(lap_deck, edit, 
     edit(bad["interface"])
     with pytest.raises(InputError, match=match):
         parse_config(bad, base=path.parent)
+
+
+def test_three_bodies_touching_pairwise(tmp_path):
+    """stack-2d (three beams) with both interfaces given as touching = true: each is the
+    whole overlap of its two beams (wider than the bolted region the example names, up
+    to the clamped ends, whose points, clamped on both sides in every direction, are
+    inert), the run equals the example's with those overlaps as its named sets, and the
+    bottom and top beams, which do not touch, are refused as an interface with the
+    fix."""
+    from helpers import STACK_INTERFACES, stack_toml
+    from qsma.analysis.config import load_config
+    import dataclasses
+    touching = ('[[interfaces]]\nbody1 = "bottom"\nbody2 = "middle"\ntouching = true\n'
+                'mu = 0.6\n[[interfaces]]\nbody1 = "middle"\nbody2 = "top"\n'
+                'touching = true\nmu = 0.3\n')
+    path, _ = stack_toml(tmp_path, touching)
+    model = load_config(path).model
+    found = [(i.body1, i.set1, i.body2, i.set2) for i in model.interface_list]
+    assert found == [("bottom", "touching:middle", "middle", "touching:bottom"),
+                     ("middle", "touching:top", "top", "touching:middle")]
+    # the same file with its named interfaces, widened to the same facets by name
+    ref = load_config(stack_toml(tmp_path, STACK_INTERFACES)[0]).model
+    bodies = list(ref.bodies)
+    for itf in ref.interface_list:
+        for name, set_name, other in ((itf.body1, itf.set1, itf.body2),
+                                      (itf.body2, itf.set2, itf.body1)):
+            k = ref.body_index(name)
+            mine = model.body(name).mesh.facet_sets[f"touching:{other}"]
+            assert len(mine) > len(ref.body(name).mesh.facet_sets[set_name])
+            bodies[k] = dataclasses.replace(bodies[k], mesh=bodies[k].mesh.with_sets(
+                facet_sets={set_name: mine}))
+    widened = dataclasses.replace(ref, bodies=tuple(bodies))
+    levels = Levels.log("tip", 1e-6, 1e-4, 3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        a, b = qsma.run(widened, levels=levels), qsma.run(model, levels=levels)
+    assert a.success and b.success
+    assert b.f0_hz == pytest.approx(a.f0_hz, rel=1e-12)
+    np.testing.assert_allclose(b.q, a.q, rtol=1e-10)
+    np.testing.assert_allclose(b.zeta, a.zeta, rtol=1e-8, atol=1e-14)
+    path, _ = stack_toml(tmp_path, '[[interfaces]]\nbody1 = "bottom"\nbody2 = "top"\n'
+                                   'touching = true\nmu = 0.6\n')
+    with pytest.raises(InputError, match=r"interfaces\[0\]: bodies 'bottom' and 'top' do "
+                                         r"not touch"):
+        load_config(path)

@@ -18,6 +18,7 @@ from ..errors import InputError, MeshFileError
 from ..model import (Body, Bolt, Clamp, Interface, LinearDamping, Material, Model, NodalForce,
                      PointMass, Pressure, Probe, Spring, read_gap_field)
 from ..model.touching import with_touching_sets
+from ..fe.formulation import with_element
 from ..units import unit_system
 from .levels import Levels, spec_levels
 from .options import RunOptions
@@ -30,7 +31,7 @@ SCHEMA = {
          "damping": (dict, False),
          "tip": (dict, True), "analysis": (dict, False), "levels": (dict, False)},
     "bodies": {"name": (str, True), "mesh": (str, True), "cells": (str, False),
-               "part": (int, False), "E": (_NUM, True),
+               "part": (int, False), "element": (str, False), "E": (_NUM, True),
                "nu": (_NUM, True), "rho": (_NUM, True), "clamps": (list, False),
                "pressures": (list, False), "springs": (list, False),
                "masses": (list, False), "forces": (list, False)},
@@ -346,6 +347,8 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
             forces = tuple(NodalForce(t["set"], tuple(t["force"]), t.get("load", "preload"))
                            for t in tables["forces"])
             mesh = _body_mesh(base / b["mesh"], b.get("cells"), files, b.get("part"))
+            if "element" in b:
+                mesh = with_element(mesh, b["element"])
             mesh, pressures = _pressures(mesh, tables["pressures"])
             bodies.append(Body(b["name"], mesh, mat, clamps, pressures, springs, masses,
                                forces))

@@ -11,13 +11,15 @@ import numpy as np
 from ..errors import InputError
 from ..mesh.io.abaqus.lexer import _inp_cards
 from ..mesh.io.assembly import read_assembly
-from ..model.friction import MU_NO_SLIP
 from ..units import SI, UNIT_SYSTEMS, plausible, unit_system
 from .bolts import DeckBolts
 from .loads import SupportsAndLoads
 from .probe import ProbeAndLevels
+from ..fe.formulation import nearest_element
+from .general_contact import GENERAL_CONTACT_CARDS, GeneralContact
+from .interactions import DeckInteractions
 from .ties import DeckTies, is_tied
-from .records import (LAW_NOTES, Deck, DeckInterface, DeckNote, SurfaceInteraction,
+from .records import (Deck, DeckInterface, DeckNote,
                       _HARMLESS, _INTERACTION_KEYWORDS, _MATERIAL_KEYWORDS, _PROCEDURES,
                       _REFUSED, _SILENT, _USED, _Material, _Step, _loads_in, _number,
                       _row_where, _rows_of, _spelling, _where, law_table)
@@ -55,7 +57,8 @@ def read_deck(path, *, mode: int = 0, tip_node: int | None = None,
     return reader.deck(mode, tip_node, tip_direction, levels, units)
 
 
-class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, DeckTies):
+class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, GeneralContact,
+                  DeckInteractions, DeckTies):
     """What :func:`read_deck` builds, step by step."""
 
     def __init__(self, path, cards, assembly, density=None):
@@ -148,43 +151,6 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, DeckTies):
         else:
             self.note(_where(card), f"*{card.keyword} of material {material.name!r} is not "
                       f"used", _HARMLESS[card.keyword], False)
-
-    def _interaction_card(self, interaction, card):
-        rows = [(w, t) for w, t, _ in _rows_of(card)]
-        name = interaction["name"]
-        if card.keyword == "FRICTION":
-            if rows and rows[0][1] and rows[0][1][0]:
-                w, t = rows[0]
-                interaction["mu"] = _number(t[0], w, "the friction coefficient")
-                if interaction["mu"] > MU_NO_SLIP:
-                    self.note(_row_where(w), f"*FRICTION mu = {interaction['mu']:g} of "
-                              f"interaction {name!r} (no slip)", f"taken as mu = "
-                              f"{MU_NO_SLIP:g}: a pair then slips only as it opens, as with "
-                              f"the deck's value; larger values only cost the contact solve "
-                              f"its accuracy", False)
-                    interaction["mu"] = MU_NO_SLIP
-                if len(t) > 1 and t[1]:
-                    interaction["stick_slope"] = _number(t[1], w, "the stick slope")
-        elif card.keyword == "SURFACE BEHAVIOR":
-            law = str(card.params.get("PRESSURE-OVERCLOSURE", "HARD")).upper()
-            numbers = tuple(_number(x, w, "a surface behavior value")
-                            for w, t in rows for x in t if x)
-            interaction["pressure_overclosure"] = law
-            interaction["behavior"] = numbers
-            if law in LAW_NOTES:
-                self.note(_where(card), f"*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE={law} "
-                          f"of interaction {name!r}: {LAW_NOTES[law]}", "the interface "
-                          "law of qsma that is its layer (docs/theory.md section 12)", False)
-            elif law == "TIED":
-                self._note_tied_interaction(card, name)
-            elif law not in ("HARD", "LINEAR", "EXPONENTIAL", "TABULAR"):
-                self.note(_where(card), f"*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE={law} "
-                          f"of interaction {name!r}", "qsma's interfaces open and slip: a "
-                          "tied contact is no joint (give HARD, LINEAR, EXPONENTIAL or "
-                          "TABULAR)", True)
-        else:
-            self.note(_where(card), f"*{card.keyword} of interaction {name!r} is not used",
-                      _HARMLESS[card.keyword], False)
 
     def _section(self, card):
         elset = card.params.get("ELSET")
@@ -288,7 +254,8 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, DeckTies):
         cards = list(self.model_cards) + (list(preload.cards) if preload else [])
         for card in cards:
             kw = card.keyword
-            if kw in _SILENT or kw in _USED or id(card) in self._bolt_cards:
+            if kw in _SILENT or kw in _USED or id(card) in self._bolt_cards \
+                    or kw in GENERAL_CONTACT_CARDS:       # read (or refused) with the pairs
                 continue
             if kw == "INITIAL CONDITIONS" and \
                     str(card.params.get("TYPE", "")).upper() == "TEMPERATURE":
@@ -329,6 +296,7 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, DeckTies):
                     f"connected part {k + 1} of the mesh (cells joined through shared "
                     f"nodes), {len(cells)} elements")
             self._material_keys(table, k, section)
+            self._element_key(table, k, mesh)
             bodies.append({"table": table, "mesh": mesh,
                            "thickness": section[2] if section else 1.0})
         if len(bodies) == 1:
@@ -353,9 +321,32 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, DeckTies):
                           "a deck with parts; give E, nu and rho per body in the TOML "
                           "(qsma init)", True)
             self._material_keys(table, k, section)
-            bodies.append({"table": table, "mesh": self.asm.body_mesh(name),
+            mesh = self.asm.body_mesh(name)
+            self._element_key(table, k, mesh)
+            bodies.append({"table": table, "mesh": mesh,
                            "thickness": section[2] if section else 1.0})
         return bodies
+
+    def _element_key(self, table, k, mesh):
+        """``element`` of a body whose elements qsma computes as their nearest one
+        (``C3D8R`` as ``C3D8I``, ...), with a note each; nothing where all are its own."""
+        found = {}
+        for block in [mesh] + list(mesh.extra_blocks):
+            near = nearest_element(block.element, block.cell_type)
+            if near is not None:
+                found[str(block.element).upper()] = near
+        if not found:
+            return
+        table["element"] = next(iter(found.values()))[0] if not mesh.extra_blocks \
+            else "nearest"
+        for old, (new, why) in found.items():
+            card = next((c for c in self.cards if c.keyword == "ELEMENT" and
+                         str(c.params.get("TYPE", "")).upper() == old), None)
+            self.note(_where(card) if card is not None else self.path.name,
+                      f"{old} elements are computed as {new}",
+                      why, False)
+        self.comments[("bodies", k, "element")] = "; ".join(
+            f"the deck's {old} computed as {new}" for old, (new, _) in found.items())
 
     def _elset(self, name):
         """The spelling of element set ``name`` in the file (names ignore case)."""
@@ -541,6 +532,7 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, DeckTies):
                 out.append((table, comment))
                 self._deck_interfaces.append(DeckInterface(
                     slave, master, names[s], names[m], record, w))
+        out += self._general_interfaces(bodies)
         out += self._ties(bodies, seen)
         if not out:
             self.note(self.path.name, "no *CONTACT PAIR joins two bodies",
@@ -576,13 +568,3 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, DeckTies):
                       f"the slave surface's body", "qsma takes these gaps as meshed; give "
                       "ADJUST= a distance, or a node set of the slave's nodes", False)
         return found
-
-    def _interaction(self, name):
-        if name is None:
-            return None
-        d = self.interactions.get(name.upper())
-        if d is None:
-            return None
-        return SurfaceInteraction(d["name"], d.get("mu"), d.get("stick_slope"),
-                                  d.get("pressure_overclosure"), d.get("behavior", ()),
-                                  d["where"])
