@@ -375,3 +375,41 @@ def assert_forced_mortar_is_node_to_node(model):
     np.testing.assert_allclose(b.q, a.q, rtol=1e-8, atol=1e-8 * np.abs(a.q).max())
     np.testing.assert_allclose(b.zeta, a.zeta, rtol=1e-8, atol=1e-10)
     return a, b, pm
+
+
+def split_body(body, axis, cut, names):
+    """``body`` cut by the plane ``x[axis] = cut`` (a grid plane of its mesh) into two
+    bodies named ``names`` (below, above the plane) with the same material, clamps and
+    loads where their sets fall, each with the facet set ``"cut"`` on the plane:
+    coincident nodes, for a tied interface between them. Node sets keep the nodes each
+    part holds; facet sets the facets whose nodes all lie in the part."""
+    from qsma.model import Body
+    mesh = body.mesh
+    centre = mesh.points[mesh.cells].mean(axis=1)[:, axis]
+    eps = 1e-9 * float(np.ptp(mesh.points, axis=0).max())
+    parts = []
+    for keep in (centre < cut, centre > cut):
+        cells = mesh.cells[keep]
+        used, inverse = np.unique(cells, return_inverse=True)
+        new = np.full(mesh.n_nodes, -1)
+        new[used] = np.arange(len(used))
+        node_sets = {k: new[v][new[v] >= 0] for k, v in mesh.node_sets.items()
+                     if np.any(new[v] >= 0)}
+        facet_sets = {}
+        for k, f in mesh.facet_sets.items():
+            f = f[np.all(new[f] >= 0, axis=1)]
+            if len(f):
+                facet_sets[k] = new[f]
+        part = Mesh(mesh.points[used], inverse.reshape(cells.shape), mesh.cell_type,
+                    node_sets, facet_sets, element=mesh.element)
+        on = part.boundary_facets_where(lambda p: np.abs(p[:, axis] - cut) < eps)
+        parts.append(part.with_sets(facet_sets={"cut": on}))
+    out = []
+    for name, part in zip(names, parts):
+        sets = set(part.node_sets) | set(part.facet_sets)
+        out.append(dataclasses.replace(
+            body, name=name, mesh=part,
+            clamps=tuple(c for c in body.clamps if c.set in sets),
+            pressures=tuple(p for p in body.pressures if p.set in sets),
+            forces=tuple(f for f in body.forces if f.set in sets)))
+    return out

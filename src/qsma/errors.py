@@ -42,6 +42,10 @@ class QSMAWarning(UserWarning):
     """A warning meant for the user (the CLI prints it as ``qsma: warning: ...``)."""
 
 
+class TiedOnlyWarning(QSMAWarning):
+    """A model whose interfaces are all tied: its run is linear, every level elastic."""
+
+
 class InterfaceGapWarning(QSMAWarning):
     """Mortar surfaces that do not touch in the mesh: their gaps are the initial gaps of
     the contact problem."""

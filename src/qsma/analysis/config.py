@@ -46,13 +46,15 @@ SCHEMA = {
                   "face": (int, False)},
     "forces": {"set": (str, True), "force": (list, True), "load": (str, False)},
     "interface": {"body1": (str, True), "set1": (str, False), "body2": (str, True),
-                  "set2": (str, False), "touching": (bool, False), "mu": (_NUM, True), "tol": (_NUM, False),
+                  "set2": (str, False), "touching": (bool, False), "mu": (_NUM, False), "tol": (_NUM, False),
                   "coupling": (str, False), "slave": (str, False), "law": (dict, False),
-                  "gap": (dict, False), "adjust": (_NUM + (str,), False)},
+                  "gap": (dict, False), "adjust": (_NUM + (str,), False),
+                  "tied": (bool, False), "position_tol": (_NUM, False)},
     "interfaces": {"body1": (str, True), "set1": (str, False), "body2": (str, True),
-                   "set2": (str, False), "touching": (bool, False), "mu": (_NUM, True), "tol": (_NUM, False),
+                   "set2": (str, False), "touching": (bool, False), "mu": (_NUM, False), "tol": (_NUM, False),
                    "coupling": (str, False), "slave": (str, False), "law": (dict, False),
-                   "gap": (dict, False), "adjust": (_NUM + (str,), False)},
+                   "gap": (dict, False), "adjust": (_NUM + (str,), False),
+                   "tied": (bool, False), "position_tol": (_NUM, False)},
     "gap": {"file": (str, True), "scale": (_NUM, False), "coordinate_scale": (_NUM, False)},
     "damping": {"ratio": (_NUM, False), "rayleigh": (list, False)},
     "tip": {"sets": (list, False), "points": (list, False), "direction": (list, True)},
@@ -156,6 +158,10 @@ def decode_utf8(raw: bytes, where: str, kind: str) -> str:
 
 
 def _interface(t, where, base, with_mu=True) -> Interface:
+    tied = t.get("tied", False)
+    if "mu" not in t and not tied:
+        raise InputError(f"{where}: missing required key 'mu' (the friction coefficient; "
+                         f"only a tied interface, tied = true, has none)")
     law = law_from_table(t["law"], f"{where}.law") if "law" in t else None
     gap = None
     if "gap" in t:
@@ -164,8 +170,9 @@ def _interface(t, where, base, with_mu=True) -> Interface:
                              coordinate_scale=g.get("coordinate_scale", 1.0))
     return Interface(t["body1"], t["set1"], t["body2"], t["set2"], t.get("tol"),
                      coupling=t.get("coupling", "auto"), slave=t.get("slave"),
-                     mu=t["mu"] if with_mu else None, law=law, gap=gap,
-                     adjust=t.get("adjust"))
+                     mu=t.get("mu") if with_mu else None, law=law, gap=gap,
+                     adjust=t.get("adjust"), tied=tied,
+                     position_tol=t.get("position_tol"))
 
 
 def _with_touching(tables, bodies, wheres) -> list:
@@ -363,8 +370,8 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
         (itf,) = _with_touching([itf], bodies, [f"{where}: interface"])
         model = Model(bodies=tuple(bodies),
                       interface=_interface(itf, f"{where}: interface", base, with_mu=False),
-                      tip=probe, mu=itf["mu"], name=name, bolts=bolts, units=units,
-                      damping=damping)
+                      tip=probe, mu=itf.get("mu", Model.mu), name=name, bolts=bolts,
+                      units=units, damping=damping)
     else:
         if not data["interfaces"]:
             raise InputError(f"{where}: interfaces is empty; list the touching facet sets "
@@ -375,8 +382,10 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
                                                  for k in range(len(tables))])
         itfs = tuple(_interface(t, f"{where}: interfaces[{k}]", base)
                      for k, t in enumerate(tables))
-        model = Model(bodies=tuple(bodies), interfaces=itfs, tip=probe, mu=itfs[0].mu,
-                      name=name, bolts=bolts, units=units, damping=damping)
+        mus = [i.mu for i in itfs if not i.tied]     # a tied interface has no mu
+        model = Model(bodies=tuple(bodies), interfaces=itfs, tip=probe,
+                      mu=mus[0] if mus else Model.mu, name=name, bolts=bolts, units=units,
+                      damping=damping)
     analysis = dict(data.get("analysis", {})) if isinstance(data.get("analysis"), dict) \
         else data.get("analysis", {})
     modes = _modes(analysis, f"{where}: analysis")

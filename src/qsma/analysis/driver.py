@@ -18,11 +18,13 @@ from ..errors import InputError, QSMAWarning
 from ..hysteresis import scheduler_client
 from ..model.pairing import body_order
 from ..progress import reporter
+from ..reduction.multibody import held_by_ties
 from ..reduction.rigid import support_share
 from .checks import _flags, _outcome, _settle_dissipation
 from .clock import StageClock
 from .dissipation import _direct_loop, level_dissipation, _with_closed
 from .levels import spec_levels
+from .linear import tied_only_run
 from .options import RunOptions
 from .prepared import Prepared, _start
 from .ramps import _NegativeRamp, _refined_backbone
@@ -121,6 +123,8 @@ def run_prepared(prepared: Prepared, options: RunOptions | None = None, *, progr
 
 
 def _run(model, pairing, opts, progress, clock, prepared=None):
+    if not pairing.n_pairs:                      # tied interfaces only: linear
+        return tied_only_run(model, pairing, opts, clock, prepared)
     report = clock.report = reporter(progress)
     if opts.execution.loop_scheduler is not None:   # a wrong address: told before the ramps
         scheduler_client(opts.execution.loop_scheduler).close()
@@ -205,6 +209,7 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
         success=success, message=message,
         model_info=dict(name=model.name, n_nodes=model.n_nodes, n_dofs=model.n_dofs,
                         n_pairs=pairing.n_pairs, dim=model.dim,
+                        n_tied_pairs=getattr(pairing, "n_tied", 0),
                         mu=_mu_info(model), n_interfaces=len(model.interface_list),
                         n_closed_after_preload=int(closed.sum()),
                         elements={a.body.name: a.formulation for a in assembled},
@@ -212,7 +217,7 @@ def _run(model, pairing, opts, progress, clock, prepared=None):
                         interface_laws=_law_info(model),
                         linear_damping=None if model.damping is None
                         else model.damping.as_dict(),
-                        **_rigid_info(reduced, modes, pos, grid, user)),
+                        **_rigid_info(reduced, modes, pos, grid, user, pairing)),
         mode_index=opts.mode, omega0=omega0, phi_tip=phi_tip,
         **columns, **hyst.columns(LEVEL_FIELDS), flags=flags, states=states,
         loops=hyst.loops, backbone_alpha=grid[:pos.n],
@@ -281,19 +286,21 @@ def _law_info(model):
 
 
 def _mu_info(model):
-    """The model's mu, or the list of the interfaces' when any sets its own."""
-    itfs = model.interface_list
+    """The model's mu, or the list of the interfaces' when any sets its own (the tied
+    interfaces, which have none, left out)."""
+    itfs = [i for i in model.interface_list if not i.tied]
     if all(i.mu is None for i in itfs):
         return model.mu
     return [model.mu if i.mu is None else i.mu for i in itfs]
 
 
-def _rigid_info(reduced, modes, pos, grid, user):
+def _rigid_info(reduced, modes, pos, grid, user, pairing):
     """Rigid-body freedom of the run for model_info (docs/theory.md section 10): the
     rigid modes skipped (``mode`` counts elastic modes), the bodies held only by the
     joint and the largest share of their load held by the regularising spring."""
     share = [support_share(reduced, pos.d[g], _load_factors(reduced, grid[g]))
              for g in user] if getattr(reduced, "ghost", None) is not None else []
     return dict(rigid_modes=int(modes.n_rigid), mode_counts="elastic modes",
-                held_by_joint=[b.name for b in reduced.bodies if b.rigid is not None],
+                held_by_joint=[b.name for b, held in zip(reduced.bodies, held_by_ties(
+                    reduced.bodies, getattr(pairing, "tied", ()))) if not held],
                 joint_spring_share_max=float(max(share, default=0.0)))

@@ -18,7 +18,7 @@ from ..fe.bolts import bolt_functionals, with_bolt_loads
 from ..modal import leading_modes, probe_vector
 from ..model.pairing import (MultiPairing, body_order, pair_gaps, pair_laws, pair_mu,
                              warn_closed_gaps)
-from ..reduction.multibody import reduce_model
+from ..reduction.multibody import held_by_ties, reduce_model
 from ..reduction.pretension import lock
 from ..reduction.rigid import ANCHOR_ROUNDS, anchored, elastic_probe, held_by_joint
 from ..reduction.two_bodies import reduce_two_bodies
@@ -203,8 +203,9 @@ def _condense(model, assembled, pairing, schur_backend, clock):
         if isinstance(pairing, MultiPairing):
             reduced = reduce_model(model, assembled, pairing, backend=schur_backend,
                                    patterns=patterns)
-            free = [b.name for b, cb in zip(model.bodies, reduced.bodies)
-                    if cb.rigid is not None]
+            held = held_by_ties(reduced.bodies, pairing.tied)
+            free = [b.name for b, cb, h in zip(model.bodies, reduced.bodies, held)
+                    if not h]
             if free:
                 raise InputError(
                     f"body {free[0]!r} is held only through its interfaces (it has "

@@ -134,6 +134,12 @@ def _refuse_what_calculix_cannot_hold(model):
                 f"'add_bo_st: coefficient should be 0'): export the model without them, "
                 f"or model it in 3D")
     for itf in model.interface_list:
+        if itf.tied:
+            raise CalculixRefusal(
+                f"interface {itf.label} is tied: the export writes frictional contact "
+                f"pairs and their tied decks only; compare a model whose interfaces are "
+                f"all frictional, or write the tie as a *TIE by hand (its slave surface "
+                f"first)")
         if itf.gap is not None:
             raise CalculixRefusal(
                 f"interface {itf.label}: an initial gap field (gap=) has no CalculiX "

@@ -11,14 +11,15 @@ import numpy as np
 from ..errors import InputError
 from ..mesh.io.abaqus.lexer import _inp_cards
 from ..mesh.io.assembly import read_assembly
-from ..model.friction import MU_NO_SLIP
 from ..units import SI, UNIT_SYSTEMS, plausible, unit_system
 from .bolts import DeckBolts
 from .loads import SupportsAndLoads
 from .probe import ProbeAndLevels
 from ..fe.formulation import nearest_element
 from .general_contact import GENERAL_CONTACT_CARDS, GeneralContact
-from .records import (LAW_NOTES, Deck, DeckInterface, DeckNote, SurfaceInteraction,
+from .interactions import DeckInteractions
+from .ties import DeckTies, is_tied
+from .records import (Deck, DeckInterface, DeckNote,
                       _HARMLESS, _INTERACTION_KEYWORDS, _MATERIAL_KEYWORDS, _PROCEDURES,
                       _REFUSED, _SILENT, _USED, _Material, _Step, _loads_in, _number,
                       _row_where, _rows_of, _spelling, _where, law_table)
@@ -56,7 +57,8 @@ def read_deck(path, *, mode: int = 0, tip_node: int | None = None,
     return reader.deck(mode, tip_node, tip_direction, levels, units)
 
 
-class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, GeneralContact):
+class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, GeneralContact,
+                  DeckInteractions, DeckTies):
     """What :func:`read_deck` builds, step by step."""
 
     def __init__(self, path, cards, assembly, density=None):
@@ -149,41 +151,6 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, GeneralContact):
         else:
             self.note(_where(card), f"*{card.keyword} of material {material.name!r} is not "
                       f"used", _HARMLESS[card.keyword], False)
-
-    def _interaction_card(self, interaction, card):
-        rows = [(w, t) for w, t, _ in _rows_of(card)]
-        name = interaction["name"]
-        if card.keyword == "FRICTION":
-            if rows and rows[0][1] and rows[0][1][0]:
-                w, t = rows[0]
-                interaction["mu"] = _number(t[0], w, "the friction coefficient")
-                if interaction["mu"] > MU_NO_SLIP:
-                    self.note(_row_where(w), f"*FRICTION mu = {interaction['mu']:g} of "
-                              f"interaction {name!r} (no slip)", f"taken as mu = "
-                              f"{MU_NO_SLIP:g}: a pair then slips only as it opens, as with "
-                              f"the deck's value; larger values only cost the contact solve "
-                              f"its accuracy", False)
-                    interaction["mu"] = MU_NO_SLIP
-                if len(t) > 1 and t[1]:
-                    interaction["stick_slope"] = _number(t[1], w, "the stick slope")
-        elif card.keyword == "SURFACE BEHAVIOR":
-            law = str(card.params.get("PRESSURE-OVERCLOSURE", "HARD")).upper()
-            numbers = tuple(_number(x, w, "a surface behavior value")
-                            for w, t in rows for x in t if x)
-            interaction["pressure_overclosure"] = law
-            interaction["behavior"] = numbers
-            if law in LAW_NOTES:
-                self.note(_where(card), f"*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE={law} "
-                          f"of interaction {name!r}: {LAW_NOTES[law]}", "the interface "
-                          "law of qsma that is its layer (docs/theory.md section 12)", False)
-            elif law not in ("HARD", "LINEAR", "EXPONENTIAL", "TABULAR") or law == "TIED":
-                self.note(_where(card), f"*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE={law} "
-                          f"of interaction {name!r}", "qsma's interfaces open and slip: a "
-                          "tied contact is no joint (give HARD, LINEAR, EXPONENTIAL or "
-                          "TABULAR)", True)
-        else:
-            self.note(_where(card), f"*{card.keyword} of interaction {name!r} is not used",
-                      _HARMLESS[card.keyword], False)
 
     def _section(self, card):
         elset = card.params.get("ELSET")
@@ -537,6 +504,10 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, GeneralContact):
                 if key in seen:
                     continue
                 seen.add(key)
+                if is_tied(record):
+                    out.append(self._tied_pair(names, bodies, (s, m), (slave, master),
+                                               record, w))
+                    continue
                 mu = record.mu if record is not None and record.mu is not None else 0.0
                 table = {"body1": names[m], "set1": self._find(bodies[m]["mesh"], master,
                                                                  ("facet",)),
@@ -562,9 +533,12 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, GeneralContact):
                 self._deck_interfaces.append(DeckInterface(
                     slave, master, names[s], names[m], record, w))
         out += self._general_interfaces(bodies)
+        out += self._ties(bodies, seen)
         if not out:
             self.note(self.path.name, "no *CONTACT PAIR joins two bodies",
                       "qsma's joint is a contact interface: define a *CONTACT PAIR", True)
+        elif all(t.get("tied") for t, _ in out):
+            self._note_tied_only()
         return out
 
     def _adjust(self, card):
@@ -594,13 +568,3 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, GeneralContact):
                       f"the slave surface's body", "qsma takes these gaps as meshed; give "
                       "ADJUST= a distance, or a node set of the slave's nodes", False)
         return found
-
-    def _interaction(self, name):
-        if name is None:
-            return None
-        d = self.interactions.get(name.upper())
-        if d is None:
-            return None
-        return SurfaceInteraction(d["name"], d.get("mu"), d.get("stick_slope"),
-                                  d.get("pressure_overclosure"), d.get("behavior", ()),
-                                  d["where"])

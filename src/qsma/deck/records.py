@@ -62,8 +62,6 @@ _REFUSED = {
     "EQUATION": "qsma has no linear constraints between DOFs (ties between a bolt's own "
                 "nodes, which belong to no body, are read with the bolt)",
     "MPC": "qsma has no multi-point constraints",
-    "TIE": "qsma has no tied surfaces (a TIE is not a frictional contact); mesh the two "
-           "parts as one body, or make it a *CONTACT PAIR with a high mu",
     "RIGID BODY": "qsma has no rigid bodies",
     "COUPLING": _BOLT_ONLY,
     "DISTRIBUTING": _BOLT_ONLY,
@@ -297,5 +295,5 @@ _PROCEDURES = {"STATIC", "FREQUENCY", "DYNAMIC", "HEAT TRANSFER", "BUCKLE", "VIS
                "SENSITIVITY", "ELECTROMAGNETICS", "CFD"}
 #: keywords read by :class:`_DeckReader` itself
 _USED = {"MATERIAL", "SOLID SECTION", "BOUNDARY", "CLOAD", "DLOAD", "DSLOAD",
-         "CONTACT PAIR", "SURFACE INTERACTION", "STEP"} | _MATERIAL_KEYWORDS \
+         "CONTACT PAIR", "SURFACE INTERACTION", "STEP", "TIE"} | _MATERIAL_KEYWORDS \
     | _INTERACTION_KEYWORDS

@@ -24,6 +24,11 @@ from .friction import check_mu
 #: meshing difference: nodes farther apart are not snapped, they need the mortar coupling.
 NODE_MATCH_FRACTION = 1e-6
 
+#: A tied interface's surfaces may lie this fraction of the local element size apart
+#: (CalculiX's default position tolerance of a ``*TIE``, 2.5 % of the typical element
+#: size); farther apart they do not face each other, and the tie is refused.
+TIE_POSITION_FRACTION = 0.025
+
 #: Couplings of an :class:`Interface`.
 COUPLINGS = ("node", "mortar", "auto")
 
@@ -63,6 +68,13 @@ class Interface:
         the master surface before the analysis; a string: a node set of the slave body,
         whose contact points' gaps are zero (``ADJUST=`` a node set); ``None``: the
         gaps as meshed. The gap field ``gap`` is added after, unadjusted.
+    tied : a bonded interface (a weld, a glued or sub-meshed part, a deck's ``*TIE``): its
+        contact points neither open nor slip, their relative displacement is held at
+        zero (the slave follows the master surface). It carries no friction, law or gap
+        and leaves the contact problem (docs/theory.md, "Tied interfaces").
+    position_tol : a tied interface's largest distance (m) between a slave point and the
+        master surface; farther apart the tie is refused (the surfaces do not face each
+        other). ``None``: :data:`TIE_POSITION_FRACTION` of the local element size.
     """
 
     body1: str
@@ -76,6 +88,8 @@ class Interface:
     law: object = None
     gap: object = None
     adjust: float | str | None = None
+    tied: bool = False
+    position_tol: float | None = None
 
     @property
     def label(self) -> str:
@@ -83,6 +97,24 @@ class Interface:
         return f"{self.body1}.{self.set1} / {self.body2}.{self.set2}"
 
     def __post_init__(self):
+        if not isinstance(self.tied, (bool, np.bool_)):
+            raise InputError(f"interface {self.label}: tied must be true or false, got "
+                             f"{self.tied!r}")
+        if self.position_tol is not None and (
+                not self.tied or isinstance(self.position_tol, bool)
+                or not isinstance(self.position_tol, (int, float, np.number))
+                or not np.isfinite(self.position_tol) or self.position_tol <= 0):
+            raise InputError(f"interface {self.label}: position_tol is the largest distance "
+                             f"of a tied interface's surfaces, a finite number > 0 on a "
+                             f"tied interface (tied = true); got {self.position_tol!r}"
+                             + ("" if self.tied else " on an interface that is not tied"))
+        if self.tied:
+            given = [k for k in ("mu", "law", "gap", "adjust")
+                     if getattr(self, k) is not None]
+            if given:
+                raise InputError(f"interface {self.label}: a tied interface neither opens "
+                                 f"nor slips, so it takes no {given[0]}; remove {given[0]}, "
+                                 f"or set tied = false for a frictional interface")
         if self.mu is not None and (isinstance(self.mu, bool)
                                     or not isinstance(self.mu, (int, float, np.number))
                                     or not np.isfinite(self.mu) or self.mu < 0):

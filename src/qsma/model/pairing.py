@@ -12,7 +12,7 @@ import scipy.sparse as sp
 from ..contact.laws import InterfaceLaw
 from ..contact.pairlaws import PairLaws
 from ..errors import InputError, InterfaceGapWarning
-from .interface import Pairing, pair_interface
+from .interface import TIE_POSITION_FRACTION, Pairing, _local_size, pair_interface
 
 
 def make_pairing(model, interface=None) -> Pairing | MultiPairing:
@@ -20,7 +20,7 @@ def make_pairing(model, interface=None) -> Pairing | MultiPairing:
     the mortar coupling (:func:`qsma.model.interface.pair_interface`). A model of
     several interfaces (and no ``interface`` given): every one of them, as a
     :class:`MultiPairing`."""
-    if interface is None and model.interface is None:
+    if interface is None and (model.interface is None or model.interface.tied):
         return multi_pairing(model)
     return pair_interface(model, interface)
 
@@ -62,13 +62,31 @@ class MultiPairing:
 
     Attributes
     ----------
-    couplings : one :class:`Coupling` per interface (``model.interface_list`` order)
+    couplings : one :class:`Coupling` per interface with contact (``model.interface_list``
+        order, the tied ones left out)
     interfaces : the :class:`qsma.model.Interface` of each coupling
     rows : start of each interface's contact points (``rows[I]:rows[I+1]``)
+    tied, tied_interfaces : the :class:`Coupling` and the interface of each tied
+        interface (``Interface.tied``): its points' relative displacement is zero, so
+        they are no unknowns of the contact problem; the condensation, the tied modes
+        and the recovery see them (docs/theory.md, "Tied interfaces")
     """
 
     couplings: tuple
     interfaces: tuple
+    tied: tuple = ()
+    tied_interfaces: tuple = ()
+
+    @property
+    def every_coupling(self) -> tuple:
+        """The couplings with contact, then the tied ones (the row order of the
+        condensation's relative displacements, :func:`qsma.reduction.multibody.reduce_bodies`)."""
+        return tuple(self.couplings) + tuple(self.tied)
+
+    @property
+    def n_tied(self) -> int:
+        """Contact points of the tied interfaces."""
+        return int(sum(c.pairing.n_pairs for c in self.tied))
 
     @property
     def rows(self) -> np.ndarray:
@@ -79,6 +97,8 @@ class MultiPairing:
         return int(self.rows[-1])
 
     def _stack(self, name):
+        if not self.couplings:             # tied interfaces only: no contact points
+            return getattr(self.tied[0].pairing, name)[:0]
         return np.concatenate([getattr(c.pairing, name) for c in self.couplings])
 
     @property
@@ -112,18 +132,23 @@ class MultiPairing:
 
 
 def multi_pairing(model) -> MultiPairing:
-    """Pair every interface of ``model`` (:func:`pair_interface`)."""
-    couplings = []
+    """Pair every interface of ``model`` (:func:`pair_interface`); the tied ones apart
+    (:attr:`MultiPairing.tied`)."""
+    couplings, tied = [], []
     for itf in model.interface_list:
-        couplings.append(Coupling(pair_interface(model, itf), model.body_index(itf.body1),
-                                  model.body_index(itf.body2)))
-    return MultiPairing(tuple(couplings), tuple(model.interface_list))
+        c = Coupling(pair_interface(model, itf), model.body_index(itf.body1),
+                     model.body_index(itf.body2))
+        if itf.tied:
+            check_tie_distance(model, itf, c.pairing)
+        (tied if itf.tied else couplings).append((c, itf))
+    return MultiPairing(tuple(c for c, _ in couplings), tuple(i for _, i in couplings),
+                        tuple(c for c, _ in tied), tuple(i for _, i in tied))
 
 
 def pair_mu(model, pairing) -> np.ndarray | float:
     """Friction coefficient of each contact point: its interface's ``mu``, else the
     model's (a scalar when no interface sets its own)."""
-    itfs = model.interface_list
+    itfs = [i for i in model.interface_list if not i.tied]
     if all(i.mu is None for i in itfs):
         return model.mu
     if not isinstance(pairing, MultiPairing):
@@ -277,3 +302,29 @@ def warn_closed_gaps(model, pairing, rtol):
                       f"on a block, or of faceted curved surfaces, about h^2 / 8R). If the "
                       f"surfaces should touch, mesh them coincident or refine",
                       InterfaceGapWarning, stacklevel=4)
+
+
+def check_tie_distance(model, itf, pairing):
+    """Refuse a tied interface whose slave points lie farther from the master surface
+    than its position tolerance (:attr:`Interface.position_tol`, else
+    :data:`TIE_POSITION_FRACTION` of the local element size): the surfaces do not face
+    each other, and tying them would weld parts that are apart."""
+    if pairing.gap is None or not len(pairing.gap):
+        return                                    # node to node: coincident nodes
+    slave = model.body(itf.body1 if pairing.slave == 1 else itf.body2)
+    sset = itf.set1 if pairing.slave == 1 else itf.set2
+    h = _local_size(slave.mesh, slave.mesh.facets(sset), pairing.contact_nodes)
+    tol = TIE_POSITION_FRACTION * h if itf.position_tol is None \
+        else np.full(len(h), float(itf.position_tol))
+    far = np.abs(pairing.gap) > tol
+    if far.any():
+        k = int(np.argmax(np.abs(pairing.gap) - tol))
+        raise InputError(
+            f"tied interface {itf.label}: {int(far.sum())} of {len(far)} slave point(s) lie "
+            f"farther from the master surface than the position tolerance, up to "
+            f"{abs(pairing.gap[k]):.3e} (tolerance {tol[k]:.3e}) at node "
+            f"{pairing.contact_nodes[k]} of body {slave.name!r} at "
+            f"{np.round(slave.mesh.points[pairing.contact_nodes[k]], 12).tolist()}: the "
+            f"surfaces do not face each other. Fix: name the facet sets that touch, mesh "
+            f"the two parts so that they meet, or give a larger position_tol (a deck's "
+            f"*TIE, POSITION TOLERANCE=) if the parts are meant to be tied across the gap")

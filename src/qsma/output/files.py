@@ -15,8 +15,10 @@ import numpy as np
 
 from ..errors import AnalysisError
 from ..fe import stress_at_nodes
-from ..model.pairing import body_order, contact_sides
-from ..analysis.result import LEVEL_COLUMNS, LEVEL_FIELDS, level_units, units_block
+from ..contact import STUCK
+from ..model.pairing import MultiPairing, body_order, contact_sides
+from ..analysis.result import (LEVEL_COLUMNS, LEVEL_FIELDS, load_factors, level_units,
+                               units_block)
 from ..units import column_label
 from .folders import (TMP_PREFIX, RunFolder, atomic_path, atomic_write,  # noqa: F401
                      prepare_output_dir, write_error)
@@ -414,6 +416,16 @@ def _interface_point_data(res, k, offsets, n):
         out["contact_pressure"][idx] = lam[rows, -1] / area[rows]
         out["contact_shear"][idx] = np.linalg.norm(lam[rows, :-1], axis=1) / area[rows]
         out["contact_state"][idx] = res.states.status[k][rows]
+    tied = getattr(p, "tied", ())
+    if tied:                       # a tied point carries its force and is stuck
+        lam_t = res.reduced.tied_forces(res.states.d[k], load_factors(res.reduced,
+                                                                      res.alpha[k]))
+        area_t = np.concatenate([c.pairing.area for c in tied])
+        for i, nodes, rows in contact_sides(res.model, MultiPairing(tied, ())):
+            idx = offsets[i] + nodes
+            out["contact_pressure"][idx] = lam_t[rows, -1] / area_t[rows]
+            out["contact_shear"][idx] = np.linalg.norm(lam_t[rows, :-1], axis=1) / area_t[rows]
+            out["contact_state"][idx] = int(STUCK)
     return out
 
 

@@ -478,6 +478,7 @@ class PlotData:
     omega0: float
     alpha: np.ndarray
     q: np.ndarray
+    q_neg: np.ndarray          # the -alpha backbone: an elastic level's cycle runs on it
     tip: np.ndarray
     tip_velocity: np.ndarray
     f_hz: np.ndarray
@@ -521,7 +522,8 @@ def plot_data(res, amplitude=None) -> PlotData:
     p = res.pairing
     return PlotData(
         mode_index=res.mode_index, f0_hz=res.f0_hz, omega0=res.omega0, alpha=res.alpha,
-        q=res.q, tip=res.tip, tip_velocity=res.tip_velocity, f_hz=res.f_hz,
+        q=res.q, q_neg=res.q_neg, tip=res.tip, tip_velocity=res.tip_velocity,
+        f_hz=res.f_hz,
         zeta=res.zeta, f_hz_masing=res.f_hz_masing, zeta_masing=res.zeta_masing,
         zeta_loop=res.zeta_loop, dissipation_method=res.dissipation_method,
         flags=tuple(res.flags),

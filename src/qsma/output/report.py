@@ -282,7 +282,7 @@ def draw_mesh_2d(res):
     width = g["width"] - left - right
     points = np.vstack([b.mesh.points[:, :2] for b in model.bodies])
     lo, hi = points.min(axis=0), points.max(axis=0)
-    xy = p.x[:, :2]
+    xy = (p.x if len(p.x) else np.vstack([c.pairing.x for c in p.tied]))[:, :2]
     pad = 0.15 * max(float(np.ptp(xy, axis=0).max()), 1e-12)
     plo, phi = xy.min(axis=0) - pad, xy.max(axis=0) + pad
     windows = ((lo[0], hi[0], lo[1], hi[1]), (plo[0], phi[0], plo[1], phi[1]))
@@ -378,6 +378,8 @@ def run_report_html(res, figures=None, amplitude=None) -> str:
         "degrees of freedom": info["n_dofs"], "interface pairs": info["n_pairs"],
         "coupling": info["coupling"], "friction coefficient": info["mu"],
         "pairs closed after the preload": info["n_closed_after_preload"],
+        **({"tied interface points": info["n_tied_pairs"]}
+           if info.get("n_tied_pairs") else {}),
         **{f"elements of {b}": e for b, e in info["elements"].items()}}))
     parts.append("<h2>Mode</h2>" + _pairs({
         "mode index": res.mode_index, "f0 [Hz]": f"{res.f0_hz:.4f}",

@@ -93,6 +93,9 @@ class MultiReducedModel:
     #: contact components clamped on every side (``d = 0``, the clamps carry the force;
     #: ``K`` holds a spring of its own there, :func:`_decoupled`)
     fixed: np.ndarray = None
+    #: the columns of the elimination ``T_d`` of the tied interfaces' points (their
+    #: ``d = 0``; :meth:`tied_forces`), or None
+    T_t: np.ndarray | None = None
 
     @property
     def n_pairs(self):
@@ -103,11 +106,25 @@ class MultiReducedModel:
 
     def interface_displacements(self, d, a):
         """``u = T_r S^-1 T_r^T (Fc a - Kc T_d d) + T_d d``, split per body."""
+        u = self._stacked(d, a)
+        return tuple(u[self.offsets[j]:self.offsets[j + 1]] for j in range(len(self.bodies)))
+
+    def _stacked(self, d, a):
         d = np.asarray(d, dtype=float).ravel()
         a = np.asarray(a, dtype=float)
         ur = cho_solved(self.S_cho, self.T_r.T @ (self.Fc @ a - self.Kc @ (self.T_d @ d)))
-        u = self.T_r @ ur + self.T_d @ d
-        return tuple(u[self.offsets[j]:self.offsets[j + 1]] for j in range(len(self.bodies)))
+        return self.T_r @ ur + self.T_d @ d
+
+    def tied_forces(self, d, a) -> np.ndarray:
+        """The forces of the tied interfaces' points (local frames, ``(n_tied, dim)``):
+        ``lam_T = T_t^T (Kc u - Fc a)``, ``u`` the interface displacements of ``d`` (their
+        relative displacement zero), i.e. ``K_TF d + W_T a`` of the problem over every
+        point (docs/theory.md, "Tied interfaces"). Empty without tied interfaces."""
+        if self.T_t is None:
+            return np.zeros((0, self.dim))
+        u = self._stacked(d, a)
+        lam = self.T_t.T @ (self.Kc @ u - self.Fc @ np.asarray(a, dtype=float))
+        return lam.reshape(-1, self.dim)
 
     def recover(self, d, a):
         """Full displacement vectors of every body from ``d`` and the load factors."""
@@ -211,10 +228,17 @@ def _terms(c, nodes):
 
 
 def reduce_bodies(assembled, couplings, patterns=("preload",), backend="auto",
-                  names=None) -> MultiReducedModel:
+                  names=None, tied=()) -> MultiReducedModel:
     """Condense every body onto its interface nodes and combine all interfaces into one
     relative-displacement problem by eliminating the pivot DOFs (module docstring;
-    clamped interface DOFs: :func:`pivot_dofs`)."""
+    clamped interface DOFs: :func:`pivot_dofs`).
+
+    ``tied``: the couplings of tied interfaces. Their points' relative displacements
+    are rows of ``G`` like the others', held at zero: ``d = (d_F, 0)``, so the problem
+    of the other points is ``K_FF``, ``W_F`` and ``T_d``'s columns of the tied rows
+    leave the recovery (kept as ``T_t`` for :meth:`MultiReducedModel.tied_forces`)."""
+    couplings = list(couplings) + list(tied)
+    n_free = sum(c.pairing.n_pairs for c in couplings[:len(couplings) - len(tied)])
     dim = assembled[0].body.dim
     names = names or [a.body.name for a in assembled]
     nodes = interface_nodes(len(assembled), couplings, names)
@@ -255,19 +279,41 @@ def reduce_bodies(assembled, couplings, patterns=("preload",), backend="auto",
     except np.linalg.LinAlgError as exc:
         raise InputError("the welded assembly is not held against rigid-body motion; add "
                          "clamps") from exc
+    nf = dim * n_free                 # the tied points' columns leave (their d_T = 0)
+    T_t = T_d[:, nf:] if tied else None
+    T_d, G, fixed = T_d[:, :nf], G[:nf], fixed[fixed < nf]
     KT_d = Kc @ T_d
     # lam = Q^T (Kc u - Fc)_s = T_d^T (Kc u - Fc): T_d is zero outside the pivot rows
     K = T_d.T @ (KT_d - KT_r @ cho_solved(S_cho, KT_r.T @ T_d))
     K = 0.5 * (K + K.T)
     W = T_d.T @ (KT_r @ cho_solved(S_cho, T_r.T @ Fc) - Fc)
     K = decoupled(K, fixed)
-    K, g = _ghost(K, [None if b.rigid is None else G[:, offsets[j]:offsets[j + 1]] @ b.rigid
+    held = held_by_ties(bodies, tied)
+    K, g = _ghost(K, [None if b.rigid is None or held[j]
+                      else G[:, offsets[j]:offsets[j + 1]] @ b.rigid
                       for j, b in enumerate(bodies)])
-    starts = np.concatenate([[0], np.cumsum([c.pairing.n_pairs for c in couplings])])
+    starts = np.concatenate([[0], np.cumsum([c.pairing.n_pairs
+                                             for c in couplings[:len(couplings) - len(tied)]])])
     return MultiReducedModel(K, W, tuple(patterns), bodies, loads, Fc, G, offsets, starts,
                              T_r, T_d, S_cho, Kc, dim, {}, {},
                              prescribed_patterns(assembled, patterns), ghost=g,
-                             fixed=fixed)
+                             fixed=fixed, T_t=T_t)
+
+
+def held_by_ties(bodies, tied) -> np.ndarray:
+    """Per condensed body, whether it is held against rigid motion on its own (no
+    ``rigid`` motions) or through tied interfaces by a body that is: a tie over a
+    surface moves the tied bodies as one."""
+    held = np.array([b.rigid is None for b in bodies])
+    links = [(c.body1, c.body2) for c in tied]
+    grew = True
+    while grew:
+        grew = False
+        for i, j in links:
+            if held[i] != held[j]:
+                held[i] = held[j] = True
+                grew = True
+    return held
 
 
 def _symmetry_rows_zeroed(G, couplings, assembled):
@@ -332,7 +378,8 @@ def reduce_model(model, assembled, pairing, backend="auto",
     :class:`~qsma.model.pairing.MultiPairing` (``patterns``:
     the load patterns to condense, e.g. the bolts' unit tensions besides 'preload')."""
     return reduce_bodies(assembled, list(pairing.couplings), patterns=patterns,
-                         backend=backend, names=[b.name for b in model.bodies])
+                         backend=backend, names=[b.name for b in model.bodies],
+                         tied=list(getattr(pairing, "tied", ())))
 
 
 def tie_transform(model, assembled, pairing, tied) -> sp.csr_matrix:
@@ -357,10 +404,12 @@ def tie_transform(model, assembled, pairing, tied) -> sp.csr_matrix:
     fixed = np.zeros(n, dtype=bool)
     for k, a in enumerate(assembled):
         fixed[off[k] + a.fixed] = True
-    tied = np.asarray(tied, dtype=bool)
+    couplings = getattr(pairing, "every_coupling", pairing.couplings)
+    tied = np.concatenate([np.asarray(tied, dtype=bool),        # tied interfaces: always
+                           np.ones(getattr(pairing, "n_tied", 0), dtype=bool)])
     rows, cols, vals, slaves = [], [], [], []
     held = ([], [], [])                       # mortar: rows sum_k N_ik u_m,k = 0
-    for c, sl in zip(pairing.couplings, _row_slices(pairing)):
+    for c, sl in zip(couplings, _row_slices(couplings)):
         p, t = c.pairing, tied[sl]
         sym = symmetry_components(p, assembled[c.slave], assembled[c.master])[t]
         N_t, corner_t = (m.tocsr() for m in _tie_rows(c, t))
@@ -394,7 +443,7 @@ def tie_transform(model, assembled, pairing, tied) -> sp.csr_matrix:
     B = sp.coo_matrix((np.concatenate([np.ones(len(free))] + vals),
                        (np.concatenate([free] + rows), np.concatenate([free] + cols))),
                       shape=(n, n)).tocsr()
-    B = _substitute(B, is_slave, len(pairing.couplings) + 1)
+    B = _substitute(B, is_slave, len(couplings) + 1)
     keep = np.flatnonzero(~fixed & ~is_slave)
     T = B[:, keep].tocsr()
     if not held[0]:
@@ -427,8 +476,8 @@ def _tie_rows(c, t):
     return (sp.diags(diagonal) @ N).tocoo(), corner.tocoo()
 
 
-def _row_slices(pairing):
-    r = pairing.rows
+def _row_slices(couplings):
+    r = np.concatenate([[0], np.cumsum([c.pairing.n_pairs for c in couplings])])
     return [slice(r[k], r[k + 1]) for k in range(len(r) - 1)]
 
 

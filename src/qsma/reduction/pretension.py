@@ -87,6 +87,11 @@ class LockedModel:
     def recover(self, d, a):
         return self.base.recover(d, self.base_factors(d, a))
 
+    def tied_forces(self, d, a):
+        """The tied interfaces' forces (:meth:`MultiReducedModel.tied_forces`) with the
+        locked bolts' forces among the load factors."""
+        return self.base.tied_forces(d, self.base_factors(d, a))
+
     def evaluate(self, name, d, a) -> float:
         c_d, c_a = self.functionals[name]
         return float(c_d @ np.asarray(d).ravel() + c_a @ np.asarray(a, dtype=float))
@@ -118,8 +123,8 @@ def lock(base, bolts, d_pre) -> LockedModel:
     E_a[:, keep.index(pre)] = 0.0            # preload factor is 1 before and after
     W_N = base.W[:, idx]
     update = W_N @ H @ E_d
-    scale = max(np.abs(base.K).max(), np.abs(update).max())
-    asym = np.abs(update - update.T).max()
+    scale = max(np.abs(base.K).max(initial=0.0), np.abs(update).max(initial=0.0))
+    asym = np.abs(update - update.T).max(initial=0.0)      # no contact point: nothing
     if asym > RECIPROCITY_RTOL * scale:
         raise AnalysisError(f"the locked bolts' stiffness is not symmetric (max asymmetry "
                             f"{asym:.3e} against {scale:.3e}): reciprocity failed, the bolt "
