@@ -58,6 +58,7 @@ class SectionTerms:
     owners : the cells that own its faces (side B next to the cut)
     opening : (n_dofs,) the cut body's opening motion (``n`` on side B, 0 elsewhere)
     area : the section's area (length in 2D)
+    face_owners : the cell that owns each face of the set, in the set's order
     """
 
     v: np.ndarray
@@ -67,6 +68,7 @@ class SectionTerms:
     owners: np.ndarray
     opening: np.ndarray
     area: float
+    face_owners: np.ndarray = None
 
     @property
     def c(self) -> np.ndarray:
@@ -98,8 +100,9 @@ def _terms(body, bolt) -> SectionTerms:
         raise InputError(f"{where}: a section through a mesh of several cell types is not "
                          f"supported; mesh the bolt with one cell type")
     rows = np.asarray(mesh.facet_sets[bolt.section])
-    owners = _owner_cells(mesh, rows, where)
-    area_normals = _area_normals(mesh, rows, owners)
+    face_owners = _owner_cells(mesh, rows, where)
+    owners = np.unique(face_owners)
+    area_normals = _area_normals(mesh, rows, face_owners)
     area = float(np.linalg.norm(area_normals, axis=1).sum())
     mean = area_normals.sum(axis=0)
     if np.linalg.norm(mean) <= 1e-6 * area:
@@ -129,7 +132,7 @@ def _terms(body, bolt) -> SectionTerms:
         raise InputError(f"{where}: the cells that own the faces do not resist the "
                          f"opening (gamma = {gamma:g})")
     opening = _opening(mesh, nodes, owners, n, where)
-    return SectionTerms(v, gamma, n, nodes, owners, opening, area)
+    return SectionTerms(v, gamma, n, nodes, owners, opening, area, face_owners)
 
 
 def cells_stiffness(body, cells) -> sp.csc_matrix:
@@ -178,13 +181,12 @@ def _owner_cells(mesh, rows, where) -> np.ndarray:
             raise InputError(f"{where}: face {(r + 1).tolist()} (node numbers from 1) "
                              f"does not have the orientation of either of its cells")
         owners.append(cells[same[0]])
-    owners = np.unique(owners)
-    return owners
+    return np.array(owners, dtype=np.int64)
 
 
-def _area_normals(mesh, rows, owners) -> np.ndarray:
+def _area_normals(mesh, rows, face_owners) -> np.ndarray:
     """Each face's normal scaled by its area (length in 2D), pointing out of its owner
-    cell (the cell on the face's side whose centroid is behind it)."""
+    cell (away from the cell's centroid)."""
     ct = CELL_TYPES[mesh.cell_type]
     nc = TYPES[ct.facet_type].corners
     x = mesh.points[rows[:, :nc]]
@@ -193,14 +195,8 @@ def _area_normals(mesh, rows, owners) -> np.ndarray:
         a = np.stack([t[:, 1], -t[:, 0]], axis=1)
     else:
         a = 0.5 * np.cross(x, np.roll(x, -1, axis=1)).sum(axis=1)
-    centre = x.mean(axis=1)
-    own = mesh.points[mesh.cells[owners][:, :ct.corners]].mean(axis=1)
-    # each face's owner: the owner cell holding all its corners
-    sign = np.empty(len(rows))
-    corners = [set(c) for c in mesh.cells[owners][:, :ct.corners]]
-    for i, r in enumerate(rows[:, :nc]):
-        k = next(j for j, c in enumerate(corners) if set(r) <= c)
-        sign[i] = 1.0 if a[i] @ (centre[i] - own[k]) > 0 else -1.0
+    own = mesh.points[mesh.cells[face_owners][:, :ct.corners]].mean(axis=1)
+    sign = np.sign(np.einsum("ij,ij->i", a, x.mean(axis=1) - own))
     return a * sign[:, None]
 
 
