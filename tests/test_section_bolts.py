@@ -228,6 +228,9 @@ def test_the_deck_of_a_meshed_bolt_reads_back(tmp_path):
     p = prepare(read, RunOptions())
     _, _, pre = p.preloaded(RunOptions(), StageClock())
     assert pre.P.sum() == pytest.approx(2 * MESHED_BOLT["pretension"], rel=1e-10)
+    table["stiffness"] = 1e9                          # a meshed bolt's is the mesh's
+    with pytest.raises(InputError, match="its stiffness is the mesh's"):
+        parse_config(deck.config, base=tmp_path)
 
 
 @pytest.fixture(scope="module")
