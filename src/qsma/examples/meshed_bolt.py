@@ -57,21 +57,21 @@ def meshed_bolt_joint(refine: int = 1, mu: float | None = None,
     base = _body_mesh(grid, (c[:, 2] < 4) | shank | head)
     plate = _body_mesh(grid, (c[:, 2] > 4) & (c[:, 2] < 8) & ~shank)
     eps = 1e-9
-    at_z = lambda m, z0: (lambda p: np.abs(p[:, 2] - z0) < eps)
+    at_z = lambda z0: (lambda p: np.abs(p[:, 2] - z0) < eps)
     under_head = lambda p: (np.abs(p[:, 0] - 10) < 6 + eps) & (np.abs(p[:, 1] - 10) < 6 + eps)
     pc = base.points[base.cells].mean(axis=1)
     above = np.flatnonzero((np.abs(pc[:, 0] - 10) < 2) & (np.abs(pc[:, 1] - 10) < 2)
                            & (pc[:, 2] > s["z_cut"]) & (pc[:, 2] < 8))
     base = base.with_sets(
         facet_sets={"contact": np.concatenate([
-            base.boundary_facets_where(at_z(base, 4.0)),
-            base.boundary_facets_where(lambda p: at_z(base, 8.0)(p) & under_head(p))]),
-            "bottom": base.boundary_facets_where(at_z(base, 0.0)),
-            "cut": cell_faces(base, above, at_z(base, s["z_cut"]))})
+            base.boundary_facets_where(at_z(4.0)),
+            base.boundary_facets_where(lambda p: at_z(8.0)(p) & under_head(p))]),
+            "bottom": base.boundary_facets_where(at_z(0.0)),
+            "cut": cell_faces(base, above, at_z(s["z_cut"]))})
     corner = np.flatnonzero((plate.points[:, 0] > 20 - eps) & (plate.points[:, 1] > 20 - eps))
     plate = plate.with_sets(node_sets={"corner": corner}, facet_sets={"contact": np.concatenate([
-        plate.boundary_facets_where(at_z(plate, 4.0)),
-        plate.boundary_facets_where(lambda p: at_z(plate, 8.0)(p) & under_head(p))])})
+        plate.boundary_facets_where(at_z(4.0)),
+        plate.boundary_facets_where(lambda p: at_z(8.0)(p) & under_head(p))])})
     steel = Material(s["E"], s["nu"], s["rho"])
     bodies = (Body("base", base, steel, clamps=(Clamp("bottom"),)),
               Body("plate", plate, steel))
