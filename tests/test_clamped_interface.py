@@ -310,6 +310,39 @@ def test_normal_clamped_on_both_sides_is_refused():
         reduce_two_bodies(A[0], A[1], make_pairing(model))
 
 
+def test_point_clamped_in_every_direction_on_both_sides_is_inert(monkeypatch):
+    """The point of the test above clamped in both directions on both sides: it can
+    neither open nor slip whatever its pressure, so it is kept with d = lam = 0, and
+    the rest of the contact state does not depend on the stiffness the reduction gives
+    it (scaled by 1e3: the same state to round-off)."""
+    import qsma.reduction.multibody as multibody
+    model = _blocks_2d(True, 24)
+    bodies = []
+    for b in model.bodies:
+        edge = np.flatnonzero((np.abs(b.mesh.points[:, 0] - W) < EPS)
+                              & (np.abs(b.mesh.points[:, 1]) < EPS))
+        m = b.mesh.with_sets(node_sets=dict(b.mesh.node_sets, edge=edge))
+        bodies.append(Body(b.name, m, b.material, b.clamps + (Clamp("edge"),),
+                           b.pressures))
+    model = Model(tuple(bodies), model.interface, mu=MU)
+    curvature = lambda x: x[:, 0] ** 2
+    _, _, res, _, _ = _preload(model, curvature)
+    np.testing.assert_array_equal(res.d.reshape(-1, 2)[24], 0.0)
+    np.testing.assert_array_equal(res.lam.reshape(-1, 2)[24], 0.0)
+    assert res.lam.reshape(-1, 2)[:, 1].max() > 0
+    plain = multibody.decoupled
+
+    def stiffer(K, fixed):
+        K = plain(K, fixed)
+        K[fixed, fixed] *= 1e3
+        return K
+    monkeypatch.setattr(multibody, "decoupled", stiffer)
+    _, _, scaled, _, _ = _preload(model, curvature)
+    np.testing.assert_allclose(scaled.d, res.d, rtol=0, atol=1e-12 * np.abs(res.d).max())
+    np.testing.assert_allclose(scaled.lam, res.lam, rtol=0,
+                               atol=1e-9 * np.abs(res.lam).max())
+
+
 def test_clamp_oblique_to_the_contact_frame_on_both_sides_is_refused():
     """The half model of :func:`_blocks_2d` turned by 30 degrees: the symmetry clamp
     u_x = 0 (global x) now holds a combination of the normal and tangential relative

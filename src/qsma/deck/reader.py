@@ -16,6 +16,7 @@ from ..units import SI, UNIT_SYSTEMS, plausible, unit_system
 from .bolts import DeckBolts
 from .loads import SupportsAndLoads
 from .probe import ProbeAndLevels
+from .general_contact import GENERAL_CONTACT_CARDS, GeneralContact
 from .records import (LAW_NOTES, Deck, DeckInterface, DeckNote, SurfaceInteraction,
                       _HARMLESS, _INTERACTION_KEYWORDS, _MATERIAL_KEYWORDS, _PROCEDURES,
                       _REFUSED, _SILENT, _USED, _Material, _Step, _loads_in, _number,
@@ -54,7 +55,7 @@ def read_deck(path, *, mode: int = 0, tip_node: int | None = None,
     return reader.deck(mode, tip_node, tip_direction, levels, units)
 
 
-class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts):
+class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, GeneralContact):
     """What :func:`read_deck` builds, step by step."""
 
     def __init__(self, path, cards, assembly, density=None):
@@ -285,7 +286,8 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts):
         cards = list(self.model_cards) + (list(preload.cards) if preload else [])
         for card in cards:
             kw = card.keyword
-            if kw in _SILENT or kw in _USED or id(card) in self._bolt_cards:
+            if kw in _SILENT or kw in _USED or id(card) in self._bolt_cards \
+                    or kw in GENERAL_CONTACT_CARDS:       # read (or refused) with the pairs
                 continue
             if kw == "INITIAL CONDITIONS" and \
                     str(card.params.get("TYPE", "")).upper() == "TEMPERATURE":
@@ -481,9 +483,7 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts):
                 continue
             inter = card.params.get("INTERACTION")
             record = self._interaction(inter if isinstance(inter, str) else None)
-            if "ADJUST" in card.params:
-                self.note(_where(card), f"ADJUST={card.params['ADJUST']} of the contact "
-                          f"pair", "qsma takes the gaps from the geometry as meshed", False)
+            adjust = self._adjust(card)
             for where, tokens, text in _rows_of(card):
                 w = _row_where(where)
                 if len(tokens) < 2:
@@ -521,6 +521,10 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts):
                 law = law_table(record, w)
                 if law is not None:
                     table["law"] = law
+                if adjust is not None:
+                    table["adjust"] = self._adjust_set(adjust, bodies[s]["mesh"], card)
+                    if table["adjust"] is None:
+                        del table["adjust"]
                 comment = f"*CONTACT PAIR, {w}: master {master}, slave {slave}"
                 if record is None or record.mu is None:
                     comment += "; no *FRICTION: frictionless as in CalculiX (set mu)"
@@ -532,10 +536,39 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts):
                 out.append((table, comment))
                 self._deck_interfaces.append(DeckInterface(
                     slave, master, names[s], names[m], record, w))
+        out += self._general_interfaces(bodies)
         if not out:
             self.note(self.path.name, "no *CONTACT PAIR joins two bodies",
                       "qsma's joint is a contact interface: define a *CONTACT PAIR", True)
         return out
+
+    def _adjust(self, card):
+        """A contact pair's ``ADJUST=`` (the interface's ``adjust``): a distance, the
+        name of a node set (:meth:`_adjust_set`), or None."""
+        value = card.params.get("ADJUST")
+        if value is None or value is True:
+            return None
+        try:
+            adjust = float(value)
+        except (TypeError, ValueError):
+            return str(value)
+        if not np.isfinite(adjust) or adjust < 0:
+            self.note(_where(card), f"ADJUST={value} of the contact pair",
+                      "give ADJUST= a distance >= 0", True)
+            return None
+        return adjust
+
+    def _adjust_set(self, adjust, mesh, card):
+        """The adjust of a pair: a distance as it is, a node set spelled as in the slave
+        body's ``mesh``; None with a note where the slave has no such set."""
+        if not isinstance(adjust, str):
+            return adjust
+        found = self._find(mesh, adjust, ("node", "facet"))
+        if found is None:
+            self.note(_where(card), f"ADJUST={adjust} of the contact pair: no node set of "
+                      f"the slave surface's body", "qsma takes these gaps as meshed; give "
+                      "ADJUST= a distance, or a node set of the slave's nodes", False)
+        return found
 
     def _interaction(self, name):
         if name is None:
