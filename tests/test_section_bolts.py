@@ -12,7 +12,7 @@ import scipy.linalg as sla
 import scipy.sparse.linalg as spla
 
 import qsma
-from helpers import load_benchmark, needs_ccx
+from helpers import load_benchmark, needs_ccx, tetrahedra_of
 
 from qsma.analysis import Levels, RunOptions
 from qsma.analysis.clock import StageClock
@@ -103,8 +103,10 @@ def test_bar_clamped_at_both_ends_closed_form(dim, side):
 
 
 def test_section_refusals():
-    """A face on the boundary, a section that does not cut the bar in two, a normal
-    pointing into the owners and an unknown set are refused by name."""
+    """A face on the boundary, a section that does not cut the bar in two (over half
+    the cross-section; or through tetrahedra, some of which meet the cut at an edge on
+    the owners' side and keep its nodes, as CalculiX leaves them), a normal pointing
+    into the owners and an unknown set are refused by name."""
     body = _bar()
     with pytest.raises(InputError, match="no facet set"):
         section_terms(body, SectionBolt("b", "bar", "nope", N0))
@@ -113,6 +115,13 @@ def test_section_refusals():
     half = _bar(section=lambda p: np.isclose(p[:, 0], L / 2) & (p[:, 1] < 0.5 * A_SIDE + 1e-9))
     with pytest.raises(InputError, match="does not cut the body in two"):
         section_terms(half, SectionBolt("b", "bar", "cut", N0))
+    tets = tetrahedra_of(_bar().mesh)
+    c = tets.points[tets.cells].mean(axis=1)
+    faces = cell_faces(tets, np.flatnonzero(c[:, 0] > L / 2),
+                       lambda p: np.isclose(p[:, 0], L / 2))
+    leaky = Body("bar", tets.with_sets(facet_sets={"cut": faces}), Material(E, 0.0, 7800.0))
+    with pytest.raises(InputError, match="touch it without a face on it"):
+        section_terms(leaky, SectionBolt("b", "bar", "cut", N0))
     end = _bar(section=lambda p: np.isclose(p[:, 0], L))
     with pytest.raises(InputError, match="on the boundary"):
         section_terms(end, SectionBolt("b", "bar", "cut", N0))

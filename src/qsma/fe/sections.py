@@ -219,15 +219,34 @@ def _opening(mesh, nodes, owners, n, where) -> np.ndarray:
     _, label = connected_components(inc.T @ inc, directed=False)
     side_b = np.unique(label[n_nodes:])
     if np.isin(label[nodes], side_b).any():
-        raise InputError(f"{where} does not cut the body in two: the cells on both sides "
-                         f"of it are joined around its edge. Extend the section over the "
-                         f"whole cross-section of the shank")
+        raise InputError(f"{where} does not cut the body in two: "
+                         + _joined_by(mesh, nodes, owners, n))
     moved = np.flatnonzero(np.isin(label[:n_nodes], side_b))
     dim = mesh.dim
     out = np.zeros(dim * n_nodes)
     for c in range(dim):
         out[dim * moved + c] = n[c]
     return out
+
+
+def _joined_by(mesh, nodes, owners, n) -> str:
+    """Why the two sides stay joined: cells on the owners' side that touch the section
+    without a face on it (they keep its nodes, as CalculiX leaves them: tetrahedra
+    meeting the cut at an edge or a corner), else a section short of the edge."""
+    ct = CELL_TYPES[mesh.cell_type]
+    touching = np.flatnonzero(np.isin(mesh.cells, nodes).any(axis=1))
+    others = np.setdiff1d(touching, owners)
+    centre = mesh.points[mesh.cells[others][:, :ct.corners]].mean(axis=1)
+    behind = others[(centre - mesh.points[nodes].mean(axis=0)) @ n < 0]
+    if len(behind):
+        return (f"{len(behind)} cell(s) on the side of the cells that own its faces "
+                f"touch it without a face on it (cell {int(behind[0]) + 1}, counted from "
+                f"1), so they keep the section's nodes and join the two sides, as "
+                f"CalculiX would leave them (tetrahedra meeting the cut at an edge or a "
+                f"corner). Mesh the shank so that the cells on that side meet the section "
+                f"with whole faces (hexahedra or a swept layer of wedges there)")
+    return ("the cells on both sides of it are joined around its edge. Extend the "
+            "section over the whole cross-section of the shank")
 
 
 def cut_stiffness(K, terms: SectionTerms) -> sp.csr_matrix:
