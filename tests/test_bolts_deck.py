@@ -20,9 +20,9 @@ from qsma.analysis.config import parse_config
 from qsma.contact.laws import ElasticStick, InterfaceLaw, LinearPressure
 from qsma.deck import CalculixRefusal, calculix_deck, export_calculix, read_deck
 from qsma.deck.calculix_output import eigenfrequencies, run_calculix
-from qsma.examples import LAP_3D, brb, lap_2d_bolted, lap_3d, lap_3d_bolted
+from qsma.examples import brb, lap_2d_bolted, lap_3d, lap_3d_bolted
 from qsma.analysis.levels import Levels
-from qsma.mesh.facets import facet_normals
+from qsma.mesh import read_mesh
 
 from helpers import load_benchmark, needs_ccx
 
@@ -327,29 +327,23 @@ def test_a_member_alone_is_a_bolt_of_its_own_stiffness(tmp_path, member):
     assert any("CalculiX deletes a beam" in n.fix for n in deck.notes)
 
 
-def test_a_meshed_bolt_is_refused_with_its_stiffness(tmp_path):
-    """A pretension section cutting a meshed solid: refused with the line, the pattern
-    to write instead, and E A / L of the cut (here the bolt patch of the bottom plate,
-    10 mm x 8 mm at this mesh, through its thickness t = 5 mm: 200e9 * 8e-5 / 5e-3 =
-    3.2e9 N/m)."""
+def test_a_pretension_surface_on_the_boundary_is_refused(tmp_path):
+    """A pretension section whose faces lie on the boundary (here the bottom plate's
+    bolt patch) cuts nothing: refused with the line and the fix."""
     path = tmp_path / "lap.inp"
     export_calculix(lap_3d(1), path)
     text = path.read_text()
     name = "BOTTOM_BOLT"            # the bottom plate's bolt pressure patch
     assert f"*SURFACE, NAME={name}, TYPE=ELEMENT" in text
-    text = text.replace("*STEP", f"*PRE-TENSION SECTION, SURFACE={name}, NODE=99999\n"
-                        "*STEP", 1)
+    text = text.replace("*STEP", f"*NODE\n99999, 0., 0., 0.\n*PRE-TENSION SECTION, "
+                        f"SURFACE={name}, NODE=99999\n*STEP", 1)
+    text = text.replace("*STATIC\n", "*STATIC\n*CLOAD\n99999, 1, 1000.\n", 1)
     path.write_text(text)
     deck = read_deck(path)
     (note,) = [n for n in deck.refusals if "PRE-TENSION" in n.what]
     assert re.match(r"lap\.inp, line \d+", note.where)
-    assert "two *DISTRIBUTING COUPLINGs on the washer faces" in note.fix
-    bottom = lap_3d(1).bodies[0].mesh
-    A = np.linalg.norm(facet_normals(bottom, bottom.facet_sets["bolt"]), axis=1).sum()
-    assert A == pytest.approx(0.010 * 0.008)          # the grid lines next to 10 x 10 mm
-    k = LAP_3D["E"] * A / LAP_3D["t"]
-    assert f"cut area A = {A:.6g}" in note.fix and f"E A / L = {k:.6g}" in note.fix
-
+    assert "on the boundary" in note.what
+    assert "across the whole shank" in note.fix
 
 BAR = """*NODE
 1, 0., 0., 0.
@@ -385,19 +379,51 @@ BAR = """*NODE
 """
 
 
-def test_a_cut_through_a_meshed_bolt_is_measured(tmp_path):
+def test_a_cut_through_a_meshed_bolt_is_a_section_bolt(tmp_path):
     """The pretension surface of a meshed bolt lies inside it (here the face between
-    the two elements of a 1 x 1 x 2 bar): the mesh reader leaves it out of the facet
-    sets instead of refusing the file, the deck reader measures it (A = 1, L = 2,
-    E = 210000: E A / L = 105000) and names the pretension's load with it."""
+    the two elements of a 1 x 1 x 2 bar, owned by the lower one, its normal given):
+    the mesh reader keeps its faces in the owner's orientation, and the deck reader
+    makes the [[bolts]] table of a meshed bolt (body, section, pretension, normal),
+    naming the pretension's load with it."""
     path = tmp_path / "bar.inp"
     path.write_text(BAR)
     deck = read_deck(path)
-    (note,) = [n for n in deck.refusals if "PRE-TENSION" in n.what]
-    assert note.where == "bar.inp, line 25"
-    assert "cut area A = 1, length along the section normal L = 2, E = 210000: " \
-           "stiffness = E A / L = 105000" in note.fix
-    assert not any("'99'" in n.what for n in deck.notes)
+    assert not [n for n in deck.refusals if "PRE-TENSION" in n.what or "99" in n.what]
+    (bolt,) = deck.config["bolts"]
+    assert bolt == {"name": "CUT", "body": "part1", "section": "CUT",
+                    "pretension": 1000.0, "normal": [0.0, 0.0, 1.0]}
+    mesh = read_mesh(path)
+    (face,) = mesh.facet_sets["CUT"]
+    assert sorted(face) == [4, 5, 6, 7]                 # nodes 5..8, from 0
+    # in the orientation of element 1 (outward +z): counter-clockwise seen from above
+    x = mesh.points[face]
+    assert np.cross(x[1] - x[0], x[2] - x[1])[2] > 0
+
+
+@pytest.mark.parametrize("change, what", [
+    (("*CLOAD\n99, 1, 1000.", "*BOUNDARY\n99, 1, 1"), "*BOUNDARY on the pretension node"),
+    (("99, 1, 1000.", "99, 1, 1000.\n99, 2, 10."), "a load on DOF 2 of the pretension"),
+    (("*CLOAD\n99, 1, 1000.", "*CLOAD\n99, 1, -1000."), "is not a tension"),
+    (("1, S2\n", "1, S1\n"), "on the boundary"),
+])
+def test_a_meshed_bolt_deck_refusals(tmp_path, change, what):
+    """Displacement control in the preload, a load on another DOF of the node, a
+    compressive pretension and a surface that cuts nothing are refused with their
+    line."""
+    path = tmp_path / "bar.inp"
+    path.write_text(BAR.replace(*change))
+    deck = read_deck(path)
+    assert any(what in n.what for n in deck.refusals)
+
+
+def test_a_meshed_bolt_locked_in_a_later_step_is_read(tmp_path):
+    """The lock, a *BOUNDARY on the pretension node in a later step, changes nothing:
+    the bolt is read as without it."""
+    path = tmp_path / "bar.inp"
+    path.write_text(BAR + "*STEP\n*STATIC\n*BOUNDARY, FIXED\n99, 1, 1\n*END STEP\n")
+    deck = read_deck(path)
+    assert deck.config["bolts"][0]["pretension"] == 1000.0
+    assert not [n for n in deck.refusals if "99" in n.what or "PRE-TENSION" in n.what]
 
 
 # --- with CalculiX --------------------------------------------------------------------

@@ -16,7 +16,7 @@ except ModuleNotFoundError:  # Python 3.10
 from ..contact.laws import law_from_table
 from ..errors import InputError, MeshFileError
 from ..model import (Body, Bolt, Clamp, Interface, LinearDamping, Material, Model, NodalForce,
-                     PointMass, Pressure, Probe, Spring, read_gap_field)
+                     PointMass, Pressure, Probe, SectionBolt, Spring, read_gap_field)
 from ..model.touching import with_touching_sets
 from ..fe.formulation import with_element
 from ..units import unit_system
@@ -42,6 +42,8 @@ SCHEMA = {
     "bolts": {"name": (str, True), "body_a": (str, True), "set_a": (str, True),
               "body_b": (str, True), "set_b": (str, True), "pretension": (_NUM, True),
               "stiffness": (_NUM, True)},
+    "section_bolts": {"name": (str, True), "body": (str, True), "section": (str, True),
+                      "pretension": (_NUM, True), "normal": (list, False)},
     "pressures": {"set": (str, True), "p": (_NUM, True), "load": (str, False),
                   "face": (int, False)},
     "forces": {"set": (str, True), "force": (list, True), "load": (str, False)},
@@ -67,6 +69,7 @@ SCHEMA = {
 _TABLE_NAMES = {"": "the top level", "bodies": "[[bodies]]", "clamps": "a body's clamps",
                 "springs": "a body's springs", "pressures": "a body's pressures",
                 "masses": "a body's masses", "bolts": "[[bolts]]",
+                "section_bolts": "[[bolts]] with a section (a meshed bolt)",
                 "forces": "a body's forces",
                 "interface": "[interface]", "interfaces": "[[interfaces]]", "tip": "[tip]",
                 "levels": "[levels]", "analysis": "[analysis]"}
@@ -114,6 +117,21 @@ def _check(table, section, where):
             tname = "number" if types is _NUM else getattr(types, "__name__", str(types))
             raise InputError(f"{where}: key {key!r} must be a {tname}, got {v!r}")
     return table
+
+
+def _bolt(table, where):
+    """A ``[[bolts]]`` table: a meshed bolt cut by a pretension section where it names
+    a ``section`` (:class:`qsma.model.SectionBolt`), else a bolt between two washers."""
+    if not (isinstance(table, dict) and "section" in table):
+        return Bolt(**_check(table, "bolts", where))
+    if "stiffness" in table:
+        raise InputError(f"{where}: a bolt with a section is meshed, its stiffness is the "
+                         f"mesh's: remove stiffness (or give the washers body_a, set_a, "
+                         f"body_b, set_b instead of body and section)")
+    t = dict(_check(table, "section_bolts", where))
+    if "normal" in t:
+        t["normal"] = tuple(t["normal"])
+    return SectionBolt(**t)
 
 
 def load_config(path) -> RunConfig:
@@ -363,7 +381,7 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
         raise InputError(f"{where}: give the contact interface as one [interface] table "
                          f"(two bodies) or as a list of [[interfaces]] tables (any number "
                          f"of bodies), exactly one of the two")
-    bolts = tuple(Bolt(**_check(t, "bolts", f"{where}: bolts[{k}]"))
+    bolts = tuple(_bolt(t, f"{where}: bolts[{k}]")
                   for k, t in enumerate(data.get("bolts", [])))
     if "interface" in data:
         itf = _check(data["interface"], "interface", f"{where}: interface")

@@ -14,7 +14,7 @@ from ..contact.layer import Anderson, Layer, interface_springs
 from ..contact.pairlaws import LOW_PRESSURE, LOW_SECANT
 from ..errors import AnalysisError, ContactConvergenceWarning, InputError
 from ..fe import assemble_body
-from ..fe.bolts import bolt_functionals, with_bolt_loads
+from ..fe.bolts import bolt_functionals, locked_bolts, with_bolt_loads
 from ..modal import leading_modes, probe_vector
 from ..model.pairing import (MultiPairing, body_order, pair_gaps, pair_laws, pair_mu,
                              warn_closed_gaps)
@@ -78,7 +78,7 @@ def preload(model, assembled, pairing, *, method="auto", opts=None, schur_backen
     if bolts or layer.nonlinear or (laws is not None and laws.plastic().any()):
         with clock.stage("condensation"):
             if bolts:                                      # bolts locked from here on
-                reduced = lock(reduced, model.bolts, pre.d)
+                reduced = lock(reduced, locked_bolts(model), pre.d)
                 problem = _contact_problem(model, pairing, reduced.K)   # same mu, gaps
             # the layer of the ramps: linearised at the preload's pressures, a plastic
             # one frozen on its elastic unloading from there
@@ -206,6 +206,14 @@ def _condense(model, assembled, pairing, schur_backend, clock):
             held = held_by_ties(reduced.bodies, pairing.tied)
             free = [b.name for b, cb, h in zip(model.bodies, reduced.bodies, held)
                     if not h]
+            cut = {b.body for b in bolts if hasattr(b, "section")}
+            if free and free[0] in cut and model.body(free[0]).clamps:
+                raise InputError(
+                    f"body {free[0]!r} is cut by a pretension section, whose opening is "
+                    f"held in the preload only through the interfaces: with several "
+                    f"interfaces this is not supported yet (two bodies with one "
+                    f"interface are). Fix: model the joint as two bodies with one "
+                    f"interface (the bolt meshed with the body its thread holds)")
             if free:
                 raise InputError(
                     f"body {free[0]!r} is held only through its interfaces (it has "

@@ -18,6 +18,11 @@ section and keeps a constraint (rigid once the pretension node is held), so the
 spring is the bolt's stiffness (the export writes it so). A pretensioned member
 alone gives its own ``E A / L`` (Abaqus keeps the member; CalculiX would hold such a
 bolt rigid once locked, which a note says).
+
+A meshed bolt (its shank meshed as part of a body) cut by ``*PRE-TENSION SECTION,
+SURFACE=`` with the same ``*CLOAD`` is a :class:`qsma.model.SectionBolt`: its table
+names the body and the section's facet set (the mesh reader keeps the surface's
+internal faces in their elements' orientation), its stiffness is the mesh's.
 """
 from __future__ import annotations
 
@@ -26,8 +31,10 @@ import math
 
 import numpy as np
 
+from ..errors import InputError
 from ..fe.bolts import washer_weights
-from ..mesh.celltypes import CELL_TYPES, abaqus_faces
+from ..fe.sections import section_terms
+from ..model import Body, Material, SectionBolt
 from .connector_bolts import ConnectorBolts
 from .records import _number, _row_where, _rows_of, _where
 
@@ -92,10 +99,8 @@ class DeckBolts(ConnectorBolts):
             if card.keyword != "PRE-TENSION SECTION":
                 continue
             self._bolt_cards.add(id(card))         # named by the notes of this reader
-            if "SURFACE" in card.params:
-                self._meshed_bolt(card, bodies)
-                continue
-            found = self._bolt(card, bodies, preload, len(out))
+            found = (self._meshed_bolt(card, bodies, preload) if "SURFACE" in card.params
+                     else self._bolt(card, bodies, preload, len(out)))
             if found is not None:
                 out.append(found)
         return out + self._connector_bolts(bodies, preload, len(out))
@@ -420,74 +425,86 @@ class DeckBolts(ConnectorBolts):
         return None, None
 
     # --- a meshed bolt ------------------------------------------------------------------
-    def _meshed_bolt(self, card, bodies):
-        """A pretension section cutting a meshed bolt: refused with the pattern to write
-        instead and, where the surface can be measured, ``E A / L`` of the cut."""
+    def _meshed_bolt(self, card, bodies, preload):
+        """The ``[[bolts]]`` table of a pretension section cutting a meshed bolt
+        (``SURFACE=``: a :class:`qsma.model.SectionBolt`), or None with a note."""
+        where = _where(card)
         surface = str(card.params["SURFACE"])
         node = self._one_node(card.params.get("NODE"))
-        if node is not None:               # its load is named by this note
-            self._bolt_refs |= {n.upper() for n in self._node_names(node)}
-        measured = self._cut(surface)
-        hint = ""
-        if measured is not None:
-            area, length, E = measured
-            hint = (f"; for this bolt: cut area A = {area:.6g}, length along the section "
-                    f"normal L = {length:.6g}, E = {E:.6g}: stiffness = E A / L = "
-                    f"{E * area / length:.6g}")
-        self.note(_where(card), f"*PRE-TENSION SECTION, SURFACE={surface} cuts a meshed "
-                  f"bolt", "qsma's bolts are axial members between two washer faces: "
-                  "remove the meshed bolt and write two *DISTRIBUTING COUPLINGs on the "
-                  "washer faces, a B31 between their reference nodes with *PRE-TENSION "
-                  "SECTION, ELEMENT= and a SPRINGA of the bolt's stiffness in series, the "
-                  "pretension as *CLOAD on DOF 1 of the section's node (or a [[bolts]] "
-                  "table: qsma init)" + hint, True)
+        if node is None:
+            self.note(where, f"*PRE-TENSION SECTION, SURFACE={surface}: its NODE= is no "
+                      f"single node", "name the pretension node (a node id or a node set "
+                      "of one node)", True)
+            return None
+        self._bolt_refs |= {n.upper() for n in self._node_names(node)}
+        owners = [(k, f) for k, b in enumerate(bodies)
+                  for f in [self._find(b["mesh"], surface, ("facet",))] if f is not None]
+        if len(owners) != 1:
+            self.note(where, f"*PRE-TENSION SECTION, SURFACE={surface}: its faces lie on "
+                      f"{len(owners)} bodies", "a pretension section cuts the shank of "
+                      "one meshed body: give the faces of that body's elements on one "
+                      "side of the cut", True)
+            return None
+        other = self._other_dofs(node, preload)
+        if other:
+            self.note(other, f"a load on DOF {other[1]} of the pretension node {node}",
+                      "the pretension is the *CLOAD on DOF 1 of the section's node; "
+                      "remove the others", True)
+            return None
+        N0 = self._pretension(node, preload, where)
+        if N0 is None:
+            return None
+        k, section = owners[0]
+        body = bodies[k]["table"]
+        table = {"name": surface, "body": body["name"], "section": section,
+                 "pretension": N0}
+        normal = self._section_normal(card)
+        if normal is not None:
+            table["normal"] = normal[:bodies[k]["mesh"].dim]
+        problem = _section_problem(bodies[k]["mesh"], body, table)
+        if problem is not None:
+            self.note(where, f"*PRE-TENSION SECTION, SURFACE={surface}: {problem}",
+                      "give the faces of the shank's elements on one side of the cut, "
+                      "across the whole shank (element, S1..S6)", True)
+            return None
+        return table, (f"*PRE-TENSION SECTION, {where}: a meshed bolt of body "
+                       f"{body['name']!r} cut by surface {surface}; pretension the *CLOAD "
+                       f"on node {node}, locked in the later steps")
 
-    def _cut(self, surface):
-        """``(area, length, E)`` of a pretension surface: the area of its faces, the
-        extent of the body holding them along their mean normal, that body's modulus;
-        None where the faces cannot be found."""
-        fm = self.asm.file_mesh
-        card = next((c for c in self.cards if c.keyword == "SURFACE" and
-                     str(c.params.get("NAME", "")).upper() == surface.upper()), None)
-        if card is None or fm.element_ids is None:
-            return None
-        where = {}
-        for b, ids in enumerate(fm.element_ids):
-            for r, e in enumerate(np.asarray(ids).tolist()):
-                where[int(e)] = (b, r)
-        normal, area, elems = np.zeros(3), 0.0, []
-        for _, t, _ in _rows_of(card):
-            if len(t) < 2 or not t[0].strip().isdigit() or int(t[0]) not in where:
+    def _other_dofs(self, node, preload):
+        """``(where, dof)`` of a ``*CLOAD`` row of the preload step on another DOF than 1
+        of ``node``, or None."""
+        names = {n.upper() for n in self._node_names(node)}
+        for c in (preload.cards if preload is not None else []):
+            if c.keyword != "CLOAD":
                 continue
-            b, r = where[int(t[0])]
-            ctype, _, conn, _ = fm.blocks[b]
-            number = _int(t[1].strip().upper().lstrip("S"))
-            faces = abaqus_faces(ctype) if ctype in CELL_TYPES else ()
-            if number is None or not 1 <= number <= len(faces):
-                continue                   # not a face of a cell: not measured
-            face = faces[number - 1]
-            x = fm.points[conn[r][list(face)]]
-            corners = x[:4] if len(face) >= 8 else x[:3] if len(face) == 6 else x
-            n = 0.5 * np.cross(corners[2] - corners[0], corners[-1] - corners[1]) \
-                if len(corners) == 4 else 0.5 * np.cross(corners[1] - corners[0],
-                                                         corners[2] - corners[0])
-            normal, area = normal + n, area + float(np.linalg.norm(n))
-            elems.append((b, r))
-        if not elems or not np.linalg.norm(normal):
-            return None
-        normal /= np.linalg.norm(normal)
-        offsets = np.concatenate([[0], np.cumsum([len(c) for _, _, c, _ in fm.blocks])])
-        first = offsets[elems[0][0]] + elems[0][1]
-        body = next((k for k, cells in enumerate(self.asm.components()) if first in cells),
-                    None)
-        if body is None or body >= len(self._body_list):
-            return None
-        nodes = np.unique(np.concatenate([fm.blocks[b][2][i - offsets[b]]
-                                          for b in range(len(fm.blocks))
-                                          for i in self.asm.components()[body]
-                                          if offsets[b] <= i < offsets[b + 1]]))
-        s = fm.points[nodes] @ normal
-        return area, float(s.max() - s.min()), float(self._body_list[body]["table"]["E"])
+            for w, t, _ in _rows_of(c):
+                if len(t) > 1 and t[0].strip().upper() in names and t[1].strip() != "1":
+                    return _row_where(w), t[1].strip()
+        return None
+
+    def _section_normal(self, card):
+        """The section's normal from the card's data line, or None."""
+        for w, t, _ in _rows_of(card):
+            values = [x for x in t if x.strip()]
+            if values:
+                return [_number(x, w, "a normal component") for x in values[:3]]
+        return None
+
+
+def _section_problem(mesh, body, table):
+    """Why the section of ``table`` cannot cut ``mesh`` (:mod:`qsma.fe.sections`), or
+    None (also where the body's material is not known here: the run checks it)."""
+    try:
+        b = Body(body["name"], mesh, Material(body["E"], body["nu"], body["rho"]))
+    except (KeyError, InputError):
+        return None
+    try:
+        section_terms(b, SectionBolt(table["name"], b.name, table["section"],
+                                     table["pretension"], table.get("normal")))
+    except InputError as exc:
+        return str(exc).split(": ", 1)[-1]
+    return None
 
 
 def _int(token):

@@ -23,6 +23,11 @@ axis only and ``M`` is held in every direction). In the preload the spring carri
 bolt force is ``N0 + k (ell - ell_pre)``, qsma's locked bolt. CalculiX's
 ``*COUPLING`` with ``*DISTRIBUTING`` is not used: in CalculiX it spreads loads of the
 reference node only and ties no motion to it.
+
+A meshed bolt cut by a pretension section (:class:`qsma.model.SectionBolt`) is
+CalculiX's own ``*PRE-TENSION SECTION, SURFACE=``: the section's faces as an element
+surface of the cells that own them, the section's normal as its data line, one
+pretension node loaded, then held, like the beam's (:class:`SectionLayout`).
 """
 from __future__ import annotations
 
@@ -31,6 +36,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..fe.bolts import bolt_vectors, washer_weights
+from ..fe.sections import section_terms
+from ..mesh.celltypes import abaqus_faces
 from ..mesh.io.abaqus.writer import inp_number
 from .calculix_cards import CalculixRefusal
 
@@ -80,7 +87,7 @@ def bolt_layouts(model, first_node: int, first_element: int) -> list:
             f"CalculiX, or export the 2D model with each bolt's pretension as washer "
             f"pressures (p = N0 / washer width on set_a and set_b)")
     out = []
-    for j, bolt in enumerate(model.bolts):
+    for j, bolt in enumerate(b for b in model.bolts if not hasattr(b, "section")):
         bolt_vectors(model, bolt)                  # the geometry checks of a run
         ends = []
         for body_name, set_name in ((bolt.body_a, bolt.set_a), (bolt.body_b, bolt.set_b)):
@@ -93,6 +100,62 @@ def bolt_layouts(model, first_node: int, first_element: int) -> list:
         out.append(BoltLayout(bolt, tuple(ends), axis / length, length,
                               tuple(range(n0, n0 + NODES_PER_BOLT)),
                               tuple(range(e0, e0 + ELEMENTS_PER_BOLT))))
+    return out
+
+
+@dataclass(frozen=True)
+class SectionLayout:
+    """A meshed bolt as the deck writes it: its pretension node ``nodes[3]`` (the
+    other entries unused, as :class:`BoltLayout`'s for :func:`preload_cards`), placed
+    at the section's centroid, and the section's faces ``(element, face number)``."""
+
+    bolt: object
+    body: int
+    nodes: tuple
+    centroid: np.ndarray
+    normal: np.ndarray
+    faces: list
+
+
+def section_layouts(model, first_node: int, first_element) -> list:
+    """The :class:`SectionLayout` of every meshed bolt of ``model``: pretension nodes
+    numbered from ``first_node``; ``first_element``: per body its first element."""
+    out = []
+    for j, bolt in enumerate(b for b in model.bolts if hasattr(b, "section")):
+        k = model.body_index(bolt.body)
+        body = model.bodies[k]
+        t = section_terms(body, bolt)
+        out.append(SectionLayout(bolt, k, (None, None, None, first_node + j),
+                                 body.mesh.points[t.nodes].mean(axis=0), t.normal,
+                                 section_faces(body, bolt, first_element[k])))
+    return out
+
+
+def section_faces(body, bolt, first_element) -> list:
+    """``(element number, face number)`` of each face of the section, of the cell that
+    owns it (Abaqus face numbering, :func:`qsma.mesh.celltypes.abaqus_faces`)."""
+    t = section_terms(body, bolt)
+    faces = [sorted(f) for f in abaqus_faces(body.mesh.cell_type)]
+    out = []
+    for row, cell in zip(body.mesh.facet_sets[bolt.section], t.face_owners):
+        conn = body.mesh.cells[cell]
+        local = sorted(int(np.flatnonzero(conn == node)[0]) for node in row)
+        out.append((first_element + int(cell), 1 + faces.index(local)))
+    return sorted(out)
+
+
+def section_cards(layouts, surface_names) -> list:
+    """The surfaces and pretension sections of the meshed bolts (model data);
+    ``surface_names``: the deck name of each one's surface."""
+    out = []
+    for lay, name in zip(layouts, surface_names):
+        out += [f"** meshed bolt {lay.bolt.name!r}: pretension {lay.bolt.pretension:g} "
+                f"across the section {lay.bolt.section!r} of body {lay.bolt.body!r} "
+                f"(faces of the cells on one side; its normal out of them)",
+                f"*SURFACE, NAME={name}, TYPE=ELEMENT",
+                *[f"{e}, S{f}" for e, f in lay.faces],
+                f"*PRE-TENSION SECTION, SURFACE={name}, NODE={lay.nodes[3]}",
+                ", ".join(_num(c) for c in lay.normal)]
     return out
 
 

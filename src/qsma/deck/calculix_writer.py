@@ -11,8 +11,9 @@ from ..errors import InputError
 from ..mesh.io.abaqus.writer import inp_number
 from ..model.pairing import make_pairing
 from ..model.spring import set_shares
-from .calculix_bolts import (ELEMENTS_PER_BOLT, bolt_layouts, locked_cards, model_cards,
-                             node_rows, preload_cards, tied_cards)
+from .calculix_bolts import (ELEMENTS_PER_BOLT, NODES_PER_BOLT, bolt_layouts, locked_cards,
+                             model_cards, node_rows, preload_cards, section_cards,
+                             section_layouts, tied_cards)
 from .calculix_cards import (FIELD_CONTROLS, PENALTY_FACTOR, CalculixRefusal,
                              _surface_behavior, calculix_element, calculix_numbering,
                              surface_rows)
@@ -34,6 +35,9 @@ class _Writer:
         self.first_node, self.first_element = calculix_numbering(model)
         self.bolts = bolt_layouts(model, self.first_node[-1], self.first_element[-1])
         self.next_element = self.first_element[-1] + ELEMENTS_PER_BOLT * len(self.bolts)
+        self.sections = section_layouts(
+            model, self.first_node[-1] + NODES_PER_BOLT * len(self.bolts), self.first_element)
+        self.pretensioned = self.bolts + self.sections    # each with its pretension node
         self.sets = {}                 # (body index, set, kind) -> deck name
         self.taken = set()
         self.penalty = penalty
@@ -86,7 +90,7 @@ class _Writer:
         for k, b in enumerate(m.bodies):
             body_cards += self.material(k, b) + self.springs_and_masses(k, b)
         body_cards += self.bolt_cards()
-        clamps = self.clamps() + tied_cards(self.bolts)
+        clamps = self.clamps() + tied_cards(self.pretensioned)
         lines += self.set_cards() + body_cards + clamps + self.ties(mode)
         lines += ["** the tied modes (linear, about the unstressed state)", "*STEP",
                   "*FREQUENCY", f"{self.n_modes(opts)}", "*END STEP"]
@@ -156,6 +160,8 @@ class _Writer:
                 nodes = np.unique(b.mesh.nodes(name)) + self.first_node[k]
                 out += [f"** node set {name!r} of body {b.name!r}",
                         f"*NSET, NSET={deck_name}", *_id_rows(nodes)]
+            elif kind == "cut":           # written with its pretension section
+                continue
             else:
                 out += [f"** facet set {name!r} of body {b.name!r} (element faces)",
                         f"*SURFACE, NAME={deck_name}, TYPE=ELEMENT"]
@@ -170,21 +176,26 @@ class _Writer:
             out.append(f"** body {b.name!r}: nodes {n0}..{n0 + b.mesh.n_nodes - 1}")
             out += [", ".join([str(n0 + i)] + [inp_number(v) for v in p])
                     for i, p in enumerate(b.mesh.points.tolist())]
-        return out + node_rows(self.bolts)
+        return out + node_rows(self.bolts) + [
+            row for lay in self.sections for row in (
+                f"** meshed bolt {lay.bolt.name!r}: pretension node {lay.nodes[3]}",
+                ", ".join([str(lay.nodes[3])] + [inp_number(float(v)) for v in lay.centroid]))]
 
     def bolt_cards(self) -> list:
         """The bolts' couplings, members and ties (:mod:`qsma.deck.calculix_bolts`)."""
+        names = [self.set_name(lay.body, lay.bolt.section, "cut") for lay in self.sections]
+        out = section_cards(self.sections, names)
         if not self.bolts:
-            return []
+            return out
         m = self.model
         for lay in self.bolts:        # the washers as surfaces, for a reader of the deck
             for (k, *_), name in zip(lay.ends, (lay.bolt.set_a, lay.bolt.set_b)):
                 self.set_name(k, name, "facet")
         clamped = [set((b.clamped_dofs() // b.dim).tolist()) for b in m.bodies]
-        k = m.body_index(m.bolts[0].body_a)
+        k = m.body_index(self.bolts[0].bolt.body_a)
         taken = {self.body_set(j).upper() for j in range(len(m.bodies))}
-        return model_cards(self.bolts, self.first_node, clamped, f"M_{self.body_set(k)}",
-                           m.bodies[k].material.E, taken)
+        return out + model_cards(self.bolts, self.first_node, clamped,
+                                 f"M_{self.body_set(k)}", m.bodies[k].material.E, taken)
 
     def elements(self) -> list:
         out = []
@@ -322,7 +333,7 @@ class _Writer:
                         f"{f.set!r}", "*CLOAD"]
                 out += [f"{name}, {c + 1}, {inp_number(v)}" for c, v in enumerate(f.force)
                         if v != 0.0]
-        out += preload_cards(self.bolts)
+        out += preload_cards(self.pretensioned)
         out += ["*NODE PRINT, NSET=NALL", "U", "*CONTACT PRINT", "CSTR", "*END STEP"]
         return out
 
@@ -334,7 +345,7 @@ class _Writer:
                 f"** qsma loads its elastic mode {opts.mode} (RunOptions.mode; rigid-body "
                 f"modes come first in both codes)",
                 "*STEP, PERTURBATION", "*FREQUENCY", f"{self.n_modes(opts)}",
-                *locked_cards(self.bolts), "*END STEP"]
+                *locked_cards(self.pretensioned), "*END STEP"]
 
     def cyclic_steps(self, mode, alphas, steps, cycles) -> list:
         """Per amplitude ``1 + 2 cycles`` static steps of the modal load (module
@@ -356,7 +367,7 @@ class _Writer:
                 out += [f"** modal force {prev:.10g} -> {target:.10g} ({what})",
                         f"*STEP, INC={100 * steps}", "*STATIC",
                         f"{inc}, 1., 1e-8, {inc}", "*CONTROLS, PARAMETERS=FIELD",
-                        FIELD_CONTROLS, *(locked_cards(self.bolts) if prev == 0.0 else []),
+                        FIELD_CONTROLS, *(locked_cards(self.pretensioned) if prev == 0.0 else []),
                         "*CLOAD"]
                 for n0, mphi in zip(self.first_node, mode["mphi"]):
                     for i, row in enumerate(mphi):

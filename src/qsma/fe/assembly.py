@@ -90,6 +90,9 @@ class AssembledBody:
     free: np.ndarray
     element: Formulation | MixedFormulation | None = None
     prescribed: dict = None
+    #: motions that ``K`` does not resist beside the rigid ones: the openings of the
+    #: pretension sections that cut the body (columns; :mod:`qsma.fe.sections`), or None
+    openings: np.ndarray = None
 
     @property
     def n_dofs(self):

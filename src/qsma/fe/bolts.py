@@ -1,19 +1,46 @@
 """Bolts as finite element quantities (docs/theory.md section 11): the unit-tension load
 on the washer areas of both bodies (consistent nodal forces of a uniform traction), the
 pretension load, the locked bolt's stiffness ``k c c^T`` and its elongation
-``ell = sum_j c_j . u_j`` as a functional of a reduced model."""
+``ell = sum_j c_j . u_j`` as a functional of a reduced model. A meshed bolt cut by a
+pretension section (:class:`qsma.model.SectionBolt`) is the same bolt with ``c`` and
+``k`` from its mesh, on its body cut by the section (:mod:`qsma.fe.sections`)."""
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
 
 from ..errors import InputError
 from .assembly import pressure_load
+from .sections import section_terms, with_cut_bodies
 
 __all__ = ["washer_weights", "bolt_vectors", "bolt_loads", "bolt_stiffness",
-           "with_bolt_loads", "bolt_functionals"]
+           "with_bolt_loads", "bolt_functionals", "LockedBolt", "locked_bolts"]
+
+
+@dataclass(frozen=True)
+class LockedBolt:
+    """What locking needs of a bolt (:func:`qsma.reduction.pretension.lock`): its
+    pattern, pretension ``N0`` and locked stiffness ``k``."""
+
+    name: str
+    pattern: str
+    pretension: float
+    stiffness: float
+
+
+def locked_bolts(model) -> tuple:
+    """A :class:`LockedBolt` per bolt of ``model``: a meshed bolt's stiffness is its
+    section's ``gamma`` (:mod:`qsma.fe.sections`)."""
+    return tuple(LockedBolt(b.name, b.pattern, b.pretension, _stiffness(model, b))
+                 for b in model.bolts)
+
+
+def _stiffness(model, bolt) -> float:
+    if hasattr(bolt, "section"):
+        return section_terms(model.body(bolt.body), bolt).gamma
+    return bolt.stiffness
 
 
 def washer_weights(body, set_name):
@@ -35,6 +62,10 @@ def washer_weights(body, set_name):
 def bolt_vectors(model, bolt):
     """Per body of ``model``, the full vector ``c_j`` with ``ell = sum_j c_j . u_j``
     (zero for a body the bolt does not touch), after checking the geometry."""
+    if hasattr(bolt, "section"):                   # a meshed bolt: c = v / gamma
+        out = [np.zeros(b.n_dofs) for b in model.bodies]
+        out[model.body_index(bolt.body)] = section_terms(model.body(bolt.body), bolt).c
+        return out
     ends = []
     for body_name, set_name in ((bolt.body_a, bolt.set_a), (bolt.body_b, bolt.set_b)):
         body = model.body(body_name)
@@ -82,16 +113,17 @@ def bolt_stiffness(model) -> sp.csr_matrix:
     K = sp.csr_matrix((n, n))
     for bolt in model.bolts:
         c = sp.csr_matrix(np.concatenate(bolt_vectors(model, bolt))[None, :])
-        K = K + bolt.stiffness * (c.T @ c)
+        K = K + _stiffness(model, bolt) * (c.T @ c)
     return K.tocsr()
 
 
 def with_bolt_loads(model, assembled):
     """The assembled bodies with the pretensions added to 'preload' and one
-    unit-tension pattern per bolt."""
+    unit-tension pattern per bolt; a body cut by pretension sections with its cut
+    stiffness (:func:`qsma.fe.sections.with_cut_bodies`)."""
     units, pre = bolt_loads(model)
     out = []
-    for k, a in enumerate(assembled):
+    for k, a in enumerate(with_cut_bodies(model, assembled)):
         loads = dict(a.loads)
         loads["preload"] = loads.get("preload", np.zeros(a.n_dofs)) + pre[k]
         for name, per_body in units.items():

@@ -321,6 +321,14 @@ def abaqus_faces(name: str) -> tuple:
                  for face in TYPES[t.linear].abaqus_faces)
 
 
+def outward_abaqus_faces(name: str) -> tuple:
+    """The faces ``S<k>`` of :func:`abaqus_faces`, each as the entry of
+    :attr:`CellType.facets` with its nodes: corners counter-clockwise seen from outside
+    the cell (the orientation of an internal face seen from the cell that owns it)."""
+    facets = TYPES[name].facets
+    return tuple(next(f for f in facets if set(f) == set(face)) for face in abaqus_faces(name))
+
+
 def abaqus_element_types() -> dict:
     """Abaqus/CalculiX element name (without variant letters) -> meshio type."""
     return {name: t.name for t in _RECORDS for name in t.abaqus}

@@ -88,3 +88,15 @@ def box_facets(mesh: Mesh, predicate) -> np.ndarray:
 
 def box_nodes(mesh: Mesh, predicate) -> np.ndarray:
     return np.flatnonzero(predicate(mesh.points))
+
+
+def cell_faces(mesh: Mesh, cells, predicate) -> np.ndarray:
+    """The faces of the given cells whose nodes all satisfy ``predicate(points)``, each
+    in the orientation of its cell (corners counter-clockwise seen from outside it):
+    internal faces too, e.g. a pretension section (:class:`qsma.model.SectionBolt`)
+    owned by the cells on one side of it."""
+    ct = CELL_TYPES[mesh.cell_type]
+    on = np.asarray(predicate(mesh.points), dtype=bool)
+    rows = [mesh.cells[np.asarray(cells)][:, list(f)] for f in ct.facets]
+    rows = np.concatenate(rows)
+    return rows[on[rows].all(axis=1)]

@@ -8,7 +8,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.sparse as sp
 
-from ..fe.bolts import bolt_vectors
+from ..fe.bolts import bolt_vectors, locked_bolts
 from ..model.pairing import MultiPairing, body_order
 from ..reduction.rigid import assembly_motions, rigid_body_modes
 from ..reduction.two_bodies import tied_solver
@@ -108,7 +108,7 @@ def substructured_inverse(model, assembled, pairing, tied, reduced, T, M, spring
         B = np.column_stack([T.T @ np.concatenate(bolt_vectors(model, b))
                              for b in model.bolts])
         Y = inv.unbolted(B)
-        k = np.array([b.stiffness for b in model.bolts])
+        k = np.array([b.stiffness for b in locked_bolts(model)])
         inv = replace(inv, B=B, Y=Y, capacitance=np.diag(1 / k) + B.T @ Y)
     return inv
 

@@ -10,13 +10,13 @@ __all__ = ["Mesh", "boundary_facets", "CELL_TYPES", "Material", "Clamp", "Pressu
            "Body", "Probe", "Model", "Interface", "Pairing", "make_pairing", "pair_nodes",
            "local_frames"]
 
-from .bolt import Bolt  # noqa: E402
+from .bolt import Bolt, SectionBolt  # noqa: E402
 from .spring import Spring  # noqa: E402
 from .damping import LinearDamping  # noqa: E402
 from .gapfield import GapField, read_gap_field  # noqa: E402
 from .mass import PointMass  # noqa: E402
 
-__all__ += ["Bolt", "Spring", "PointMass", "LinearDamping", "GapField", "read_gap_field",
+__all__ += ["Bolt", "SectionBolt", "Spring", "PointMass", "LinearDamping", "GapField", "read_gap_field",
             "read_mesh", "write_mesh", "FacetIndex", "facet_index", "validate_mesh"]
 
 

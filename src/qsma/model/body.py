@@ -323,7 +323,7 @@ class Model:
         object.__setattr__(self, "bolts", tuple(self.bolts))
         seen = set()
         for b in self.bolts:
-            for end in (b.body_a, b.body_b):
+            for end in b.bodies:
                 if end not in names:
                     raise InputError(f"bolt {b.name!r} names body {end!r}, which is not "
                                      f"in the model (bodies: {names})")

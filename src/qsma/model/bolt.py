@@ -75,6 +75,71 @@ class Bolt:
         """Name of its unit-tension load pattern."""
         return f"bolt:{self.name}"
 
+    @property
+    def bodies(self) -> tuple:
+        """The bodies it joins."""
+        return (self.body_a, self.body_b)
+
+
+@dataclass(frozen=True)
+class SectionBolt:
+    """A meshed bolt (a solid body, or part of one) cut by a pretension section: the
+    facet set ``section`` of body ``body``, faces through the shank, each in the
+    orientation of the cell that owns it (corners counter-clockwise seen from outside
+    that cell, as a deck's element faces give them); these cells take the cut's
+    copies of the section's nodes (docs/theory.md section 11).
+
+    Force controlled in the preload (tension ``pretension`` across the section), the
+    section's opening held from then on. Its stiffness is the mesh's: no ``E A / L``.
+
+    Parameters
+    ----------
+    name : str
+    body : str
+        The body the section cuts in two.
+    section : str
+        Facet set of the cut (internal faces of ``body``).
+    pretension : float
+        Tension N0 across the section after tightening, N (N per metre in 2D), > 0.
+    normal : tuple of float, optional
+        Direction of the section's normal, pointing out of the cells that own its
+        faces; default: their mean outward normal (the direction CalculiX takes).
+    """
+
+    name: str
+    body: str
+    section: str
+    pretension: float
+    normal: tuple | None = None
+
+    def __post_init__(self):
+        v = self.pretension
+        if (not isinstance(v, (int, float, np.integer, np.floating)) or isinstance(v, bool)
+                or not math.isfinite(v)):
+            raise InputError(f"bolt {self.name!r}: pretension must be a finite number, "
+                             f"got {v!r}")
+        object.__setattr__(self, "pretension", float(v))
+        if self.pretension <= 0:
+            raise InputError(f"bolt {self.name!r}: pretension must be > 0 (the tension "
+                             f"across the section, N), got {self.pretension:g}; give the "
+                             f"magnitude")
+        if self.normal is not None:
+            n = np.asarray(self.normal, dtype=float).ravel()
+            if n.size not in (2, 3) or not np.all(np.isfinite(n)) or not np.any(n):
+                raise InputError(f"bolt {self.name!r}: normal must be 2 or 3 finite numbers, "
+                                 f"not all zero, got {self.normal!r}")
+            object.__setattr__(self, "normal", tuple(float(x) for x in n))
+
+    @property
+    def pattern(self) -> str:
+        """Name of its unit-tension load pattern."""
+        return f"bolt:{self.name}"
+
+    @property
+    def bodies(self) -> tuple:
+        """The body it cuts."""
+        return (self.body,)
+
 
 # The bolt's loads, stiffness and elongation (finite element quantities) moved to
 # :mod:`qsma.fe.bolts`; the old path keeps working for one release, with a

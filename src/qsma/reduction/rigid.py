@@ -68,14 +68,18 @@ _NAMES = {2: ("translation x", "translation y", "rotation z"),
               "rotation y", "rotation z")}
 
 
-def free_motions(points: np.ndarray, fixed: np.ndarray) -> np.ndarray:
+def free_motions(points: np.ndarray, fixed: np.ndarray, openings=None) -> np.ndarray:
     """Rigid motions of the node cloud ``points`` that the clamped DOFs ``fixed``
     leave free: ``(n_nodes * dim, r)`` columns, ``r = 0`` for a held body.
+    ``openings``: motions of a body cut by pretension sections beside its rigid ones
+    (columns, :attr:`qsma.fe.sections.SectionTerms.opening`).
 
     The rotations are scaled by the size of the cloud (motions of size 1), so the
     rank test (:data:`CLAMP_RANK_TOL`) is independent of the units.
     """
     modes = _scaled_modes(points)
+    if openings is not None:
+        modes = np.column_stack([modes, openings])
     at = modes[np.asarray(fixed, dtype=int)]
     if len(at) == 0:
         return modes
@@ -120,7 +124,8 @@ def interface_basis(assembled, C: np.ndarray, to_local) -> np.ndarray | None:
     Raises :class:`InputError` naming the body if a free motion does not move the
     interface (then nothing can hold it: its ``K_EE`` would be singular)."""
     body = assembled.body
-    free = free_motions(body.mesh.points, held(assembled))
+    free = free_motions(body.mesh.points, held(assembled),
+                        getattr(assembled, "openings", None))
     if free.shape[1] == 0:
         return None
     B, r = np.linalg.qr(np.asarray(to_local @ free[C]))

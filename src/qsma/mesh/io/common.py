@@ -63,6 +63,9 @@ class _FileMesh:
     contact_pairs: list = field(default_factory=list)  # _ContactPair, in file order
     node_surfaces: set = field(default_factory=set)    # names of node-based surfaces
     boundaries: list = field(default_factory=list)     # (node set name, first, last dof)
+    #: facet sets that cut through a body (a pretension section's internal faces), each
+    #: face in the orientation of the cell that owns it; not matched to the boundary
+    cut_sets: set = field(default_factory=set)
 
 
 @dataclass(frozen=True)
@@ -219,8 +222,8 @@ def _to_mesh(fm: _FileMesh, vtypes: tuple) -> Mesh:
         facet_rows.setdefault(name, []).append(boundary.rows[on])
 
     nf = TYPES[bare.facet_type].n_nodes
-    facet_sets = {name: _match_facets(src, name, _joined(parts, (0, nf)), boundary,
-                                      fm.labels, bare)
+    facet_sets = {name: _joined(parts, (0, nf)) if name in fm.cut_sets else
+                  _match_facets(src, name, _joined(parts, (0, nf)), boundary, fm.labels, bare)
                   for name, parts in facet_rows.items()}
     node_sets = {k: np.unique(_joined(v, (0,))) for k, v in node_sets.items()}
     cell_sets = {k: np.unique(_joined(v, (0,))) for k, v in cell_sets.items()}

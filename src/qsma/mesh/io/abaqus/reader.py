@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ....errors import MeshFileError
-from ...celltypes import CELL_TYPES, TYPES, abaqus_faces
+from ...celltypes import CELL_TYPES, TYPES, outward_abaqus_faces
 from ...mesh import Mesh
 from ..common import (_MAX_ID, _cell_type_of, _ContactPair, _Elements, _FileMesh, _IdLookup,
                       _to_mesh)
@@ -117,9 +117,9 @@ class _InpReader:
                 fm.element_sets[s.name] = [elsets[key]]
             elif not s.internal:
                 fm.empty_sets[s.name] = "cell"
-        for name, rows in self.surfaces.values():
-            if name.upper() not in self.cuts:     # a cut through a body is no facet set
-                self._surface(fm, name, rows, vtypes, elements, elsets, index)
+        for name, rows in self.surfaces.values():     # a cut's internal faces kept too
+            self._surface(fm, name, rows, vtypes, elements, elsets, index)
+        fm.cut_sets = {name for name, _ in self.surfaces.values() if name.upper() in self.cuts}
         fm.node_surfaces = {s.name for s in self.node_surfaces.values()}
         fm.contact_pairs = [_ContactPair(self._surface_name(slave), self._surface_name(master),
                                          self.friction.get((inter or "").upper()), kind, where)
@@ -290,7 +290,7 @@ class _InpReader:
                 continue
             for b, rows_b in by_block:
                 vtype = fm.blocks[b][0]
-                faces = abaqus_faces(vtype)
+                faces = outward_abaqus_faces(vtype)     # a cut's faces: as their cells own them
                 m = re.fullmatch(r"S(\d)", face.upper())
                 if m is None or not 1 <= int(m.group(1)) <= len(faces):
                     raise _inp_error(where, f"face {face!r} does not exist on {vtype} "
@@ -562,9 +562,9 @@ def _inp_load_ids(kind: str):
 
 
 def _inp_pretension(r: _InpReader, card: _Card):
-    """A pretension section's surface cuts a meshed bolt (internal faces): no facet set."""
+    """A pretension section's surface cuts a meshed bolt: a facet set of internal faces."""
     if isinstance(card.params.get("SURFACE"), str):
-        r.cuts.add(card.params["SURFACE"].upper())        # qsma.deck.bolts measures it
+        r.cuts.add(card.params["SURFACE"].upper())        # read by qsma.deck.bolts
 
 
 #: keyword -> handler; other keywords (materials, steps, loads, ...) are skipped
