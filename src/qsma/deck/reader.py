@@ -15,6 +15,7 @@ from ..model.friction import MU_NO_SLIP
 from ..units import SI, UNIT_SYSTEMS, plausible, unit_system
 from .bolts import DeckBolts
 from .loads import SupportsAndLoads
+from .parts import PartBodies
 from .probe import ProbeAndLevels
 from .records import (LAW_NOTES, Deck, DeckInterface, DeckNote, SurfaceInteraction,
                       _HARMLESS, _INTERACTION_KEYWORDS, _MATERIAL_KEYWORDS, _PROCEDURES,
@@ -54,7 +55,7 @@ def read_deck(path, *, mode: int = 0, tip_node: int | None = None,
     return reader.deck(mode, tip_node, tip_direction, levels, units)
 
 
-class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts):
+class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, PartBodies):
     """What :func:`read_deck` builds, step by step."""
 
     def __init__(self, path, cards, assembly, density=None):
@@ -202,6 +203,7 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts):
     # --- the run ----------------------------------------------------------------------
     def deck(self, mode, tip_node, tip_direction, levels, units=None) -> Deck:
         bodies = self._body_list = self._bodies()
+        self._formulations(bodies)
         preload = self._preload_step()
         bolts = self._bolts(bodies, preload)
         self._frequency = self._frequency_step()
@@ -332,26 +334,6 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts):
             self.note(self.path.name, "the mesh is one connected part",
                       "a contact interface joins two bodies: mesh the parts apart (no "
                       "shared nodes) or as *INSTANCEs of parts", True)
-        return bodies
-
-    def _instance_bodies(self, instances) -> list:
-        """The bodies of a deck with parts: one per instance; the one material of the
-        deck (sections inside parts are not matched to instances)."""
-        materials = {s[1].upper() for s in self.sections}
-        section = self.sections[0] if len(materials) == 1 else None
-        bodies = []
-        for k, inst in enumerate(instances):
-            name = str(inst.params.get("NAME", f"instance{k + 1}"))
-            table = {"name": name, "mesh": self.path.name, "cells": name}
-            self.comments[("bodies", k, "cells")] = f"*INSTANCE, {_where(inst)}"
-            if section is None:
-                self.note(_where(inst), f"the material of instance {name!r}: the deck has "
-                          f"{len(materials)} materials", "qsma matches the one material of "
-                          "a deck with parts; give E, nu and rho per body in the TOML "
-                          "(qsma init)", True)
-            self._material_keys(table, k, section)
-            bodies.append({"table": table, "mesh": self.asm.body_mesh(name),
-                           "thickness": section[2] if section else 1.0})
         return bodies
 
     def _elset(self, name):

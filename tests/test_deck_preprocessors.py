@@ -1,0 +1,141 @@
+"""Decks as pre-processors write them, run as they are: an Abaqus/CAE input file
+(parts, instances, internal picked sets, element-face surfaces, two materials, a
+perturbation frequency step) and a FreeCAD FEM / PrePoMax CalculiX deck (included mesh
+files, C3D10, element-face loads, Windows line ends). Each runs to the results of the
+same model built through the Python API, or is refused at its line with the way out."""
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+import qsma
+from qsma.analysis.config import parse_config
+from qsma.analysis.levels import Levels
+from qsma.cli import main
+from qsma.deck import read_deck
+from qsma.mesh.io import read_assembly
+from qsma.model import Probe
+from helpers import ALUMINIUM, CAE_STEEL, cae_lap_deck
+
+#: three levels from stuck to partial slip of the lap joints (zeta 1e-3 at the third)
+LEVELS = Levels("alpha", (1.0, 10.0, 100.0))
+
+
+def with_deck_probe(model, deck):
+    """``model`` probed where the deck's default probe is (its node of largest modal
+    displacement, along its axis)."""
+    (body, point), = deck.config["tip"]["points"]
+    names = [b.name for b in model.bodies]
+    b = model.bodies[names.index(body)]
+    k = int(np.argmin(np.linalg.norm(b.mesh.points - point, axis=1)))
+    bodies = list(model.bodies)
+    bodies[names.index(body)] = dataclasses.replace(
+        b, mesh=b.mesh.with_sets(node_sets={"probe": np.array([k])}))
+    return dataclasses.replace(model, bodies=tuple(bodies), tip=Probe(
+        ((body, "probe"),), tuple(deck.config["tip"]["direction"])))
+
+
+def assert_same_run(a, b, rtol=1e-9):
+    """Two runs of one model: f0, the preload's total contact force and the backbone
+    agree to round-off (the placed instances' coordinates differ from the Python
+    model's by round-off only)."""
+    assert a.success and b.success
+    assert a.f0_hz == pytest.approx(b.f0_hz, rel=rtol)
+    fa, fb = (r.preload.lam[:, -1].sum() for r in (a, b))
+    assert fa == pytest.approx(fb, rel=rtol) and abs(fa) > 0
+    np.testing.assert_allclose(a.q, b.q, rtol=rtol)
+    np.testing.assert_allclose(a.f_hz, b.f_hz, rtol=rtol)
+    np.testing.assert_allclose(a.zeta, b.zeta, rtol=1e-6, atol=1e-9 * b.zeta.max())
+    assert b.zeta.max() > 1e-4                         # the last level slips
+
+
+@pytest.mark.parametrize("three_parts, element", [(False, "C3D8I"), (True, "C3D8I"),
+                                                  (False, "C3D10")])
+def test_cae_lap_joint_runs_as_the_python_model(tmp_path, three_parts, element):
+    """Abaqus/CAE's lap joint: each instance takes the material of its part's section
+    (aluminium, steel), the supports on internal picked sets are found (ENCASTRE,
+    PINNED, rows 1, 1 ... and a prescribed displacement), the loads (*Dsload, *Cload)
+    are the preload, NLGEOM=YES and ADJUST= are named, the perturbation *Frequency
+    step is the mode; the run equals the Python model's."""
+    model = cae_lap_deck(tmp_path / "lap.inp", three_parts=three_parts, element=element)
+    deck = read_deck(tmp_path / "lap.inp")
+    assert not deck.refusals, deck.refusals
+    bodies = deck.config["bodies"]
+    assert [(b["E"], b["nu"], b["rho"]) for b in bodies] == \
+        [(m.E, m.nu, m.rho) for m in (ALUMINIUM, CAE_STEEL, CAE_STEEL)[:len(bodies)]]
+    assert bodies[0]["clamps"] == [{"set": "_PickedSet5", "dofs": [1, 2, 3]}]
+    assert bodies[1]["clamps"] == [{"set": "_PickedSet6", "dofs": [1, 2, 3]}] or \
+        [c["dofs"] for c in bodies[1]["clamps"]] == [[1], [2], [3]]
+    assert deck.frequency_modes == 10
+    text = "\n".join(map(str, deck.notes))
+    assert "lap.inp, line" in text and "NLGEOM" in text and "small-displacement" in text
+    assert ("ADJUST=0.0" in text) == three_parts
+    a = qsma.run(parse_config(deck.config, base=tmp_path).model, levels=LEVELS)
+    b = qsma.run(with_deck_probe(model, deck), levels=LEVELS)
+    assert_same_run(a, b)
+
+
+def test_internal_sets_named_by_supports_and_loads_are_sets_of_the_mesh(tmp_path):
+    """CAE's picked regions are internal sets: the ones a *Boundary (also ENCASTRE) or
+    *Cload names become node sets of the body, the others stay hidden (the section's
+    _PickedSet2)."""
+    cae_lap_deck(tmp_path / "lap.inp", three_parts=True)
+    asm = read_assembly(tmp_path / "lap.inp")
+    lower = asm.body_mesh("Lower-1")
+    assert {"_PickedSet5", "_PickedSet10"} <= set(lower.node_sets)
+    assert len(lower.node_sets["_PickedSet5"]) == 3 * 5          # the end x = 0
+    assert "_PickedSet9" in asm.body_mesh("Block-1").node_sets
+    assert not any("_PickedSet2" in n for n in asm.file_mesh.node_sets)
+
+
+def test_cae_default_hexahedron_c3d8r_is_refused_at_its_element_line(tmp_path, capsys):
+    """C3D8R (CAE's default hexahedron, hourglass-controlled) is not computed: the
+    deck is refused at each part's *Element line, with C3D8 / C3D8I as the way."""
+    cae_lap_deck(tmp_path / "lap.inp", element="C3D8R")
+    deck = read_deck(tmp_path / "lap.inp")
+    lines = (tmp_path / "lap.inp").read_text().splitlines()
+    found = [n for n in deck.refusals if "C3D8R" in n.what]
+    assert [n.what for n in found] == ["*ELEMENT, TYPE=C3D8R of body 'Lower-1'",
+                                       "*ELEMENT, TYPE=C3D8R of body 'Upper-1'"]
+    for n in found:
+        assert lines[int(n.where.split("line ")[1]) - 1] == "*Element, type=C3D8R"
+        assert "C3D8I" in n.fix and "Element Type" in n.fix
+    assert main(["run", str(tmp_path / "lap.inp"), "--out", str(tmp_path / "o"),
+                 "-q"]) == 2
+    assert "C3D8R" in capsys.readouterr().err
+
+
+def test_a_part_with_sections_of_two_materials_is_refused(tmp_path):
+    """A part whose sections name two materials cannot be one body: refused at the
+    second section's line, with the way (a part per material)."""
+    path = tmp_path / "lap.inp"
+    cae_lap_deck(path)
+    text = path.read_text()
+    k = text.index("*End Part", text.index("*Part, name=Upper"))
+    text = (text[:k] + "*Elset, elset=Half, generate\n 1, 80, 1\n"
+            "*Solid Section, elset=Half, material=Aluminium\n,\n" + text[k:])
+    path.write_text(text)
+    deck = read_deck(path)
+    line = text[:text.index("*Solid Section, elset=Half")].count("\n") + 1
+    (note,) = deck.refusals
+    assert note.where == f"lap.inp, line {line}"
+    assert "part 'Upper'" in note.what and "['ALUMINIUM', 'STEEL']" in note.what
+    assert "a part of its own" in note.fix
+
+
+def test_cae_deck_and_its_init_toml_run_to_identical_results(tmp_path):
+    """qsma run deck.inp and qsma init deck.inp -> qsma run deck.toml: the same
+    results.json levels, mode and preload."""
+    path = tmp_path / "lap.inp"
+    cae_lap_deck(path, three_parts=True)
+    args = ["--levels", "alpha:list:1,100", "-q", "--no-plots", "--no-vtu"]
+    assert main(["run", str(path), "--out", str(tmp_path / "a"), *args]) == 0
+    assert main(["init", str(path), "-o", str(tmp_path / "lap.toml")]) == 0
+    assert main(["run", str(tmp_path / "lap.toml"), "--out", str(tmp_path / "b"),
+                 *args]) == 0
+    a, b = (json.loads((tmp_path / f / "results.json").read_text()) for f in "ab")
+    assert a["levels"] == b["levels"] and a["mode"] == b["mode"]
+    assert a["preload"] == b["preload"]
