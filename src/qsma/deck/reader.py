@@ -275,6 +275,13 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, PartBodies):
         step = next((s for s in self.steps if s.procedure == "FREQUENCY"), None)
         if step is None:
             return None
+        card = next(c for c in self.cards if c.keyword == "STEP" and _where(c) == step.where)
+        if "PERTURBATION" not in card.params and step.index > 0:
+            self.note(step.where, "the *FREQUENCY step is no PERTURBATION step", "CalculiX "
+                      "computes its modes without the preload's contact (the bodies apart); "
+                      "qsma's mode is that of the structure tied after the preload, which "
+                      "CalculiX computes with *STEP, PERTURBATION (as Abaqus always does)",
+                      False)
         try:
             return int(float(step.data[0][0])) if step.data and step.data[0] else None
         except ValueError:
