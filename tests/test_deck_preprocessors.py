@@ -206,3 +206,52 @@ def test_freecad_deck_tied_f0_against_calculix(tmp_path):
         f_ccx.append(eigenfrequencies(run_calculix(tmp_path / "ccx.inp", timeout=300))[0])
     assert min(f_ccx) < f0 < max(f_ccx)
     assert max(abs(f / f0 - 1) for f in f_ccx) < 0.02
+
+
+def _cae_variant(tmp_path, old, new):
+    """The two-plate CAE deck with ``old`` replaced by ``new``, read."""
+    path = tmp_path / "lap.inp"
+    cae_lap_deck(path)
+    text = path.read_text()
+    assert old in text
+    path.write_text(text.replace(old, new))
+    return read_deck(path)
+
+
+def test_rough_friction_is_no_slip_not_frictionless(tmp_path):
+    """*Friction, rough (CAE's 'Rough' tangential behaviour) has no data line: it is no
+    slip, qsma's largest mu, named; never the frictionless joint of a missing
+    *Friction."""
+    deck = _cae_variant(tmp_path, "*Friction\n0.2,\n", "*Friction, rough\n")
+    assert deck.config["interface"]["mu"] == 1e4
+    assert not deck.refusals
+    (note,) = [n for n in deck.notes if "ROUGH" in n.what]
+    assert "no slip" in note.what and "frictionless" not in str(note)
+
+
+def test_no_separation_is_refused(tmp_path):
+    deck = _cae_variant(tmp_path, "*Surface Behavior, pressure-overclosure=HARD",
+                        "*Surface Behavior, no separation, pressure-overclosure=HARD")
+    (note,) = deck.refusals
+    assert "NO SEPARATION" in note.what and "allow separation" in note.fix
+
+
+def test_general_contact_is_refused_with_the_contact_pair_to_write(tmp_path):
+    """CAE's general contact (*Contact, *Contact Inclusions, *Contact Property
+    Assignment) is refused card by card with the way: a surface-to-surface contact
+    pair."""
+    deck = _cae_variant(
+        tmp_path, "*Contact Pair, interaction=IntProp-1, type=SURFACE TO SURFACE\n"
+        "Surf-2, Surf-1\n", "*Contact, op=NEW\n*Contact Inclusions, ALL EXTERIOR\n"
+        "*Contact Property Assignment\n ,  , IntProp-1\n")
+    general = [n for n in deck.refusals if "general contact" in n.fix]
+    assert [n.what for n in general] == ["*CONTACT", "*CONTACT INCLUSIONS",
+                                         "*CONTACT PROPERTY ASSIGNMENT"]
+    assert all("Surface-to-surface contact (Standard)" in n.fix for n in general)
+
+
+def test_section_controls_are_harmless(tmp_path):
+    deck = _cae_variant(tmp_path, "** MATERIALS", "*Section Controls, name=EC-1, "
+                        "hourglass=ENHANCED\n1., 1., 1.\n** MATERIALS")
+    assert not deck.refusals
+    assert any("SECTION CONTROLS" in n.what for n in deck.notes)

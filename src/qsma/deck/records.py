@@ -30,6 +30,8 @@ _HARMLESS = {
     "CONTACT DAMPING": "viscous contact damping: qsma's joint damping is the friction's",
     "ORIENTATION": "a local material system (the materials read are isotropic)",
     "DAMPING": "material damping: qsma's damping is the joint's friction",
+    "SECTION CONTROLS": "hourglass and distortion controls of reduced-integration "
+                        "elements, which qsma does not compute (their *ELEMENT is named)",
 }
 
 #: How a bolt is written in a deck, for the notes on couplings, springs and beams that
@@ -69,6 +71,13 @@ _REFUSED = {
     "CONNECTOR ELASTICITY": _NO_CONNECTORS,
     "CONNECTOR LOAD": _NO_CONNECTORS,
     "CONNECTOR MOTION": _NO_CONNECTORS,
+    **dict.fromkeys(("CONTACT", "CONTACT INCLUSIONS", "CONTACT EXCLUSIONS",
+                     "CONTACT PROPERTY ASSIGNMENT", "CONTACT FORMULATION",
+                     "SURFACE PROPERTY ASSIGNMENT", "CONTACT INITIALIZATION ASSIGNMENT"),
+                    "general contact (Abaqus' *CONTACT) is not read: qsma's interfaces are "
+                    "contact pairs, *CONTACT PAIR with the slave and master surfaces (in "
+                    "Abaqus/CAE: Interaction > Create > Surface-to-surface contact "
+                    "(Standard))"),
     "CYCLIC SYMMETRY MODEL": "qsma models the whole structure, no cyclic symmetry",
     "TRANSFORM": "qsma's supports and loads are in global directions",
     "PLASTIC": "qsma's bodies are linear elastic: the preload would differ where the "
