@@ -54,7 +54,7 @@ def assert_same_run(a, b, rtol=1e-9):
 
 
 @pytest.mark.parametrize("three_parts, element", [(False, "C3D8I"), (True, "C3D8I"),
-                                                  (False, "C3D10")])
+                                                  (False, "C3D10"), (False, "C3D20R")])
 def test_cae_lap_joint_runs_as_the_python_model(tmp_path, three_parts, element):
     """Abaqus/CAE's lap joint: each instance takes the material of its part's section
     (aluminium, steel), the supports on internal picked sets are found (ENCASTRE,
