@@ -717,7 +717,8 @@ def _one_per_line(ids) -> str:
     return "".join(f"{int(i)},\n" for i in ids)
 
 
-def freecad_lap_deck(folder, *, contact_type="SURFACE TO SURFACE", element="C3D10"):
+def freecad_lap_deck(folder, *, contact_type="SURFACE TO SURFACE", element="C3D10",
+                     gap=0.0):
     """The two-plate lap joint (aluminium under steel, C3D10) as FreeCAD FEM writes a
     CalculiX deck (mm, N, tonne): upper-case keywords, the mesh, its sets and the
     contact surfaces in *INCLUDE files, ``*NODE, NSET=Nall``, ``*ELEMENT, TYPE=C3D10,
@@ -727,6 +728,9 @@ def freecad_lap_deck(folder, *, contact_type="SURFACE TO SURFACE", element="C3D1
     ``*SURFACE BEHAVIOR`` with ``*FRICTION`` mu and stick slope, a ``*STATIC`` then a
     ``*FREQUENCY`` step; ``**`` comments and blank lines everywhere, Windows line ends.
 
+    ``gap``: the upper plate lifted by that much (mm), as FreeCAD users leave a small
+    gap between solids meshed in one go.
+
     Returns ``(deck path, the same model through the Python API)``; the bodies are
     named after their material's element set, as the deck reader names them."""
     s = PRE_LAP
@@ -734,7 +738,8 @@ def freecad_lap_deck(folder, *, contact_type="SURFACE TO SURFACE", element="C3D1
     lower = _plate_part("lower", True, element)
     upper = _plate_part("upper", False, element)
     meshes = []
-    for m, shift in ((lower, np.zeros(3)), (upper, np.array([s["L"] - s["c"], s["t"], 0.0]))):
+    for m, shift in ((lower, np.zeros(3)),
+                     (upper, np.array([s["L"] - s["c"], s["t"] + gap / mm, 0.0]))):
         meshes.append(Mesh(cae_rounded((m.points + shift) * mm), m.cells, m.cell_type,
                            m.node_sets, m.facet_sets, element=element))
     n0, e0 = meshes[0].n_nodes, len(meshes[0].cells)

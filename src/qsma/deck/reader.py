@@ -275,7 +275,9 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, PartBodies):
             return None
         if preload.nlgeom:
             self.note(preload.where, "NLGEOM of the preload step", "qsma's preload is "
-                      "small-displacement (with frictional contact)", False)
+                      "small-displacement (with frictional contact), as with NLGEOM=NO: "
+                      "the two agree where the preload's rotations are small, as under a "
+                      "bolt", False)
         for s in self.steps:
             if s is preload or (s.procedure == "FREQUENCY" and not _loads_in(s)):
                 continue
