@@ -255,3 +255,20 @@ def test_section_controls_are_harmless(tmp_path):
                         "hourglass=ENHANCED\n1., 1., 1.\n** MATERIALS")
     assert not deck.refusals
     assert any("SECTION CONTROLS" in n.what for n in deck.notes)
+
+
+def test_freecad_solids_left_apart_by_a_small_gap(tmp_path):
+    """FreeCAD users leave a small gap between solids meshed in one go (touching
+    solids would be fused): the 0.01 mm gap is the contact problem's initial gap,
+    named by a warning, and the preload closes it under the washer; the run equals
+    the Python model's with the same gap."""
+    from qsma.errors import InterfaceGapWarning
+    path, model = freecad_lap_deck(tmp_path, element="C3D8I", gap=0.01)
+    deck = read_deck(path)
+    assert not deck.refusals
+    levels = Levels("alpha", (3e3, 3e4, 3e5))
+    with pytest.warns(InterfaceGapWarning, match="1.000e-02 apart"):
+        a = qsma.run(parse_config(deck.config, base=tmp_path).model, levels=levels)
+    b = qsma.run(with_deck_probe(model, deck), levels=levels)
+    assert_same_run(a, b)
+    assert a.preload.lam[:, -1].sum() == pytest.approx(PRE_LAP["p"] * 1e-4, rel=1e-2)
