@@ -127,12 +127,15 @@ def test_a_part_with_sections_of_two_materials_is_refused(tmp_path):
     assert "a part of its own" in note.fix
 
 
-def test_cae_deck_and_its_init_toml_run_to_identical_results(tmp_path):
+@pytest.mark.parametrize("writer, levels", [
+    (lambda d: cae_lap_deck(d / "lap.inp", three_parts=True), "alpha:list:1,100"),
+    (lambda d: freecad_lap_deck(d), "alpha:list:3e3,3e5")], ids=["cae", "freecad"])
+def test_deck_and_its_init_toml_run_to_identical_results(tmp_path, writer, levels):
     """qsma run deck.inp and qsma init deck.inp -> qsma run deck.toml: the same
-    results.json levels, mode and preload."""
+    results.json levels, mode and preload (the FreeCAD deck with its included files)."""
+    writer(tmp_path)
     path = tmp_path / "lap.inp"
-    cae_lap_deck(path, three_parts=True)
-    args = ["--levels", "alpha:list:1,100", "-q", "--no-plots", "--no-vtu"]
+    args = ["--levels", levels, "-q", "--no-plots", "--no-vtu"]
     assert main(["run", str(path), "--out", str(tmp_path / "a"), *args]) == 0
     assert main(["init", str(path), "-o", str(tmp_path / "lap.toml")]) == 0
     assert main(["run", str(tmp_path / "lap.toml"), "--out", str(tmp_path / "b"),
@@ -167,17 +170,6 @@ def test_freecad_deck_runs_as_the_python_model(tmp_path, contact_type):
     b = qsma.run(with_deck_probe(model, deck), levels=levels)
     assert_same_run(a, b)
     assert a.preload.lam[:, -1].sum() == pytest.approx(PRE_LAP["p"] * 1e-4, rel=1e-3)
-
-
-def test_freecad_deck_and_its_init_toml_run_to_identical_results(tmp_path):
-    path, _ = freecad_lap_deck(tmp_path)
-    args = ["--levels", "alpha:list:3e3,3e5", "-q", "--no-plots", "--no-vtu"]
-    assert main(["run", str(path), "--out", str(tmp_path / "a"), *args]) == 0
-    assert main(["init", str(path), "-o", str(tmp_path / "lap.toml")]) == 0
-    assert main(["run", str(tmp_path / "lap.toml"), "--out", str(tmp_path / "b"),
-                 *args]) == 0
-    a, b = (json.loads((tmp_path / f / "results.json").read_text()) for f in "ab")
-    assert a["levels"] == b["levels"] and a["preload"] == b["preload"]
 
 
 @needs_ccx
