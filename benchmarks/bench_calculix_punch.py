@@ -6,14 +6,16 @@ block, apart from it by up to 0.30 of an element away from the line where they t
 FOLDER holds the deck (the ``test/`` folder of the CalculiX source distribution). ccx
 solves the deck twice, small-displacement (its ``NLGEOM`` dropped, as qsma's preload
 is): as it is (``ADJUST=`` moves slave nodes near the master onto it) and without
-``ADJUST=`` (the gaps as meshed, as qsma takes them). qsma's preload (``qsma run``'s
-model of the deck) gives its displacements. The table: the force ``K u`` that each
+``ADJUST=`` (the gaps as meshed). qsma's preload (``qsma run``'s model of the deck)
+gives its displacements, with the deck's ``ADJUST=`` distance (the interface's
+``adjust``: the gaps within it zero) and with the gaps as meshed. The table: the force ``K u`` that each
 solution puts on the block's contact face, summed over each row of nodes across the
 line of contact (x), and the largest displacement.
 """
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
 import re
 import sys
@@ -62,7 +64,12 @@ def main(argv=None):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         model = parse_config(read_deck(deck, density=7.85e-9).config, base=deck.parent).model
-        res = qsma.run(model, levels=Levels("alpha", (1e-3,)), method="basket")
+        meshed = dataclasses.replace(model, interface=dataclasses.replace(
+            model.interface, adjust=None))
+        runs = {name: qsma.run(m, levels=Levels("alpha", (1e-3,)), method="basket")
+                for name, m in (("qsma, ADJUST", model), ("qsma, as meshed", meshed))
+                if name == "qsma, as meshed" or model.interface.adjust is not None}
+    res = next(iter(runs.values()))
     itf = model.interface
     k = model.body_index(itf.body1)                       # the master: the block
     block = model.bodies[k]
@@ -71,13 +78,14 @@ def main(argv=None):
         u_all = {"ccx, ADJUST": ccx_displacements(deck, Path(tmp), True),
                  "ccx, as meshed": ccx_displacements(deck, Path(tmp), False)}
     nodes = body_nodes(deck, k)
-    u = {"qsma": np.asarray(res.fields(None)[k]).reshape(-1, 3)}
+    u = {name: np.asarray(r.fields(None)[k]).reshape(-1, 3) for name, r in runs.items()}
     u.update({name: v[nodes, :3] for name, v in u_all.items()})
     face = block.mesh.nodes(itf.set1)
     x = np.round(block.mesh.points[face, 0], 6)
-    pre = res.preload
-    print(f"{args.deck}: qsma preload {len(pre.status) - pre.n_open} of {len(pre.status)} "
-          f"pairs closed, largest initial gap {res.pairing.gap.max():.4g}")
+    for name, r in runs.items():
+        pre = r.preload
+        print(f"{args.deck}: {name} preload {len(pre.status) - pre.n_open} of "
+              f"{len(pre.status)} pairs closed, largest initial gap {r.pairing.gap.max():.4g}")
     print(f"{'x':>8s} " + " ".join(f"{n:>15s}" for n in u))
     force = {n: (a.K @ v.ravel()).reshape(-1, 3)[face, 2] for n, v in u.items()}
     for xv in np.unique(x):

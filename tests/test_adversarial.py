@@ -374,3 +374,38 @@ def test_out_path_checks():
         RunFolder("a\x00b")
     with pytest.raises(InputError, match="root"):
         RunFolder("/")
+
+
+def test_a_forked_child_does_not_hold_the_folder_of_a_killed_run(tmp_path):
+    """A run forks helpers (the -alpha ramp, loop workers, the plot worker) while it
+    holds its output folder. Killed, the run must release the folder even if a helper
+    still runs: the helpers close their copies of the lock (a flock belongs to the
+    open file, which a helper's copy would keep locked until it ends). Here a forked
+    process plays the run: it takes the folder, forks a helper that sleeps, and kills
+    itself; a new run takes the folder while the helper still sleeps."""
+    import signal
+    import time
+    out = tmp_path / "out"
+    read_end, write_end = os.pipe()
+    run = os.fork()
+    if run == 0:                                        # the run
+        try:
+            with RunFolder(out):
+                helper = os.fork()
+                if helper == 0:
+                    time.sleep(30)
+                    os._exit(0)
+                os.write(write_end, str(helper).encode())
+                os.kill(os.getpid(), signal.SIGKILL)
+        finally:
+            os._exit(1)
+    os.close(write_end)
+    helper = int(os.read(read_end, 64))
+    os.close(read_end)
+    os.waitpid(run, 0)
+    try:
+        with RunFolder(out) as again:                   # not "in use by another run"
+            assert again.staging.exists()
+        os.kill(helper, 0)                              # the helper still runs
+    finally:
+        os.kill(helper, signal.SIGKILL)

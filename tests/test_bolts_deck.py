@@ -173,11 +173,40 @@ def test_abaqus_couplings_on_surfaces_read_as_the_same_bolt(tmp_path):
     deck = _lap_deck(tmp_path, abaqus)
     assert "*DISTRIBUTING COUPLING" not in deck.source.read_text()
     assert not deck.refusals
+    assert not any("WEIGHTING" in n.what for n in deck.notes)
+    cubic = _lap_deck(tmp_path, lambda t: abaqus(t).replace(
+        "*DISTRIBUTING\n", "*DISTRIBUTING, WEIGHTING METHOD=CUBIC\n"))
+    assert not cubic.refusals and cubic.config["bolts"] == deck.config["bolts"]
+    assert sum("WEIGHTING METHOD=CUBIC" in n.what for n in cubic.notes) == 2
     (bolt,) = deck.config["bolts"]
     original = lap_3d_bolted(1).bolts[0]
     assert (bolt["set_a"], bolt["set_b"]) == ("BOTTOM_BOLT", "TOP_BOLT")
     assert (bolt["pretension"], bolt["stiffness"]) == (original.pretension,
                                                        original.stiffness)
+
+
+def test_coupling_weights_other_than_a_uniform_traction_are_named(tmp_path):
+    """qsma spreads a bolt's force as a uniform traction over its washer. The exported
+    deck writes those weights (no note); the same deck with weight 1 on every node (a
+    uniform force per node, as decks often write) reads as the same bolt with a note
+    giving how far the deck's weights are from qsma's, so the difference is not
+    silent."""
+    assert not any("weights" in n.what for n in _lap_deck(tmp_path, lambda t: t).notes)
+
+    def per_node(text):
+        def ones(block):
+            head, rows = block.group(1), block.group(2)
+            return head + "".join(f"{r.split(',')[0]}, 1.\n" for r in rows.splitlines())
+        return re.sub(r"(\*DISTRIBUTING COUPLING, ELSET=BOLT_bolt_[AB]\n)((?:\d+, [^\n]+\n)+)",
+                      ones, text)
+    deck = _lap_deck(tmp_path, per_node)
+    assert not deck.refusals
+    notes = [n for n in deck.notes if "weights" in n.what]
+    assert len(notes) == 2 and all("uniform traction" in n.fix for n in notes)
+    gap = float(re.search(r"by up to ([\d.e+-]+) %", notes[0].what).group(1))
+    assert gap > 1.0               # the washer's corner nodes carry less than its inner ones
+    (bolt,) = deck.config["bolts"]
+    assert bolt["pretension"] == lap_3d_bolted(1).bolts[0].pretension
 
 
 def test_a_bolt_without_its_pretension_load_is_refused(tmp_path):

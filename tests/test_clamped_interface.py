@@ -291,23 +291,54 @@ def test_block_stuck_on_a_clamped_foundation_is_the_block_clamped_there():
     assert np.abs(u - ref).max() < 1e-6 * np.abs(ref).max()
 
 
-def test_normal_clamped_on_both_sides_is_refused():
-    """A contact point whose normal both bodies' clamps hold can neither open nor close,
-    and its pressure is a share of the clamps' reaction that nothing determines: the
-    reduction refuses it, naming the point and the way out."""
+def _edge_clamped(components):
+    """The half model of :func:`_blocks_2d` with both bodies also clamped at the
+    interface's edge node (x = W, y = 0) in ``components`` (None: every one)."""
     model = _blocks_2d(True, 24)
     bodies = []
     for b in model.bodies:
         edge = np.flatnonzero((np.abs(b.mesh.points[:, 0] - W) < EPS)
                               & (np.abs(b.mesh.points[:, 1]) < EPS))
         m = b.mesh.with_sets(node_sets=dict(b.mesh.node_sets, edge=edge))
-        bodies.append(Body(b.name, m, b.material, b.clamps + (Clamp("edge", (1,)),),
+        bodies.append(Body(b.name, m, b.material, b.clamps + (Clamp("edge", components),),
                            b.pressures))
-    model = Model(tuple(bodies), model.interface, mu=MU)
+    return Model(tuple(bodies), model.interface, mu=MU)
+
+
+def test_normal_clamped_on_both_sides_is_refused():
+    """A contact point whose normal both bodies' clamps hold can neither open nor close,
+    and its pressure is a share of the clamps' reaction that nothing determines: the
+    reduction refuses it, naming the point and the way out."""
+    model = _edge_clamped(components=(1,))
     A = [assemble_body(b) for b in model.bodies]
     with pytest.raises(InputError, match=r"contact point\(s\) \[24\] .* clamped along the "
                        r"contact normal on both sides.*release the normal clamp of one side"):
         reduce_two_bodies(A[0], A[1], make_pairing(model))
+
+
+def test_point_clamped_in_every_direction_on_both_sides_is_inert(monkeypatch):
+    """The point of the test above clamped in both directions on both sides: it can
+    neither open nor slip whatever its pressure, so it is kept with d = lam = 0, and
+    the rest of the contact state does not depend on the stiffness the reduction gives
+    it (scaled by 1e3: the same state to round-off)."""
+    import qsma.reduction.multibody as multibody
+    model = _edge_clamped(components=None)
+    curvature = lambda x: x[:, 0] ** 2
+    _, _, res, _, _ = _preload(model, curvature)
+    np.testing.assert_array_equal(res.d.reshape(-1, 2)[24], 0.0)
+    np.testing.assert_array_equal(res.lam.reshape(-1, 2)[24], 0.0)
+    assert res.lam.reshape(-1, 2)[:, 1].max() > 0
+    plain = multibody.decoupled
+
+    def stiffer(K, fixed):
+        K = plain(K, fixed)
+        K[fixed, fixed] *= 1e3
+        return K
+    monkeypatch.setattr(multibody, "decoupled", stiffer)
+    _, _, scaled, _, _ = _preload(model, curvature)
+    np.testing.assert_allclose(scaled.d, res.d, rtol=0, atol=1e-12 * np.abs(res.d).max())
+    np.testing.assert_allclose(scaled.lam, res.lam, rtol=0,
+                               atol=1e-9 * np.abs(res.lam).max())
 
 
 def test_clamp_oblique_to_the_contact_frame_on_both_sides_is_refused():

@@ -42,7 +42,7 @@ def _tables() -> dict:
 
 def _type_name(types) -> str:
     if isinstance(types, tuple):
-        return "number"
+        return "number or string" if str in types else "number"
     return TYPE_NAMES[types]
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -449,3 +450,87 @@ def test_a_deck_friction_of_no_slip_is_taken_as_the_largest_mu(tmp_path):
     deck = read_deck(path)
     assert deck.config["interface"]["mu"] == MU_NO_SLIP
     assert any("mu = 1e+20" in str(n) and not n.refuses for n in deck.notes)
+
+
+def _general(tmp_path, cards):
+    """The lap deck with its *CONTACT PAIR replaced by ``cards`` (general contact)."""
+    text = lap_deck(tmp_path / "base.inp").read_text()
+    pair = re.search(r"\*CONTACT PAIR[^\n]*\n[^\n]+\n", text).group(0)
+    path = tmp_path / "general.inp"
+    path.write_text(text.replace(pair, cards))
+    return path
+
+
+def test_general_contact_all_exterior_runs_as_the_contact_pair(tmp_path):
+    """Abaqus' general contact (*CONTACT, ALL EXTERIOR, one global property) instead of
+    the *CONTACT PAIR: the interface is where the two beams touch, with the property's
+    friction and law. sandwich-2d's beams touch along their whole overlap, beyond the
+    bolted region the benchmark names: so the model equals sandwich-2d with that
+    overlap as interface, and qsma init writes touching = true, read back the same."""
+    path = _general(tmp_path, "*CONTACT\n*CONTACT INCLUSIONS, ALL EXTERIOR\n"
+                              "*CONTACT PROPERTY ASSIGNMENT\n, , JOINT\n")
+    deck = read_deck(path)
+    assert not deck.refusals, deck.refusals
+    itf = deck.config["interface"]
+    assert itf["touching"] and "set1" not in itf and itf["mu"] == MU
+    assert itf["law"] == LAW_TABLE
+    model = parse_config(deck.config, base=tmp_path).model
+    bottom, top = model.bodies
+    n = [len(b.mesh.facet_sets[f"touching:{o.name}"]) for b, o in ((bottom, top),
+                                                                  (top, bottom))]
+    ref = sandwich_2d(1)
+    named = [len(b.mesh.facet_sets["interface"]) for b in ref.bodies]
+    assert n[0] == n[1] > named[0] == named[1]           # the whole overlap
+    assert main(["init", str(path)]) == 0
+    back = load_config(tmp_path / "general.toml").model
+    assert back.interface.set1 == model.interface.set1 == "touching:top"
+
+
+@pytest.mark.parametrize("cards, what", [
+    ("*CONTACT\n*CONTACT INCLUSIONS\ntop_interface, bottom_interface\n",
+     "*CONTACT INCLUSIONS of named surfaces"),
+    ("*CONTACT\n*CONTACT INCLUSIONS, ALL EXTERIOR\n*CONTACT EXCLUSIONS\n"
+     "top_clamp, bottom_clamp\n", "*CONTACT EXCLUSIONS"),
+    ("*CONTACT\n*CONTACT INCLUSIONS, ALL EXTERIOR\n*CONTACT PROPERTY ASSIGNMENT\n"
+     "top_interface, bottom_interface, JOINT\n", "*CONTACT PROPERTY ASSIGNMENT to surfaces"),
+    ("*CONTACT\n*CONTACT INCLUSIONS, ALL EXTERIOR\n*CONTACT PROPERTY ASSIGNMENT\n"
+     ", , NOPE\n", "names interaction 'NOPE'"),
+])
+def test_general_contact_qsma_cannot_read_is_refused_with_the_way(tmp_path, cards, what):
+    """Narrower general contact (named inclusions, exclusions, properties per surface
+    pair) or an undefined property: refused by line, naming the *CONTACT PAIR to
+    write; the deck does not run."""
+    deck = read_deck(_general(tmp_path, cards))
+    (note,) = [n for n in deck.refusals if what in n.what]
+    assert "*CONTACT PAIR" in note.fix or "*SURFACE INTERACTION" in note.fix
+    assert main(["run", str(tmp_path / "general.inp"), "--out", str(tmp_path / "o")]) == 2
+
+
+@pytest.mark.parametrize("adjust, expected", [("1e-5", 1e-5), ("TOP_INTERFACE", "top_interface")])
+def test_contact_pair_adjust_is_the_interfaces_adjust(tmp_path, adjust, expected):
+    """``*CONTACT PAIR, ADJUST=`` a distance or a node set of the slave (names ignore
+    case) becomes the interface's ``adjust`` (the gaps it closes are zero), written by
+    qsma init and read back; a set the slave does not hold is a note and the gaps stay
+    as meshed."""
+    text = lap_deck(tmp_path / "base.inp").read_text()
+    path = tmp_path / "adjust.inp"
+    path.write_text(text.replace("TYPE=SURFACE TO SURFACE",
+                                 f"TYPE=SURFACE TO SURFACE, ADJUST={adjust}"))
+    deck = read_deck(path)
+    assert not deck.refusals
+    itf = deck.config["interface"]
+    assert itf["adjust"] == expected and itf["set2"] == "top_interface"
+    assert not any("ADJUST" in n.what for n in deck.notes)
+    assert main(["init", str(path)]) == 0
+    model = load_config(tmp_path / "adjust.toml").model
+    assert model.interface_list[0].adjust == expected
+    if isinstance(expected, float):            # the export writes the distance back
+        from qsma.deck import export_calculix
+        (tmp_path / "export").mkdir()
+        back = export_calculix(model, tmp_path / "export" / "back.inp").text
+        assert re.search(r"\*CONTACT PAIR, [^\n]*, ADJUST=1e-0?5\n", back)
+    path.write_text(text.replace("TYPE=SURFACE TO SURFACE",
+                                 "TYPE=SURFACE TO SURFACE, ADJUST=BOTTOM_CLAMP"))
+    deck = read_deck(path)
+    assert "adjust" not in deck.config["interface"]
+    assert any("ADJUST=BOTTOM_CLAMP" in n.what and not n.refuses for n in deck.notes)

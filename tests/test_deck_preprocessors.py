@@ -59,7 +59,7 @@ def test_cae_lap_joint_runs_as_the_python_model(tmp_path, three_parts, element):
     """Abaqus/CAE's lap joint: each instance takes the material of its part's section
     (aluminium, steel), the supports on internal picked sets are found (ENCASTRE,
     PINNED, rows 1, 1 ... and a prescribed displacement), the loads (*Dsload, *Cload)
-    are the preload, NLGEOM=YES and ADJUST= are named, the perturbation *Frequency
+    are the preload, NLGEOM=YES is named, ADJUST= read, the perturbation *Frequency
     step is the mode; the run equals the Python model's."""
     model = cae_lap_deck(tmp_path / "lap.inp", three_parts=three_parts, element=element)
     deck = read_deck(tmp_path / "lap.inp")
@@ -73,7 +73,8 @@ def test_cae_lap_joint_runs_as_the_python_model(tmp_path, three_parts, element):
     assert deck.frequency_modes == 10
     text = "\n".join(map(str, deck.notes))
     assert "lap.inp, line" in text and "NLGEOM" in text and "small-displacement" in text
-    assert ("ADJUST=0.0" in text) == three_parts
+    if three_parts:
+        assert deck.config["interfaces"][1]["adjust"] == 0.0     # adjust=0.0: no change
     a = qsma.run(parse_config(deck.config, base=tmp_path).model, levels=LEVELS)
     b = qsma.run(with_deck_probe(model, deck), levels=LEVELS)
     assert_same_run(a, b)
@@ -92,21 +93,38 @@ def test_internal_sets_named_by_supports_and_loads_are_sets_of_the_mesh(tmp_path
     assert not any("_PickedSet2" in n for n in asm.file_mesh.node_sets)
 
 
-def test_cae_default_hexahedron_c3d8r_is_refused_at_its_element_line(tmp_path, capsys):
-    """C3D8R (CAE's default hexahedron, hourglass-controlled) is not computed: the
-    deck is refused at each part's *Element line, with C3D8 / C3D8I as the way."""
-    cae_lap_deck(tmp_path / "lap.inp", element="C3D8R")
+def test_cae_default_hexahedron_c3d8r_runs_as_c3d8i(tmp_path):
+    """C3D8R (CAE's default hexahedron) is computed as its nearest element C3D8I, named
+    per element name; the deck runs as the Python model of C3D8I plates."""
+    from qsma.fe.formulation import with_element
+    model = cae_lap_deck(tmp_path / "lap.inp", element="C3D8R")
+    deck = read_deck(tmp_path / "lap.inp")
+    assert not deck.refusals
+    assert [b["element"] for b in deck.config["bodies"]] == ["C3D8I", "C3D8I"]
+    assert any("C3D8R elements are computed as C3D8I" in n.what for n in deck.notes)
+    model = dataclasses.replace(model, bodies=tuple(
+        dataclasses.replace(b, mesh=with_element(b.mesh, "C3D8I")) for b in model.bodies))
+    a = qsma.run(parse_config(deck.config, base=tmp_path).model, levels=LEVELS)
+    b = qsma.run(with_deck_probe(model, deck), levels=LEVELS)
+    assert_same_run(a, b)
+
+
+def test_an_element_computed_neither_as_it_is_nor_as_its_nearest_is_refused(tmp_path,
+                                                                            capsys):
+    """C3D8T (coupled temperature-displacement) is no element qsma computes, nor has it
+    a nearest one: the deck is refused at each part's *Element line, with the way."""
+    cae_lap_deck(tmp_path / "lap.inp", element="C3D8T")
     deck = read_deck(tmp_path / "lap.inp")
     lines = (tmp_path / "lap.inp").read_text().splitlines()
-    found = [n for n in deck.refusals if "C3D8R" in n.what]
-    assert [n.what for n in found] == ["*ELEMENT, TYPE=C3D8R of body 'Lower-1'",
-                                       "*ELEMENT, TYPE=C3D8R of body 'Upper-1'"]
+    found = [n for n in deck.refusals if "C3D8T" in n.what]
+    assert [n.what for n in found] == ["*ELEMENT, TYPE=C3D8T of body 'Lower-1'",
+                                       "*ELEMENT, TYPE=C3D8T of body 'Upper-1'"]
     for n in found:
-        assert lines[int(n.where.split("line ")[1]) - 1] == "*Element, type=C3D8R"
-        assert "C3D8I" in n.fix and "Element Type" in n.fix
+        assert lines[int(n.where.split("line ")[1]) - 1] == "*Element, type=C3D8T"
+        assert "C3D8" in n.fix and "Element Type" in n.fix
     assert main(["run", str(tmp_path / "lap.inp"), "--out", str(tmp_path / "o"),
                  "-q"]) == 2
-    assert "C3D8R" in capsys.readouterr().err
+    assert "C3D8T" in capsys.readouterr().err
 
 
 def test_a_part_with_sections_of_two_materials_is_refused(tmp_path):
@@ -226,20 +244,6 @@ def test_no_separation_is_refused(tmp_path):
                         "*Surface Behavior, no separation, pressure-overclosure=HARD")
     (note,) = deck.refusals
     assert "NO SEPARATION" in note.what and "allow separation" in note.fix
-
-
-def test_general_contact_is_refused_with_the_contact_pair_to_write(tmp_path):
-    """CAE's general contact (*Contact, *Contact Inclusions, *Contact Property
-    Assignment) is refused card by card with the way: a surface-to-surface contact
-    pair."""
-    deck = _cae_variant(
-        tmp_path, "*Contact Pair, interaction=IntProp-1, type=SURFACE TO SURFACE\n"
-        "Surf-2, Surf-1\n", "*Contact, op=NEW\n*Contact Inclusions, ALL EXTERIOR\n"
-        "*Contact Property Assignment\n ,  , IntProp-1\n")
-    general = [n for n in deck.refusals if "general contact" in n.fix]
-    assert [n.what for n in general] == ["*CONTACT", "*CONTACT INCLUSIONS",
-                                         "*CONTACT PROPERTY ASSIGNMENT"]
-    assert all("Surface-to-surface contact (Standard)" in n.fix for n in general)
 
 
 def test_section_controls_are_harmless(tmp_path):

@@ -94,3 +94,23 @@ def test_init_of_a_mesh_refuses_deck_options(tmp_path, capsys):
     assert "--density apply to a deck" in capsys.readouterr().err
     assert main(["init", str(tmp_path / "x.toml")]) == 2
     assert "or a Gmsh mesh (.msh)" in capsys.readouterr().err
+
+
+def test_a_mesh_without_contact_groups_proposes_the_bodies_that_touch(tmp_path):
+    """sandwich-2d written as one Gmsh file without its interface groups: no named
+    surfaces face each other, so the skeleton proposes the two beams, which touch,
+    with touching = true; filled in, it runs on the faces where they touch (their
+    whole overlap)."""
+    example = sandwich_2d(1)
+    bodies = [dataclasses.replace(b, mesh=dataclasses.replace(b.mesh, facet_sets={
+        k: v for k, v in b.mesh.facet_sets.items() if k != "interface"}))
+        for b in example.bodies]
+    write_mesh(tmp_path / "lap.msh", bodies_in_one_mesh(bodies))
+    assert main(["init", str(tmp_path / "lap.msh")]) == 0
+    text = (tmp_path / "lap.toml").read_text()
+    assert text.count("[[interfaces]]") == 1 and "touching = true" in text
+    assert "bottom and top touch over 124 and 124 facets" in text
+    (tmp_path / "lap.toml").write_text(_fill(text))
+    model = load_config(tmp_path / "lap.toml").model
+    assert model.interface_list[0].set1 == "touching:top"
+    assert len(model.body("bottom").mesh.facet_sets["touching:top"]) == 124

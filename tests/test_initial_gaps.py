@@ -9,7 +9,7 @@ import pytest
 
 import qsma
 from qsma.analysis.levels import Levels
-from qsma.errors import AnalysisError, InterfaceGapWarning
+from qsma.errors import AnalysisError, InputError, InterfaceGapWarning
 from qsma.mesh.generate import structured_mesh
 from qsma.model import Body, Clamp, Interface, Material, Model, Probe
 
@@ -70,3 +70,46 @@ def test_a_gap_the_preload_does_not_close_leaves_every_pair_open():
     pre = err.value.partial
     assert pre.n_open == len(pre.status) == 25
     assert np.abs(pre.lam).max() < 1e-12 * E * 0.05
+
+
+def test_adjust_closes_the_meshed_gap_as_a_deck_adjust_does():
+    """``Interface.adjust`` (a deck's ADJUST=): the gap of 0.075 within it is zero, so
+    the same push of 0.1 carries E A 0.1 / H, the blocks as if meshed touching (no gap
+    warning); an adjust below the gap leaves it, E A (0.1 - 0.075) / H."""
+    import dataclasses
+    import warnings
+    levels = Levels("alpha", (1.0, 10.0))
+    model = _blocks(GAP, 0.1)
+    closed = dataclasses.replace(model, interface=dataclasses.replace(model.interface,
+                                                                      adjust=0.08))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", InterfaceGapWarning)
+        res = qsma.run(closed, levels=levels, method="basket")
+    assert res.preload.lam[:, -1].sum() == pytest.approx(
+        E * 1.0 * 0.1 / (H_LOWER + H_UPPER), rel=1e-8)
+    short = dataclasses.replace(model, interface=dataclasses.replace(model.interface,
+                                                                     adjust=0.07))
+    with pytest.warns(InterfaceGapWarning):
+        res = qsma.run(short, levels=levels, method="basket")
+    assert res.preload.lam[:, -1].sum() == pytest.approx(
+        E * 1.0 * (0.1 - GAP) / (H_LOWER + H_UPPER), rel=1e-8)
+    with pytest.raises(InputError, match="adjust must be a finite distance"):
+        Interface("lower", "face", "upper", "face", adjust=-1.0)
+
+
+def test_adjust_by_node_set_closes_the_gaps_at_its_slave_nodes():
+    """``adjust`` naming a set of the slave (the lower block, finer): the gaps at its
+    nodes are zero, so the push of 0.1 carries E A 0.1 / H as with a distance; a name
+    the slave does not hold is refused naming its sets."""
+    import dataclasses
+    model = _blocks(GAP, 0.1)
+    by_set = dataclasses.replace(model, interface=dataclasses.replace(model.interface,
+                                                                      adjust="face"))
+    res = qsma.run(by_set, levels=Levels("alpha", (1.0, 10.0)), method="basket")
+    assert res.preload.lam[:, -1].sum() == pytest.approx(
+        E * 1.0 * 0.1 / (H_LOWER + H_UPPER), rel=1e-8)
+    wrong = dataclasses.replace(model, interface=dataclasses.replace(model.interface,
+                                                                     adjust="nowhere"))
+    with pytest.raises(InputError, match="'nowhere' is no node set of its slave body "
+                                         "'lower'"):
+        qsma.run(wrong, levels=Levels("alpha", (1.0,)), method="basket")

@@ -239,3 +239,7 @@ def test_a_negligible_negative_loop_within_its_estimate_is_zero_not_a_failure():
     assert not _negligible_negative(-2.0, 1.0, 1.0, 1.0)          # beyond its estimate
     assert not _negligible_negative(-1.0, 2.0, 1.0, 1.0)          # estimate not negligible
     assert _negligible_negative(-1e-6, 2e-6, 1.0, 1.0)
+    # lap-3d with C3D8I bricks where its first pair slips: D and its estimate the same
+    # number but for round-off (the estimate is the distance to a loop of D = 0)
+    assert _negligible_negative(-1.0092894569939045e-10, 1.0092894569925396e-10,
+                                47.402551569923524, 1.9089358442674287e-06)

@@ -17,6 +17,8 @@ from ..contact.laws import law_from_table
 from ..errors import InputError, MeshFileError
 from ..model import (Body, Bolt, Clamp, Interface, LinearDamping, Material, Model, NodalForce,
                      PointMass, Pressure, Probe, Spring, read_gap_field)
+from ..model.touching import with_touching_sets
+from ..fe.formulation import with_element
 from ..units import unit_system
 from .levels import Levels, spec_levels
 from .options import RunOptions
@@ -29,7 +31,7 @@ SCHEMA = {
          "damping": (dict, False),
          "tip": (dict, True), "analysis": (dict, False), "levels": (dict, False)},
     "bodies": {"name": (str, True), "mesh": (str, True), "cells": (str, False),
-               "part": (int, False), "E": (_NUM, True),
+               "part": (int, False), "element": (str, False), "E": (_NUM, True),
                "nu": (_NUM, True), "rho": (_NUM, True), "clamps": (list, False),
                "pressures": (list, False), "springs": (list, False),
                "masses": (list, False), "forces": (list, False)},
@@ -43,14 +45,14 @@ SCHEMA = {
     "pressures": {"set": (str, True), "p": (_NUM, True), "load": (str, False),
                   "face": (int, False)},
     "forces": {"set": (str, True), "force": (list, True), "load": (str, False)},
-    "interface": {"body1": (str, True), "set1": (str, True), "body2": (str, True),
-                  "set2": (str, True), "mu": (_NUM, True), "tol": (_NUM, False),
+    "interface": {"body1": (str, True), "set1": (str, False), "body2": (str, True),
+                  "set2": (str, False), "touching": (bool, False), "mu": (_NUM, True), "tol": (_NUM, False),
                   "coupling": (str, False), "slave": (str, False), "law": (dict, False),
-                  "gap": (dict, False)},
-    "interfaces": {"body1": (str, True), "set1": (str, True), "body2": (str, True),
-                   "set2": (str, True), "mu": (_NUM, True), "tol": (_NUM, False),
+                  "gap": (dict, False), "adjust": (_NUM + (str,), False)},
+    "interfaces": {"body1": (str, True), "set1": (str, False), "body2": (str, True),
+                   "set2": (str, False), "touching": (bool, False), "mu": (_NUM, True), "tol": (_NUM, False),
                    "coupling": (str, False), "slave": (str, False), "law": (dict, False),
-                   "gap": (dict, False)},
+                   "gap": (dict, False), "adjust": (_NUM + (str,), False)},
     "gap": {"file": (str, True), "scale": (_NUM, False), "coordinate_scale": (_NUM, False)},
     "damping": {"ratio": (_NUM, False), "rayleigh": (list, False)},
     "tip": {"sets": (list, False), "points": (list, False), "direction": (list, True)},
@@ -162,7 +164,36 @@ def _interface(t, where, base, with_mu=True) -> Interface:
                              coordinate_scale=g.get("coordinate_scale", 1.0))
     return Interface(t["body1"], t["set1"], t["body2"], t["set2"], t.get("tol"),
                      coupling=t.get("coupling", "auto"), slave=t.get("slave"),
-                     mu=t["mu"] if with_mu else None, law=law, gap=gap)
+                     mu=t["mu"] if with_mu else None, law=law, gap=gap,
+                     adjust=t.get("adjust"))
+
+
+def _with_touching(tables, bodies, wheres) -> list:
+    """Interface tables with ``set1``/``set2`` filled where ``touching = true`` (the
+    facet sets found where the two bodies touch, added to ``bodies`` in place); each
+    other table must name both sets."""
+    out, pending = [], []
+    for t, where in zip(tables, wheres):
+        named = [k for k in ("set1", "set2") if k in t]
+        if t.get("touching", False):
+            if named:
+                raise InputError(f"{where}: touching = true finds the contact faces; "
+                                 f"leave out {' and '.join(named)}, or touching")
+            pending.append((len(out), where))
+        elif len(named) < 2:
+            missing = sorted({"set1", "set2"} - set(named))
+            raise InputError(f"{where}: missing required key {missing[0]!r}: name the "
+                             f"facet sets in contact (set1, set2), or let qsma find the "
+                             f"faces where the bodies touch with touching = true")
+        out.append(dict(t))
+    for k, where in pending:
+        try:
+            ((s1, s2),) = with_touching_sets(bodies, [(out[k]["body1"], out[k]["body2"])])
+        except InputError as exc:
+            raise InputError(f"{where}: {exc}") from None
+        out[k].update(set1=s1, set2=s2)
+        del out[k]["touching"]
+    return out
 
 
 def _damping(table, where):
@@ -309,6 +340,8 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
             forces = tuple(NodalForce(t["set"], tuple(t["force"]), t.get("load", "preload"))
                            for t in tables["forces"])
             mesh = _body_mesh(base / b["mesh"], b.get("cells"), files, b.get("part"))
+            if "element" in b:
+                mesh = with_element(mesh, b["element"])
             mesh, pressures = _pressures(mesh, tables["pressures"])
             bodies.append(Body(b["name"], mesh, mat, clamps, pressures, springs, masses,
                                forces))
@@ -316,6 +349,7 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
             raise InputError(f"{w} ({b['name']!r}): {exc}") from exc
     tip = _check(data["tip"], "tip", f"{where}: tip")
     bodies, probe = _probe(tip, bodies, f"{where}: tip")
+    bodies = list(bodies)
     name = data.get("name", "model")
     damping = _damping(data.get("damping"), f"{where}: damping")
     if ("interface" in data) == ("interfaces" in data):
@@ -326,6 +360,7 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
                   for k, t in enumerate(data.get("bolts", [])))
     if "interface" in data:
         itf = _check(data["interface"], "interface", f"{where}: interface")
+        (itf,) = _with_touching([itf], bodies, [f"{where}: interface"])
         model = Model(bodies=tuple(bodies),
                       interface=_interface(itf, f"{where}: interface", base, with_mu=False),
                       tip=probe, mu=itf["mu"], name=name, bolts=bolts, units=units,
@@ -334,9 +369,12 @@ def parse_config(data, base=Path("."), where="config") -> RunConfig:
         if not data["interfaces"]:
             raise InputError(f"{where}: interfaces is empty; list the touching facet sets "
                              f"as [[interfaces]] tables")
-        itfs = tuple(_interface(_check(t, "interfaces", f"{where}: interfaces[{k}]"),
-                                f"{where}: interfaces[{k}]", base)
-                     for k, t in enumerate(data["interfaces"]))
+        tables = [_check(t, "interfaces", f"{where}: interfaces[{k}]")
+                  for k, t in enumerate(data["interfaces"])]
+        tables = _with_touching(tables, bodies, [f"{where}: interfaces[{k}]"
+                                                 for k in range(len(tables))])
+        itfs = tuple(_interface(t, f"{where}: interfaces[{k}]", base)
+                     for k, t in enumerate(tables))
         model = Model(bodies=tuple(bodies), interfaces=itfs, tip=probe, mu=itfs[0].mu,
                       name=name, bolts=bolts, units=units, damping=damping)
     analysis = dict(data.get("analysis", {})) if isinstance(data.get("analysis"), dict) \

@@ -26,6 +26,7 @@ import math
 
 import numpy as np
 
+from ..fe.bolts import washer_weights
 from ..mesh.celltypes import CELL_TYPES, abaqus_faces
 from .connector_bolts import ConnectorBolts
 from .records import _number, _row_where, _rows_of, _where
@@ -33,6 +34,22 @@ from .records import _number, _row_where, _rows_of, _where
 #: keywords whose cards a bolt may use
 _INDEXED = {"NSET", "ELSET", "ELEMENT", "DISTRIBUTING COUPLING", "COUPLING", "SPRING",
             "EQUATION"}
+#: Largest difference, relative to the largest weight, between a deck's coupling weights
+#: and a uniform traction's that passes without a note (the export writes 8 digits).
+WEIGHTS_RTOL = 1e-5
+
+
+@dataclass(frozen=True)
+class _Washer:
+    """What :func:`qsma.fe.bolts.washer_weights` needs of a body: its mesh and name."""
+    mesh: object
+    name: str
+
+    @property
+    def dim(self) -> int:
+        return self.mesh.dim
+
+
 #: member element types and what they are
 _MEMBERS = {"B31": "beam", "B31R": "beam", "T3D2": "truss", "T3D2H": "truss",
             "SPRINGA": "spring"}
@@ -45,6 +62,7 @@ class _Coupling:
     cards: list
     surface: str | None = None          # *COUPLING, SURFACE=
     nodes: list = field(default_factory=list)   # *DISTRIBUTING COUPLING node ids
+    weights: list = field(default_factory=list)  # and their weights (same order)
 
 
 @dataclass
@@ -147,12 +165,15 @@ class DeckBolts(ConnectorBolts):
                 if e in self._members and self._members[e].kind == "dcoup"]
         if len(refs) != 1:
             return
-        nodes = []
+        nodes, weights = [], []
         for w, t in rows:
             ref = t[0].strip() if t else ""
-            nodes += [_int(ref)] if _int(ref) is not None else \
-                self._nsets.get(ref.upper(), [])
-        self._couplings[refs[0]] = _Coupling(refs[0], _where(card), [card], nodes=nodes)
+            got = [_int(ref)] if _int(ref) is not None else self._nsets.get(ref.upper(), [])
+            weight = t[1].strip() if len(t) > 1 else ""
+            nodes += got
+            weights += [_number(weight, w, "a coupling weight") if weight else 1.0] * len(got)
+        self._couplings[refs[0]] = _Coupling(refs[0], _where(card), [card], nodes=nodes,
+                                             weights=weights)
 
     def _one_node(self, ref):
         if ref is None or ref is True:
@@ -271,6 +292,13 @@ class DeckBolts(ConnectorBolts):
                       for f in [self._find(b["mesh"], coupling.surface, ("facet",))]
                       if f is not None]
             if len(owners) == 1:
+                method = str(coupling.cards[-1].params.get("WEIGHTING METHOD", "UNIFORM"))
+                if method.upper() != "UNIFORM":
+                    self.note(coupling.where, f"*DISTRIBUTING, WEIGHTING METHOD={method}",
+                              "qsma spreads the bolt force as a uniform traction over the "
+                              "washer (WEIGHTING METHOD=UNIFORM) and does not use other "
+                              "weightings; the difference changes the preload near the "
+                              "washer only", False)
                 return owners[0]
             self.note(coupling.where, f"*COUPLING on surface {coupling.surface!r}, which "
                       f"is the element faces of {len(owners)} bodies", "a washer is a "
@@ -285,12 +313,37 @@ class DeckBolts(ConnectorBolts):
             for name, facets in mesh.facet_sets.items():
                 rows = np.pad(mesh.points[np.unique(facets)], ((0, 0), (0, 3 - mesh.dim)))
                 if len(facets) and {tuple(p) for p in rows} == xyz:
+                    self._weights_note(coupling, mesh, name)
                     return k, name
         self.note(coupling.where, "*DISTRIBUTING COUPLING: its nodes are the nodes of no "
                   "element-face surface of one body", "give the washer as a *SURFACE, "
                   "TYPE=ELEMENT of exactly the coupling's nodes (qsma spreads the bolt "
                   "force over it as a uniform traction)", True)
         return None
+
+    def _weights_note(self, coupling, mesh, name):
+        """A note where the deck's coupling weights are not those of a uniform traction
+        over the washer, the distribution qsma gives the bolt force."""
+        if not coupling.weights or min(coupling.weights) < 0 or sum(coupling.weights) <= 0:
+            return
+        deck = {}
+        for n, w in zip(coupling.nodes, coupling.weights):
+            key = tuple(np.pad(self._xyz[n], (0, 3 - len(self._xyz[n]))))
+            deck[key] = deck.get(key, 0.0) + w
+        total = sum(deck.values())
+        nodes, w_uniform, _, _ = washer_weights(_Washer(mesh, name), name)
+        pts = np.pad(mesh.points[nodes], ((0, 0), (0, 3 - mesh.dim)))
+        w_deck = np.array([deck.get(tuple(p), 0.0) for p in pts]) / total
+        gap = float(np.max(np.abs(w_deck - w_uniform)) / np.max(np.abs(w_uniform)))
+        if gap > WEIGHTS_RTOL:
+            self.note(coupling.where, f"*DISTRIBUTING COUPLING: the deck's weights differ "
+                      f"from those of a uniform traction over the washer by up to "
+                      f"{100 * gap:.3g} % of the largest", "qsma spreads the bolt force as "
+                      "a uniform traction (the consistent nodal forces, docs/theory.md "
+                      "section 11) and does not use the deck's weights; the difference "
+                      "changes the preload near the washer only. To see it, run the deck "
+                      "in CalculiX with weights proportional to the washer's nodal areas",
+                      False)
 
     def _node_names(self, node) -> set:
         """How load rows name ``node``: its id and the node sets of it alone."""

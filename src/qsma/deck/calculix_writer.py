@@ -283,7 +283,8 @@ class _Writer:
                     *[f"** {line}" for line in note],
                     f"*SURFACE INTERACTION, NAME={name}", *behaviour, "*FRICTION",
                     f"{inp_number(mu)}, {inp_number(stick if stick is not None else slope)}",
-                    f"*CONTACT PAIR, INTERACTION={name}, TYPE=NODE TO SURFACE",
+                    f"*CONTACT PAIR, INTERACTION={name}, TYPE=NODE TO SURFACE"
+                    + ("" if itf.adjust is None else f", ADJUST={inp_number(itf.adjust)}"),
                     f"{s_name}, {m_name}"]
         return out
 

@@ -4,7 +4,7 @@ element types of every body: the part of the deck reader
 from __future__ import annotations
 
 from ..errors import InputError
-from ..fe.formulation import resolve_formulations
+from ..fe.formulation import nearest_element, resolve_formulations
 from .records import _where
 
 
@@ -23,7 +23,9 @@ class PartBodies:
             self.comments[("bodies", k, "cells")] = f"*INSTANCE, {_where(inst)}"
             section = self._instance_section(inst, name)
             self._material_keys(table, k, section)
-            bodies.append({"table": table, "mesh": self.asm.body_mesh(name),
+            mesh = self.asm.body_mesh(name)
+            self._element_key(table, k, mesh)
+            bodies.append({"table": table, "mesh": mesh,
                            "thickness": section[2] if section else 1.0})
         return bodies
 
@@ -72,6 +74,8 @@ class PartBodies:
         parts = {str(c.params.get("NAME", "")).upper(): str(c.params.get("PART", "")).upper()
                  for c in self.cards if c.keyword == "INSTANCE"}
         for b in bodies:
+            if "element" in b["table"]:
+                continue              # computed as its nearest element (named)
             try:
                 resolve_formulations(b["mesh"])
             except InputError as error:
@@ -90,3 +94,24 @@ class PartBodies:
                 self.note(where, f"*ELEMENT, TYPE={element} of body "
                           f"{b['table']['name']!r}", f"{error} (in Abaqus/CAE: Mesh > "
                           f"Element Type)", True)
+
+    def _element_key(self, table, k, mesh):
+        """``element`` of a body whose elements qsma computes as their nearest one
+        (``C3D8R`` as ``C3D8I``, ...), with a note each; nothing where all are its own."""
+        found = {}
+        for block in [mesh] + list(mesh.extra_blocks):
+            near = nearest_element(block.element, block.cell_type)
+            if near is not None:
+                found[str(block.element).upper()] = near
+        if not found:
+            return
+        table["element"] = next(iter(found.values()))[0] if not mesh.extra_blocks \
+            else "nearest"
+        for old, (new, why) in found.items():
+            card = next((c for c in self.cards if c.keyword == "ELEMENT" and
+                         str(c.params.get("TYPE", "")).upper() == old), None)
+            self.note(_where(card) if card is not None else self.path.name,
+                      f"{old} elements are computed as {new}",
+                      why, False)
+        self.comments[("bodies", k, "element")] = "; ".join(
+            f"the deck's {old} computed as {new}" for old, (new, _) in found.items())

@@ -17,6 +17,7 @@ from .bolts import DeckBolts
 from .loads import SupportsAndLoads
 from .parts import PartBodies
 from .probe import ProbeAndLevels
+from .general_contact import GENERAL_CONTACT_CARDS, GeneralContact
 from .records import (LAW_NOTES, Deck, DeckInterface, DeckNote, SurfaceInteraction,
                       _HARMLESS, _INTERACTION_KEYWORDS, _MATERIAL_KEYWORDS, _PROCEDURES,
                       _REFUSED, _SILENT, _USED, _Material, _Step, _loads_in, _number,
@@ -55,7 +56,7 @@ def read_deck(path, *, mode: int = 0, tip_node: int | None = None,
     return reader.deck(mode, tip_node, tip_direction, levels, units)
 
 
-class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, PartBodies):
+class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, GeneralContact, PartBodies):
     """What :func:`read_deck` builds, step by step."""
 
     def __init__(self, path, cards, assembly, density=None):
@@ -311,7 +312,8 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, PartBodies):
         cards = list(self.model_cards) + (list(preload.cards) if preload else [])
         for card in cards:
             kw = card.keyword
-            if kw in _SILENT or kw in _USED or id(card) in self._bolt_cards:
+            if kw in _SILENT or kw in _USED or id(card) in self._bolt_cards \
+                    or kw in GENERAL_CONTACT_CARDS:       # read (or refused) with the pairs
                 continue
             if kw == "INITIAL CONDITIONS" and \
                     str(card.params.get("TYPE", "")).upper() == "TEMPERATURE":
@@ -352,6 +354,7 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, PartBodies):
                     f"connected part {k + 1} of the mesh (cells joined through shared "
                     f"nodes), {len(cells)} elements")
             self._material_keys(table, k, section)
+            self._element_key(table, k, mesh)
             bodies.append({"table": table, "mesh": mesh,
                            "thickness": section[2] if section else 1.0})
         if len(bodies) == 1:
@@ -487,9 +490,7 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, PartBodies):
                 continue
             inter = card.params.get("INTERACTION")
             record = self._interaction(inter if isinstance(inter, str) else None)
-            if "ADJUST" in card.params:
-                self.note(_where(card), f"ADJUST={card.params['ADJUST']} of the contact "
-                          f"pair", "qsma takes the gaps from the geometry as meshed", False)
+            adjust = self._adjust(card)
             for where, tokens, text in _rows_of(card):
                 w = _row_where(where)
                 if len(tokens) < 2:
@@ -527,6 +528,10 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, PartBodies):
                 law = law_table(record, w)
                 if law is not None:
                     table["law"] = law
+                if adjust is not None:
+                    table["adjust"] = self._adjust_set(adjust, bodies[s]["mesh"], card)
+                    if table["adjust"] is None:
+                        del table["adjust"]
                 comment = f"*CONTACT PAIR, {w}: master {master}, slave {slave}"
                 if record is None or record.mu is None:
                     comment += "; no *FRICTION: frictionless as in CalculiX (set mu)"
@@ -538,10 +543,39 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, PartBodies):
                 out.append((table, comment))
                 self._deck_interfaces.append(DeckInterface(
                     slave, master, names[s], names[m], record, w))
+        out += self._general_interfaces(bodies)
         if not out:
             self.note(self.path.name, "no *CONTACT PAIR joins two bodies",
                       "qsma's joint is a contact interface: define a *CONTACT PAIR", True)
         return out
+
+    def _adjust(self, card):
+        """A contact pair's ``ADJUST=`` (the interface's ``adjust``): a distance, the
+        name of a node set (:meth:`_adjust_set`), or None."""
+        value = card.params.get("ADJUST")
+        if value is None or value is True:
+            return None
+        try:
+            adjust = float(value)
+        except (TypeError, ValueError):
+            return str(value)
+        if not np.isfinite(adjust) or adjust < 0:
+            self.note(_where(card), f"ADJUST={value} of the contact pair",
+                      "give ADJUST= a distance >= 0", True)
+            return None
+        return adjust
+
+    def _adjust_set(self, adjust, mesh, card):
+        """The adjust of a pair: a distance as it is, a node set spelled as in the slave
+        body's ``mesh``; None with a note where the slave has no such set."""
+        if not isinstance(adjust, str):
+            return adjust
+        found = self._find(mesh, adjust, ("node", "facet"))
+        if found is None:
+            self.note(_where(card), f"ADJUST={adjust} of the contact pair: no node set of "
+                      f"the slave surface's body", "qsma takes these gaps as meshed; give "
+                      "ADJUST= a distance, or a node set of the slave's nodes", False)
+        return found
 
     def _interaction(self, name):
         if name is None:

@@ -50,6 +50,14 @@ _NO_CONNECTORS = ("qsma reads connector elements (CONN3D2) only as bolts: an AXI
                   "*CONNECTOR LOAD on component 1 in the first *STATIC step the pretension "
                   "(docs/mesh-io.md); or " + _BOLT_ONLY)
 
+#: Abaqus' general contact: qsma's interfaces are pairs of surfaces that touch.
+_GENERAL_CONTACT = ("qsma reads general contact as *CONTACT INCLUSIONS, ALL EXTERIOR with "
+                    "one *CONTACT PROPERTY ASSIGNMENT ', , name' (it finds the faces where "
+                    "the bodies touch); for anything narrower give the faces that touch as "
+                    "two *SURFACE, TYPE=ELEMENT (one per body) and join them by *CONTACT "
+                    "PAIR, INTERACTION=name; pairs apart by a clearance stay open in a QSMA "
+                    "and need no pair")
+
 #: Keywords that change the structure, its material or its supports in a way qsma does
 #: not model: running without them answers another problem. Value: what to do.
 _REFUSED = {
@@ -71,13 +79,10 @@ _REFUSED = {
     "CONNECTOR ELASTICITY": _NO_CONNECTORS,
     "CONNECTOR LOAD": _NO_CONNECTORS,
     "CONNECTOR MOTION": _NO_CONNECTORS,
-    **dict.fromkeys(("CONTACT", "CONTACT INCLUSIONS", "CONTACT EXCLUSIONS",
-                     "CONTACT PROPERTY ASSIGNMENT", "CONTACT FORMULATION",
-                     "SURFACE PROPERTY ASSIGNMENT", "CONTACT INITIALIZATION ASSIGNMENT"),
-                    "general contact (Abaqus' *CONTACT) is not read: qsma's interfaces are "
-                    "contact pairs, *CONTACT PAIR with the slave and master surfaces (in "
-                    "Abaqus/CAE: Interaction > Create > Surface-to-surface contact "
-                    "(Standard))"),
+    "CONTACT EXCLUSIONS": _GENERAL_CONTACT,
+    "CONTACT INITIALIZATION ASSIGNMENT": _GENERAL_CONTACT,
+    "CONTACT INITIALIZATION DATA": _GENERAL_CONTACT,
+    "SURFACE PROPERTY ASSIGNMENT": _GENERAL_CONTACT,
     "CYCLIC SYMMETRY MODEL": "qsma models the whole structure, no cyclic symmetry",
     "TRANSFORM": "qsma's supports and loads are in global directions",
     "PLASTIC": "qsma's bodies are linear elastic: the preload would differ where the "

@@ -18,6 +18,7 @@ from scipy.spatial import cKDTree
 
 from ..mesh.facets import facet_normals
 from ..mesh.io.assembly import read_assembly
+from ..mesh.touching import touching_facets
 from ..version import __version__
 from .records import DEFAULT_LEVELS
 from .toml import _toml
@@ -75,7 +76,7 @@ def mesh_toml(path, folder=None) -> str:
         if load is not None:
             out.append(f"# pressures = [{{ set = {_toml(load)}, p = 0.0 }}]   # the "
                        f"preload (bolt pressure), guessed from the set's name")
-    out += _interface_lines(interfaces)
+    out += _interface_lines(interfaces, [] if interfaces else _touching_pairs(names, meshes))
     out += ["", "[tip]   # REQUIRED: the probe whose displacement measures the amplitude",
             f"# points = [[{_toml(names[0])}, {_toml([0.0] * dim)}]]   # REQUIRED: a body "
             f"and a point (its nearest node is the probe)",
@@ -177,8 +178,33 @@ def _facing_share(ga, gb) -> float:
     return float(aa[facing].sum() / aa.sum())
 
 
-def _interface_lines(interfaces) -> list:
-    """The ``[[interfaces]]`` tables of the facing surfaces, mu REQUIRED."""
+def _touching_pairs(names, meshes) -> list:
+    """``(name a, name b, facets of a, facets of b)`` of the bodies that touch
+    (:func:`qsma.mesh.touching.touching_facets`), for a mesh whose named surfaces face
+    none of another body's."""
+    out = []
+    for i in range(len(meshes)):
+        for j in range(i + 1, len(meshes)):
+            fa, fb = touching_facets(meshes[i], meshes[j])
+            if len(fa) and len(fb):
+                out.append((names[i], names[j], len(fa), len(fb)))
+    return out
+
+
+def _interface_lines(interfaces, touching=()) -> list:
+    """The ``[[interfaces]]`` tables of the facing surfaces, mu REQUIRED; without any,
+    those of the bodies that touch (``touching = true``)."""
+    if not interfaces and touching:
+        out = ["", "# No named surfaces of two bodies face each other; these bodies touch:",
+               "# qsma finds the faces where they do (touching = true; or name them as",
+               "# physical groups and give set1, set2)."]
+        for na, nb, fa, fb in touching:
+            out += ["", f"[[interfaces]]   # {na} and {nb} touch over {fa} and {fb} facets",
+                    f"body1 = {_toml(na)}", f"body2 = {_toml(nb)}", "touching = true",
+                    "# mu = 0.6                      # REQUIRED: friction coefficient",
+                    "coupling = \"auto\"             # node-to-node where the nodes "
+                    "coincide, else mortar"]
+        return out
     if not interfaces:
         return ["", "# No two surfaces of different bodies face each other in the mesh:",
                 "# define the contact surfaces as physical groups (facet sets) of each body.",

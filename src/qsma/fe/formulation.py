@@ -5,7 +5,10 @@ A body's formulation is fixed by its mesh: the cell type (meshio name) and
 such as ``CPS4``, ``C3D8I``; ``None`` when the file names none, as Gmsh files do).
 Nothing is silently replaced: a name qsma does not implement is refused with a
 message, and :attr:`Formulation.label` (copied to ``AssembledBody.formulation``)
-says what was computed.
+says what was computed. A body's ``element`` (:func:`with_element`) computes it with
+another element, by name or as the nearest one qsma implements
+(:func:`nearest_element`: ``C3D8R`` as ``C3D8I``, ``C3D10M`` as ``C3D10``, ...); a
+deck run does so with a note.
 
 Plane stress uses unit thickness, like plane strain uses unit depth: stiffness, mass
 and pressure loads are all per metre of thickness, so displacements, frequencies,
@@ -188,12 +191,93 @@ def resolve_formulation(mesh) -> Formulation:
             f"hourglass control: its zero-energy modes would corrupt the frequencies). "
             f"Use the fully integrated {family}{digits}"
             + (f" or the incompatible-mode {family}{digits}I (bending-accurate)"
-               if incompatible else "") + " instead")
+               if incompatible else "") + " instead (a TOML body: element = \""
+            + (f"{family}{digits}I" if incompatible else f"{family}{digits}") + "\")")
     if suffix not in ("", "I"):
+        near = nearest_element(key, ct)
         raise InputError(f"element type {name!r}: suffix {suffix!r} (hybrid, modified, "
                          f"coupled...) is not implemented; use {family}{digits}"
-                         + (f" or {family}{digits}I" if incompatible else ""))
+                         + (f" or {family}{digits}I" if incompatible else "")
+                         + (f" (a TOML body: element = \"{near[0]}\", or \"nearest\")"
+                            if near else ""))
     if suffix == "I" and not incompatible:
         raise InputError(f"element type {name!r}: incompatible modes exist for CPE4I/CPS4I"
                          f"/C3D8I only")
     return Formulation(ct, kin, suffix == "I", source=str(name))
+
+
+#: Why an element qsma does not implement is computed with its nearest one (what
+#: :func:`nearest_element` gives), by the suffix letters dropped or replaced.
+_NEAREST_WHY = {
+    "R": "reduced integration of a linear cell needs hourglass control, which qsma does "
+         "not implement; computed with incompatible modes, the bending-accurate linear "
+         "element. On coarse meshes the reduced element of Abaqus/CalculiX is softer: "
+         "CalculiX's C3D8R gives lap-3d (two elements through each plate) a first "
+         "frequency 12 % below C3D8I, 3 % below with four, where C3D8I has converged "
+         "to 0.03 % (docs/validation.md); check the mesh convergence",
+    "H": "the hybrid (mixed displacement-pressure) formulation matters for nearly "
+         "incompressible materials only; computed with the displacement formulation",
+    "M": "the modified quadratic tetrahedron; computed as the standard one (C3D10)",
+    "I": "the improved-stress quadratic tetrahedron; computed as the standard one "
+         "(C3D10)",
+}
+
+
+def nearest_element(name, cell_type) -> tuple | None:
+    """``(element qsma computes, why)`` for an Abaqus/CalculiX element name qsma does
+    not implement but whose nearest formulation it does (``C3D8R`` -> ``C3D8I``,
+    ``C3D10M`` -> ``C3D10``, ``C3D20RH`` -> ``C3D20R``, ...); None when ``name`` is
+    implemented or has no such neighbour (axisymmetric, other suffixes)."""
+    m = _ABAQUS.match(str(name).strip().upper()) if name is not None else None
+    if m is None or cell_type not in CELL_TYPES:
+        return None
+    family, digits, suffix = m.groups()
+    if family in ("CAX", "CGAX") or not suffix or suffix == "I" and \
+            CELL_TYPES[cell_type].incompatible_modes:
+        return None
+    if suffix == "R" and CELL_TYPES[cell_type].reduced is not None:
+        return None
+    letters, why = set(suffix), []
+    if not letters <= set("RHMI"):
+        return None
+    keep = ""
+    if "R" in letters:
+        keep = "R" if CELL_TYPES[cell_type].reduced is not None else \
+            "I" if CELL_TYPES[cell_type].incompatible_modes else None
+        if keep is None:
+            return None
+        if keep == "I":
+            why.append(_NEAREST_WHY["R"])
+    if "I" in letters:
+        if CELL_TYPES[cell_type].incompatible_modes:
+            keep = "I"
+        else:
+            why.append(_NEAREST_WHY["I"])
+    for letter in "HM":
+        if letter in letters:
+            why.append(_NEAREST_WHY[letter])
+    return f"{family}{digits}{keep}", "; ".join(why)
+
+
+def with_element(mesh, element: str):
+    """``mesh`` computed with ``element`` instead of the element names of its file (a
+    body's ``element`` key): an Abaqus/CalculiX name for a mesh of one cell type, or
+    ``"nearest"``: each cell block's name replaced by :func:`nearest_element` where
+    qsma does not implement it. Checked: :class:`InputError` naming what does not fit."""
+    from dataclasses import replace
+    if str(element).strip().lower() == "nearest":
+        def nearest(name, cell_type):
+            found = nearest_element(name, cell_type)
+            return name if found is None else found[0]
+        blocks = tuple(replace(b, element=nearest(b.element, b.cell_type))
+                       for b in mesh.extra_blocks)
+        out = replace(mesh, element=nearest(mesh.element, mesh.cell_type),
+                      extra_blocks=blocks)
+    elif getattr(mesh, "is_mixed", False):
+        raise InputError(f"element = {element!r} names one element for a mesh of several "
+                         f"cell types ({', '.join(b.cell_type for b in mesh.cell_blocks)}); "
+                         f"give element = \"nearest\" or mesh the body with one cell type")
+    else:
+        out = replace(mesh, element=str(element).strip())
+    resolve_formulations(out)
+    return out

@@ -58,6 +58,11 @@ class Interface:
         mesh. A callable of the contact points' coordinates ``(n, dim) -> (n,)``, or a
         :class:`qsma.model.gapfield.GapField` (e.g. a measured height map,
         :func:`qsma.model.gapfield.read_gap_field`). ``None``: flat (the mesh's own gaps).
+    adjust : the meshed surfaces' gaps and overlaps within this distance (m) are zero,
+        as Abaqus' and CalculiX's ``*CONTACT PAIR, ADJUST=`` moves the slave nodes onto
+        the master surface before the analysis; a string: a node set of the slave body,
+        whose contact points' gaps are zero (``ADJUST=`` a node set); ``None``: the
+        gaps as meshed. The gap field ``gap`` is added after, unadjusted.
     """
 
     body1: str
@@ -70,6 +75,7 @@ class Interface:
     mu: float | None = None
     law: object = None
     gap: object = None
+    adjust: float | str | None = None
 
     @property
     def label(self) -> str:
@@ -93,6 +99,14 @@ class Interface:
             raise InputError(f"interface {self.label}: gap must be a function of the "
                              f"contact points' coordinates or a GapField, got "
                              f"{type(self.gap).__name__}")
+        if self.adjust is not None and not isinstance(self.adjust, str) and (
+                isinstance(self.adjust, bool)
+                or not isinstance(self.adjust, (int, float, np.number))
+                or not np.isfinite(self.adjust) or self.adjust < 0):
+            raise InputError(f"interface {self.label}: adjust must be a finite distance "
+                             f">= 0 (m), the gaps and overlaps to close, or a node "
+                             f"set of the slave body, got "
+                             f"{self.adjust!r}")
         if self.coupling not in COUPLINGS:
             raise InputError(f"interface coupling must be one of {list(COUPLINGS)}, "
                              f"got {self.coupling!r}")

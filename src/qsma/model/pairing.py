@@ -189,16 +189,37 @@ def _significant_gaps(p, rtol):
     return np.where(np.abs(gap) > rtol * size, gap, 0.0)
 
 
+def _meshed_gaps(model, itf, p, rtol):
+    """:func:`_significant_gaps` with those the interface's ``adjust`` closes zero:
+    within its distance, or at the slave nodes of its node set."""
+    g = _significant_gaps(p, rtol)
+    adjust = getattr(itf, "adjust", None)
+    if g is None or adjust is None:
+        return g
+    if not isinstance(adjust, str):
+        return np.where(np.abs(g) <= adjust, 0.0, g)
+    name = itf.body1 if p.slave == 1 else itf.body2
+    mesh = model.body(name).mesh
+    if adjust not in mesh.node_sets and adjust not in mesh.facet_sets:
+        raise InputError(f"interface {itf.label}: adjust = {adjust!r} is no node set of "
+                         f"its slave body {name!r} (the side whose nodes carry the contact "
+                         f"points); its node sets: {sorted(mesh.node_sets)}. Name a node "
+                         f"set of {name!r}, or give the slave (slave = ...)")
+    slave_nodes = p.nodes1 if p.slave == 1 else p.nodes2
+    return np.where(np.isin(slave_nodes, mesh.nodes(adjust)), 0.0, g)
+
+
 def pair_gaps(model, pairing, rtol) -> np.ndarray | None:
     r"""Initial normal gap ``g0`` of each contact point (opening ``w = d_n + g0``): the
     mortar weighted gap :math:`g_i = D_i^{-1} \int \psi_i (x_m - x_s) \cdot n_s\,dA` of
     the undeformed surfaces, positive apart, negative where they overlap; zero at
     node-to-node pairs and where ``|g_i|`` is within ``rtol`` of the interface size;
-    plus the interface's own gap field (``Interface.gap``, the surfaces' shape).
+    zero also within ``Interface.adjust`` (a deck's ``ADJUST=``); plus the
+    interface's own gap field (``Interface.gap``, the surfaces' shape).
     ``None`` when every gap is zero (the contact problem's default)."""
     parts = []
     for itf, p in interface_pairings(model, pairing):
-        g = _significant_gaps(p, rtol)
+        g = _meshed_gaps(model, itf, p, rtol)
         if getattr(itf, "gap", None) is not None:
             g = (0.0 if g is None else g) + shape_gaps(itf, p)
         parts.append(g)
@@ -244,7 +265,7 @@ def warn_closed_gaps(model, pairing, rtol):
     """Say so when the mortar coupling found surfaces that are apart (or overlap) in the
     mesh: the contact problem starts from these gaps (docs/theory.md section 8)."""
     for itf, p in interface_pairings(model, pairing):
-        gap = _significant_gaps(p, rtol)
+        gap = _meshed_gaps(model, itf, p, rtol)
         if gap is None or not gap.any():
             continue
         worst = float(np.abs(gap).max())

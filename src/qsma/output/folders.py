@@ -121,6 +121,25 @@ def _sidecar(out: Path, kind: str, run_id: str = "") -> Path:
     return out.parent / f".{out.name}.qsma-{kind}{'-' + run_id if run_id else ''}"
 
 
+
+#: The lock files' descriptors this process holds. A forked child (the -alpha ramp,
+#: a loop worker, the plot worker) closes its copies at once: a flock belongs to the
+#: open file, so a child still running after its parent was killed would otherwise
+#: hold the output folder locked until it ends.
+_HELD: set = set()
+
+
+def _close_held_locks():
+    for fd in list(_HELD):
+        try:
+            os.close(fd)
+        except OSError:
+            pass
+    _HELD.clear()
+
+
+os.register_at_fork(after_in_child=_close_held_locks)
+
 class RunFolder:
     """The result folder of one run (see the module docstring for the protocol).
 
@@ -202,6 +221,7 @@ class RunFolder:
                                    "run_id": self.run_id}).encode()
                 os.ftruncate(fd, 0)
                 os.pwrite(fd, info, 0)
+                _HELD.add(fd)
                 return
             self._lock_fd = None
             os.close(fd)                # lock file replaced under us: take the new one
@@ -215,6 +235,7 @@ class RunFolder:
                 os.unlink(self.lock_path)
         except OSError:
             pass
+        _HELD.discard(self._lock_fd)
         os.close(self._lock_fd)
         self._lock_fd = None
 

@@ -14,7 +14,11 @@ unclamped interface DOFs only, and ``d = G u`` is written over those unknowns
   and no load, ``lam_k = c d_k`` (:func:`decoupled`), whose one solution under any law
   is ``d_k = lam_k = 0``: a tangential one carries no friction, a normal one is
   refused (the contact pressure there would be a share of the clamps' reaction that
-  nothing determines).
+  nothing determines, and the friction limit of the free tangential components with
+  it) unless every component of the point is fixed on both sides: such a point can
+  neither open nor slip, whatever its pressure, so it is inert and kept with
+  ``d = lam = 0`` (the clamped ends of two parts whose whole overlap is the
+  interface, as the faces found where bodies touch are).
 
 Node-to-node, both sides means the two nodes of the pair. Mortar, the slave node and
 the master surface at its place: the slave node lies on a plane normal to the clamped
@@ -113,7 +117,9 @@ def pivot_dofs(G, slave, dim):
         else np.zeros(G.shape[0])
     scale = max(norms.max(initial=0.0), np.finfo(float).tiny)
     fixed = np.flatnonzero(norms <= FIXED_RTOL * scale)
-    normal = fixed[fixed % dim == dim - 1]
+    points, count = np.unique(fixed // dim, return_counts=True)
+    held = points[count == dim]             # every component fixed: inert (docstring)
+    normal = fixed[(fixed % dim == dim - 1) & ~np.isin(fixed // dim, held)]
     if len(normal):
         raise fixed_normal(normal // dim)
     rows = np.setdiff1d(np.arange(G.shape[0]), fixed)
