@@ -268,3 +268,20 @@ def test_freecad_solids_left_apart_by_a_small_gap(tmp_path):
     b = qsma.run(with_deck_probe(model, deck), levels=levels)
     assert_same_run(a, b)
     assert a.preload.lam[:, -1].sum() == pytest.approx(PRE_LAP["p"] * 1e-4, rel=1e-2)
+
+
+def test_cae_general_contact_runs_as_its_contact_pair(tmp_path):
+    """CAE's general contact (*Contact, ALL EXTERIOR, one property) in place of the
+    surface-to-surface pair: the touching faces are the overlap, and the run is the
+    contact pair deck's."""
+    (tmp_path / "pair").mkdir()
+    cae_lap_deck(tmp_path / "pair" / "lap.inp")
+    pair = read_deck(tmp_path / "pair" / "lap.inp")
+    general = _cae_variant(
+        tmp_path, "*Contact Pair, interaction=IntProp-1, type=SURFACE TO SURFACE\n"
+        "Surf-2, Surf-1\n", "*Contact, op=NEW\n*Contact Inclusions, ALL EXTERIOR\n"
+        "*Contact Property Assignment\n ,  , IntProp-1\n")
+    assert not general.refusals and general.config["interface"]["touching"]
+    a = qsma.run(parse_config(general.config, base=tmp_path).model, levels=LEVELS)
+    b = qsma.run(parse_config(pair.config, base=tmp_path / "pair").model, levels=LEVELS)
+    assert_same_run(a, b)
