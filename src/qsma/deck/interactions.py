@@ -13,7 +13,9 @@ class DeckInteractions:
     def _interaction_card(self, interaction, card):
         rows = [(w, t) for w, t, _ in _rows_of(card)]
         name = interaction["name"]
-        if card.keyword == "FRICTION":
+        if card.keyword == "FRICTION" and "ROUGH" in card.params:
+            self._rough(interaction, card)
+        elif card.keyword == "FRICTION":
             if rows and rows[0][1] and rows[0][1][0]:
                 w, t = rows[0]
                 interaction["mu"] = _number(t[0], w, "the friction coefficient")
@@ -32,6 +34,12 @@ class DeckInteractions:
                             for w, t in rows for x in t if x)
             interaction["pressure_overclosure"] = law
             interaction["behavior"] = numbers
+            if "NO SEPARATION" in card.params:
+                self.note(_where(card), f"*SURFACE BEHAVIOR, NO SEPARATION of interaction "
+                          f"{name!r}", "qsma's pairs open and close as the joint rocks, "
+                          "which changes the answer wherever a pair would open: remove NO "
+                          "SEPARATION (in Abaqus/CAE: Normal Behavior, allow separation "
+                          "after contact)", True)
             if law in LAW_NOTES:
                 self.note(_where(card), f"*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE={law} "
                           f"of interaction {name!r}: {LAW_NOTES[law]}", "the interface "
@@ -45,6 +53,13 @@ class DeckInteractions:
         else:
             self.note(_where(card), f"*{card.keyword} of interaction {name!r} is not used",
                       _HARMLESS[card.keyword], False)
+
+    def _rough(self, interaction, card):
+        """``*FRICTION, ROUGH``: no slip, qsma's largest mu (named)."""
+        interaction["mu"] = MU_NO_SLIP
+        self.note(_where(card), f"*FRICTION, ROUGH of interaction {interaction['name']!r} "
+                  f"(no slip)", f"taken as mu = {MU_NO_SLIP:g}: a pair then slips only as "
+                  f"it opens", False)
 
     def _interaction(self, name):
         if name is None:

@@ -14,8 +14,8 @@ from ..mesh.io.assembly import read_assembly
 from ..units import SI, UNIT_SYSTEMS, plausible, unit_system
 from .bolts import DeckBolts
 from .loads import SupportsAndLoads
+from .parts import PartBodies
 from .probe import ProbeAndLevels
-from ..fe.formulation import nearest_element
 from .general_contact import GENERAL_CONTACT_CARDS, GeneralContact
 from .interactions import DeckInteractions
 from .ties import DeckTies, is_tied
@@ -58,7 +58,7 @@ def read_deck(path, *, mode: int = 0, tip_node: int | None = None,
 
 
 class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, GeneralContact,
-                  DeckInteractions, DeckTies):
+                  DeckInteractions, DeckTies, PartBodies):
     """What :func:`read_deck` builds, step by step."""
 
     def __init__(self, path, cards, assembly, density=None):
@@ -171,6 +171,7 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, GeneralContact,
     # --- the run ----------------------------------------------------------------------
     def deck(self, mode, tip_node, tip_direction, levels, units=None) -> Deck:
         bodies = self._body_list = self._bodies()
+        self._formulations(bodies)
         preload = self._preload_step()
         bolts = self._bolts(bodies, preload)
         self._frequency = self._frequency_step()
@@ -227,7 +228,9 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, GeneralContact,
             return None
         if preload.nlgeom:
             self.note(preload.where, "NLGEOM of the preload step", "qsma's preload is "
-                      "small-displacement (with frictional contact)", False)
+                      "small-displacement (with frictional contact), as with NLGEOM=NO: "
+                      "the two agree where the preload's rotations are small, as under a "
+                      "bolt", False)
         for s in self.steps:
             if s is preload or (s.procedure == "FREQUENCY" and not _loads_in(s)):
                 continue
@@ -242,6 +245,13 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, GeneralContact,
         step = next((s for s in self.steps if s.procedure == "FREQUENCY"), None)
         if step is None:
             return None
+        card = next(c for c in self.cards if c.keyword == "STEP" and _where(c) == step.where)
+        if "PERTURBATION" not in card.params and step.index > 0:
+            self.note(step.where, "the *FREQUENCY step is no PERTURBATION step", "CalculiX "
+                      "computes its modes without the preload's contact (the bodies apart); "
+                      "qsma's mode is that of the structure tied after the preload, which "
+                      "CalculiX computes with *STEP, PERTURBATION (as Abaqus always does)",
+                      False)
         try:
             return int(float(step.data[0][0])) if step.data and step.data[0] else None
         except ValueError:
@@ -304,49 +314,6 @@ class _DeckReader(SupportsAndLoads, ProbeAndLevels, DeckBolts, GeneralContact,
                       "a contact interface joins two bodies: mesh the parts apart (no "
                       "shared nodes) or as *INSTANCEs of parts", True)
         return bodies
-
-    def _instance_bodies(self, instances) -> list:
-        """The bodies of a deck with parts: one per instance; the one material of the
-        deck (sections inside parts are not matched to instances)."""
-        materials = {s[1].upper() for s in self.sections}
-        section = self.sections[0] if len(materials) == 1 else None
-        bodies = []
-        for k, inst in enumerate(instances):
-            name = str(inst.params.get("NAME", f"instance{k + 1}"))
-            table = {"name": name, "mesh": self.path.name, "cells": name}
-            self.comments[("bodies", k, "cells")] = f"*INSTANCE, {_where(inst)}"
-            if section is None:
-                self.note(_where(inst), f"the material of instance {name!r}: the deck has "
-                          f"{len(materials)} materials", "qsma matches the one material of "
-                          "a deck with parts; give E, nu and rho per body in the TOML "
-                          "(qsma init)", True)
-            self._material_keys(table, k, section)
-            mesh = self.asm.body_mesh(name)
-            self._element_key(table, k, mesh)
-            bodies.append({"table": table, "mesh": mesh,
-                           "thickness": section[2] if section else 1.0})
-        return bodies
-
-    def _element_key(self, table, k, mesh):
-        """``element`` of a body whose elements qsma computes as their nearest one
-        (``C3D8R`` as ``C3D8I``, ...), with a note each; nothing where all are its own."""
-        found = {}
-        for block in [mesh] + list(mesh.extra_blocks):
-            near = nearest_element(block.element, block.cell_type)
-            if near is not None:
-                found[str(block.element).upper()] = near
-        if not found:
-            return
-        table["element"] = next(iter(found.values()))[0] if not mesh.extra_blocks \
-            else "nearest"
-        for old, (new, why) in found.items():
-            card = next((c for c in self.cards if c.keyword == "ELEMENT" and
-                         str(c.params.get("TYPE", "")).upper() == old), None)
-            self.note(_where(card) if card is not None else self.path.name,
-                      f"{old} elements are computed as {new}",
-                      why, False)
-        self.comments[("bodies", k, "element")] = "; ".join(
-            f"the deck's {old} computed as {new}" for old, (new, _) in found.items())
 
     def _elset(self, name):
         """The spelling of element set ``name`` in the file (names ignore case)."""

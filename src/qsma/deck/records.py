@@ -30,6 +30,8 @@ _HARMLESS = {
     "CONTACT DAMPING": "viscous contact damping: qsma's joint damping is the friction's",
     "ORIENTATION": "a local material system (the materials read are isotropic)",
     "DAMPING": "material damping: qsma's damping is the joint's friction",
+    "SECTION CONTROLS": "hourglass and distortion controls of reduced-integration "
+                        "elements, which qsma does not compute (their *ELEMENT is named)",
 }
 
 #: How a bolt is written in a deck, for the notes on couplings, springs and beams that

@@ -20,6 +20,7 @@ from ...celltypes import CELL_TYPES, TYPES, outward_abaqus_faces
 from ...mesh import Mesh
 from ..common import (_MAX_ID, _cell_type_of, _ContactPair, _Elements, _FileMesh, _IdLookup,
                       _to_mesh)
+from .references import load_id_sets, name_in_row, named_internal_sets
 from .instances import check_instances_closed, flatten_instances, needs_flattening, placement
 from .lexer import (ABAQUS_ELEMENT_TYPES, CONNECTOR_TYPES, _Card, _abaqus_cell_type,
                     _abaqus_float, _connector_ids, _inp_cards, _inp_error, _integer,
@@ -68,6 +69,7 @@ class _InpReader:
         self.interaction = None     # the *SURFACE INTERACTION being defined
         self.boundaries = []        # (node set or node id, first dof, last dof, where)
         self.load_ids = {"NSET": set(), "ELSET": set()}   # ids a *CLOAD / *DLOAD names
+        self.named = {"NSET": set(), "ELSET": set()}      # sets they name (upper case)
         self.connectors = []        # ids of the skipped connector elements (arrays)
         self.cuts = set()           # surfaces of *PRE-TENSION SECTION (upper case)
 
@@ -125,7 +127,8 @@ class _InpReader:
                                          self.friction.get((inter or "").upper()), kind, where)
                             for slave, master, inter, kind, where in self.pairs]
         fm.boundaries = self._boundary_sets(fm, nodes, elsets, index)
-        self._load_id_sets(fm, nodes, elements)
+        load_id_sets(self, fm, nodes, elements)
+        named_internal_sets(self, fm, nodes, elsets, index)
         return fm, vtypes
 
     def _check_node_rows(self, dim: int):
@@ -171,19 +174,6 @@ class _InpReader:
                     fm.node_sets[name] = [self._node_indices(s, nodes, elsets, index)]
             out.append((name, first, last))
         return out
-
-    def _load_id_sets(self, fm, nodes: _IdLookup, elements: _IdLookup):
-        """A node (element) that a *CLOAD (*DLOAD) row names by its id gets a node set
-        ``_N<id>`` (a cell set ``_E<id>``) of its own, so that a configuration can name
-        it (qsma.deck)."""
-        is_cell = np.concatenate([np.full(len(conn), bool(cell))
-                                  for _, _, conn, cell in fm.blocks])
-        for kind, lookup, sets, prefix in (("NSET", nodes, fm.node_sets, "_N"),
-                                           ("ELSET", elements, fm.element_sets, "_E")):
-            for ident in sorted(self.load_ids[kind]):
-                idx = lookup(np.array([ident]))
-                if idx[0] >= 0 and (kind == "NSET" or is_cell[idx[0]]):
-                    sets.setdefault(f"{prefix}{ident}", []).append(idx)
 
     def _element(self, vtype: str) -> str:
         """The one Abaqus element type (upper case) of the cells."""
@@ -538,6 +528,7 @@ def _inp_boundary(r: _InpReader, card: _Card):
     """Homogeneous ``*BOUNDARY`` rows ``node or set, first dof[, last dof[, 0]]`` (dofs
     1-3: displacements); other rows (prescribed values, types) are left out."""
     for where, tokens, text in _rows(card):
+        name_in_row(r, "NSET", tokens)
         try:
             first = int(tokens[1]) if len(tokens) > 1 and tokens[1] else None
             last = int(tokens[2]) if len(tokens) > 2 and tokens[2] else first
@@ -558,6 +549,8 @@ def _inp_load_ids(kind: str):
         for _, tokens, _ in _rows(card):
             if tokens and re.fullmatch(r"[+-]?\d{1,18}", tokens[0]):
                 r.load_ids[kind].add(int(tokens[0]))
+            else:
+                name_in_row(r, kind, tokens)
     return handler
 
 
