@@ -18,7 +18,7 @@ read).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import re
 
 from ..errors import InputError
@@ -264,7 +264,6 @@ def with_element(mesh, element: str):
     body's ``element`` key): an Abaqus/CalculiX name for a mesh of one cell type, or
     ``"nearest"``: each cell block's name replaced by :func:`nearest_element` where
     qsma does not implement it. Checked: :class:`InputError` naming what does not fit."""
-    from dataclasses import replace
     if str(element).strip().lower() == "nearest":
         def nearest(name, cell_type):
             found = nearest_element(name, cell_type)
